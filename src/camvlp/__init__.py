@@ -1,0 +1,32 @@
+"""camvlp: visible light positioning with a rolling-shutter camera.
+
+Find a camera's position from one photograph of coded ceiling lights: detect the fixtures,
+decode their IDs, look them up in a map of the room, and solve Perspective-n-Point.
+"""
+
+from .camera import Camera, Pose, euler_to_matrix, matrix_to_euler, project_points
+from .fixtures import Fixture, FixtureMap
+from .io import InputError, load_camera, load_image, load_map, save_camera, save_map
+from .linecode import ChipDecode, FrameFormat, chip_schedule, manchester_encode
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Camera",
+    "ChipDecode",
+    "Fixture",
+    "FixtureMap",
+    "FrameFormat",
+    "InputError",
+    "Pose",
+    "chip_schedule",
+    "euler_to_matrix",
+    "load_camera",
+    "load_image",
+    "load_map",
+    "manchester_encode",
+    "matrix_to_euler",
+    "project_points",
+    "save_camera",
+    "save_map",
+]

@@ -1,0 +1,297 @@
+"""Camera model: pinhole intrinsics with OpenCV lens distortion, poses, and the thesis' angles.
+
+Conventions (see ``docs/conventions.md``):
+
+* Camera frame: OpenCV's (x right, y down, z forward, out of the lens).
+* A :class:`Pose` stores ``world_from_camera``, the camera-to-world rotation ``R`` whose
+  columns are the camera's axes in world coordinates, and the camera centre ``C``.  A world
+  point ``X`` is at ``R.T @ (X - C)`` in camera coordinates.
+* The thesis' Euler angles ``(theta_x, theta_y, theta_z)`` in degrees give
+  ``R = Rx(theta_x) @ Ry(theta_y) @ Rz(theta_z)`` (Tait-Bryan z-y-x, thesis equation 3.5).
+  ``(90, 0, 0)`` makes the camera look along world -y, at the thesis' ceiling.
+* Image origin: the centre of the top-left pixel (OpenCV's convention).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "Camera",
+    "Pose",
+    "euler_to_matrix",
+    "matrix_to_euler",
+    "project_points",
+    "rotation_x",
+    "rotation_y",
+    "rotation_z",
+]
+
+
+def rotation_x(theta_deg: float) -> np.ndarray:
+    """Rotation about x by ``theta_deg`` degrees (right-hand rule), shape (3, 3)."""
+    t = np.deg2rad(theta_deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rotation_y(theta_deg: float) -> np.ndarray:
+    """Rotation about y by ``theta_deg`` degrees (right-hand rule), shape (3, 3)."""
+    t = np.deg2rad(theta_deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rotation_z(theta_deg: float) -> np.ndarray:
+    """Rotation about z by ``theta_deg`` degrees (right-hand rule), shape (3, 3)."""
+    t = np.deg2rad(theta_deg)
+    c, s = np.cos(t), np.sin(t)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def euler_to_matrix(euler_deg) -> np.ndarray:
+    """Camera-to-world rotation from the thesis' angles.
+
+    Parameters
+    ----------
+    euler_deg : array_like, shape (3,)
+        ``(theta_x, theta_y, theta_z)`` in degrees.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``Rx(theta_x) @ Ry(theta_y) @ Rz(theta_z)``; its columns are the camera axes in
+        world coordinates.
+    """
+    tx, ty, tz = _vector(euler_deg, 3, "euler_deg")
+    return rotation_x(tx) @ rotation_y(ty) @ rotation_z(tz)
+
+
+def matrix_to_euler(rotation) -> np.ndarray:
+    """Thesis angles ``(theta_x, theta_y, theta_z)`` in degrees of a rotation matrix.
+
+    Inverse of :func:`euler_to_matrix`, with ``theta_y`` in [-90, 90].  At gimbal lock
+    (``|theta_y| = 90``) ``theta_z`` is set to 0.
+
+    Parameters
+    ----------
+    rotation : array_like, shape (3, 3)
+        Camera-to-world rotation.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        Angles in degrees, each in (-180, 180].
+    """
+    r = np.asarray(rotation, dtype=float)
+    if r.shape != (3, 3):
+        raise ValueError(f"rotation must have shape (3, 3), got {r.shape}")
+    # R = Rx Ry Rz: R[0,2] = sin(ty); R[0,0] = cy cz; R[0,1] = -cy sz;
+    # R[1,2] = -sx cy; R[2,2] = cx cy.
+    sy = float(np.clip(r[0, 2], -1.0, 1.0))
+    ty = np.arcsin(sy)
+    if abs(sy) < 1.0 - 1e-12:
+        tx = np.arctan2(-r[1, 2], r[2, 2])
+        tz = np.arctan2(-r[0, 1], r[0, 0])
+    else:  # gimbal lock: only tx + sign*tz is defined; put it all in tx
+        tz = 0.0
+        tx = np.arctan2(r[2, 1], r[1, 1])
+    return np.rad2deg(np.array([tx, ty, tz]))
+
+
+def _vector(value, n: int, name: str) -> np.ndarray:
+    v = np.asarray(value, dtype=float).reshape(-1)
+    if v.shape != (n,) or not np.all(np.isfinite(v)):
+        raise ValueError(f"{name} must be {n} finite numbers, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A camera pose in the map's world frame.
+
+    Attributes
+    ----------
+    world_from_camera : ndarray, shape (3, 3)
+        Camera-to-world rotation ``R`` (camera axes as columns, in world coordinates).
+    position : ndarray, shape (3,)
+        Camera centre ``C`` in world coordinates (map units).
+    """
+
+    world_from_camera: np.ndarray
+    position: np.ndarray
+
+    def __post_init__(self) -> None:
+        r = np.asarray(self.world_from_camera, dtype=float)
+        if r.shape != (3, 3) or not np.all(np.isfinite(r)):
+            raise ValueError("world_from_camera must be a finite (3, 3) matrix")
+        if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+            raise ValueError("world_from_camera must be a proper rotation matrix")
+        object.__setattr__(self, "world_from_camera", r)
+        object.__setattr__(self, "position", _vector(self.position, 3, "position"))
+
+    @classmethod
+    def from_euler(cls, position, euler_deg) -> Pose:
+        """Pose from a camera centre (map units) and the thesis' angles (degrees)."""
+        return cls(euler_to_matrix(euler_deg), position)
+
+    @classmethod
+    def from_rvec_tvec(cls, rvec, tvec) -> Pose:
+        """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
+        r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
+        t = np.asarray(tvec, dtype=float).reshape(3)
+        return cls(r_cw.T, -r_cw.T @ t)
+
+    @property
+    def euler_deg(self) -> np.ndarray:
+        """The thesis' angles ``(theta_x, theta_y, theta_z)`` in degrees, shape (3,)."""
+        return matrix_to_euler(self.world_from_camera)
+
+    @property
+    def camera_from_world(self) -> np.ndarray:
+        """World-to-camera rotation ``R.T``, shape (3, 3)."""
+        return self.world_from_camera.T
+
+    def rvec_tvec(self) -> tuple[np.ndarray, np.ndarray]:
+        """OpenCV's ``camera_from_world`` Rodrigues vector and translation, each shape (3,)."""
+        r_cw = self.camera_from_world
+        rvec, _ = cv2.Rodrigues(r_cw)
+        return rvec.reshape(3), -r_cw @ self.position
+
+    def to_camera(self, points_world) -> np.ndarray:
+        """World points (N, 3) to camera coordinates (N, 3), same units."""
+        p = np.asarray(points_world, dtype=float).reshape(-1, 3)
+        return (p - self.position) @ self.world_from_camera
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A calibrated camera: pinhole intrinsics, OpenCV distortion, and sensor timing.
+
+    Attributes
+    ----------
+    width, height : int
+        Image size in pixels.
+    matrix : ndarray, shape (3, 3)
+        Intrinsic matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`` in pixels.
+    distortion : ndarray, shape (N,)
+        OpenCV distortion coefficients (k1 k2 p1 p2 [k3 ...]); empty for none.
+    row_time_s : float or None
+        Seconds between the starts of two consecutive sensor rows (rolling shutter).
+    mirrored : bool
+        The stored photographs are mirror images (flip them left-right before locating).
+    readout : {"rows", "columns", None}
+        Which image axis the sensor reads out along: ``"rows"`` when sensor rows are image
+        rows (stripes horizontal), ``"columns"`` for a photo stored in portrait (stripes
+        vertical); None to find it from the image.
+    """
+
+    width: int
+    height: int
+    matrix: np.ndarray
+    distortion: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    row_time_s: float | None = None
+    mirrored: bool = False
+    readout: str | None = None
+
+    def __post_init__(self) -> None:
+        if int(self.width) <= 0 or int(self.height) <= 0:
+            raise ValueError(f"image size must be positive, got {self.width} x {self.height}")
+        k = np.asarray(self.matrix, dtype=float)
+        if k.shape != (3, 3) or not np.all(np.isfinite(k)):
+            raise ValueError("camera matrix must be a finite 3 x 3 matrix")
+        if k[0, 0] <= 0 or k[1, 1] <= 0 or not np.allclose(k[2], [0, 0, 1]):
+            raise ValueError("camera matrix must have positive focal lengths and last row 0 0 1")
+        d = np.asarray(self.distortion, dtype=float).reshape(-1)
+        if d.size not in (0, 4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
+            raise ValueError(
+                f"distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, got {d.size}"
+            )
+        if self.row_time_s is not None and not (0 < float(self.row_time_s) < 1):
+            raise ValueError(f"row_time_s must be a positive number of seconds, got {self.row_time_s}")
+        if self.readout not in (None, "rows", "columns"):
+            raise ValueError(f"readout must be 'rows' or 'columns', got {self.readout!r}")
+        object.__setattr__(self, "width", int(self.width))
+        object.__setattr__(self, "height", int(self.height))
+        object.__setattr__(self, "matrix", k)
+        object.__setattr__(self, "distortion", d)
+
+    @classmethod
+    def from_focal(
+        cls, width: int, height: int, focal_px: float, principal_point=None, **kwargs
+    ) -> Camera:
+        """A camera with square pixels; the principal point defaults to the image centre."""
+        if principal_point is None:
+            principal_point = ((width - 1) / 2.0, (height - 1) / 2.0)
+        cx, cy = principal_point
+        k = np.array([[focal_px, 0.0, cx], [0.0, focal_px, cy], [0.0, 0.0, 1.0]])
+        return cls(width, height, k, **kwargs)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)`` in pixels."""
+        return self.width, self.height
+
+    @property
+    def focal_px(self) -> float:
+        """Mean focal length ``(fx + fy) / 2`` in pixels."""
+        return float(0.5 * (self.matrix[0, 0] + self.matrix[1, 1]))
+
+    @property
+    def dist_or_none(self) -> np.ndarray | None:
+        """Distortion coefficients for OpenCV calls, or None when there are none."""
+        return self.distortion if self.distortion.size and np.any(self.distortion) else None
+
+    def project(self, pose: Pose, points_world) -> np.ndarray:
+        """Project world points into the image, with lens distortion.
+
+        Parameters
+        ----------
+        pose : Pose
+            The camera's pose.
+        points_world : array_like, shape (N, 3)
+            Points in world coordinates (map units).
+
+        Returns
+        -------
+        ndarray, shape (N, 2)
+            Pixel coordinates ``[u, v]``.  Points behind the camera get NaN.
+        """
+        return project_points(self, pose, points_world)
+
+    def undistort_pixels(self, pixels) -> np.ndarray:
+        """Normalised, undistorted image coordinates ``(x/z, y/z)`` of pixels, shape (N, 2)."""
+        p = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+        if self.dist_or_none is None:
+            k = self.matrix
+            out = (p.reshape(-1, 2) - k[:2, 2]) / np.array([k[0, 0], k[1, 1]])
+            out[:, 0] -= k[0, 1] / k[1, 1] * out[:, 1]
+            return out
+        crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)
+        return cv2.undistortPointsIter(p, self.matrix, self.distortion, None, None, crit).reshape(
+            -1, 2
+        )
+
+    def with_size(self, width: int, height: int) -> Camera:
+        """This camera with a new image size (the intrinsics are kept)."""
+        return Camera(
+            width, height, self.matrix, self.distortion, self.row_time_s, self.mirrored,
+            self.readout,
+        )
+
+
+def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:
+    """Project world points with a camera at a pose; see :meth:`Camera.project`."""
+    p = np.asarray(points_world, dtype=float).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros((0, 2))
+    rvec, tvec = pose.rvec_tvec()
+    d = camera.distortion if camera.distortion.size else None
+    uv, _ = cv2.projectPoints(p, rvec, tvec, camera.matrix, d)
+    uv = uv.reshape(-1, 2)
+    behind = pose.to_camera(p)[:, 2] <= 0
+    uv[behind] = np.nan
+    return uv

@@ -1,0 +1,63 @@
+"""The ``camvlp`` Typer application and its shared error handling."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from functools import wraps
+from typing import NoReturn, TypeVar
+
+import typer
+
+from ..io import InputError
+
+app = typer.Typer(
+    name="camvlp",
+    help="Visible light positioning with a rolling-shutter camera.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+#: Exit codes (docs/cli.md): located / not located / bad input or usage.
+EXIT_OK, EXIT_NOT_LOCATED, EXIT_BAD_INPUT = 0, 1, 2
+
+F = TypeVar("F", bound=Callable)
+
+
+def fail(what: str, code: int = EXIT_BAD_INPUT) -> NoReturn:
+    """Print ``error: <what>`` on stderr and exit with ``code``."""
+    print(f"error: {what}", file=sys.stderr)
+    raise typer.Exit(code)
+
+
+def handle_errors(func: F) -> F:
+    """Turn bad input anywhere below a command into one line on stderr and exit code 2."""
+
+    @wraps(func)
+    def wrapper(*args, **kwargs):
+        try:
+            return func(*args, **kwargs)
+        except InputError as exc:
+            fail(str(exc))
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+
+    return wrapper  # type: ignore[return-value]
+
+
+def parse_floats(text: str, n: int, name: str) -> list[float]:
+    """Parse ``"a,b,c"`` into ``n`` floats, or fail with a usage error naming ``name``."""
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",") if v != ""]
+    except ValueError:
+        values = []
+    if len(values) != n:
+        fail(f"{name} must be {n} comma-separated numbers, got {text!r}")
+    return values
+
+
+@app.callback()
+def _root() -> None:
+    """camvlp: find a camera's position from one photograph of coded ceiling lights."""

@@ -1,0 +1,57 @@
+"""``camvlp encode``: a fixture's frame, chips and driver schedule."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..io import load_map
+from ..linecode import FrameFormat, chip_schedule
+from ._app import app, fail, handle_errors
+
+
+@app.command()
+@handle_errors
+def encode(
+    fixture_id: Annotated[int, typer.Argument(metavar="ID", help="The fixture's ID.")],
+    chip_rate: Annotated[
+        float, typer.Option("--chip-rate", help="Chips per second (Hz), for the schedule.")
+    ] = 10_000.0,
+    map_path: Annotated[
+        Path | None, typer.Option("--map", help="Take the frame format from this map file.")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Print a fixture's frame bits, its Manchester chips, and the LED's on/off schedule."""
+    frame = load_map(map_path).frame if map_path else FrameFormat()
+    if chip_rate <= 0:
+        fail(f"--chip-rate must be positive, got {chip_rate}")
+    try:
+        bits = frame.bits(fixture_id)
+    except ValueError as exc:
+        fail(str(exc))
+    chips = frame.chips(fixture_id)
+    schedule = chip_schedule(chips, chip_rate)
+    chip_str = "".join(map(str, chips))
+    if as_json:
+        print(
+            json.dumps(
+                {
+                    "id": fixture_id,
+                    "bits": bits,
+                    "chips": chip_str,
+                    "chip_rate_hz": chip_rate,
+                    "frame_duration_s": len(chips) / chip_rate,
+                    "schedule": [{"on": bool(s), "duration_s": d} for s, d in schedule],
+                }
+            )
+        )
+        return
+    print(f"id        {fixture_id}")
+    print(f"bits      {bits}  (preamble {frame.preamble}, id, postamble {frame.postamble})")
+    print(f"chips     {chip_str}  (0 -> 10, 1 -> 01; 1 = light on)")
+    print(f"frame     {len(chips)} chips, {len(chips) / chip_rate * 1e6:.1f} us at {chip_rate:g} Hz")
+    print("schedule  " + ", ".join(f"{'on' if s else 'off'} {d * 1e6:.1f} us" for s, d in schedule))

@@ -1,0 +1,239 @@
+"""The line code: frames, Manchester chips, and cyclic decoding (thesis section 5.4).
+
+A fixture repeats its frame without gaps: a preamble (default ``111``), its ID in
+``id_bits`` bits (most significant first), a postamble (default ``00``).  Each bit is sent
+as two chips: bit 0 as chips ``1, 0`` and bit 1 as chips ``0, 1``.  Chip 1 is light on.
+
+Decoding is cyclic: any ``n_chips`` consecutive chips of the repeating stream, starting at
+any chip (so in either Manchester phase), identify the ID.  The decoder compares the chips
+with every rotation of every ID's chip sequence and accepts the nearest ID only when it is
+within the format's guaranteed correction radius and strictly nearer than any other ID, so
+it never returns a wrong ID for errors within that radius.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+__all__ = ["ChipDecode", "FrameFormat", "chip_schedule", "manchester_encode"]
+
+
+def manchester_encode(bits) -> np.ndarray:
+    """Manchester chips of a bit sequence: 0 -> (1, 0), 1 -> (0, 1).
+
+    Parameters
+    ----------
+    bits : str or array_like of {0, 1}, shape (N,)
+
+    Returns
+    -------
+    ndarray of uint8, shape (2 N,)
+    """
+    b = _bits_array(bits)
+    chips = np.empty(2 * b.size, dtype=np.uint8)
+    chips[0::2] = 1 - b
+    chips[1::2] = b
+    return chips
+
+
+def _bits_array(bits) -> np.ndarray:
+    if isinstance(bits, str):
+        if any(c not in "01" for c in bits):
+            raise ValueError(f"bits must be a string of 0 and 1, got {bits!r}")
+        return np.frombuffer(bits.encode(), dtype=np.uint8) - ord("0")
+    b = np.asarray(bits).reshape(-1)
+    if not np.all((b == 0) | (b == 1)):
+        raise ValueError("bits must be 0 or 1")
+    return b.astype(np.uint8)
+
+
+def chip_schedule(chips, chip_rate_hz: float) -> list[tuple[int, float]]:
+    """The LED's on/off schedule for one frame: runs of equal chips and their durations.
+
+    Parameters
+    ----------
+    chips : array_like of {0, 1}, shape (N,)
+        One frame of chips (1 = light on).
+    chip_rate_hz : float
+        Chips per second.
+
+    Returns
+    -------
+    list of (state, duration_s)
+        ``state`` is 1 (on) or 0 (off); durations in seconds.  Runs are not merged across the
+        frame's wrap-around, so the schedule repeats exactly.
+    """
+    if not chip_rate_hz > 0:
+        raise ValueError(f"chip_rate_hz must be positive, got {chip_rate_hz}")
+    c = _bits_array(chips)
+    edges = np.flatnonzero(np.diff(c)) + 1
+    starts = np.concatenate([[0], edges])
+    lengths = np.diff(np.concatenate([starts, [c.size]]))
+    return [(int(c[s]), float(n) / chip_rate_hz) for s, n in zip(starts, lengths, strict=True)]
+
+
+@dataclass(frozen=True)
+class ChipDecode:
+    """The result of decoding a chip sequence.
+
+    Attributes
+    ----------
+    id : int or None
+        The decoded ID, or None when the chips do not identify one unambiguously.
+    distance : int
+        Chips that disagree with the decoded (or nearest) ID's stream (Hamming distance).
+    runner_up_distance : int
+        Hamming distance to the nearest other ID; ``runner_up_distance - distance`` is the
+        decision margin in chips.
+    offset : int
+        Chip index, within the frame, of the first chip given; odd offsets are the other
+        Manchester phase.
+    reason : str
+        Why no ID was returned ("" when one was).
+    """
+
+    id: int | None
+    distance: int
+    runner_up_distance: int
+    offset: int
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return self.id is not None
+
+
+@dataclass(frozen=True)
+class FrameFormat:
+    """A Manchester frame: preamble, ID bits, postamble (thesis: ``111``, 4, ``00``).
+
+    Raises ValueError when a part is malformed or when two IDs of the format could be
+    confused: some rotation of one ID's chip stream equals some rotation of another's.
+    """
+
+    preamble: str = "111"
+    id_bits: int = 4
+    postamble: str = "00"
+
+    def __post_init__(self) -> None:
+        for name in ("preamble", "postamble"):
+            value = getattr(self, name)
+            if not isinstance(value, str) or any(c not in "01" for c in value):
+                raise ValueError(f"frame {name} must be a string of 0 and 1, got {value!r}")
+        if not isinstance(self.id_bits, int) or not 1 <= self.id_bits <= 12:
+            raise ValueError(f"frame id_bits must be an integer from 1 to 12, got {self.id_bits!r}")
+        if self.min_distance == 0:
+            raise ValueError(
+                f"frame format {self.preamble}+{self.id_bits} bits+{self.postamble} is ambiguous: "
+                "a rotation of one ID's frame equals a rotation of another's"
+            )
+
+    @property
+    def n_ids(self) -> int:
+        """Number of IDs the format can carry (``2 ** id_bits``)."""
+        return 1 << self.id_bits
+
+    @property
+    def n_bits(self) -> int:
+        """Bits per frame."""
+        return len(self.preamble) + self.id_bits + len(self.postamble)
+
+    @property
+    def n_chips(self) -> int:
+        """Chips per frame (two per bit)."""
+        return 2 * self.n_bits
+
+    def check_id(self, fixture_id: int) -> int:
+        """Return ``fixture_id`` if it fits the format, else raise ValueError."""
+        if not isinstance(fixture_id, (int, np.integer)) or isinstance(fixture_id, bool):
+            raise ValueError(f"fixture ID must be an integer, got {fixture_id!r}")
+        if not 0 <= fixture_id < self.n_ids:
+            raise ValueError(
+                f"fixture ID {fixture_id} does not fit in {self.id_bits} bits (0 to {self.n_ids - 1})"
+            )
+        return int(fixture_id)
+
+    def bits(self, fixture_id: int) -> str:
+        """The frame's bits as a string, e.g. ``'111010100'`` for ID 5."""
+        fid = self.check_id(fixture_id)
+        return self.preamble + format(fid, f"0{self.id_bits}b") + self.postamble
+
+    def chips(self, fixture_id: int) -> np.ndarray:
+        """The frame's Manchester chips, uint8 array of shape (n_chips,)."""
+        return manchester_encode(self.bits(fixture_id))
+
+    @cached_property
+    def codebook(self) -> np.ndarray:
+        """Chips of every ID, uint8 array of shape (n_ids, n_chips)."""
+        return np.stack([self.chips(i) for i in range(self.n_ids)])
+
+    @cached_property
+    def _rotations(self) -> np.ndarray:
+        """Every rotation of every ID: shape (n_ids, n_chips, n_chips), ``[i, r]`` starts at r."""
+        n = self.n_chips
+        idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
+        return self.codebook[:, idx]
+
+    @cached_property
+    def min_distance(self) -> int:
+        """Least Hamming distance between any rotations of two different IDs' frames."""
+        rot = self._rotations.reshape(-1, self.n_chips)
+        owner = np.repeat(np.arange(self.n_ids), self.n_chips)
+        ref = self.codebook  # rotation 0 of each ID is enough: distance is rotation-invariant
+        d = (ref[:, None, :] != rot[None, :, :]).sum(axis=2)
+        d[owner[None, :] == np.arange(self.n_ids)[:, None]] = self.n_chips + 1
+        return int(d.min())
+
+    def decode(self, chips, *, known=None, max_errors: int | None = None) -> ChipDecode:
+        """Decode a stretch of the repeating chip stream cyclically.
+
+        Parameters
+        ----------
+        chips : array_like of {0, 1}, shape (L,)
+            Consecutive chips (1 = light on), starting at any chip of the frame.
+        known : array_like of bool, shape (L,), optional
+            Which chips were observed with confidence; the others (erasures) are ignored.
+            Every chip position of the frame must be known at least once.
+        max_errors : int, optional
+            Largest Hamming distance accepted.  The default, and the most ever accepted, is
+            the radius within which the nearest ID is guaranteed right: with the known chips
+            covering every frame position ``k`` times, ``(k * min_distance - 1) // 2``.
+
+        Returns
+        -------
+        ChipDecode
+            Falsy, with a reason, when no ID is within the radius or two IDs tie.
+        """
+        c = _bits_array(chips)
+        n = self.n_chips
+        mask = np.ones(c.size, bool) if known is None else np.asarray(known, bool).reshape(-1)
+        if mask.shape != c.shape:
+            raise ValueError("known must have the same length as chips")
+        cols = np.arange(c.size) % n
+        coverage = int(np.bincount(cols[mask], minlength=n).min()) if c.size else 0
+        if coverage == 0:
+            return ChipDecode(
+                None, -1, -1, 0, f"{int(mask.sum())} chips seen, not one whole frame of {n}"
+            )
+        limit = (coverage * self.min_distance - 1) // 2
+        if max_errors is not None:
+            limit = min(limit, int(max_errors))
+        expected = self._rotations[:, :, cols[mask]]  # (ids, rotations, known chips)
+        dist = (expected != c[mask][None, None, :]).sum(axis=2)  # (ids, rotations)
+        best_rot = dist.argmin(axis=1)
+        per_id = dist[np.arange(self.n_ids), best_rot]
+        order = np.argsort(per_id, kind="stable")
+        best = int(order[0])
+        d_best = int(per_id[best])
+        d_second = int(per_id[order[1]]) if self.n_ids > 1 else c.size + 1
+        offset = int(best_rot[best])
+        if d_best == d_second:
+            return ChipDecode(None, d_best, d_second, offset, "two IDs fit equally well")
+        if d_best > limit:
+            return ChipDecode(
+                None, d_best, d_second, offset,
+                f"{d_best} chips disagree with the nearest ID (at most {limit} correctable)",
+            )
+        return ChipDecode(best, d_best, d_second, offset)
