@@ -205,6 +205,10 @@ class Camera:
             raise ValueError("camera matrix must be a finite 3 x 3 matrix")
         if k[0, 0] <= 0 or k[1, 1] <= 0 or not np.allclose(k[2], [0, 0, 1]):
             raise ValueError("camera matrix must have positive focal lengths and last row 0 0 1")
+        if abs(k[0, 1]) > 1e-9 * k[0, 0] or k[1, 0] != 0:
+            raise ValueError(
+                f"camera matrix must have zero skew (OpenCV's model has none), got {k[0, 1]:g}"
+            )
         d = np.asarray(self.distortion, dtype=float).reshape(-1)
         if d.size not in (0, 4, 5, 8, 12, 14) or not np.all(np.isfinite(d)):
             raise ValueError(
@@ -267,13 +271,13 @@ class Camera:
         p = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
         if self.dist_or_none is None:
             k = self.matrix
-            out = (p.reshape(-1, 2) - k[:2, 2]) / np.array([k[0, 0], k[1, 1]])
-            out[:, 0] -= k[0, 1] / k[1, 1] * out[:, 1]
-            return out
+            return (p.reshape(-1, 2) - k[:2, 2]) / np.array([k[0, 0], k[1, 1]])
         crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)
-        return cv2.undistortPointsIter(p, self.matrix, self.distortion, None, None, crit).reshape(
-            -1, 2
-        )
+        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4
+            out = cv2.undistortPointsIter(p, self.matrix, self.distortion, None, None, crit)
+        else:  # OpenCV 5: undistortPoints takes the criteria itself
+            out = cv2.undistortPoints(p, self.matrix, self.distortion, criteria=crit)
+        return out.reshape(-1, 2)
 
     def with_size(self, width: int, height: int) -> Camera:
         """This camera with a new image size (the intrinsics are kept)."""

@@ -194,11 +194,19 @@ def load_map(path: str | Path) -> FixtureMap:
     mode = str(frame_spec.get("mode", frame_spec.get("line_code", "manchester"))).lower()
     if mode not in ("manchester", "frequency"):
         raise InputError(f"frame mode must be manchester or frequency, got {mode!r}", p)
+    for key, default in (("preamble", "111"), ("postamble", "00")):
+        # YAML reads an unquoted 00 as the number 0: insist on strings, never guess
+        if not isinstance(frame_spec.get(key, default), str):
+            raise InputError(
+                f'frame {key} must be a quoted string of 0 and 1 such as "{default}", '
+                f"got {frame_spec[key]!r}",
+                p,
+            )
     try:
         frame = FrameFormat(
-            str(frame_spec.get("preamble", "111")),
+            frame_spec.get("preamble", "111"),
             frame_spec.get("id_bits", 4),
-            str(frame_spec.get("postamble", "00")),
+            frame_spec.get("postamble", "00"),
         )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
@@ -299,8 +307,39 @@ def load_image(path: str | Path) -> np.ndarray:
 
 
 def _truncated_jpeg(raw: np.ndarray) -> bool:
-    """A JPEG (starts with FF D8) whose end-of-image marker FF D9 is missing."""
+    """A JPEG (starts with FF D8) whose end-of-image marker FF D9 is missing.
+
+    Some phones append data after the image (motion-photo video, vendor trailers), so when
+    the file does not end with FF D9 the marker segments are walked to find the image's end.
+    """
     if raw.size < 4 or raw[0] != 0xFF or raw[1] != 0xD8:
         return False
-    tail = raw[-64:].tobytes()
-    return b"\xff\xd9" not in tail
+    if b"\xff\xd9" in raw[-64:].tobytes():
+        return False
+    b = raw.tobytes()
+    i = 2
+    while i + 1 < len(b):
+        if b[i] != 0xFF:
+            return True  # lost the marker chain: corrupt or cut
+        marker = b[i + 1]
+        if marker == 0xD9:
+            return False
+        if marker == 0xFF or 0xD0 <= marker <= 0xD7 or marker == 0x01:
+            i += 1 if marker == 0xFF else 2  # fill byte or marker without a length
+            continue
+        if i + 3 >= len(b):
+            return True
+        i += 2 + ((b[i + 2] << 8) | b[i + 3])
+        if marker == 0xDA:  # start of scan: skip entropy-coded data to the next marker
+            while True:
+                j = b.find(b"\xff", i)
+                if j < 0 or j + 1 >= len(b):
+                    return True
+                if b[j + 1] == 0x00 or 0xD0 <= b[j + 1] <= 0xD7:
+                    i = j + 2  # stuffed byte or restart marker
+                elif b[j + 1] == 0xFF:
+                    i = j + 1  # fill byte before a marker
+                else:
+                    i = j
+                    break
+    return True
