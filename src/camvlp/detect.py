@@ -1,0 +1,357 @@
+"""Stage 1: find the fixtures in a photograph (thesis section 5.2, made fast and sub-pixel).
+
+Candidates are found on a reduced copy of the image (threshold, then closing so that each
+striped disc becomes one blob, then connected components).  Each candidate is then worked at
+full resolution inside its region of interest only: a threshold of its own, a closing along
+the sensor's readout axis that fills the dark stripes, and the disc's outline.  The centre is
+the centre of an ellipse fitted to sub-pixel edge points of the lit rows, so it comes from the
+disc and not from the stripes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = ["Blob", "Detection", "detect_fixtures", "find_readout_axis", "to_gray"]
+
+
+@dataclass(frozen=True)
+class Blob:
+    """One detected fixture.
+
+    Attributes
+    ----------
+    pixel : ndarray, shape (2,)
+        Centre of the disc ``[u, v]`` in full-resolution pixels (sub-pixel).
+    box : tuple of int
+        Region of interest ``(x0, y0, x1, y1)``, full resolution, end exclusive.
+    mask : ndarray of bool, shape (y1 - y0, x1 - x0)
+        The disc, stripes filled, inside the region of interest.
+    axes_px : ndarray, shape (2,)
+        Full lengths of the fitted ellipse's axes, pixels (major first).
+    angle_deg : float
+        Orientation of the fitted ellipse (OpenCV's convention), degrees.
+    touches_border : bool
+        The disc is cut by the image border (its centre would be biased).
+    axis : str
+        Readout axis seen in this blob: ``"rows"`` (horizontal stripes) or ``"columns"``.
+    stripe_contrast : float
+        Variance ratio of the profile along the readout axis to the profile across it; high
+        for a striped disc, near 1 for a steady light.
+    edge_points : int
+        Edge points the ellipse was fitted to (0 when the centroid was used instead).
+    """
+
+    pixel: np.ndarray
+    box: tuple[int, int, int, int]
+    mask: np.ndarray
+    axes_px: np.ndarray
+    angle_deg: float
+    touches_border: bool
+    axis: str
+    stripe_contrast: float
+    edge_points: int
+
+
+@dataclass(frozen=True)
+class Detection:
+    """All blobs of one image, and the reduced-image mask they came from (for debugging).
+
+    Attributes
+    ----------
+    blobs : tuple of Blob
+        Detected fixtures, sorted by ``v`` then ``u``.
+    scale : int
+        Reduction factor of the candidate search (full-resolution px per reduced px).
+    candidate_mask : ndarray of uint8, shape (H // scale, W // scale)
+        The closed binary mask of the reduced image (255 = candidate).
+    threshold : float
+        Threshold used on the reduced image, 0-255 gray levels.
+    """
+
+    blobs: tuple[Blob, ...]
+    scale: int
+    candidate_mask: np.ndarray
+    threshold: float
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim == 3:
+        if img.shape[2] == 4:
+            img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if img.ndim != 2:
+        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype != np.uint8:
+        f = img.astype(np.float32)
+        hi = float(f.max()) if f.size else 1.0
+        img = np.clip(f * (255.0 / hi if hi > 1.0 else 255.0), 0, 255).astype(np.uint8)
+    return img
+
+
+def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
+    """Which way the stripes run inside a disc.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The region of interest.
+    mask : ndarray of bool, shape (h, w)
+        The disc.
+
+    Returns
+    -------
+    axis : str
+        ``"rows"`` when intensity changes from row to row (horizontal stripes, sensor rows
+        are image rows), ``"columns"`` when it changes from column to column.
+    contrast : float
+        Ratio of the larger to the smaller variance of the two mean profiles (>= 1).
+    """
+    m = mask.astype(np.float32)
+    g = gray.astype(np.float32) * m
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rows = g.sum(1) / m.sum(1)
+        cols = g.sum(0) / m.sum(0)
+    rows = rows[mask.sum(1) >= 3]
+    cols = cols[mask.sum(0) >= 3]
+    vr = float(np.var(np.diff(rows))) if rows.size > 2 else 0.0
+    vc = float(np.var(np.diff(cols))) if cols.size > 2 else 0.0
+    if vr >= vc:
+        return "rows", vr / max(vc, 1e-9)
+    return "columns", vc / max(vr, 1e-9)
+
+
+def _reduction(shape: tuple[int, ...]) -> int:
+    return max(1, int(round(max(shape[:2]) / 1000.0)))
+
+
+def detect_fixtures(
+    image: np.ndarray,
+    *,
+    readout: str | None = None,
+    kernel_px: int = 16,
+    min_diameter_px: float = 8.0,
+    relative_threshold: float = 0.25,
+    max_blobs: int = 64,
+) -> Detection:
+    """Find the lit fixtures of a photograph.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3) or (H, W)
+        BGR or gray photograph, 8- or 16-bit.
+    readout : {"rows", "columns", None}, keyword-only
+        The sensor's readout axis in this image; None finds it from each blob.
+    kernel_px : int
+        Smallest closing length in full-resolution pixels (the thesis uses 16); it grows by
+        itself to bridge the widest dark stripe seen.
+    min_diameter_px : float
+        Blobs smaller than this (pixels across) are ignored.
+    relative_threshold : float
+        Candidate threshold on the reduced image: background plus this fraction of the span
+        from background to the brightest blob.
+    max_blobs : int
+        At most this many candidates (the largest) are examined.
+
+    Returns
+    -------
+    Detection
+    """
+    if readout not in (None, "rows", "columns"):
+        raise ValueError(f"readout must be 'rows', 'columns' or None, got {readout!r}")
+    img = np.asarray(image)
+    if img.ndim not in (2, 3) or img.shape[0] < 8 or img.shape[1] < 8:
+        raise ValueError(f"image must be at least 8 x 8 pixels, got shape {img.shape}")
+    height, width = img.shape[:2]
+    s = _reduction(img.shape)
+    small = img
+    if s > 1:
+        small = cv2.resize(img, (width // s, height // s), interpolation=cv2.INTER_AREA)
+    small = to_gray(small)
+    background = float(np.median(small))
+    peak = float(cv2.GaussianBlur(small, (3, 3), 0).max())
+    if peak - background < 12:  # nothing stands out of the noise
+        return Detection((), s, np.zeros_like(small), peak)
+    thr = background + relative_threshold * (peak - background)
+    binary = (small > thr).astype(np.uint8) * 255
+    k = max(3, int(np.ceil(kernel_px / s)) | 1)
+    binary = cv2.morphologyEx(
+        binary, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    )
+    n, _, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    min_area = 0.5 * (min_diameter_px / s) ** 2
+    comps = [i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_area]
+    comps.sort(key=lambda i: -stats[i, cv2.CC_STAT_AREA])
+    blobs = []
+    pad = kernel_px + 6 + 2 * s
+    for i in comps[:max_blobs]:
+        x, y, w, h = (int(v) for v in stats[i, :4])
+        box = (
+            max(0, x * s - pad),
+            max(0, y * s - pad),
+            min(width, (x + w) * s + pad),
+            min(height, (y + h) * s + pad),
+        )
+        blob = _refine(img, box, readout, kernel_px, min_diameter_px)
+        if blob is not None:
+            blobs.append(blob)
+    blobs = _drop_duplicates(blobs)
+    blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
+    return Detection(tuple(blobs), s, binary, thr)
+
+
+def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
+    """Two candidates whose refined discs are the same fixture: keep the larger."""
+    keep: list[Blob] = []
+    for b in sorted(blobs, key=lambda b: -float(b.mask.sum())):
+        r = 0.5 * float(b.axes_px[1])
+        if all(np.hypot(*(b.pixel - k.pixel)) > max(r, 0.5 * float(k.axes_px[1])) for k in keep):
+            keep.append(b)
+    return keep
+
+
+def _runs(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Run starts, lengths and values of a 1-D array."""
+    v = np.asarray(values)
+    if v.size == 0:
+        return np.zeros(0, int), np.zeros(0, int), v
+    edges = np.flatnonzero(v[1:] != v[:-1]) + 1
+    starts = np.concatenate([[0], edges])
+    lengths = np.diff(np.concatenate([starts, [v.size]]))
+    return starts, lengths, v[starts]
+
+
+def _refine(
+    img: np.ndarray,
+    box: tuple[int, int, int, int],
+    readout: str | None,
+    kernel_px: int,
+    min_diameter_px: float,
+) -> Blob | None:
+    x0, y0, x1, y1 = box
+    gray = to_gray(img[y0:y1, x0:x1]).astype(np.float32)
+    if gray.shape[0] < 3 or gray.shape[1] < 3:
+        return None
+    background = float(np.percentile(gray, 10))
+    peak = float(np.percentile(gray, 99.5))
+    if peak - background < 10:
+        return None
+    lit = gray > background + 0.5 * (peak - background)
+    lit_u8 = lit.astype(np.uint8)
+    axis = readout
+    if axis is None:
+        axis, contrast = find_readout_axis(gray, cv2.dilate(lit_u8, np.ones((3, 3), np.uint8)) > 0)
+    else:
+        contrast = find_readout_axis(gray, lit)[1]
+    # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
+    along = lit if axis == "rows" else lit.T
+    centre_lines = along[:, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)]
+    gap = 0
+    if centre_lines.size:
+        line = centre_lines.mean(axis=1) > 0.5
+        starts, lengths, vals = _runs(line)
+        interior = (~vals) & (starts > 0) & (starts + lengths < line.size)
+        gap = int(lengths[interior].max()) if np.any(interior) else 0
+    length = max(kernel_px, gap + 3) | 1
+    ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
+    closed = cv2.morphologyEx(
+        lit_u8, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
+    )
+    closed = cv2.morphologyEx(
+        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    )
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    if n < 2:
+        return None
+    main = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    mask = labels == main
+    # fill holes inside the disc
+    filled = mask.astype(np.uint8)
+    contours, _ = cv2.findContours(filled, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(filled)
+    cv2.drawContours(filled, contours, -1, 1, thickness=cv2.FILLED)
+    mask = filled.astype(bool)
+    area = float(mask.sum())
+    if area < 0.5 * min_diameter_px**2:
+        return None
+    height, width = img.shape[:2]
+    ys, xs = np.nonzero(mask)
+    touches = bool(
+        (x0 == 0 and xs.min() == 0)
+        or (y0 == 0 and ys.min() == 0)
+        or (x1 == width and xs.max() == mask.shape[1] - 1)
+        or (y1 == height and ys.max() == mask.shape[0] - 1)
+    )
+    points = _edge_points(gray, mask, background, axis)
+    if points.shape[0] >= 12:
+        (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
+        if not (0 <= cx < mask.shape[1] and 0 <= cy < mask.shape[0]):
+            points = np.zeros((0, 2))
+    if points.shape[0] < 12:
+        m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
+        cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
+        d = 2.0 * np.sqrt(area / np.pi)
+        a = b = d
+        angle = 0.0
+    axes = np.sort(np.array([a, b], dtype=float))[::-1]
+    return Blob(
+        pixel=np.array([x0 + cx, y0 + cy]),
+        box=box,
+        mask=mask,
+        axes_px=axes,
+        angle_deg=float(angle),
+        touches_border=touches,
+        axis=axis,
+        stripe_contrast=float(contrast),
+        edge_points=int(points.shape[0]),
+    )
+
+
+def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: str) -> np.ndarray:
+    """Sub-pixel disc edge points along the lit sensor rows, shape (M, 2) as ``(x, y)``.
+
+    Each lit sensor row crosses the disc once; its two ends are found where the row's
+    intensity crosses half-way between the background and the row's own level inside the
+    disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
+    """
+    g = gray if axis == "rows" else gray.T
+    m = mask if axis == "rows" else mask.T
+    counts = m.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        level = (g * m).sum(axis=1) / counts
+    top = np.nanmax(level) if np.any(counts) else 0.0
+    rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
+    if rows.size == 0:
+        return np.zeros((0, 2))
+    dilated = cv2.dilate(m.astype(np.uint8), np.ones((3, 7), np.uint8)) > 0
+    sub = np.where(dilated[rows], g[rows], background)  # (k, w): other lights masked out
+    half = background + 0.5 * (level[rows] - background)
+    above = sub > half[:, None]
+    has = above.any(axis=1)
+    rows, sub, half, above = rows[has], sub[has], half[has], above[has]
+    w = sub.shape[1]
+    k = np.arange(rows.size)
+    left = above.argmax(axis=1)
+    right = w - 1 - above[:, ::-1].argmax(axis=1)
+    ok = (left > 0) & (right < w - 1) & (right - left >= 3)
+    k, rows, left, right, half, sub = k[ok], rows[ok], left[ok], right[ok], half[ok], sub[ok]
+    j = np.arange(rows.size)
+    a0, a1 = sub[j, left - 1], sub[j, left]
+    xl = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
+    b0, b1 = sub[j, right], sub[j, right + 1]
+    xr = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
+    pts = np.concatenate(
+        [np.stack([xl, rows], axis=1), np.stack([xr, rows], axis=1)], axis=0
+    ).astype(float)
+    if axis == "columns":
+        pts = pts[:, ::-1]
+    return pts
