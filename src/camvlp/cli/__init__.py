@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from . import encode  # noqa: F401  (registers commands)
+from . import render as _render  # noqa: F401  (registers commands)
 from ._app import app
 
 __all__ = ["app", "main"]

@@ -1,0 +1,187 @@
+"""``camvlp render``: a simulated rolling-shutter photograph and its ground truth."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..camera import Pose
+from ..io import load_camera, load_map
+from ..simulate import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
+from ._app import app, fail, handle_errors, parse_floats
+
+
+@app.command("render")
+@handle_errors
+def render_command(
+    camera_path: Annotated[
+        Path, typer.Option("--camera", help="Camera file (OpenCV calibration YAML or JSON).")
+    ],
+    map_path: Annotated[Path, typer.Option("--map", help="Map file of the fixtures (YAML/JSON).")],
+    position: Annotated[
+        str, typer.Option("--position", help="Camera centre X,Y,Z in map units.")
+    ],
+    euler: Annotated[
+        str,
+        typer.Option(
+            "--euler", help="The thesis' angles TX,TY,TZ in degrees (R = Rx Ry Rz); 90,0,0 "
+            "looks along world -y."
+        ),
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Output photo, .png or .jpg.")],
+    chip_rate: Annotated[
+        str, typer.Option("--chip-rate", metavar="HZ", help="Manchester chips per second.")
+    ] = "10000",
+    row_time: Annotated[
+        str | None,
+        typer.Option(
+            "--row-time",
+            metavar="S",
+            help="Seconds between sensor rows (default: camera file, else 20e-6).",
+        ),
+    ] = None,
+    exposure: Annotated[
+        str | None,
+        typer.Option(
+            "--exposure", metavar="S", help="Row exposure time, s (default: half a chip)."
+        ),
+    ] = None,
+    brightness: Annotated[
+        str,
+        typer.Option(
+            "--brightness", metavar="X", help="LED irradiance / sensor full scale (>1 saturates)."
+        ),
+    ] = "4",
+    ambient: Annotated[
+        str, typer.Option("--ambient", metavar="X", help="Background, fraction of full scale.")
+    ] = "0.03",
+    blur: Annotated[
+        str, typer.Option("--blur", metavar="PX", help="Optical blur sigma, pixels.")
+    ] = "0.8",
+    noise: Annotated[
+        str, typer.Option("--noise", metavar="X", help="Scale of shot and read noise (0 = none).")
+    ] = "1",
+    readout: Annotated[
+        str | None,
+        typer.Option(
+            "--readout", help="rows (stripes horizontal) or columns (portrait, stripes "
+            "vertical) (default: camera file, else rows)."
+        ),
+    ] = None,
+    colour: Annotated[
+        bool, typer.Option("--colour", help="Give each fixture its own colour.")
+    ] = False,
+    seed: Annotated[
+        str, typer.Option("--seed", metavar="N", help="Seed of phases and noise.")
+    ] = "0",
+    quality: Annotated[
+        str, typer.Option("--quality", metavar="Q", help="JPEG quality, 1 to 100.")
+    ] = "95",
+) -> None:
+    """Render a photograph of the map's fixtures from a camera pose, with its truth JSON."""
+    if out.suffix.lower() not in IMAGE_SUFFIXES:
+        fail(f"--out must end in {', '.join(IMAGE_SUFFIXES)} ({out})")
+    jpeg_quality = _integer(quality, "--quality")
+    if not 1 <= jpeg_quality <= 100:
+        fail(f"--quality must be from 1 to 100, got {quality}")
+    noise_scale = _number(noise, "--noise")
+    if noise_scale < 0:
+        fail(f"--noise must be a non-negative number, got {noise}")
+    if readout is not None and readout not in ("rows", "columns"):
+        fail(f"--readout must be rows or columns, got {readout!r}")
+    xyz = parse_floats(position, 3, "--position")
+    angles = parse_floats(euler, 3, "--euler")
+    camera = load_camera(camera_path)
+    fixture_map = load_map(map_path)
+    base = RenderSettings()
+    try:
+        settings = RenderSettings(
+            chip_rate_hz=_number(chip_rate, "--chip-rate"),
+            row_time_s=None if row_time is None else _number(row_time, "--row-time"),
+            exposure_s=None if exposure is None else _number(exposure, "--exposure"),
+            brightness=_number(brightness, "--brightness"),
+            ambient=_number(ambient, "--ambient"),
+            blur_px=_number(blur, "--blur"),
+            full_well_e=base.full_well_e / noise_scale**2 if noise_scale > 0 else 0.0,
+            read_noise=base.read_noise * noise_scale,
+            readout=readout or camera.readout or "rows",
+            colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
+            seed=_integer(seed, "--seed"),
+        )
+        pose = Pose.from_euler(xyz, angles)
+    except ValueError as exc:
+        fail(_option_names(str(exc)))
+    result = _render_or_fail(camera, fixture_map, pose, settings, map_path)
+    try:
+        json_path = save_render(result, out, jpeg_quality=jpeg_quality)
+    except ValueError as exc:
+        fail(str(exc))
+    s = result.settings
+    print(
+        f"wrote {out} ({camera.width} x {camera.height}) and {json_path}; "
+        f"row time {s.row_time_s * 1e6:g} us, exposure {s.exposure_s * 1e6:g} us, "
+        f"readout {s.readout}"
+    )
+    for t in result.fixtures:
+        where = (
+            f"pixel ({t.pixel[0]:.1f}, {t.pixel[1]:.1f})" if t.in_front else "behind the camera"
+        )
+        print(
+            f"fixture {t.id:>3}: {where}, fully inside {'yes' if t.fully_inside else 'no'}, "
+            f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames"
+        )
+
+
+def _number(text: str, option: str) -> float:
+    """A finite float from an option's text, or fail naming the option."""
+    try:
+        value = float(text)
+    except ValueError:
+        fail(f"{option} must be a number, got {text!r}")
+    if not math.isfinite(value):
+        fail(f"{option} must be a finite number, got {text!r}")
+    return value
+
+
+def _integer(text: str, option: str) -> int:
+    """An integer from an option's text, or fail naming the option."""
+    try:
+        return int(text)
+    except ValueError:
+        fail(f"{option} must be an integer, got {text!r}")
+
+
+def _render_or_fail(camera, fixture_map, pose, settings, map_path):
+    """Render, or fail with one line when the pose or the map cannot be rendered."""
+    try:
+        result = render(camera, fixture_map, pose, settings)
+    except ValueError as exc:
+        fail(f"{exc} ({map_path})")
+    if not any(t.in_front for t in result.fixtures):
+        fail(f"every fixture is behind the camera; check --position and --euler ({map_path})")
+    return result
+
+
+_OPTIONS = {
+    "chip_rate_hz": "--chip-rate",
+    "row_time_s": "--row-time",
+    "exposure_s": "--exposure",
+    "brightness": "--brightness",
+    "ambient": "--ambient",
+    "blur_px": "--blur",
+    "full_well_e": "--noise",
+    "read_noise": "--noise",
+    "seed": "--seed",
+    "position": "--position",
+}
+
+
+def _option_names(message: str) -> str:
+    """Name the command-line option instead of the library's argument in a message."""
+    for name, option in _OPTIONS.items():
+        if message.startswith(name + " "):
+            return option + message[len(name) :]
+    return message
