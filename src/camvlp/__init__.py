@@ -8,6 +8,16 @@ from .camera import Camera, Pose, euler_to_matrix, matrix_to_euler, project_poin
 from .fixtures import Fixture, FixtureMap
 from .io import InputError, load_camera, load_image, load_map, save_camera, save_map
 from .linecode import ChipDecode, FrameFormat, chip_schedule, manchester_encode
+from .simulate import (
+    FixtureTruth,
+    Render,
+    RenderSettings,
+    all_fully_inside,
+    fixture_truths,
+    render,
+    save_render,
+    tilt_limit,
+)
 
 __version__ = "0.1.0"
 
@@ -16,17 +26,25 @@ __all__ = [
     "ChipDecode",
     "Fixture",
     "FixtureMap",
+    "FixtureTruth",
     "FrameFormat",
     "InputError",
     "Pose",
+    "Render",
+    "RenderSettings",
+    "all_fully_inside",
     "chip_schedule",
     "euler_to_matrix",
+    "fixture_truths",
     "load_camera",
     "load_image",
     "load_map",
     "manchester_encode",
     "matrix_to_euler",
     "project_points",
+    "render",
     "save_camera",
     "save_map",
+    "save_render",
+    "tilt_limit",
 ]
