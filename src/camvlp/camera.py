@@ -215,7 +215,9 @@ class Camera:
                 f"distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, got {d.size}"
             )
         if self.row_time_s is not None and not (0 < float(self.row_time_s) < 1):
-            raise ValueError(f"row_time_s must be a positive number of seconds, got {self.row_time_s}")
+            raise ValueError(
+                f"row_time_s must be a positive number of seconds, got {self.row_time_s}"
+            )
         if self.readout not in (None, "rows", "columns"):
             raise ValueError(f"readout must be 'rows' or 'columns', got {self.readout!r}")
         object.__setattr__(self, "width", int(self.width))

@@ -78,7 +78,7 @@ class FixtureMap:
     fixtures: tuple[Fixture, ...]
     units: str = "m"
     mode: str = "manchester"
-    frame: FrameFormat = FrameFormat()
+    frame: FrameFormat = FrameFormat()  # noqa: RUF009 (frozen, so sharing it is safe)
     source: str = ""
 
     def __post_init__(self) -> None:

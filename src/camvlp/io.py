@@ -83,7 +83,8 @@ def _number(value: Any, key: str, path: Path, *, positive: bool = False) -> floa
         raise InputError(f"{key} must be a number, got {value!r}", path)
     v = float(value)
     if not math.isfinite(v) or (positive and v <= 0):
-        raise InputError(f"{key} must be a {'positive ' if positive else ''}number, got {value!r}", path)
+        kind = "positive number" if positive else "number"
+        raise InputError(f"{key} must be a {kind}, got {value!r}", path)
     return v
 
 
@@ -125,7 +126,11 @@ def load_camera(path: str | Path) -> Camera:
     elif pp is not None:
         k[0, 2], k[1, 2] = _matrix(pp, (2,), "principal_point", p)
     dist_value = data.get("distortion_coefficients")
-    dist = np.zeros(0) if dist_value is None else _matrix(dist_value, None, "distortion_coefficients", p)
+    dist = (
+        np.zeros(0)
+        if dist_value is None
+        else _matrix(dist_value, None, "distortion_coefficients", p)
+    )
     row_time = data.get("row_time_s")
     if row_time is not None:
         row_time = _number(row_time, "row_time_s", p, positive=True)
@@ -261,7 +266,9 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
     fm = fixture_map
     frame: dict[str, Any] = {"mode": fm.mode}
     if fm.mode == "manchester":
-        frame.update(preamble=fm.frame.preamble, id_bits=fm.frame.id_bits, postamble=fm.frame.postamble)
+        frame.update(
+            preamble=fm.frame.preamble, id_bits=fm.frame.id_bits, postamble=fm.frame.postamble
+        )
     entries = []
     for f in fm.fixtures:
         e: dict[str, Any] = {"id": f.id, "position": [float(v) for v in f.position]}

@@ -151,7 +151,8 @@ class FrameFormat:
             raise ValueError(f"fixture ID must be an integer, got {fixture_id!r}")
         if not 0 <= fixture_id < self.n_ids:
             raise ValueError(
-                f"fixture ID {fixture_id} does not fit in {self.id_bits} bits (0 to {self.n_ids - 1})"
+                f"fixture ID {fixture_id} does not fit in {self.id_bits} bits "
+                f"(0 to {self.n_ids - 1})"
             )
         return int(fixture_id)
 

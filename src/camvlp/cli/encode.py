@@ -53,5 +53,6 @@ def encode(
     print(f"id        {fixture_id}")
     print(f"bits      {bits}  (preamble {frame.preamble}, id, postamble {frame.postamble})")
     print(f"chips     {chip_str}  (0 -> 10, 1 -> 01; 1 = light on)")
-    print(f"frame     {len(chips)} chips, {len(chips) / chip_rate * 1e6:.1f} us at {chip_rate:g} Hz")
+    duration_us = len(chips) / chip_rate * 1e6
+    print(f"frame     {len(chips)} chips, {duration_us:.1f} us at {chip_rate:g} Hz")
     print("schedule  " + ", ".join(f"{'on' if s else 'off'} {d * 1e6:.1f} us" for s, d in schedule))
