@@ -202,6 +202,7 @@ def decode_profile(
     *,
     rows_per_chip: float | None = None,
     max_rows_per_chip: float = 64.0,
+    threshold_level: float = 0.6,
 ) -> StripeDecode:
     """Decode the ID carried by a fixture's row profile.
 
@@ -215,6 +216,10 @@ def decode_profile(
         Known chip length in rows (chip duration / row time); measured when None.
     max_rows_per_chip : float
         Longest chip length considered when measuring it.
+    threshold_level : float
+        Binarisation threshold as a fraction of the way from the dark level (2nd percentile)
+        to the bright level (98th percentile).  Above one half, so that dark stripes
+        narrowed by a saturated neighbour's bleeding still cross it.
 
     Returns
     -------
@@ -231,10 +236,10 @@ def decode_profile(
 
     if p.size < 8:
         return fail(f"too small to decode ({p.size} rows)")
-    lo, hi = np.percentile(p, [5, 95])
+    lo, hi = np.percentile(p, [2, 98])
     if hi - lo < 8:
         return fail("no stripes (a steady light, or too little contrast)")
-    runs = find_runs(p)
+    runs = find_runs(p, lo + threshold_level * (hi - lo))
     if runs.edges.size < 4:
         return fail("no stripes (a steady light, or too few stripes)")
     t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)
@@ -243,13 +248,14 @@ def decode_profile(
     lengths, bright = runs.lengths, runs.bright
     interior = np.arange(lengths.size)
     interior = (interior > 0) & (interior < lengths.size - 1)
-    # bleeding: bright runs are b rows longer, dark ones b rows shorter, than n chips
-    b = 0.0
-    for _ in range(4):
-        x = np.where(bright, lengths - b, lengths + b) / t
-        n = np.clip(np.round(x), 1, 2)
-        resid = np.where(bright, lengths - n * t, n * t - lengths)
-        b = float(np.clip(np.median(resid[interior]), -0.45 * t, 0.45 * t))
+    # bleeding: bright runs are b rows longer, dark ones b rows shorter, than n chips; the
+    # b that makes every interior run closest to one or two chips (both kinds occur in
+    # every frame, which pins b down)
+    li, bi = lengths[interior], bright[interior]
+    grid = np.linspace(-0.95 * t, 0.95 * t, 191)
+    xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
+    cost = ((xs - np.clip(np.round(xs), 1, 2)) ** 2).sum(axis=1)
+    b = float(grid[int(np.argmin(cost))])
     x = np.where(bright, lengths - b, lengths + b) / t
     counts = np.round(x).astype(int)
     sure = np.ones(lengths.size, bool)
