@@ -31,7 +31,11 @@ def sample(rng: np.random.Generator, camera, fixture_map):
         height = float(rng.choice([0.0, 1.0]))
         lim_x, lim_y = (10.0, 13.0) if height == 0 else (3.5, 5.0)
         pos = np.array([rng.uniform(-0.3, 0.3), -height, rng.uniform(-0.3, 0.3)])
-        euler = [90 + rng.uniform(-lim_x, lim_x), rng.uniform(-lim_y, lim_y), rng.uniform(-180, 180)]
+        euler = [
+            90 + rng.uniform(-lim_x, lim_x),
+            rng.uniform(-lim_y, lim_y),
+            rng.uniform(-180, 180),
+        ]
         pose = camvlp.Pose.from_euler(pos, euler)
         if all(t.fully_inside for t in fixture_truths(camera, fixture_map, pose)):
             break
@@ -81,30 +85,50 @@ def main() -> int:
                     decoded += 1
                 else:
                     failures.append(
-                        dict(photo=k, id=tid, frames=round(t.frames_spanned, 2), rpc=round(rpc, 2),
-                             exposure_chips=round(exp_chips, 2), reason=f.reason)
+                        dict(
+                            photo=k,
+                            id=tid,
+                            frames=round(t.frames_spanned, 2),
+                            rpc=round(rpc, 2),
+                            exposure_chips=round(exp_chips, 2),
+                            reason=f.reason,
+                        )
                     )
         err = float(np.linalg.norm(res.position - pose.position)) if res else float("nan")
         errors.append(err)
         rows.append(
-            dict(photo=k, position=pose.position.tolist(), euler=pose.euler_deg.tolist(),
-                 rows_per_chip=rpc, exposure_chips=exp_chips, located=bool(res),
-                 error_mm=1e3 * err, reason=res.error)
+            dict(
+                photo=k,
+                position=pose.position.tolist(),
+                euler=pose.euler_deg.tolist(),
+                rows_per_chip=rpc,
+                exposure_chips=exp_chips,
+                located=bool(res),
+                error_mm=1e3 * err,
+                reason=res.error,
+            )
         )
         print(
             f"\r{k + 1}/{args.n}  decoded {decoded}/{eligible}  wrong {wrong}  "
             f"mean error {1e3 * np.nanmean(errors):.2f} mm",
-            end="", file=sys.stderr, flush=True,
+            end="",
+            file=sys.stderr,
+            flush=True,
         )
     print(file=sys.stderr)
     e = np.array(errors)
     located = np.isfinite(e)
     print(f"photos                 {args.n} ({time.perf_counter() - t_start:.0f} s)")
     print(f"located                {located.sum()} / {args.n}")
-    print(f"fixtures >= 1.2 frames {eligible}, decoded {decoded} ({100 * decoded / max(eligible, 1):.2f} %)")
+    print(
+        f"fixtures >= 1.2 frames {eligible}, decoded {decoded} "
+        f"({100 * decoded / max(eligible, 1):.2f} %)"
+    )
     print(f"wrong IDs              {wrong}")
-    print(f"position error         mean {1e3 * e[located].mean():.3f} mm, median "
-          f"{1e3 * np.median(e[located]):.3f} mm, max {1e3 * e[located].max():.3f} mm")
+    print(
+        f"position error         mean {1e3 * e[located].mean():.3f} mm, median "
+        f"{1e3 * np.median(e[located]):.3f} mm, max {1e3 * e[located].max():.3f} mm"
+    )
     for f in failures[:20]:
         print("  not decoded:", f)
     if args.json:

@@ -178,9 +178,7 @@ class StripeDecode:
 
 def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
     """Chip length in rows from same-polarity edge spacings (2, 3 or 4 chips each)."""
-    d = np.concatenate(
-        [np.diff(runs.edges[runs.rising]), np.diff(runs.edges[~runs.rising])]
-    )
+    d = np.concatenate([np.diff(runs.edges[runs.rising]), np.diff(runs.edges[~runs.rising])])
     d = d[d > 0]
     if d.size < 2:
         return float("nan")
@@ -230,7 +228,9 @@ def decode_profile(
     nan = float("nan")
 
     def fail(reason: str, **kw) -> StripeDecode:
-        fields = dict(hamming=-1, margin=0.0, rows_per_chip=nan, bleed_rows=nan, chips="", frames=0.0)
+        fields = dict(
+            hamming=-1, margin=0.0, rows_per_chip=nan, bleed_rows=nan, chips="", frames=0.0
+        )
         fields.update(kw)
         return StripeDecode(None, reason, **fields)
 
@@ -268,9 +268,7 @@ def decode_profile(
     chip_vals = np.repeat(bright.astype(np.uint8), counts)
     known = np.repeat(sure, counts)
     frames = chip_vals.size / frame.n_chips
-    chip_str = "".join(
-        str(int(c)) if k else "?" for c, k in zip(chip_vals, known, strict=True)
-    )
+    chip_str = "".join(str(int(c)) if k else "?" for c, k in zip(chip_vals, known, strict=True))
     res = frame.decode(chip_vals, known=known)
     worst = float(np.max(np.abs(x[interior] - np.round(x[interior])))) if np.any(interior) else 0.5
     margin = float(np.clip(1.0 - 2.0 * worst, 0.0, 1.0))
@@ -283,7 +281,8 @@ def decode_profile(
         sub = frame.decode(chip_vals[start : start + n], known=known[start : start + n])
         if sub.id is not None and sub.id != res.id:
             return fail(
-                f"copies of the frame disagree ({res.id} and {sub.id})", hamming=res.distance,
+                f"copies of the frame disagree ({res.id} and {sub.id})",
+                hamming=res.distance,
                 **common,
             )
     return StripeDecode(res.id, "", res.distance, margin, **common)

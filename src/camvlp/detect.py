@@ -131,7 +131,7 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
 
 
 def _reduction(shape: tuple[int, ...]) -> int:
-    return max(1, int(round(max(shape[:2]) / 1000.0)))
+    return max(1, round(max(shape[:2]) / 1000.0))
 
 
 def detect_fixtures(
@@ -254,7 +254,9 @@ def _refine(
         contrast = find_readout_axis(gray, lit)[1]
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
     along = lit if axis == "rows" else lit.T
-    centre_lines = along[:, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)]
+    centre_lines = along[
+        :, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)
+    ]
     gap = 0
     if centre_lines.size:
         line = centre_lines.mean(axis=1) > 0.5

@@ -205,10 +205,15 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
         raise InputError(f"image must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
     h, w = img.shape[:2]
     if (w, h) != (camera.width, camera.height):
-        hint = " (rotated? the camera file describes the other orientation)" if (h, w) == (
-            camera.width,
-            camera.height,
-        ) else ""
+        hint = (
+            " (rotated? the camera file describes the other orientation)"
+            if (h, w)
+            == (
+                camera.width,
+                camera.height,
+            )
+            else ""
+        )
         raise InputError(
             f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}{hint}"
         )
@@ -347,7 +352,11 @@ def locate(
                 ]
             )
             est2 = estimate_pose(
-                pixels - offsets, obj, camera, normals=normals, solver=st.solver,
+                pixels - offsets,
+                obj,
+                camera,
+                normals=normals,
+                solver=st.solver,
                 outlier_px=st.outlier_px,
             )
             if est2:
@@ -406,7 +415,8 @@ def locate(
         error=error,
         readout=readout,
         mirrored=mirrored,
-        alternative_position=None if est is None or est.alternative is None
+        alternative_position=None
+        if est is None or est.alternative is None
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
     )

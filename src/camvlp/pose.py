@@ -70,7 +70,9 @@ class PoseEstimate:
 
 def _failure(n: int, reason: str, *, mirrored: bool = False) -> PoseEstimate:
     nan = np.full(n, np.nan)
-    return PoseEstimate(None, float("nan"), np.zeros(n, bool), nan, reason=reason, mirrored=mirrored)
+    return PoseEstimate(
+        None, float("nan"), np.zeros(n, bool), nan, reason=reason, mirrored=mirrored
+    )
 
 
 def _spread(points: np.ndarray) -> np.ndarray:
@@ -239,8 +241,11 @@ def estimate_pose(
     used[idx] = True
     if float(np.max(residuals[used])) > outlier_px:
         return PoseEstimate(
-            None, rms, np.zeros(n, bool), residuals,
+            None,
+            rms,
+            np.zeros(n, bool),
+            residuals,
             reason=f"the fixtures do not fit one pose (reprojection error up to "
-            f"{float(np.max(residuals[used])):.1f} px): a wrong ID, a wrong map, or a wrong camera file",
+            f"{float(np.max(residuals[used])):.1f} px): a wrong ID, map or camera file",
         )
     return PoseEstimate(pose, rms, used, residuals, alt, alt_rms)

@@ -2,13 +2,40 @@
 
 from __future__ import annotations
 
+import sys
+
+import typer
+
+from . import calibrate as _calibrate  # noqa: F401  (registers commands)
 from . import encode  # noqa: F401  (registers commands)
+from . import locate as _locate  # noqa: F401  (registers commands)
 from . import render as _render  # noqa: F401  (registers commands)
-from ._app import app
+from . import study as _study  # noqa: F401  (registers commands)
+from ._app import EXIT_BAD_INPUT, app
 
 __all__ = ["app", "main"]
 
 
-def main() -> None:
-    """Entry point of the ``camvlp`` console script."""
-    app()
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``camvlp`` console script.
+
+    Usage errors (an unknown option, a missing argument, a value of the wrong type) are
+    printed as one line, ``error: ...``, with exit code 2, like every other bad input.
+    """
+    try:
+        code = app(args=argv, prog_name="camvlp", standalone_mode=False)
+    except typer.TyperException as exc:  # usage errors (the parser's ClickException)
+        ctx = getattr(exc, "ctx", None)
+        where = f" (camvlp {ctx.info_name})" if ctx is not None and ctx.parent else ""
+        message = " ".join(exc.format_message().split())
+        if not message:  # no arguments at all: show the help
+            return main(["--help"]) if argv is None or argv else EXIT_BAD_INPUT
+        print(f"error: {message}{where}; see --help", file=sys.stderr)
+        code = getattr(exc, "exit_code", EXIT_BAD_INPUT) or EXIT_BAD_INPUT
+    except typer.Abort:
+        print("error: interrupted", file=sys.stderr)
+        code = 130
+    code = code if isinstance(code, int) else 0
+    if argv is None:
+        sys.exit(code)
+    return code

@@ -1,0 +1,111 @@
+"""``camvlp locate``: photograph -> camera position."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import cv2
+import typer
+
+from ..annotate import annotate, write_debug_pictures
+from ..io import InputError, load_camera, load_image, load_map
+from ..locate import LocateSettings, locate
+from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
+
+
+@app.command("locate")
+@handle_errors
+def locate_command(
+    photo: Annotated[Path, typer.Argument(help="The photograph (JPEG, PNG, TIFF ...).")],
+    camera_path: Annotated[Path, typer.Option("--camera", "-c", help="Camera file (YAML/JSON).")],
+    map_path: Annotated[
+        Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
+    ],
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    annotate_path: Annotated[
+        Path | None, typer.Option("--annotate", help="Write the annotated photo here (.png/.jpg).")
+    ] = None,
+    debug_dir: Annotated[
+        Path | None, typer.Option("--debug-dir", help="Write one picture per stage here.")
+    ] = None,
+    solver: Annotated[
+        str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
+    ] = "iterative",
+    readout: Annotated[
+        str | None, typer.Option(help="Sensor readout axis: rows or columns (default: find it).")
+    ] = None,
+    mirrored: Annotated[
+        bool | None,
+        typer.Option(
+            "--mirrored/--not-mirrored", help="The photo is a mirror image: flip it first."
+        ),
+    ] = None,
+    outlier_px: Annotated[
+        float, typer.Option(help="Drop a fixture whose reprojection error exceeds this (px).")
+    ] = 4.0,
+) -> None:
+    """Locate the camera that took PHOTO: position, orientation, fixtures seen.
+
+    Exit code 0 when located, 1 when the photo could not be located (the reason is printed,
+    and with --json the object still lists the fixtures), 2 on bad input.
+    """
+    if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
+        fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
+    if readout not in (None, "rows", "columns"):
+        fail(f"--readout must be rows or columns, got {readout!r}")
+    for out in (annotate_path,):
+        if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
+            fail(f"--annotate must end in .png or .jpg ({out})")
+    camera = load_camera(camera_path)
+    fixture_map = load_map(map_path)
+    image = load_image(photo)
+    settings = LocateSettings(
+        solver=solver, readout=readout, mirrored=mirrored, outlier_px=outlier_px
+    )
+    try:
+        result, stages = locate(image, camera, fixture_map, settings, _keep_stages=True)
+    except InputError as exc:
+        raise InputError(exc.what, photo) from None
+    if annotate_path is not None:
+        if not cv2.imwrite(str(annotate_path), annotate(image, result, camera, fixture_map)):
+            fail(f"cannot write the annotated photo ({annotate_path})")
+    if debug_dir is not None:
+        write_debug_pictures(
+            debug_dir, image[:, ::-1] if result.mirrored else image, result, stages
+        )
+    if as_json:
+        print(json.dumps(result.to_dict()))
+    else:
+        _print_human(result, fixture_map.units, photo)
+    if not result:
+        if not as_json:
+            print(f"error: not located: {result.error} ({photo})", file=sys.stderr)
+        raise typer.Exit(EXIT_NOT_LOCATED)
+
+
+def _print_human(result, units: str, photo: Path) -> None:
+    if result:
+        x, y, z = result.position
+        tx, ty, tz = result.euler_deg
+        print(f"position      ({x:.4f}, {y:.4f}, {z:.4f}) {units}")
+        print(f"orientation   theta = ({tx:.2f}, {ty:.2f}, {tz:.2f}) deg")
+        print(f"reprojection  {result.reprojection_rms_px:.3f} px RMS")
+    print(
+        f"fixtures      {len(result.fixtures)} detected, "
+        f"{sum(f.used for f in result.fixtures)} used ({result.readout} readout"
+        f"{', mirrored' if result.mirrored else ''})"
+    )
+    for f in result.fixtures:
+        ident = f"ID {f.id:>3}" if f.id is not None else "ID   ?"
+        state = "used" if f.used else f"not used: {f.reason}"
+        print(
+            f"  {ident}  at ({f.pixel[0]:7.1f}, {f.pixel[1]:7.1f})  margin {f.margin:.2f}  {state}"
+        )
+    t = result.timing_ms
+    print(
+        f"time          {t['total']:.0f} ms (detect {t['detect']:.0f}, decode {t['decode']:.0f}, "
+        f"pose {t['pose']:.0f})"
+    )
