@@ -282,6 +282,19 @@ def test_distortion_moves_disc_as_projectpoints_says():
     assert np.linalg.norm(result.fixtures[0].pixel - expected) < 1e-6
 
 
+def test_distortion_fold_back_is_not_inside():
+    """OpenCV's distortion polynomial folds far off-axis points back into the image."""
+    camera = Camera.from_focal(640, 480, 800.0, distortion=np.array([-0.5, 0, 0, 0, 0]))
+    fmap = one_fixture(position=(1.3, -1.0, 0.0), diameter=0.05)  # 52 degrees off axis
+    pose = Pose.from_euler([0, 0, 0], LOOK_UP)
+    naive = camera.project(pose, fmap.positions)[0]
+    assert 0 <= naive[0] < 640 and 0 <= naive[1] < 480  # folded into the picture
+    (truth,) = fixture_truths(camera, fmap, pose)
+    assert truth.in_front and not truth.fully_inside
+    image = render(camera, fmap, pose, quiet(brightness=1.0)).image
+    assert image.max() <= round(0.03 * 255) + 1  # nothing drawn
+
+
 def test_sensor_noise_level():
     """Background only: mean = ambient, sigma = sqrt(ambient / full well + read^2)."""
     camera = small_camera()

@@ -23,6 +23,10 @@ and lays a crude stripe mask over it.  This module renders the same scenes physi
 Time origin: sensor row 0 starts its exposure at ``t = 0``.  A fixture with phase ``phase_s``
 shows, at time ``t``, chip ``floor((t + phase_s) / chip_s) mod n_chips`` of its frame.
 
+A fixture seen from its back (the camera on the far side of its plane from its normal) is
+not drawn.  Points beyond the field of a distorted lens model (where OpenCV's distortion
+polynomial folds them back into the picture) count as outside the image.
+
 Pixel coordinates in the truth (:class:`FixtureTruth`) are those of the camera model
 (:meth:`Camera.project`); for a ``mirrored`` camera the stored image is flipped left-right
 after rendering, so a truth pixel ``u`` is at ``width - 1 - u`` in the stored image.
@@ -312,6 +316,7 @@ def _truths(
     axis = 1 if s.readout == "rows" else 0
     truths, rims = [], []
     w, h = camera.width, camera.height
+    field = _field_radius(camera)
     for f, n in zip(fixture_map.fixtures, normals, strict=True):
         chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
         period = chips.size * chip_s
@@ -319,12 +324,13 @@ def _truths(
         centre_px = camera.project(pose, f.position[None, :])[0]
         in_front = bool(pose.to_camera(f.position[None, :])[0, 2] > 0)
         rim = _rim_points(f, n)
-        rim_px = camera.project(pose, rim)
+        rim_px, clamped = _project_within_field(camera, pose, rim, field)
         rims.append(rim_px)
         ok = np.all(np.isfinite(rim_px))
         fully = bool(
             in_front
             and ok
+            and not np.any(clamped)
             and np.all((rim_px[:, 0] >= -0.5) & (rim_px[:, 0] <= w - 0.5))
             and np.all((rim_px[:, 1] >= -0.5) & (rim_px[:, 1] <= h - 0.5))
         )
@@ -341,6 +347,49 @@ def _truths(
             )
         )
     return tuple(truths), normals, rims
+
+
+def _field_radius(camera: Camera) -> float:
+    """Largest normalised (undistorted) radius seen in the image: the lens model's field."""
+    if camera.dist_or_none is None:
+        return float("inf")
+    w, h = camera.width - 1.0, camera.height - 1.0
+    border = np.array(
+        [[0, 0], [w / 2, 0], [w, 0], [w, h / 2], [w, h], [w / 2, h], [0, h], [0, h / 2]]
+    )
+    return float(np.linalg.norm(camera.undistort_pixels(border), axis=1).max())
+
+
+def _project_within_field(
+    camera: Camera, pose: Pose, points_world: np.ndarray, field: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Project points, first pulling those beyond the lens model's field back onto its edge.
+
+    OpenCV's distortion polynomial folds points far outside the field of view back into the
+    image; pulling them in radially keeps them (correctly) outside or on the image border.
+
+    Returns
+    -------
+    pixels : ndarray, shape (N, 2)
+        ``[u, v]``; NaN for points behind the camera.
+    clamped : ndarray of bool, shape (N,)
+        Points that were beyond the field (so outside the image).
+    """
+    pc = pose.to_camera(points_world)
+    front = pc[:, 2] > 0
+    xy = np.full((pc.shape[0], 2), np.nan)
+    xy[front] = pc[front, :2] / pc[front, 2:3]
+    radius = np.linalg.norm(xy, axis=1)
+    clamped = front & (radius > field)
+    xy[clamped] *= (field / radius[clamped])[:, None]
+    pixels = np.full_like(xy, np.nan)
+    if np.any(front):
+        obj = np.concatenate([xy[front], np.ones((int(front.sum()), 1))], axis=1)
+        uv, _ = cv2.projectPoints(
+            obj, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_or_none
+        )
+        pixels[front] = uv.reshape(-1, 2)
+    return pixels, clamped
 
 
 def fixture_truths(
