@@ -1,0 +1,746 @@
+"""Camera calibration: intrinsics from chessboard photographs, row time from a blinking light.
+
+Two measurements make a camera file (``docs/formats.md``) for camvlp:
+
+* :func:`calibrate_camera` finds the intrinsic matrix and lens distortion from photographs
+  of a flat chessboard (OpenCV's ``findChessboardCornersSB`` and ``calibrateCamera``).
+* :func:`estimate_row_time` finds the rolling shutter's row time from one photograph of a
+  light blinking a 50 % square wave at a known frequency: the light appears as a disc of
+  stripes whose period, in rows, is ``1 / (frequency * row_time)``.
+
+:func:`estimate_stripe_period` measures a stripe period inside any masked region and is
+shared with the decoders of frequency-coded fixtures.  :func:`render_chessboard` renders
+synthetic calibration photographs with a known camera (for tests and benchmarks).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from .camera import Camera, Pose
+from .io import InputError, load_image
+
+__all__ = [
+    "CalibrationResult",
+    "RowTimeEstimate",
+    "StripePeriod",
+    "board_object_points",
+    "bright_blob_mask",
+    "calibrate_camera",
+    "estimate_row_time",
+    "estimate_stripe_period",
+    "find_board_corners",
+    "render_chessboard",
+]
+
+#: Fewest usable chessboard photographs :func:`calibrate_camera` accepts.
+MIN_CALIBRATION_PHOTOS = 3
+
+
+# --------------------------------------------------------------------------------------
+# Chessboard calibration
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """The outcome of :func:`calibrate_camera`.  Falsy when calibration failed.
+
+    Attributes
+    ----------
+    camera : Camera or None
+        The calibrated camera (intrinsics, distortion, optional row time); None on failure.
+    rms_px : float
+        Root-mean-square reprojection error over all used photos' corners, pixels (NaN on
+        failure).
+    per_image_rms_px : tuple of float
+        RMS reprojection error of each used photo, pixels, in the order of ``used``.
+    used : tuple of str
+        Names of the photos whose board was found and used.
+    rejected : tuple of (str, str)
+        ``(name, reason)`` of each photo left out: unreadable, no board found, or a
+        different image size from the others.
+    message : str
+        Why calibration failed ("" on success).
+    """
+
+    camera: Camera | None
+    rms_px: float
+    per_image_rms_px: tuple[float, ...]
+    used: tuple[str, ...]
+    rejected: tuple[tuple[str, str], ...]
+    message: str = ""
+
+    def __bool__(self) -> bool:
+        return self.camera is not None
+
+
+def _parse_board(board) -> tuple[int, int]:
+    try:
+        cols, rows = (int(v) for v in board)
+    except (TypeError, ValueError):
+        raise ValueError(f"board must be (cols, rows) inner corners, got {board!r}") from None
+    if cols < 2 or rows < 2:
+        raise ValueError(f"board must have at least 2 x 2 inner corners, got {cols} x {rows}")
+    return cols, rows
+
+
+def board_object_points(board: tuple[int, int], square_m: float) -> np.ndarray:
+    """The board's inner corners in its own frame, in OpenCV's detection order.
+
+    Parameters
+    ----------
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+    square_m : float
+        Side of one square, metres.
+
+    Returns
+    -------
+    ndarray, shape (cols * rows, 3), float32
+        Corner ``(i, j)`` (column ``i``, row ``j``) at ``(i * square_m, j * square_m, 0)``,
+        row by row.
+    """
+    cols, rows = _parse_board(board)
+    if not (np.isfinite(square_m) and square_m > 0):
+        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
+    i, j = np.meshgrid(np.arange(cols), np.arange(rows))
+    pts = np.stack([i.ravel(), j.ravel(), np.zeros(i.size)], axis=1) * float(square_m)
+    return pts.astype(np.float32)
+
+
+def _to_gray_u8(image: np.ndarray) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim != 2:
+        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
+    if img.dtype == np.uint8:
+        return img
+    f = img.astype(np.float64)
+    top = 65535.0 if img.dtype == np.uint16 else max(float(np.nanmax(f)), 1e-12)
+    return np.clip(np.nan_to_num(f) * (255.0 / top), 0, 255).astype(np.uint8)
+
+
+def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray | None:
+    """Sub-pixel chessboard inner corners of a photograph, or None when no board is found.
+
+    Finds the board with ``cv2.findChessboardCornersSB`` (or, failing that, the classic
+    ``cv2.findChessboardCorners``) and refines the corners with ``cv2.cornerSubPix``, its
+    window kept within 0.4 of the closest corners' spacing.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The photograph (gray or BGR, 8- or 16-bit or float).
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+
+    Returns
+    -------
+    ndarray, shape (cols * rows, 2), float32, or None
+        Pixel positions in the order of :func:`board_object_points`.
+    """
+    cols, rows = _parse_board(board)
+    gray = _to_gray_u8(image)
+    sb_flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    found, corners = cv2.findChessboardCornersSB(gray, (cols, rows), flags=sb_flags)
+    if not found:
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        found, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=flags)
+        if not found:
+            return None
+    corners = np.asarray(corners, dtype=np.float32).reshape(rows, cols, 2)
+    # Refine with cornerSubPix, its window well inside the nearest neighbours' distance.
+    spacing = min(
+        float(np.linalg.norm(np.diff(corners, axis=0), axis=2).min()),
+        float(np.linalg.norm(np.diff(corners, axis=1), axis=2).min()),
+    )
+    half = int(np.clip(0.4 * spacing, 2, 11))
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
+    refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2), (half, half), (-1, -1), crit)
+    return refined.reshape(-1, 2)
+
+
+def calibrate_camera(
+    images: Sequence[np.ndarray | str | Path],
+    board: tuple[int, int],
+    square_m: float,
+    *,
+    names: Sequence[str] | None = None,
+    row_time_s: float | None = None,
+    fix_aspect: bool = False,
+    zero_tangent: bool = False,
+    on_image: Callable[[str], None] | None = None,
+) -> CalibrationResult:
+    """Calibrate a camera from photographs of a flat chessboard.
+
+    Parameters
+    ----------
+    images : sequence of ndarray or path
+        The photographs, as arrays ((H, W) or (H, W, 3)) or image files.  An unreadable
+        file is rejected with its reason, not raised.
+    board : (int, int)
+        Inner corners ``(cols, rows)`` of the board (a board of 10 x 7 squares has 9 x 6).
+        Use different numbers of columns and rows, so the detected corner order is unique.
+    square_m : float
+        Side of one square, metres.  It scales only the board poses, not the intrinsics.
+    names : sequence of str, optional
+        A name per image for the report; defaults to the file name or ``image <n>``.
+    row_time_s : float, optional
+        Rolling-shutter row time to store in the camera, seconds.
+    fix_aspect : bool
+        Keep ``fx = fy`` (square pixels).
+    zero_tangent : bool
+        Fix the tangential distortion ``p1 = p2 = 0``.
+    on_image : callable, optional
+        Called with each photo's name after its board search (for progress display).
+
+    Returns
+    -------
+    CalibrationResult
+        Truthy with the camera and the reprojection errors; falsy with a message when fewer
+        than three photos show the board.
+
+    Raises
+    ------
+    ValueError
+        No images, a bad ``board`` or ``square_m``, or ``names`` of the wrong length.
+    """
+    board = _parse_board(board)
+    objp = board_object_points(board, square_m)
+    if len(images) == 0:
+        raise ValueError("images must hold at least one photograph")
+    if names is None:
+        names = [
+            Path(im).name if isinstance(im, (str, Path)) else f"image {k + 1}"
+            for k, im in enumerate(images)
+        ]
+    if len(names) != len(images):
+        raise ValueError(f"names has {len(names)} entries for {len(images)} images")
+    if row_time_s is not None and not (0 < row_time_s < 1):
+        raise ValueError(f"row_time_s must be a positive number of seconds, got {row_time_s!r}")
+
+    rejected: list[tuple[str, str]] = []
+    found: list[tuple[str, tuple[int, int], np.ndarray]] = []
+    for name, item in zip(names, images, strict=True):
+        try:
+            img = load_image(item) if isinstance(item, (str, Path)) else np.asarray(item)
+            corners = find_board_corners(img, board)
+        except InputError as exc:
+            rejected.append((name, exc.what))
+            corners = None
+        else:
+            if corners is None:
+                rejected.append((name, f"no {board[0]}x{board[1]} board found"))
+            else:
+                found.append((name, (img.shape[1], img.shape[0]), corners))
+        if on_image is not None:
+            on_image(name)
+
+    size: tuple[int, int] | None = None
+    if found:
+        size = Counter(s for _, s, _ in found).most_common(1)[0][0]
+        for name, s, _ in found:
+            if s != size:
+                rejected.append((name, f"size {s[0]}x{s[1]} differs from the others' "
+                                       f"{size[0]}x{size[1]}"))
+        found = [f for f in found if f[1] == size]
+    order = {n: k for k, n in enumerate(names)}
+    rejected.sort(key=lambda r: order.get(r[0], 0))
+    if len(found) < MIN_CALIBRATION_PHOTOS or size is None:
+        return CalibrationResult(
+            None, float("nan"), (), tuple(n for n, _, _ in found), tuple(rejected),
+            f"only {len(found)} of {len(images)} photos show the {board[0]}x{board[1]} board "
+            f"(need {MIN_CALIBRATION_PHOTOS})",
+        )
+
+    flags = 0
+    k0 = np.eye(3)
+    if fix_aspect:
+        flags |= cv2.CALIB_FIX_ASPECT_RATIO  # ratio fx / fy taken from k0: 1
+    if zero_tangent:
+        flags |= cv2.CALIB_ZERO_TANGENT_DIST
+    obj = [objp] * len(found)
+    img_pts = [c.reshape(-1, 1, 2) for _, _, c in found]
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    rms, k, dist, _, _, _, _, per_view = cv2.calibrateCameraExtended(
+        obj, img_pts, size, k0, np.zeros(5), flags=flags, criteria=crit
+    )
+    camera = Camera(size[0], size[1], k, np.asarray(dist).reshape(-1), row_time_s)
+    return CalibrationResult(
+        camera,
+        float(rms),
+        tuple(float(v) for v in np.asarray(per_view).reshape(-1)),
+        tuple(n for n, _, _ in found),
+        tuple(rejected),
+    )
+
+
+def render_chessboard(
+    camera: Camera,
+    pose: Pose,
+    board: tuple[int, int],
+    square_m: float,
+    *,
+    supersample: int = 3,
+    black: float = 25.0,
+    white: float = 230.0,
+    background: float = 110.0,
+) -> np.ndarray:
+    """Render a photograph of a chessboard seen by a camera (with its lens distortion).
+
+    The board lies in the plane ``z = 0`` of the world frame with its first inner corner at
+    the origin, columns along +x and rows along +y (:func:`board_object_points`); its
+    ``cols + 1`` by ``rows + 1`` squares are framed by a one-square white margin on a
+    uniform background.  Each pixel averages ``supersample ** 2`` rays.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, distortion and image size.
+    pose : Pose
+        The camera's pose in the board's frame (metres).
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+    square_m : float
+        Side of one square, metres.
+    supersample : int
+        Rays per pixel along each axis (anti-aliasing).
+    black, white, background : float
+        Gray levels (0-255) of the dark squares, the light squares and margin, and the
+        scene around the board.
+
+    Returns
+    -------
+    ndarray, shape (camera.height, camera.width), uint8
+    """
+    cols, rows = _parse_board(board)
+    s = float(square_m)
+    if not (np.isfinite(s) and s > 0):
+        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
+    n = int(supersample)
+    if n < 1:
+        raise ValueError(f"supersample must be at least 1, got {supersample!r}")
+    # Texture: t texels per square, from board coordinate (-2 s, -2 s) (the margin's corner).
+    t = 32
+    gx, gy = np.meshgrid(np.arange(cols + 3) - 2, np.arange(rows + 3) - 2)
+    squares = np.where((gx + gy) % 2 == 0, black, white)
+    squares[(gx < -1) | (gx > cols - 1) | (gy < -1) | (gy > rows - 1)] = white
+    texture = np.kron(squares, np.ones((t, t))).astype(np.float32)
+    tex_from_board = np.array([[t / s, 0, 2 * t - 0.5], [0, t / s, 2 * t - 0.5], [0, 0, 1.0]])
+    # Supersampled pixel U = n u + (n - 1) / 2 for pixel u.
+    ss_from_pix = np.array([[n, 0, (n - 1) / 2], [0, n, (n - 1) / 2], [0, 0, 1.0]])
+    r_cw = pose.camera_from_world
+    t_cw = -r_cw @ pose.position
+    norm_from_board = np.column_stack([r_cw[:, 0], r_cw[:, 1], t_cw])
+    size = (camera.width * n, camera.height * n)
+    corners = np.array([[-2, -2], [cols + 1, -2], [-2, rows + 1], [cols + 1, rows + 1]]) * s
+    in_front = bool(np.all(pose.to_camera(np.column_stack([corners, np.zeros(4)]))[:, 2] > 0))
+    if camera.dist_or_none is None and in_front:
+        ss_from_tex = ss_from_pix @ camera.matrix @ norm_from_board @ np.linalg.inv(tex_from_board)
+        big = cv2.warpPerspective(
+            texture, ss_from_tex, size, flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=float(background),
+        )
+    else:  # trace each supersampled ray through the lens model
+        uu, vv = np.meshgrid(
+            (np.arange(size[0]) - (n - 1) / 2) / n, (np.arange(size[1]) - (n - 1) / 2) / n
+        )
+        xy = camera.undistort_pixels(np.column_stack([uu.ravel(), vv.ravel()]))
+        ray = np.column_stack([xy, np.ones(len(xy))])
+        # tex[:, 2] is 1 / depth of the ray's hit on the board plane: > 0 in front.
+        tex = ray @ (tex_from_board @ np.linalg.inv(norm_from_board)).T
+        front = tex[:, 2] > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mx = np.where(front, tex[:, 0] / tex[:, 2], -10.0)
+            my = np.where(front, tex[:, 1] / tex[:, 2], -10.0)
+        big = cv2.remap(
+            texture, mx.reshape(size[::-1]).astype(np.float32),
+            my.reshape(size[::-1]).astype(np.float32), cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT, borderValue=float(background),
+        )
+    img = cv2.resize(big, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------------------
+# Stripe period and row time
+# --------------------------------------------------------------------------------------
+
+#: Axis names: "rows" = stripes horizontal, the period is measured down the image rows
+#: (the sensor reads out row by row); "columns" = stripes vertical (a portrait photo).
+AXES = ("rows", "columns")
+
+
+@dataclass(frozen=True)
+class StripePeriod:
+    """The period of a region's stripes (:func:`estimate_stripe_period`).  Falsy on failure.
+
+    Attributes
+    ----------
+    period_px : float
+        Stripe period (one bright plus one dark stripe) in pixels along ``axis``; NaN on
+        failure.
+    axis : str
+        ``"rows"`` when the stripes are horizontal (the profile runs down the rows),
+        ``"columns"`` when they are vertical.
+    strength : float
+        Fraction (0-1) of the masked pixels' variance about the profile's trend that the
+        periodic model explains: near 1 for clean stripes across ``axis``, near 0 for
+        none (or for stripes along the other axis).
+    periods_seen : float
+        How many periods the region spans along ``axis`` (NaN on failure).
+    message : str
+        Why the estimate failed ("" on success).
+    """
+
+    period_px: float
+    axis: str
+    strength: float
+    periods_seen: float = float("nan")
+    message: str = ""
+
+    def __bool__(self) -> bool:
+        return bool(np.isfinite(self.period_px)) and not self.message
+
+
+def _gray_float(image: np.ndarray) -> np.ndarray:
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        img = img[:, :, :3].astype(np.float64).mean(axis=2)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim != 2:
+        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
+    return img.astype(np.float64)
+
+
+def _line_sums(
+    img: np.ndarray, mask: np.ndarray, axis: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Count, sum and sum of squares of the masked pixels of each row ('rows') or column."""
+    a = 1 if axis == "rows" else 0
+    v = np.where(mask, img, 0.0)
+    return mask.sum(axis=a).astype(np.float64), v.sum(axis=a), (v * v).sum(axis=a)
+
+
+def _design(x: np.ndarray, f: float, n_trend: int = 3, max_harmonics: int = 3) -> np.ndarray:
+    """Columns: polynomial trend, then cos/sin of the harmonics of f below Nyquist."""
+    cols = [x**p for p in range(n_trend)]
+    for k in range(1, max_harmonics + 1):
+        if k * f >= 0.48:
+            break
+        ph = 2.0 * np.pi * k * f * x
+        cols += [np.cos(ph), np.sin(ph)]
+    return np.column_stack(cols)
+
+
+def _fit(x: np.ndarray, y: np.ndarray, w: np.ndarray, f: float) -> tuple[float, np.ndarray]:
+    """Weighted least squares of the profile on :func:`_design`: (weighted RSS, model)."""
+    d = _design(x, f)
+    sw = np.sqrt(w)
+    coef, *_ = np.linalg.lstsq(d * sw[:, None], y * sw, rcond=None)
+    model = d @ coef
+    r = (y - model) * sw
+    return float(r @ r), model
+
+
+def _period_along(img: np.ndarray, mask: np.ndarray, axis: str) -> StripePeriod:
+    nan = float("nan")
+    counts, sums, sq = _line_sums(img, mask, axis)
+    if counts.max() <= 0:
+        return StripePeriod(nan, axis, 0.0, message="the mask is empty")
+    ok = counts >= 0.25 * counts.max()
+    idx = np.flatnonzero(ok)
+    lo, hi = idx[0], idx[-1] + 1
+    n = hi - lo
+    if n < 6:
+        return StripePeriod(
+            nan, axis, 0.0, message=f"the region spans only {n} px along the {axis}"
+        )
+    x = np.arange(lo, hi, dtype=np.float64) - (lo + hi - 1) / 2.0
+    w = np.where(ok[lo:hi], counts[lo:hi], 0.0)  # the mean's noise variance ~ 1 / count
+    c, s1, s2 = w, np.where(w > 0, sums[lo:hi], 0.0), np.where(w > 0, sq[lo:hi], 0.0)
+    y = np.where(w > 0, s1 / np.maximum(c, 1.0), 0.0)
+
+    def pixel_ss(line_value: np.ndarray) -> float:
+        """Sum over the used pixels of (pixel - its line's model value) ** 2."""
+        return float(np.sum(s2 - 2.0 * line_value * s1 + c * line_value**2))
+
+    # Weighted quadratic trend, then a Hann-windowed, zero-padded spectrum of the residual.
+    xs = x / max(n / 2.0, 1.0)
+    t = np.column_stack([np.ones(n), xs, xs**2])
+    sw = np.sqrt(w)
+    coef, *_ = np.linalg.lstsq(t * sw[:, None], y * sw, rcond=None)
+    trend = t @ coef
+    total = pixel_ss(trend)
+    resid = (y - trend) * (w > 0)
+    if total <= 0 or float((resid * sw) @ (resid * sw)) <= 1e-12 * total:
+        return StripePeriod(nan, axis, 0.0, message="the region has no stripes")
+    nfft = 1 << int(np.ceil(np.log2(max(64 * n, 4096))))
+    spec = np.abs(np.fft.rfft(resid * np.hanning(n), nfft))
+    freqs = np.fft.rfftfreq(nfft)
+    band = (freqs >= 1.5 / n) & (freqs <= 0.48)
+    if not band.any():
+        return StripePeriod(nan, axis, 0.0, message="the region is too short")
+    k = int(np.flatnonzero(band)[np.argmax(spec[band])])
+    f0 = freqs[k]
+    if 0 < k < len(spec) - 1:  # parabolic interpolation of the log spectrum's peak
+        a, b, cc = np.log(spec[k - 1 : k + 2] + 1e-300)
+        den = a - 2 * b + cc
+        if den < 0:
+            f0 = freqs[k] + 0.5 * (a - cc) / den * (freqs[1] - freqs[0])
+
+    # Refine: least-squares fit of trend + harmonics, optimised over the frequency.
+    lo_f, hi_f = max(f0 - 0.5 / n, 1.0 / n), min(f0 + 0.5 / n, 0.49)
+    grid = np.linspace(lo_f, hi_f, 25)
+    g = int(np.argmin([_fit(x, y, w, fg)[0] for fg in grid]))
+    step = grid[1] - grid[0]
+    res = minimize_scalar(
+        lambda fr: _fit(x, y, w, fr)[0],
+        bounds=(max(grid[g] - step, lo_f), min(grid[g] + step, hi_f)),
+        method="bounded",
+        options={"xatol": 1e-9},
+    )
+    f = float(res.x)
+    _, model = _fit(x, y, w, f)
+    strength = float(np.clip(1.0 - pixel_ss(model) / total, 0.0, 1.0))
+    return StripePeriod(1.0 / f, axis, strength, periods_seen=n * f)
+
+
+def estimate_stripe_period(
+    image: np.ndarray, mask: np.ndarray | None = None, axis: str | None = None
+) -> StripePeriod:
+    """Period of the stripes a rolling shutter draws across a blinking light.
+
+    The masked pixels are averaged along each row (or column) into a profile; the profile's
+    weighted quadratic trend is removed, and the peak of its Hann-windowed, zero-padded
+    spectrum (refined by parabolic interpolation) seeds a weighted least-squares fit of a
+    periodic model (the fundamental and its harmonics below Nyquist, plus the trend) whose
+    frequency is optimised.  The harmonics let a square wave, clipped or not, fit exactly.
+
+    Precision: largest error of 20 synthetic discs per case (50 % square wave, blur sigma
+    1 px, noise 1 % of the stripe contrast, mask = the disc less 1.5 px), by the number of
+    periods the disc spans:
+
+    ===============  ========  ========  ========  ========
+    period (px)      2         2.5       3         5
+    ===============  ========  ========  ========  ========
+    4                fails     fails     1.4 %     0.3 %
+    6                fails     1.1 %     0.9 %     0.2 %
+    8                1.7 %     0.6 %     0.3 %     0.09 %
+    12               1.2 %     0.3 %     0.15 %    0.04 %
+    20               0.2 %     0.07 %    0.04 %    0.01 %
+    ===============  ========  ========  ========  ========
+
+    Over 10 periods the error is under 0.05 %.  The used rows must span at least 1.5
+    periods (a disc under about 12 px fails); periods under about 2.1 px cannot be told
+    from their aliases.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The photograph or a region of it (any dtype; colour is averaged to gray).
+    mask : ndarray of bool, shape (H, W), optional
+        The pixels of the light; default all.  Rows (columns) with fewer than a quarter of
+        the widest row's pixels are left out.
+    axis : {"rows", "columns", None}
+        ``"rows"`` for horizontal stripes (period down the rows), ``"columns"`` for
+        vertical ones; None tries both and keeps the stronger periodic component.
+
+    Returns
+    -------
+    StripePeriod
+        Falsy, with a message, when the region is empty, too short, or flat.
+
+    Raises
+    ------
+    ValueError
+        A bad image shape, a mask of another shape, or an unknown axis.
+    """
+    img = _gray_float(image)
+    if mask is None:
+        m = np.ones(img.shape, dtype=bool)
+    else:
+        m = np.asarray(mask).astype(bool)
+        if m.shape != img.shape:
+            raise ValueError(f"mask shape {m.shape} differs from the image's {img.shape}")
+    if axis is not None and axis not in AXES:
+        raise ValueError(f"axis must be 'rows', 'columns' or None, got {axis!r}")
+    axes = AXES if axis is None else (axis,)
+    results = [_period_along(img, m, a) for a in axes]
+    good = [r for r in results if r]
+    if not good:
+        return results[0]
+    return max(good, key=lambda r: r.strength)
+
+
+def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
+    """The pixels of the largest bright light in a photo, its dark stripes included.
+
+    Otsu's threshold of the lightly blurred image and a 3 x 3 opening against specks give
+    the bright stripes; starting from the largest, the stripes whose bounding boxes lie
+    within one and a half stripe thicknesses of the group join it (the dark gap between
+    two stripes of a 50 % square wave is about one stripe thick); the group's convex hull,
+    eroded by ``erode_px`` pixels to drop the blurred rim, is the light.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+    erode_px : int
+        Pixels to erode from the hull's edge.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+        All False when nothing stands out from the background.
+    """
+    img = _gray_float(image)
+    empty = np.zeros(img.shape, dtype=bool)
+    lo, hi = float(img.min()), float(img.max())
+    if hi - lo <= 0:
+        return empty
+    u8 = np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+    u8 = cv2.GaussianBlur(u8, (3, 3), 0)
+    _, binary = cv2.threshold(u8, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+    binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if n < 2:
+        return empty
+    x0 = stats[1:, cv2.CC_STAT_LEFT].astype(float)
+    y0 = stats[1:, cv2.CC_STAT_TOP].astype(float)
+    x1 = x0 + stats[1:, cv2.CC_STAT_WIDTH]
+    y1 = y0 + stats[1:, cv2.CC_STAT_HEIGHT]
+    thick = np.minimum(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT])
+    member = np.zeros(n - 1, dtype=bool)
+    member[int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))] = True
+    while True:
+        gx0, gy0 = x0[member].min(), y0[member].min()
+        gx1, gy1 = x1[member].max(), y1[member].max()
+        reach = 1.5 * float(thick[member].max()) + 2.0
+        gap = np.maximum(
+            np.maximum(gx0 - x1, x0 - gx1).clip(0), np.maximum(gy0 - y1, y0 - gy1).clip(0)
+        )
+        grown = member | (gap <= reach)
+        if grown.sum() == member.sum():
+            break
+        member = grown
+    pts = np.column_stack(np.nonzero(np.isin(labels, np.flatnonzero(member) + 1)))[:, ::-1]
+    if len(pts) < 3:
+        return empty
+    hull = cv2.convexHull(pts.astype(np.int32))
+    out = np.zeros(img.shape, dtype=np.uint8)
+    cv2.fillConvexPoly(out, hull, 1)
+    if erode_px > 0:
+        e = 2 * int(erode_px) + 1
+        out = cv2.erode(out, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (e, e)))
+    return out.astype(bool)
+
+
+@dataclass(frozen=True)
+class RowTimeEstimate:
+    """A rolling shutter's row time measured from a blinking light (:func:`estimate_row_time`).
+
+    Falsy on failure.
+
+    Attributes
+    ----------
+    row_time_s : float
+        Seconds between the starts of two consecutive sensor rows; NaN on failure.
+    period_px : float
+        Stripe period in pixels (sensor rows) along ``axis``.
+    axis : str
+        ``"rows"`` (stripes horizontal) or ``"columns"`` (stripes vertical, portrait photo).
+    strength : float
+        Periodic fraction of the profile's variance, 0-1 (see :class:`StripePeriod`).
+    periods_seen : float
+        Periods the light spans along ``axis``.
+    blob_area_px : int
+        Pixels in the light's mask.
+    frequency_hz : float
+        The light's blink frequency, Hz.
+    message : str
+        Why the estimate failed ("" on success).
+    """
+
+    row_time_s: float
+    period_px: float
+    axis: str
+    strength: float
+    periods_seen: float
+    blob_area_px: int
+    frequency_hz: float
+    message: str = ""
+
+    def __bool__(self) -> bool:
+        return not self.message
+
+    @property
+    def rows_per_s(self) -> float:
+        """Sensor rows read per second (``1 / row_time_s``)."""
+        return 1.0 / self.row_time_s
+
+
+#: Weakest periodic component :func:`estimate_row_time` accepts as stripes.
+MIN_STRIPE_STRENGTH = 0.3
+
+
+def estimate_row_time(
+    image: np.ndarray, frequency_hz: float, *, axis: str | None = None
+) -> RowTimeEstimate:
+    """Row time of a rolling-shutter camera from a photo of one light blinking a square wave.
+
+    The light (the largest bright blob, :func:`bright_blob_mask`) shows stripes of period
+    ``P`` rows; ``row_time = 1 / (frequency_hz * P)``.  The photo must be at the sensor's
+    full resolution (a downscaled photo scales ``P``), the exposure shorter than half a
+    blink period, and ``P`` above about 3 rows.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The photograph.
+    frequency_hz : float
+        The light's blink frequency (a 50 % square wave), Hz.
+    axis : {"rows", "columns", None}
+        Readout axis if known (see :func:`estimate_stripe_period`); None finds it.
+
+    Returns
+    -------
+    RowTimeEstimate
+        Falsy, with a message, when no light or no clear stripes are found.
+
+    Raises
+    ------
+    ValueError
+        A non-positive frequency, a bad image or an unknown axis.
+    """
+    if not (np.isfinite(frequency_hz) and frequency_hz > 0):
+        raise ValueError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
+    nan = float("nan")
+    mask = bright_blob_mask(image)
+    area = int(mask.sum())
+    if area < 16:
+        return RowTimeEstimate(nan, nan, axis or "rows", 0.0, nan, area, frequency_hz,
+                               "no bright light found")
+    sp = estimate_stripe_period(image, mask, axis)
+    if not sp:
+        return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
+    if sp.strength < MIN_STRIPE_STRENGTH:
+        return RowTimeEstimate(
+            nan, sp.period_px, sp.axis, sp.strength, sp.periods_seen, area, frequency_hz,
+            f"no clear stripes in the light (periodic strength {sp.strength:.2f})",
+        )
+    return RowTimeEstimate(
+        1.0 / (frequency_hz * sp.period_px), sp.period_px, sp.axis, sp.strength,
+        sp.periods_seen, area, frequency_hz,
+    )

@@ -1,0 +1,238 @@
+"""``camvlp calibrate`` and ``camvlp calibrate-rows``: make a camera file."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..calibrate import calibrate_camera, estimate_row_time
+from ..io import InputError, load_camera, load_image, save_camera
+from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
+
+#: Image files taken from a directory given as an argument.
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}
+
+#: Show a progress bar from this many photos on (when stderr is a terminal).
+PROGRESS_FROM = 5
+
+
+def _expand(paths: list[Path]) -> list[Path]:
+    """Files as given; directories replaced by their image files, sorted."""
+    out: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise InputError("no image files in the directory", p)
+            out.extend(found)
+        elif not p.exists():
+            raise InputError("photo not found", p)
+        else:
+            out.append(p)
+    return out
+
+
+def _parse_board(text: str) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX*,]\s*(\d+)\s*", text)
+    if not m or int(m.group(1)) < 2 or int(m.group(2)) < 2:
+        fail(f"--board must be COLSxROWS inner corners, at least 2x2, e.g. 9x6; got {text!r}")
+    return int(m.group(1)), int(m.group(2))
+
+
+@app.command()
+@handle_errors
+def calibrate(
+    images: Annotated[
+        list[Path] | None,
+        typer.Argument(
+            metavar="IMAGES...",
+            help="Chessboard photographs (files, or directories of image files).",
+            show_default=False,
+        ),
+    ] = None,
+    board: Annotated[
+        str | None,
+        typer.Option("--board", metavar="COLSxROWS",
+                     help="Inner corners of the board, e.g. 9x6 for 10 x 7 squares."),
+    ] = None,
+    square: Annotated[
+        float | None,
+        typer.Option("--square", metavar="SIZE_M", help="Side of one square, metres."),
+    ] = None,
+    out: Annotated[
+        Path,
+        typer.Option("--out", "-o", help="Camera file to write (.yaml: OpenCV; .json)."),
+    ] = Path("camera.yaml"),
+    row_time: Annotated[
+        float | None,
+        typer.Option("--row-time", metavar="S",
+                     help="Row time to store in the camera file, seconds (calibrate-rows)."),
+    ] = None,
+    fix_aspect: Annotated[
+        bool, typer.Option("--fix-aspect", help="Keep fx = fy (square pixels).")
+    ] = False,
+    zero_tangent: Annotated[
+        bool, typer.Option("--zero-tangent", help="Fix tangential distortion p1 = p2 = 0.")
+    ] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON summary.")] = False,
+) -> None:
+    """Calibrate a camera from chessboard photographs and write its camera file.
+
+    Prints the intrinsics, the RMS reprojection error (px), and each photo's error or reason.
+
+    Exit 1 when fewer than 3 photos show the board.
+    """
+    if not images:
+        fail("no chessboard photos given (IMAGES...)")
+    if board is None:
+        fail("--board COLSxROWS is required (inner corners, e.g. 9x6)")
+    cols_rows = _parse_board(board)
+    if square is None or not square > 0:
+        fail(f"--square must be a positive size in metres, got {square}")
+    if row_time is not None and not 0 < row_time < 1:
+        fail(f"--row-time must be a positive number of seconds, got {row_time}")
+    if out.suffix.lower() not in (".yaml", ".yml", ".json"):
+        fail(f"--out must end in .yaml, .yml or .json ({out})")
+    paths = _expand(list(images))
+
+    from rich.console import Console
+    from rich.progress import Progress
+
+    console = Console(stderr=True)
+    show = len(paths) >= PROGRESS_FROM and console.is_terminal
+    with Progress(console=console, transient=True, disable=not show) as progress:
+        task = progress.add_task("finding the board", total=len(paths))
+        result = calibrate_camera(
+            paths, cols_rows, square, row_time_s=row_time, fix_aspect=fix_aspect,
+            zero_tangent=zero_tangent, on_image=lambda _name: progress.advance(task),
+        )
+
+    camera = result.camera
+    if camera is None:
+        if not as_json:
+            for name, reason in result.rejected:
+                print(f"rejected  {name}: {reason}")
+        else:
+            print(json.dumps({"ok": False, "message": result.message,
+                              "rejected": [{"photo": n, "reason": r}
+                                           for n, r in result.rejected]}))
+        fail(result.message, EXIT_NOT_LOCATED)
+    save_camera(camera, out, extra={"calibration_rms_px": result.rms_px,
+                                    "calibration_photos": len(result.used)})
+    k = camera.matrix
+    if as_json:
+        print(json.dumps({
+            "ok": True,
+            "camera_file": str(out),
+            "image_width": camera.width,
+            "image_height": camera.height,
+            "camera_matrix": k.tolist(),
+            "distortion_coefficients": camera.distortion.tolist(),
+            "row_time_s": camera.row_time_s,
+            "rms_px": result.rms_px,
+            "used": [{"photo": n, "rms_px": e}
+                     for n, e in zip(result.used, result.per_image_rms_px, strict=True)],
+            "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
+        }))
+        return
+    width = max(len(n) for n in (*result.used, *(n for n, _ in result.rejected)))
+    print(f"camera     {camera.width} x {camera.height} px, written to {out}")
+    print(f"focal      fx {k[0, 0]:.2f}  fy {k[1, 1]:.2f} px")
+    print(f"centre     cx {k[0, 2]:.2f}  cy {k[1, 2]:.2f} px")
+    print("distortion " + " ".join(f"{v:.5g}" for v in camera.distortion)
+          + "  (k1 k2 p1 p2 k3)")
+    if camera.row_time_s is not None:
+        print(f"row time   {camera.row_time_s * 1e6:.3f} us")
+    print(f"rms        {result.rms_px:.3f} px over {len(result.used)} photos")
+    for name, err in zip(result.used, result.per_image_rms_px, strict=True):
+        print(f"  used      {name:<{width}}  rms {err:.3f} px")
+    for name, reason in result.rejected:
+        print(f"  rejected  {name:<{width}}  {reason}")
+
+
+@app.command("calibrate-rows")
+@handle_errors
+def calibrate_rows(
+    photo: Annotated[
+        Path, typer.Argument(help="Photo of one light blinking a 50 % square wave.",
+                             show_default=False)
+    ],
+    frequency: Annotated[
+        float | None,
+        typer.Option("--frequency", metavar="HZ", help="The light's blink frequency, Hz."),
+    ] = None,
+    camera_path: Annotated[
+        Path | None,
+        typer.Option("--camera", metavar="CAM", help="Camera file to check the photo against."),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option("--out", "-o", metavar="CAM2",
+                     help="Write --camera's file here with row_time_s added."),
+    ] = None,
+    axis: Annotated[
+        str | None,
+        typer.Option("--axis", help="rows (stripes horizontal) or columns; default: found."),
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Measure the rolling shutter's row time from the stripes of a blinking light.
+
+    Stripe period P (rows) of a light blinking at F Hz: row time = 1 / (F * P).
+
+    Take the photo at full resolution, with a short exposure.
+
+    Exit 1 when no light or no clear stripes are found.
+    """
+    if frequency is None or not frequency > 0:
+        fail(f"--frequency must be a positive number of Hz, got {frequency}")
+    if axis is not None and axis not in ("rows", "columns"):
+        fail(f"--axis must be rows or columns, got {axis!r}")
+    if out is not None and camera_path is None:
+        fail("--out needs --camera (the camera file to copy)")
+    if out is not None and out.suffix.lower() not in (".yaml", ".yml", ".json"):
+        fail(f"--out must end in .yaml, .yml or .json ({out})")
+    camera = load_camera(camera_path) if camera_path is not None else None
+    image = load_image(photo)
+    h, w = image.shape[:2]
+    if camera is not None:
+        if (w, h) not in ((camera.width, camera.height), (camera.height, camera.width)):
+            fail(f"photo is {w} x {h} px but the camera is {camera.width} x {camera.height}; "
+                 f"use the full-resolution photo ({photo})")
+        if axis is None and camera.readout is not None and (w, h) == camera.size:
+            axis = camera.readout
+    est = estimate_row_time(image, frequency, axis=axis)
+    if not est:
+        fail(f"{est.message} ({photo})", EXIT_NOT_LOCATED)
+    if out is not None and camera is not None:
+        save_camera(dataclasses.replace(camera, row_time_s=est.row_time_s), out)
+    if as_json:
+        print(json.dumps({
+            "photo": str(photo),
+            "frequency_hz": frequency,
+            "period_px": est.period_px,
+            "axis": est.axis,
+            "row_time_s": est.row_time_s,
+            "rows_per_s": est.rows_per_s,
+            "strength": est.strength,
+            "periods_seen": est.periods_seen,
+            "camera_file": str(out) if out is not None else None,
+        }))
+        return
+    stripes = "horizontal" if est.axis == "rows" else "vertical"
+    print(f"axis       {est.axis} (stripes {stripes})")
+    print(f"period     {est.period_px:.4f} px over {est.periods_seen:.1f} periods "
+          f"(strength {est.strength:.2f})")
+    print(f"row time   {est.row_time_s * 1e6:.4f} us")
+    print(f"rows/s     {est.rows_per_s:.1f}")
+    if est.periods_seen < 3:
+        print(f"warning: only {est.periods_seen:.1f} periods in the light; a lower frequency "
+              "or a larger light gives a better estimate", file=sys.stderr)
+    if out is not None:
+        print(f"written    {out}")
