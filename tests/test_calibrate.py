@@ -83,6 +83,19 @@ def test_rendered_board_corners_match_projection():
     assert err < 0.2
 
 
+def test_large_photo_is_searched_downscaled_and_refined_at_full_size():
+    """A photo above 1600 px is searched at reduced size; the corners stay sub-pixel."""
+    cam = Camera.from_focal(2400, 1800, 1950.0)
+    pose = _board_poses(cam, 1, seed=5)[0]
+    img = render_chessboard(cam, pose, BOARD, SQUARE_M, supersample=1)
+    img = cv2.GaussianBlur(img, (0, 0), 1.2)
+    corners = find_board_corners(img, BOARD)
+    truth = cam.project(pose, board_object_points(BOARD, SQUARE_M))
+    assert corners is not None
+    err = min(np.abs(corners - truth).max(), np.abs(corners[::-1] - truth).max())
+    assert err < 0.1
+
+
 def test_render_with_distortion_bends_the_board():
     """With barrel distortion the board's corners land where the distorted model puts them."""
     base = Camera.from_focal(320, 240, 260.0)

@@ -43,6 +43,9 @@ __all__ = [
 #: Fewest usable chessboard photographs :func:`calibrate_camera` accepts.
 MIN_CALIBRATION_PHOTOS = 3
 
+#: Longest image side (px) the board search runs at; corners are refined at full size.
+DETECT_MAX_SIDE_PX = 1600
+
 
 # --------------------------------------------------------------------------------------
 # Chessboard calibration
@@ -135,8 +138,9 @@ def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray 
     """Sub-pixel chessboard inner corners of a photograph, or None when no board is found.
 
     Finds the board with ``cv2.findChessboardCornersSB`` (or, failing that, the classic
-    ``cv2.findChessboardCorners``) and refines the corners with ``cv2.cornerSubPix``, its
-    window kept within 0.4 of the closest corners' spacing.
+    ``cv2.findChessboardCorners``) in a copy scaled to at most ``DETECT_MAX_SIDE_PX``
+    (1600 px) on its longer side, and refines the corners at full resolution with
+    ``cv2.cornerSubPix``, its window kept within 0.4 of the closest corners' spacing.
 
     Parameters
     ----------
@@ -152,14 +156,21 @@ def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray 
     """
     cols, rows = _parse_board(board)
     gray = _to_gray_u8(image)
+    scale = min(1.0, DETECT_MAX_SIDE_PX / max(gray.shape))
+    small = gray if scale == 1.0 else cv2.resize(
+        gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA
+    )
     sb_flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
-    found, corners = cv2.findChessboardCornersSB(gray, (cols, rows), flags=sb_flags)
+    found, corners = cv2.findChessboardCornersSB(small, (cols, rows), flags=sb_flags)
     if not found:
         flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
-        found, corners = cv2.findChessboardCorners(gray, (cols, rows), flags=flags)
+        found, corners = cv2.findChessboardCorners(small, (cols, rows), flags=flags)
         if not found:
             return None
     corners = np.asarray(corners, dtype=np.float32).reshape(rows, cols, 2)
+    if scale != 1.0:  # pixel centres: x_full + 0.5 = (x_small + 0.5) / scale
+        sx, sy = gray.shape[1] / small.shape[1], gray.shape[0] / small.shape[0]
+        corners = (corners + 0.5) * np.array([sx, sy], dtype=np.float32) - 0.5
     # Refine with cornerSubPix, its window well inside the nearest neighbours' distance.
     spacing = min(
         float(np.linalg.norm(np.diff(corners, axis=0), axis=2).min()),
@@ -732,7 +743,10 @@ def estimate_row_time(
     if area < 16:
         return RowTimeEstimate(nan, nan, axis or "rows", 0.0, nan, area, frequency_hz,
                                "no bright light found")
-    sp = estimate_stripe_period(image, mask, axis)
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    sp = estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
     if not sp:
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
     if sp.strength < MIN_STRIPE_STRENGTH:
