@@ -351,14 +351,17 @@ def locate(
                     for f in fixtures
                 ]
             )
-            est2 = estimate_pose(
-                pixels - offsets,
-                obj,
-                camera,
-                normals=normals,
-                solver=st.solver,
-                outlier_px=st.outlier_px,
-            )
+            if np.max(np.abs(offsets)) < 0.02:  # facing the lights: nothing to correct
+                est2 = None
+            else:
+                est2 = estimate_pose(
+                    pixels - offsets,
+                    obj,
+                    camera,
+                    normals=normals,
+                    solver=st.solver,
+                    outlier_px=st.outlier_px,
+                )
             if est2:
                 est = est2
         if not est:
