@@ -1,0 +1,461 @@
+"""``camvlp study``: the thesis' error study (chapter 4) and a coverage planner."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .. import study as st
+from ..camera import Camera
+from ..fixtures import FixtureMap
+from ..io import load_camera, load_map
+from ..pnp import SOLVERS
+from ._app import app, fail, handle_errors, parse_floats
+
+study_app = typer.Typer(
+    name="study",
+    help="Error study (thesis chapter 4) and deployment planning, geometry only.",
+    no_args_is_help=True,
+)
+app.add_typer(study_app, name="study")
+
+
+
+#: Thesis figure presets for image-error / world-error: positions (m), angles (deg), height.
+FIGURES = {
+    "4.3": ("-1,0,0;-0.5,0,0;0,0,0;0.5,0,0;1,0,0", "90,0,0", 0.0),
+    "4.4": ("0,0,0", "80,0,0;85,0,0;90,0,0;95,0,0", 0.0),
+    "4.5": ("0,0,0", "80,0,0;85,0,0;90,0,0;95,0,0", 1.0),
+}
+
+# ------------------------------------------------------------------ shared option types
+
+CameraOpt = Annotated[
+    Path | None,
+    typer.Option("--camera", help="Camera file [default: examples/thesis_camera.yaml]."),
+]
+MapOpt = Annotated[
+    Path | None, typer.Option("--map", help="Map file [default: examples/thesis_room.yaml].")
+]
+SolverOpt = Annotated[
+    str, typer.Option("--solver", help="PnP method: iterative, sqpnp, ippe or epnp.")
+]
+NoiseOpt = Annotated[
+    float,
+    typer.Option("--noise-px", help="Monte Carlo: Gaussian sigma on every image point (px)."),
+]
+SurveyOpt = Annotated[
+    float,
+    typer.Option(
+        "--survey-error-m", help="Monte Carlo: Gaussian sigma on every fixture's map position (m)."
+    ),
+]
+SeedOpt = Annotated[int, typer.Option("--seed", help="Seed of the Monte Carlo noise.")]
+RoundOpt = Annotated[
+    bool, typer.Option("--round/--no-round", help="Round image points to whole pixels (thesis).")
+]
+OutOpt = Annotated[
+    Path | None, typer.Option("--out", help="Write CSV, PNG and summary.json into this directory.")
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print the summary as JSON on stdout.")]
+PlaneOpt = Annotated[
+    str,
+    typer.Option("--plane", help="The two world axes spanning the floor (xz: thesis, y down)."),
+]
+RangeX = Annotated[str, typer.Option("--x-range", help="Grid extent along x, 'lo,hi' (m).")]
+RangeY = Annotated[str | None, typer.Option("--y-range", help="Grid extent along y (m).")]
+RangeZ = Annotated[str | None, typer.Option("--z-range", help="Grid extent along z (m).")]
+StepOpt = Annotated[float, typer.Option("--step", help="Grid spacing (m).")]
+HeightOpt = Annotated[
+    float, typer.Option("--height", help="Camera height above the floor (m), towards the lights.")
+]
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _default_file(path: Path | None, name: str) -> Path:
+    """The given path, or the thesis example (cwd's examples/, else the source tree's)."""
+    if path is not None:
+        return path
+    for base in (Path.cwd(), Path(__file__).resolve().parents[3]):
+        candidate = base / "examples" / name
+        if candidate.exists():
+            return candidate
+    return Path("examples") / name  # the loader reports it missing
+
+
+def _check(solver: str, noise_px: float, survey_error_m: float, trials: int,
+           **positive: float) -> None:
+    """Usage checks shared by the commands, naming the option at fault."""
+    if solver not in SOLVERS:
+        fail(f"--solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    for name, value in (("--noise-px", noise_px), ("--survey-error-m", survey_error_m)):
+        if not value >= 0:
+            fail(f"{name} must be a non-negative number, got {value}")
+    if trials < 1:
+        fail(f"--trials must be a positive integer, got {trials}")
+    for name, value in positive.items():
+        if not value > 0:
+            fail(f"--{name.replace('_', '-')} must be positive, got {value}")
+
+
+def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]:
+    return (
+        load_camera(_default_file(camera, "thesis_camera.yaml")),
+        load_map(_default_file(fmap, "thesis_room.yaml")),
+    )
+
+
+def _triples(text: str, name: str) -> list[list[float]]:
+    """``"x,y,z;x,y,z"`` -> list of triples, or a usage error naming ``name``."""
+    parts = [p for p in text.split(";") if p.strip()]
+    if not parts:
+        fail(f"{name} needs at least one 'a,b,c' triple, got {text!r}")
+    return [parse_floats(p, 3, name) for p in parts]
+
+
+def _ranges(plane: str, x: str, y: str | None, z: str | None) -> tuple[list, list]:
+    """The (u, v) ranges of the plane's two axes from --x-range/--y-range/--z-range."""
+    given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
+    if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
+        fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
+    return (parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
+            parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"))
+
+
+@contextmanager
+def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None] | None]:
+    """A rich progress bar on stderr, for long runs (about > 1 s) on a terminal only."""
+    if total_hint < 5000 or not sys.stderr.isatty():
+        yield None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    with Progress(
+        TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(), console=Console(stderr=True), transient=True,
+    ) as bar:
+        task = bar.add_task(label, total=None)
+
+        def update(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
+    summary = study.summary()
+    if out is not None:
+        try:
+            summary = st.write_outputs(out, name, study, plot)
+        except OSError as exc:
+            fail(f"cannot write results: {exc.strerror or exc} ({out})")
+        print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
+    if as_json:
+        print(json.dumps(summary))
+    else:
+        for line in lines:
+            print(line)
+
+
+def _mm(v: float | None) -> str:
+    return "n/a" if v is None else f"{v * 1e3:.2f} mm"
+
+
+def _len(v: float | None) -> str:
+    if v is None:
+        return "n/a"
+    return f"{v:.3f} m" if v >= 0.5 else f"{v * 100:.2f} cm" if v >= 0.01 else f"{v * 1e3:.2f} mm"
+
+
+def _run(func, *args, **kwargs):
+    try:
+        return func(*args, **kwargs)
+    except ValueError as exc:
+        fail(str(exc))
+
+
+def _monte_carlo(cam, fmap, positions, eulers, solver, noise_px, survey_m, trials, seed,
+                 rounding, out, as_json) -> None:
+    n = max(len(positions), len(eulers)) * trials
+    with _progress(n, "Monte Carlo") as progress:
+        res = _run(
+            st.monte_carlo_study, cam, fmap, positions_m=positions, euler_deg=eulers,
+            noise_px=noise_px, survey_error_m=survey_m, trials=trials, seed=seed,
+            solver=solver, rounding=rounding, progress=progress,
+        )
+    s = res.summary()
+    lines = [
+        f"monte carlo: sigma {noise_px:g} px (image), {survey_m:g} m (map), {s['trials']} trials "
+        f"per pose, {solver}",
+        f"all poses: mean {_len(s['mean_error_m'])}, median {_len(s['median_error_m'])}, "
+        f"95% {_len(s['p95_error_m'])}, failures {s['failures']}",
+    ]
+    for p in s["per_pose"]:
+        lines.append(
+            f"  C={tuple(p['position_m'])} theta={tuple(p['euler_deg'])}: mean "
+            f"{_len(p['mean_error_m'])}, median {_len(p['median_error_m'])}, "
+            f"95% {_len(p['p95_error_m'])}"
+        )
+    _finish(res, "monte-carlo", st.plot_monte_carlo, out, as_json, lines)
+
+
+# -------------------------------------------------------------------------- commands
+
+
+@study_app.command("rounding")
+@handle_errors
+def rounding(
+    camera: CameraOpt = None,
+    map_path: MapOpt = None,
+    euler: Annotated[
+        str, typer.Option("--euler", help="Camera orientation, thesis angles 'tx,ty,tz' (deg).")
+    ] = "90,0,0",
+    plane: PlaneOpt = "xz",
+    x_range: RangeX = "-1,1",
+    y_range: RangeY = None,
+    z_range: RangeZ = None,
+    step: StepOpt = 0.1,
+    height: HeightOpt = 0.0,
+    solver: SolverOpt = "iterative",
+    noise_px: NoiseOpt = 0.0,
+    survey_error_m: SurveyOpt = 0.0,
+    trials: Annotated[
+        int, typer.Option("--trials", help="Draws per grid point (with noise).")
+    ] = 20,
+    seed: SeedOpt = 0,
+    rounding: RoundOpt = True,
+    out: OutOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Position error from pixel rounding over a grid on the floor (thesis fig. 4.2)."""
+    _check(solver, noise_px, survey_error_m, trials, step=step)
+    angles = parse_floats(euler, 3, "--euler")
+    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    cam, fmap = _inputs(camera, map_path)
+    noisy = noise_px > 0 or survey_error_m > 0
+    est = 21 * 21 * (trials if noisy else 1) / (step / 0.1) ** 2
+    with _progress(int(est), "rounding study") as progress:
+        res = _run(
+            st.rounding_study, cam, fmap, euler_deg=angles, plane=plane, u_range_m=u_range,
+            v_range_m=v_range, step_m=step, height_m=height, solver=solver,
+            rounding=rounding, noise_px=noise_px, survey_error_m=survey_error_m, trials=trials,
+            seed=seed, progress=progress,
+        )
+    s = res.summary()
+    lines = [
+        f"rounding study: theta=({euler}) deg, height {height:g} m, {s['grid']['points']} "
+        f"floor points, {solver}",
+        f"mean {_mm(s['mean_error_m'])}, median {_mm(s['median_error_m'])}, "
+        f"95% {_mm(s['p95_error_m'])}, max {_mm(s['max_error_m'])}, "
+        f"{s['poses']} poses, {s['failures']} failures",
+    ]
+    _finish(res, "rounding", st.plot_rounding, out, as_json, lines)
+
+
+def _forced(
+    kind: str, camera, map_path, fixture, axis, value_range, step, positions, eulers, height,
+    plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out, as_json,
+) -> None:
+    _check(solver, noise_px, survey_error_m, trials, step=step)
+    axes = "xy" if kind == "image" else "xyz"
+    if axis not in axes:
+        fail(f"--axis must be one of {', '.join(axes)} for {kind} errors, got {axis!r}")
+    if figure is not None and figure not in FIGURES:
+        fail(f"--figure must be one of {', '.join(FIGURES)}, got {figure!r}")
+    fig_pos, fig_eul, fig_h = FIGURES[figure or "4.3"]
+    pos = _triples(positions if positions is not None else fig_pos, "--positions")
+    eul = _triples(eulers if eulers is not None else fig_eul, "--eulers")
+    if len(pos) > 1 and len(eul) > 1 and len(pos) != len(eul):
+        fail(f"--positions has {len(pos)} poses and --eulers {len(eul)}: give one of them once "
+             "or both the same number of times")
+    if height is None and figure is not None:
+        height = fig_h
+    cam, fmap = _inputs(camera, map_path)
+    if height is not None:
+        pos = _run(st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane,
+                   height_m=height).tolist()
+    if noise_px > 0 or survey_error_m > 0:
+        _monte_carlo(cam, fmap, pos, eul, solver, noise_px, survey_error_m, trials, seed,
+                     rounding, out, as_json)
+        return
+    lo, hi = parse_floats(value_range, 2, "--range")
+    offsets = _run(st.axis_values, (lo, hi), step, "--range")
+    with _progress(len(offsets) * max(len(pos), len(eul)), f"{kind}-error study") as progress:
+        res = _run(
+            st.forced_error_study, cam, fmap, kind=kind, axis=axis, offsets=offsets,
+            positions_m=pos, euler_deg=eul, fixture_id=fixture, solver=solver,
+            rounding=rounding, progress=progress,
+        )
+    s = res.summary()
+    unit = res.offset_unit
+    lines = [f"{kind}-error study: fixture {res.fixture_id}, {kind} {axis} from {lo:g} to {hi:g} "
+             f"{unit}, {solver}"]
+    for ser in s["series"]:
+        r2 = ser["r2_linear"]
+        lines.append(
+            f"  C={tuple(ser['position_m'])} theta={tuple(ser['euler_deg'])}: error at {lo:g} "
+            f"{unit} {_len(ser['error_at_min_offset_m'])}, at {hi:g} {unit} "
+            f"{_len(ser['error_at_max_offset_m'])}, linear R^2 "
+            + ("n/a" if r2 is None else f"{r2:.3f}")
+        )
+    _finish(res, f"{kind}-error", st.plot_forced_error, out, as_json, lines)
+
+
+_POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) [default: thesis fig. 4.3, five along x]."
+_EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) [default: 90,0,0]; one or as many."
+_FIG_HELP = "Thesis figure preset for poses and height: 4.3, 4.4 or 4.5."
+_HGT_HELP = "Put every camera at this height above the floor (m), towards the lights."
+
+
+@study_app.command("image-error")
+@handle_errors
+def image_error(
+    camera: CameraOpt = None,
+    map_path: MapOpt = None,
+    fixture: Annotated[
+        int | None, typer.Option("--fixture", help="ID of the fixture to move [default: first].")
+    ] = None,
+    axis: Annotated[str, typer.Option("--axis", help="Image axis: x or y.")] = "x",
+    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (px).")] = (
+        "-20,20"
+    ),
+    step: Annotated[float, typer.Option("--step", help="Forced error step (px).")] = 1.0,
+    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
+    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
+    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
+    plane: PlaneOpt = "xz",
+    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
+    solver: SolverOpt = "iterative",
+    noise_px: NoiseOpt = 0.0,
+    survey_error_m: SurveyOpt = 0.0,
+    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
+    seed: SeedOpt = 0,
+    rounding: RoundOpt = True,
+    out: OutOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Position error against a forced error on one fixture's image point (fig. 4.3-4.5).
+
+    With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
+    """
+    _forced("image", camera, map_path, fixture, axis, value_range, step, positions, eulers,
+            height, plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out,
+            as_json)
+
+
+@study_app.command("world-error")
+@handle_errors
+def world_error(
+    camera: CameraOpt = None,
+    map_path: MapOpt = None,
+    fixture: Annotated[
+        int | None, typer.Option("--fixture", help="ID of the fixture to move [default: first].")
+    ] = None,
+    axis: Annotated[str, typer.Option("--axis", help="World axis: x, y or z.")] = "x",
+    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (m).")] = (
+        "-1,1"
+    ),
+    step: Annotated[float, typer.Option("--step", help="Forced error step (m).")] = 0.05,
+    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
+    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
+    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
+    plane: PlaneOpt = "xz",
+    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
+    solver: SolverOpt = "iterative",
+    noise_px: NoiseOpt = 0.0,
+    survey_error_m: SurveyOpt = 0.0,
+    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
+    seed: SeedOpt = 0,
+    rounding: RoundOpt = True,
+    out: OutOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Position error against a forced error on one fixture's map position (fig. 4.3-4.5).
+
+    With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
+    """
+    _forced("world", camera, map_path, fixture, axis, value_range, step, positions, eulers,
+            height, plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out,
+            as_json)
+
+
+@study_app.command("coverage")
+@handle_errors
+def coverage(
+    camera: CameraOpt = None,
+    map_path: MapOpt = None,
+    plane: PlaneOpt = "xz",
+    x_range: RangeX = "-1,1",
+    y_range: RangeY = None,
+    z_range: RangeZ = None,
+    step: StepOpt = 0.1,
+    height: HeightOpt = 0.0,
+    euler: Annotated[
+        str, typer.Option("--euler", help="Orientation with no tilt, 'tx,ty,tz' (deg).")
+    ] = "90,0,0",
+    tilt_max: Annotated[
+        float, typer.Option("--tilt-max", help="Largest tilt about x and about y (deg).")
+    ] = 15.0,
+    tilt_step: Annotated[float, typer.Option("--tilt-step", help="Tilt step (deg).")] = 2.5,
+    chip_rate: Annotated[
+        float, typer.Option("--chip-rate", help="Line-code chips per second (Hz).")
+    ] = 10_000.0,
+    row_time: Annotated[
+        float | None,
+        typer.Option("--row-time", help="Seconds per sensor row [default: camera's, or 20e-6]."),
+    ] = None,
+    min_frames: Annotated[
+        float, typer.Option("--min-frames", help="Frames of rows a fixture must span.")
+    ] = 1.2,
+    diameter: Annotated[
+        float | None,
+        typer.Option("--diameter", help="Fixture diameter (m) where the map gives none."),
+    ] = None,
+    solver: SolverOpt = "iterative",
+    noise_px: Annotated[
+        float, typer.Option("--noise-px", help="Detection noise sigma on image points (px).")
+    ] = 0.5,
+    trials: Annotated[
+        int, typer.Option("--trials", help="Noise draws per position and orientation.")
+    ] = 1,
+    seed: SeedOpt = 0,
+    rounding: RoundOpt = True,
+    out: OutOpt = None,
+    as_json: JsonOpt = False,
+) -> None:
+    """Where on the floor a fix is possible over a range of tilts, and its expected error."""
+    _check(solver, noise_px, 0.0, trials, step=step, tilt_step=tilt_step, chip_rate=chip_rate,
+           **({"row_time": row_time} if row_time is not None else {}))
+    base = parse_floats(euler, 3, "--euler")
+    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    cam, fmap = _inputs(camera, map_path)
+    n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
+    with _progress(int(441 * n_tilts * (0.1 / step) ** 2), "coverage study") as progress:
+        res = _run(
+            st.coverage_study, cam, fmap, plane=plane, u_range_m=u_range, v_range_m=v_range,
+            step_m=step, height_m=height, base_euler_deg=base, tilt_max_deg=tilt_max,
+            tilt_step_deg=tilt_step, chip_rate_hz=chip_rate, row_time_s=row_time,
+            min_frames=min_frames, default_diameter_m=diameter, noise_px=noise_px,
+            trials=trials, seed=seed, solver=solver, rounding=rounding, progress=progress,
+        )
+    s = res.summary()
+    lines = [
+        f"coverage: {s['floor_points']} floor points x {s['orientations']} orientations "
+        f"(tilt up to {tilt_max:g} deg), height {height:g} m, {solver}",
+        f"a frame lasts {s['frame_rows']:.1f} rows; fixtures must span {s['min_rows']:.1f}",
+        f"fix possible: {s['mean_fix_fraction']:.1%} of poses; "
+        f"{s['floor_fraction_any_fix']:.1%} of the floor for some tilt, "
+        f"{s['floor_fraction_all_fix']:.1%} for every tilt",
+        f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
+        f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
+    ]
+    _finish(res, "coverage", st.plot_coverage, out, as_json, lines)
