@@ -8,6 +8,7 @@ from .camera import Camera, Pose, euler_to_matrix, matrix_to_euler, project_poin
 from .fixtures import Fixture, FixtureMap
 from .io import InputError, load_camera, load_image, load_map, save_camera, save_map
 from .linecode import ChipDecode, FrameFormat, chip_schedule, manchester_encode
+from .locate import FixtureResult, LocateResult, LocateSettings, locate
 from .simulate import (
     FixtureTruth,
     Render,
@@ -26,9 +27,12 @@ __all__ = [
     "ChipDecode",
     "Fixture",
     "FixtureMap",
+    "FixtureResult",
     "FixtureTruth",
     "FrameFormat",
     "InputError",
+    "LocateResult",
+    "LocateSettings",
     "Pose",
     "Render",
     "RenderSettings",
@@ -39,6 +43,7 @@ __all__ = [
     "load_camera",
     "load_image",
     "load_map",
+    "locate",
     "manchester_encode",
     "matrix_to_euler",
     "project_points",
