@@ -260,7 +260,8 @@ def _refine(
     gray = gray8.astype(np.float32)
     if peak - background < 10:
         return None
-    lit = gray > background + 0.5 * (peak - background)
+    # a low threshold: real lights are often brighter in the middle than at the rim
+    lit = gray > background + 0.25 * (peak - background)
     lit_u8 = lit.astype(np.uint8)
     axis = readout
     if axis is None:
@@ -280,12 +281,17 @@ def _refine(
         gap = int(lengths[interior].max()) if np.any(interior) else 0
     length = max(kernel_px, gap + 3) | 1
     ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
+    # Close a copy padded by repeating its edge: OpenCV's own border keeps whatever the
+    # dilation brought to the edge, which would join a disc near the border to it.
+    m = length // 2 + 3
+    closed = cv2.copyMakeBorder(lit_u8, m, m, m, m, cv2.BORDER_REPLICATE)
     closed = cv2.morphologyEx(
-        lit_u8, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
+        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
     )
     closed = cv2.morphologyEx(
         closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
     )
+    closed = np.ascontiguousarray(closed[m:-m, m:-m])
     # the largest outline, holes filled
     contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:

@@ -288,7 +288,7 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
 
 
 def load_image(path: str | Path) -> np.ndarray:
-    """Read a photograph as an 8- or 16-bit array, BGR (H, W, 3) or gray (H, W).
+    """Read a photograph, upright as its EXIF says: 8- or 16-bit, BGR (H, W, 3) or gray (H, W).
 
     Raises
     ------
@@ -305,11 +305,13 @@ def load_image(path: str | Path) -> np.ndarray:
         raise InputError("photo is empty", p)
     if _truncated_jpeg(raw):
         raise InputError("photo is a truncated JPEG", p)
-    img = cv2.imdecode(raw, cv2.IMREAD_UNCHANGED)
+    # Not IMREAD_UNCHANGED: the other modes apply the EXIF orientation, so the array is the
+    # picture as viewers show it (phones often store landscape pixels with a "rotate" tag).
+    img = cv2.imdecode(raw, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+    if img is not None and img.ndim == 3 and img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
     if img is None:
         raise InputError("not an image, or a corrupt one", p)
-    if img.ndim == 3 and img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
     return img
 
 

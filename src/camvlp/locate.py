@@ -8,10 +8,12 @@ from typing import Any
 
 import numpy as np
 
+from .calibrate import estimate_stripe_period
 from .camera import Camera, Pose
 from .decode import StripeDecode, decode_profile, row_profile
 from .detect import Blob, Detection, detect_fixtures, to_gray
 from .fixtures import FixtureMap
+from .frequency import assign_frequencies
 from .io import InputError
 from .pose import PoseEstimate, estimate_pose
 
@@ -240,6 +242,50 @@ def _perspective_offset(camera: Camera, pose: Pose, centre, diameter, normal) ->
     return np.array([cx, cy]) - uv[0]
 
 
+def _decode_frequencies(
+    blobs, gray_rois, readout: str, camera: Camera, fixture_map: FixtureMap
+) -> tuple[list[StripeDecode], np.ndarray, str]:
+    """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
+    periods = np.full(len(blobs), np.nan)
+    failures = [""] * len(blobs)
+    for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
+        est = estimate_stripe_period(g, b.mask, readout)
+        if est:
+            periods[k] = est.period_px
+        else:
+            failures[k] = est.message or "no stripe period could be measured"
+    fa = assign_frequencies(periods, fixture_map, camera.row_time_s)
+    note = ""
+    if fa.row_time_fitted:
+        note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
+            f"frequencies by their ratios (fitted row time {1e6 * fa.row_time_s:.2f} us)"
+            if np.isfinite(fa.row_time_s)
+            else "frequencies by their ratios, and no consistent match was found"
+        )
+    decodes = []
+    for k, b in enumerate(blobs):
+        reason = failures[k] or fa.reasons[k]
+        fid = fa.ids[k] if not failures[k] else None
+        margin = 0.0
+        if fid is not None:
+            target = fixture_map.get(fid).frequency_hz
+            margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
+        extent = float(b.mask.any(axis=1 if readout == "rows" else 0).sum())
+        decodes.append(
+            StripeDecode(
+                fid,
+                "" if fid is not None else reason,
+                -1,
+                margin,
+                0.5 * periods[k],
+                float("nan"),
+                "",
+                extent / periods[k] if np.isfinite(periods[k]) else 0.0,
+            )
+        )
+    return decodes, fa.frequencies_hz, note
+
+
 def locate(
     image: np.ndarray,
     camera: Camera,
@@ -290,13 +336,19 @@ def locate(
     readout = readout or "rows"
     t1 = time.perf_counter()
 
-    gray_rois, decodes = [], []
-    for b in blobs:
-        x0, y0, x1, y1 = b.box
-        g = to_gray(img[y0:y1, x0:x1])
-        gray_rois.append(g)
-        prof, _ = row_profile(g, b.mask, readout)
-        decodes.append(decode_profile(prof, fixture_map.frame))
+    gray_rois = [to_gray(img[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
+    notes: list[str] = []
+    frequencies = np.full(len(blobs), np.nan)
+    if fixture_map.mode == "frequency":
+        decodes, frequencies, note = _decode_frequencies(
+            blobs, gray_rois, readout, camera, fixture_map
+        )
+        notes += [note] if note else []
+    else:
+        decodes = [
+            decode_profile(row_profile(g, b.mask, readout)[0], fixture_map.frame)
+            for b, g in zip(blobs, gray_rois, strict=True)
+        ]
     t2 = time.perf_counter()
 
     width = img.shape[1]
@@ -395,6 +447,7 @@ def locate(
                 rows_spanned=extent(b),
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,
+                frequency_hz=float(frequencies[k]),
             )
         )
     timing = {
@@ -422,6 +475,7 @@ def locate(
         if est is None or est.alternative is None
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
+        notes=tuple(notes),
     )
     if _keep_stages:
         return result, _Stages(detection, tuple(gray_rois), tuple(decodes))
