@@ -98,6 +98,21 @@ def test_ippe_on_an_exact_rectangle_still_solves():
     assert np.linalg.norm(batch[0] - pose.position) < 0.05
 
 
+def test_iterative_with_four_non_coplanar_points():
+    # OpenCV's ITERATIVE alone wants six points unless they are coplanar (fixtures at
+    # different heights); the wrapper still returns the right pose.
+    pts = THESIS_ROOM.copy()
+    pts[0, 1] += 0.3
+    pts[2, 1] -= 0.2
+    pose = Pose.from_euler([0.2, 0.0, -0.1], [92, 3, 10])
+    uv = THESIS_CAM.project(pose, pts)
+    est = solve_pnp(pts, uv, THESIS_CAM, "iterative")
+    assert est is not None
+    np.testing.assert_allclose(est.position, pose.position, atol=1e-6)
+    batch = solve_pnp_batch(pts, uv[None], THESIS_CAM, "iterative")
+    np.testing.assert_allclose(batch[0], pose.position, atol=1e-6)
+
+
 def test_project_batch_matches_opencv():
     rng = np.random.default_rng(6)
     cams = [

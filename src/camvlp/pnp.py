@@ -8,7 +8,9 @@ Solvers (:data:`SOLVERS`):
 
 ``iterative``
     Levenberg-Marquardt on the reprojection error, started from a homography (planar
-    targets) or DLT; the thesis' choice.
+    targets) or DLT; the thesis' choice.  OpenCV refuses fewer than six points that are
+    not coplanar (fixtures at different heights); :func:`solve_pnp` then starts the
+    Levenberg-Marquardt refinement from the ``sqpnp`` solution.
 ``sqpnp``
     Globally optimal sequential quadratic programming; as accurate as ``iterative``.
 ``ippe``
@@ -87,23 +89,38 @@ def _check_points(
     return obj, img
 
 
-def _solve_one(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int):
+def _call(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int, guess=None):
     """One ``cv2.solvePnP`` call; (rvec, tvec) as (3,) arrays, or None on failure."""
     try:
-        ok, rvec, tvec = cv2.solvePnP(obj, img, k, dist, flags=flag)
+        if guess is None:
+            ok, rvec, tvec = cv2.solvePnP(obj, img, k, dist, flags=flag)
+        else:
+            rv0 = guess[0].reshape(3, 1).copy()
+            tv0 = guess[1].reshape(3, 1).copy()
+            ok, rvec, tvec = cv2.solvePnP(obj, img, k, dist, rv0, tv0, True, flags=flag)
     except cv2.error:
         return None
     if not ok or not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-        if flag != cv2.SOLVEPNP_IPPE:
-            return None
-        moved = img + _JITTER[np.arange(img.shape[0]) % len(_JITTER)]
-        try:
-            ok, rvec, tvec = cv2.solvePnP(obj, moved, k, dist, flags=flag)
-        except cv2.error:
-            return None
-        if not ok or not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-            return None
+        return None
     return rvec.reshape(3), tvec.reshape(3)
+
+
+def _solve_one(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int):
+    """Solve with the documented fall-backs; (rvec, tvec) or None."""
+    res = _call(obj, img, k, dist, flag)
+    if res is not None:
+        return res
+    if flag == cv2.SOLVEPNP_IPPE:
+        moved = img + _JITTER[np.arange(img.shape[0]) % len(_JITTER)]
+        return _call(obj, moved, k, dist, flag)
+    if flag == cv2.SOLVEPNP_ITERATIVE:
+        # OpenCV's ITERATIVE needs 6 points unless they are (nearly) coplanar: start
+        # Levenberg-Marquardt from SQPnP's answer instead of its own DLT.
+        init = _call(obj, img, k, dist, cv2.SOLVEPNP_SQPNP)
+        if init is None:
+            return None
+        return _call(obj, img, k, dist, flag, guess=init) or init
+    return None
 
 
 def solve_pnp(
@@ -218,7 +235,8 @@ def solve_pnp_batch(
         if ok:
             rvecs[i] = rv.ravel()
             tvecs[i] = tv.ravel()
-    # Rare: OpenCV failed or returned NaN (IPPE on an exact rectangle); redo those carefully.
+    # Rare: OpenCV failed or returned NaN (IPPE on an exact rectangle, ITERATIVE with four
+    # non-coplanar points); redo those with the fall-backs of solve_pnp.
     bad = finite & ~(np.all(np.isfinite(rvecs), axis=1) & np.all(np.isfinite(tvecs), axis=1))
     for i in np.flatnonzero(bad).tolist():
         res = _solve_one(obj if shared else obj[i], img[i], k, dist, flag)

@@ -412,7 +412,9 @@ class RoundingStudy:
                     f"{self.plane[0]}_range_m": [self.u_m[0], self.u_m[-1]],
                     f"{self.plane[1]}_range_m": [self.v_m[0], self.v_m[-1]],
                     "points": int(self.u_m.size * self.v_m.size),
-                    "step_m": float(self.u_m[1] - self.u_m[0]) if self.u_m.size > 1 else None,
+                    "step_m": round(float(self.u_m[1] - self.u_m[0]), 9)
+                    if self.u_m.size > 1
+                    else None,
                 },
                 "rounding": self.rounding,
                 "noise_px": self.noise_px,
