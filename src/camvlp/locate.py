@@ -254,7 +254,10 @@ def _decode_frequencies(
             periods[k] = est.period_px
         else:
             failures[k] = est.message or "no stripe period could be measured"
-    fa = assign_frequencies(periods, fixture_map, camera.row_time_s)
+    extents = np.array([float(b.mask.any(axis=1 if readout == "rows" else 0).sum()) for b in blobs])
+    fa = assign_frequencies(
+        periods, fixture_map, camera.row_time_s, periods_spanned=extents / periods
+    )
     note = ""
     if fa.row_time_fitted:
         note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
@@ -263,14 +266,14 @@ def _decode_frequencies(
             else "frequencies by their ratios, and no consistent match was found"
         )
     decodes = []
-    for k, b in enumerate(blobs):
+    for k in range(len(blobs)):
         reason = failures[k] or fa.reasons[k]
         fid = fa.ids[k] if not failures[k] else None
         margin = 0.0
         if fid is not None:
             target = fixture_map.get(fid).frequency_hz
             margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
-        extent = float(b.mask.any(axis=1 if readout == "rows" else 0).sum())
+        extent = extents[k]
         decodes.append(
             StripeDecode(
                 fid,
