@@ -1,0 +1,5 @@
+"""``python -m camvlp``: the command line."""
+
+from .cli import main
+
+main()

@@ -1,0 +1,150 @@
+"""Real photographs (iPhone 7 front camera, frequency-coded LEDs), read from ../shared/real/.
+
+The photos are not part of this repository: these tests skip when the folder is absent.
+The room and camera below are as the folder's README records them.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from camvlp.io import load_camera, load_image, load_map
+from camvlp.locate import LocateSettings, locate
+
+REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "iphone7-demo-floor"
+PHOTOS = ("2017-02-15-17-47-52-84.jpg", "test.jpg", "test2.jpg")
+DEMO = "2017-02-15-17-47-52-84.jpg"
+
+pytestmark = [
+    pytest.mark.real,
+    pytest.mark.skipif(not REAL.is_dir(), reason=f"real photographs not found at {REAL}"),
+]
+
+CAMERA_YAML = """\
+image_width: 1080
+image_height: 1920
+focal_length_px: 1460
+principal_point: centre
+row_time_s: 2.6455e-05   # 37 800 rows per second
+readout: columns         # stored in portrait: stripes are vertical
+"""
+MAP_YAML = """\
+units: cm
+frame: {mode: frequency}
+fixtures:
+  - {id: 1, frequency_hz: 2500, position: [50, 60, 0], normal: [0, 0, -1]}
+  - {id: 2, frequency_hz: 3000, position: [-50, 60, 0], normal: [0, 0, -1]}
+  - {id: 3, frequency_hz: 3500, position: [-50, -60, 0], normal: [0, 0, -1]}
+  - {id: 4, frequency_hz: 4000, position: [50, -60, 0], normal: [0, 0, -1]}
+  - {id: 5, frequency_hz: 4500, position: [0, 0, 0], normal: [0, 0, -1]}
+"""
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict:
+    d = tmp_path_factory.mktemp("real")
+    (d / "camera.yaml").write_text(CAMERA_YAML)
+    (d / "camera_no_row_time.yaml").write_text(
+        "\n".join(line for line in CAMERA_YAML.splitlines() if "row_time" not in line)
+    )
+    (d / "room.yaml").write_text(MAP_YAML)
+    return {"dir": d, "camera": d / "camera.yaml", "map": d / "room.yaml"}
+
+
+@pytest.mark.parametrize("name", PHOTOS)
+def test_five_fixtures_found_in_each_photo(files, name):
+    camera, room = load_camera(files["camera"]), load_map(files["map"])
+    image = load_image(REAL / name)
+    assert image.shape[:2] == (1920, 1080)  # portrait once the EXIF orientation is applied
+    res = locate(image, camera, room)
+    assert len(res.fixtures) == 5
+    assert res.readout == "columns"
+    # five distinct lights, none cut by the border
+    px = np.array([f.pixel for f in res.fixtures])
+    assert np.min([np.hypot(*(a - b)) for i, a in enumerate(px) for b in px[i + 1 :]]) > 100
+
+
+def test_demo_floor_photo_frequencies_corners_and_pose(files):
+    camera, room = load_camera(files["camera"]), load_map(files["map"])
+    res = locate(load_image(REAL / DEMO), camera, room)
+    assert res, res.error
+    # every light identified, its frequency within 3 % of the one the map gives it
+    ids = sorted(f.id for f in res.fixtures)
+    assert ids == [1, 2, 3, 4, 5]
+    for f in res.fixtures:
+        assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.03)
+        assert f.used
+    # the README's stripe periods (px), as a set, match ours within 3 %
+    periods = sorted(1.0 / (f.frequency_hz * camera.row_time_s) for f in res.fixtures)
+    np.testing.assert_allclose(periods, sorted([15.1, 12.6, 8.4, 9.5, 10.8]), rtol=0.03)
+    # corners, independently of the pose: the 4500 Hz light is the middle one, and going
+    # 2500 -> 3000 -> 3500 -> 4000 Hz turns the same way in the photo as in the map (a camera
+    # below the ceiling looking up, photo not mirrored: image u, v follow map x, y)
+    by_id = {f.id: f.pixel for f in res.fixtures}
+    centroid = np.mean([by_id[i] for i in (1, 2, 3, 4)], axis=0)
+    assert min(by_id, key=lambda i: np.hypot(*(by_id[i] - centroid))) == 5
+
+    def turn(points) -> float:
+        p = np.asarray(points, dtype=float)
+        return float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+
+    corners = [1, 2, 3, 4]
+    map_turn = turn([room.get(i).position[:2] for i in corners])
+    assert np.sign(turn([by_id[i] for i in corners])) == np.sign(map_turn)
+    # the camera is below the ceiling (z = 0, lights facing -z), about 2 m down
+    assert res.position[2] < -150
+    assert res.reprojection_rms_px <= 3.0
+
+
+def test_demo_floor_photo_without_row_time_matches_by_ratios(files):
+    camera = load_camera(files["dir"] / "camera_no_row_time.yaml")
+    room = load_map(files["map"])
+    res = locate(load_image(REAL / DEMO), camera, room)
+    assert res, res.error
+    assert any("ratios" in n for n in res.notes)
+    assert res.reprojection_rms_px <= 3.0
+    for f in res.fixtures:
+        assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.03)
+
+
+def test_mirrored_photo_is_flagged_then_located_with_mirrored(files):
+    image = load_image(REAL / DEMO)[:, ::-1].copy()
+    camera, room = load_camera(files["camera"]), load_map(files["map"])
+    res = locate(image, camera, room)
+    assert not res and res.position is None
+    assert "mirrored" in res.error
+    res = locate(image, camera, room, LocateSettings(mirrored=True))
+    assert res, res.error
+    assert res.reprojection_rms_px <= 3.0
+    assert res.position[2] < -150
+
+
+def test_mirrored_photo_on_the_command_line(files, tmp_path):
+    flipped = tmp_path / "flipped.png"
+    cv2.imwrite(str(flipped), load_image(REAL / DEMO)[:, ::-1])
+    base = [
+        sys.executable,
+        "-m",
+        "camvlp",
+        "locate",
+        str(flipped),
+        "--camera",
+        str(files["camera"]),
+        "--map",
+        str(files["map"]),
+        "--json",
+    ]
+    out = subprocess.run(base, capture_output=True, text=True)
+    assert out.returncode == 1
+    assert "mirrored" in json.loads(out.stdout)["error"]
+    assert "Traceback" not in out.stderr
+    out = subprocess.run([*base, "--mirrored"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)["position"][2] < -150
