@@ -8,6 +8,7 @@ import typer
 
 from . import calibrate as _calibrate  # noqa: F401  (registers commands)
 from . import encode  # noqa: F401  (registers commands)
+from . import evaluate as _evaluate  # noqa: F401  (registers commands)
 from . import locate as _locate  # noqa: F401  (registers commands)
 from . import render as _render  # noqa: F401  (registers commands)
 from . import study as _study  # noqa: F401  (registers commands)

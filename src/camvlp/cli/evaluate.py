@@ -1,0 +1,140 @@
+"""``camvlp evaluate``: locate a survey of photos with known positions and report the errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from ..evaluate import AXES, Evaluation, evaluate_survey, read_survey, write_evaluation
+from ..io import load_camera, load_map
+from ..locate import LocateSettings
+from ..survey import default_jobs
+from ._app import app, fail, handle_errors
+
+
+@app.command("evaluate")
+@handle_errors
+def evaluate_command(
+    survey_path: Annotated[
+        Path, typer.Argument(help="Survey CSV: photo,x,y,z (photo paths relative to it).")
+    ],
+    camera_path: Annotated[Path, typer.Option("--camera", "-c", help="Camera file (YAML/JSON).")],
+    map_path: Annotated[
+        Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", help="Folder for results.csv, summary.json, plots.")
+    ],
+    jobs: Annotated[
+        int | None, typer.Option("--jobs", "-j", help="Worker processes (default: all cores).")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    solver: Annotated[
+        str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
+    ] = "iterative",
+    magnify: Annotated[
+        float | None,
+        typer.Option(
+            help="Draw estimates in positions.png at true + X * (estimate - true) "
+            "(default: automatic, 1 for large errors)."
+        ),
+    ] = None,
+) -> None:
+    """Locate every photo of SURVEY and compare with the true positions.
+
+    Writes OUT/results.csv (one row per photo), OUT/summary.json, OUT/error_map.png (error
+    over the floor) and OUT/positions.png (true and estimated positions, three views).
+    Photos that cannot be read or located are counted and listed; the run goes on.
+    Exit code 0 when the run completed (even with failures), 2 on bad input.
+    """
+    if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
+        fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
+    if jobs is not None and jobs < 1:
+        fail(f"--jobs must be at least 1, got {jobs}")
+    if magnify is not None and not magnify > 0:
+        fail(f"--magnify must be a positive number, got {magnify}")
+    if out.exists() and not out.is_dir():
+        fail(f"--out must be a folder, not a file ({out})")
+    survey = read_survey(survey_path)
+    camera = load_camera(camera_path)
+    fixture_map = load_map(map_path)
+    n_jobs = min(jobs or default_jobs(), len(survey))
+    evaluation = _run(survey, camera, fixture_map, LocateSettings(solver=solver), n_jobs)
+    try:
+        paths = write_evaluation(evaluation, out, fixture_map=fixture_map, magnify=magnify)
+    except ValueError as exc:
+        fail(str(exc))
+    summary = evaluation.summary()
+    if as_json:
+        print(json.dumps(summary))
+    else:
+        _print_human(evaluation, summary, paths)
+
+
+def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
+    """Evaluate with a progress bar on stderr (shown only on a terminal)."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    console = Console(stderr=True)
+    with Progress(
+        TextColumn("locating"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=console,
+        transient=True,
+        disable=not console.is_terminal,
+    ) as bar:
+        task = bar.add_task("locate", total=len(survey))
+        return evaluate_survey(
+            survey, camera, fixture_map, settings, jobs=jobs,
+            progress=lambda done, total: bar.update(task, completed=done),
+        )
+
+
+def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:
+    scale, unit = {"m": (1000.0, "mm"), "cm": (10.0, "mm")}.get(s["units"], (1.0, s["units"]))
+
+    def v(x) -> str:
+        return "-" if x is None else f"{x * scale:.2f}"
+
+    rate = "-" if s["success_rate"] is None else f"{100 * s['success_rate']:.1f} %"
+    print(f"photos     {s['photos']}: {s['located']} located, {s['failed']} failed ({rate} "
+          f"located)")
+    print(f"time       {s['wall_time_s']:.1f} s with {s['jobs']} job"
+          f"{'s' if s['jobs'] != 1 else ''}")
+    print()
+    print(f"error ({unit})    mean   median      p95      max")
+    print(f"  position  {v(s['mean_error']):>7}  {v(s['median_error']):>7}  "
+          f"{v(s['p95_error']):>7}  {v(s['max_error']):>7}")
+    for ax in AXES:
+        st = s["abs_error_per_axis"][ax]
+        print(f"  |{ax}|       {v(st['mean']):>7}  {v(st['median']):>7}  {v(st['p95']):>7}  "
+              f"{v(st['max']):>7}")
+    if "angle_error_deg" in s:
+        st = s["angle_error_deg"]
+
+        def d(x) -> str:
+            return "-" if x is None else f"{x:.3f}"
+
+        print(f"  angle deg {d(st['mean']):>7}  {d(st['median']):>7}  {d(st['p95']):>7}  "
+              f"{d(st['max']):>7}")
+    if s["failures"]:
+        print()
+        print("failures")
+        for f in s["failures"]:
+            print(f"  {f['photo']}: {f['reason']}")
+    print()
+    print("wrote      " + ", ".join(str(p) for p in paths.values()))
