@@ -223,10 +223,19 @@ def test_bad_camera_or_map_exits_2(scene, survey_dir, tmp_path, which):
     assert "bad.yaml" in one_error_line(result)
 
 
-def test_bad_jobs_exits_2(scene, survey_dir, tmp_path):
-    result = evaluate_cli(scene, survey_dir[0], tmp_path / "out", "--jobs", "0")
+@pytest.mark.parametrize("option", ["--jobs", "--outlier-px", "--magnify"])
+def test_bad_option_value_exits_2(scene, survey_dir, tmp_path, option):
+    result = evaluate_cli(scene, survey_dir[0], tmp_path / "out", option, "0")
     assert result.exit_code == 2
-    assert "--jobs" in one_error_line(result)
+    assert option in one_error_line(result)
+    assert not (tmp_path / "out").exists()
+
+
+def test_out_that_is_a_file_exits_2(scene, survey_dir, tmp_path):
+    (tmp_path / "out").write_text("")
+    result = evaluate_cli(scene, survey_dir[0], tmp_path / "out")
+    assert result.exit_code == 2
+    assert "--out" in one_error_line(result)
 
 
 # --------------------------------------------------------------------------------------------

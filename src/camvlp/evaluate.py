@@ -734,7 +734,8 @@ def plot_positions(
             ax.scatter(true[~ok, i], true[~ok, j], s=50, marker="x", color="0.3",
                        label="not located", zorder=4)
         ax.set_xlabel(f"{AXES[i]} ({ev.units})")
-        ax.set_ylabel(f"{AXES[j]} ({ev.units})")
+        offsets = f"; orange offsets x{magnify:g}" if magnify != 1 and j == v else ""
+        ax.set_ylabel(f"{AXES[j]} ({ev.units}{offsets})")
         ax.set_title(f"{name} ({AXES[i]}-{AXES[j]})", fontsize=10)
         ax.grid(True, alpha=0.3)
         ax.margins(0.08)

@@ -19,7 +19,10 @@ from ._app import app, fail, handle_errors
 @handle_errors
 def evaluate_command(
     survey_path: Annotated[
-        Path, typer.Argument(help="Survey CSV: photo,x,y,z (photo paths relative to it).")
+        Path,
+        typer.Argument(
+            metavar="SURVEY", help="Survey CSV: photo,x,y,z (photo paths relative to it)."
+        ),
     ],
     camera_path: Annotated[Path, typer.Option("--camera", "-c", help="Camera file (YAML/JSON).")],
     map_path: Annotated[
@@ -35,6 +38,13 @@ def evaluate_command(
     solver: Annotated[
         str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
     ] = "iterative",
+    outlier_px: Annotated[
+        float,
+        typer.Option(
+            help="Drop a fixture whose reprojection error exceeds this (px); with only four "
+            "fixtures the photo is then not located."
+        ),
+    ] = LocateSettings().outlier_px,
     magnify: Annotated[
         float | None,
         typer.Option(
@@ -45,15 +55,20 @@ def evaluate_command(
 ) -> None:
     """Locate every photo of SURVEY and compare with the true positions.
 
-    Writes OUT/results.csv (one row per photo), OUT/summary.json, OUT/error_map.png (error
-    over the floor) and OUT/positions.png (true and estimated positions, three views).
+    Writes OUT/results.csv (one row per photo), OUT/summary.json and two plots:
+
+    OUT/error_map.png (the error over the floor) and OUT/positions.png (true and estimated).
+
     Photos that cannot be read or located are counted and listed; the run goes on.
+
     Exit code 0 when the run completed (even with failures), 2 on bad input.
     """
     if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
         fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
     if jobs is not None and jobs < 1:
         fail(f"--jobs must be at least 1, got {jobs}")
+    if not outlier_px > 0:
+        fail(f"--outlier-px must be a positive number, got {outlier_px}")
     if magnify is not None and not magnify > 0:
         fail(f"--magnify must be a positive number, got {magnify}")
     if out.exists() and not out.is_dir():
@@ -62,7 +77,8 @@ def evaluate_command(
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     n_jobs = min(jobs or default_jobs(), len(survey))
-    evaluation = _run(survey, camera, fixture_map, LocateSettings(solver=solver), n_jobs)
+    settings = LocateSettings(solver=solver, outlier_px=outlier_px)
+    evaluation = _run(survey, camera, fixture_map, settings, n_jobs)
     try:
         paths = write_evaluation(evaluation, out, fixture_map=fixture_map, magnify=magnify)
     except ValueError as exc:
