@@ -31,3 +31,93 @@ def thesis_room_path(examples_dir: Path) -> Path:
 def shared_dir() -> Path:
     """The shared data directory next to the repository (real photographs, thesis text)."""
     return REPO.parent / "shared"
+
+
+# --------------------------------------------------------------------------------------------
+# A small camera and room for the locator's tests: renders of 1280 x 960 pixels that take a
+# fraction of a second, with fixtures big enough to span two frames of stripes.
+
+#: Small test camera: 1280 x 960 pixels, f = 1000 px, principal point at the centre.
+SMALL_SIZE, SMALL_FOCAL_PX = (1280, 960), 1000.0
+#: Sensor timing of the small room's renders: 25 us per row and 10 kHz chips give 4 rows per
+#: chip, so a 0.4 m disc 2.7 m away (about 148 px) spans about two 18-chip frames.
+SMALL_ROW_TIME_S, SMALL_CHIP_RATE_HZ = 25e-6, 10_000.0
+#: The small room: 0.4 m discs on the ceiling (y = -2.7 m, facing down, +y), the thesis'
+#: rectangle plus one in the middle.
+SMALL_ROOM_IDS = (5, 6, 9, 10, 12)
+SMALL_ROOM_XZ = ((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6), (0.0, 0.0))
+CEILING_Y, SMALL_DIAMETER = -2.7, 0.4
+#: The thesis' angles of a camera on the floor looking straight up at the ceiling.
+LOOK_UP = (90.0, 0.0, 0.0)
+
+
+def make_small_camera(**kwargs):
+    """The small test camera (see ``SMALL_SIZE``); keyword arguments go to ``Camera``."""
+    from camvlp.camera import Camera
+
+    kwargs.setdefault("row_time_s", SMALL_ROW_TIME_S)
+    return Camera.from_focal(*SMALL_SIZE, SMALL_FOCAL_PX, **kwargs)
+
+
+def make_small_room(ids=SMALL_ROOM_IDS, xz=SMALL_ROOM_XZ, diameter=SMALL_DIAMETER):
+    """A map of ceiling discs at ``(x, CEILING_Y, z)``, facing down (+y), metres."""
+    import numpy as np
+
+    from camvlp.fixtures import Fixture, FixtureMap
+
+    return FixtureMap(
+        tuple(
+            Fixture(int(i), np.array([x, CEILING_Y, z]), diameter, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip(ids, xz, strict=True)
+        )
+    )
+
+
+def small_settings(**kwargs):
+    """Render settings of the small room (10 kHz chips, 25 us rows); overrides as keywords."""
+    from camvlp.simulate import RenderSettings
+
+    kwargs.setdefault("chip_rate_hz", SMALL_CHIP_RATE_HZ)
+    kwargs.setdefault("row_time_s", SMALL_ROW_TIME_S)
+    return RenderSettings(**kwargs)
+
+
+@pytest.fixture(scope="session")
+def small_camera():
+    """The small test camera (1280 x 960, f = 1000 px, 25 us rows)."""
+    return make_small_camera()
+
+
+@pytest.fixture(scope="session")
+def small_room():
+    """The small test room: five 0.4 m ceiling discs, IDs 5, 6, 9, 10, 12."""
+    return make_small_room()
+
+
+@pytest.fixture(scope="session")
+def small_render(small_camera, small_room):
+    """One render of the small room from the floor's origin, looking straight up (seed 1)."""
+    from camvlp.camera import Pose
+    from camvlp.simulate import render
+
+    return render(small_camera, small_room, Pose.from_euler([0, 0, 0], LOOK_UP),
+                  small_settings(seed=1))
+
+
+@pytest.fixture(scope="session")
+def small_files(tmp_path_factory, small_camera, small_room, small_render):
+    """The small camera, room and render written to files: dict of Paths.
+
+    Keys: ``camera`` (YAML), ``map`` (YAML), ``photo`` (PNG of ``small_render``), ``dir``.
+    """
+    import cv2
+
+    from camvlp.io import save_camera, save_map
+
+    d = tmp_path_factory.mktemp("small_room")
+    paths = {"dir": d, "camera": d / "camera.yaml", "map": d / "room.yaml",
+             "photo": d / "photo.png"}
+    save_camera(small_camera, paths["camera"])
+    save_map(small_room, paths["map"])
+    cv2.imwrite(str(paths["photo"]), small_render.image)
+    return paths

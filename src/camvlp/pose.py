@@ -98,7 +98,9 @@ def _candidates(
     methods = [_SOLVERS[solver]]
     if planar:
         methods.append(cv2.SOLVEPNP_IPPE)
-    elif obj.shape[0] >= 4:
+    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
+    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
+    if obj.shape[0] >= 4:
         methods.append(cv2.SOLVEPNP_SQPNP)
     for method in dict.fromkeys(methods):
         try:
