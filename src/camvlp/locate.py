@@ -28,8 +28,11 @@ class LocateSettings:
     ----------
     solver : str
         OpenCV PnP solver for the first estimate: iterative, sqpnp, ippe or epnp.
-    outlier_px : float
-        Reprojection error (pixels) beyond which a fixture is dropped (five or more fixtures).
+    outlier_px : float or None
+        Reprojection error (pixels) beyond which a fixture does not fit the pose: dropped
+        with five or more fixtures, a failure with four.  None: 1 % of the focal length and
+        at least 4 px (39 px for the thesis' camera), which tolerates map errors of a few
+        centimetres while a wrong ID or a moved light misses by far more.
     kernel_px : int
         Smallest closing length of the detector, full-resolution pixels.
     min_diameter_px : float
@@ -44,7 +47,7 @@ class LocateSettings:
     """
 
     solver: str = "iterative"
-    outlier_px: float = 4.0
+    outlier_px: float | None = None
     kernel_px: int = 16
     min_diameter_px: float = 8.0
     readout: str | None = None
@@ -322,6 +325,7 @@ def locate(
         The image is not an image of the camera's size.
     """
     st = settings or LocateSettings()
+    outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
     img = _check_image(image, camera)
     mirrored = camera.mirrored if st.mirrored is None else bool(st.mirrored)
@@ -397,7 +401,7 @@ def locate(
         )
     else:
         est = estimate_pose(
-            pixels, obj, camera, normals=normals, solver=st.solver, outlier_px=st.outlier_px
+            pixels, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
         )
         if est and st.correct_perspective and all(f.diameter for f in fixtures):
             offsets = np.array(
@@ -415,7 +419,7 @@ def locate(
                     camera,
                     normals=normals,
                     solver=st.solver,
-                    outlier_px=st.outlier_px,
+                    outlier_px=outlier_px,
                 )
             if est2:
                 est = est2

@@ -39,12 +39,12 @@ def evaluate_command(
         str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
     ] = "iterative",
     outlier_px: Annotated[
-        float,
+        float | None,
         typer.Option(
             help="Drop a fixture whose reprojection error exceeds this (px); with only four "
-            "fixtures the photo is then not located."
+            "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px."
         ),
-    ] = LocateSettings().outlier_px,
+    ] = None,
     magnify: Annotated[
         float | None,
         typer.Option(
@@ -67,7 +67,7 @@ def evaluate_command(
         fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
     if jobs is not None and jobs < 1:
         fail(f"--jobs must be at least 1, got {jobs}")
-    if not outlier_px > 0:
+    if outlier_px is not None and not outlier_px > 0:
         fail(f"--outlier-px must be a positive number, got {outlier_px}")
     if magnify is not None and not magnify > 0:
         fail(f"--magnify must be a positive number, got {magnify}")

@@ -44,8 +44,12 @@ def locate_command(
         ),
     ] = None,
     outlier_px: Annotated[
-        float, typer.Option(help="Drop a fixture whose reprojection error exceeds this (px).")
-    ] = 4.0,
+        float | None,
+        typer.Option(
+            help="Drop a fixture whose reprojection error exceeds this (px); with only four "
+            "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px."
+        ),
+    ] = None,
 ) -> None:
     """Locate the camera that took PHOTO: position, orientation, fixtures seen.
 
@@ -59,6 +63,8 @@ def locate_command(
     for out in (annotate_path,):
         if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
             fail(f"--annotate must end in .png or .jpg ({out})")
+    if outlier_px is not None and not outlier_px > 0:
+        fail(f"--outlier-px must be a positive number, got {outlier_px}")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     image = load_image(photo)
