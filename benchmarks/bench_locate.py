@@ -69,16 +69,22 @@ def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs
         locate_ms.append(1e3 * (time.perf_counter() - t))
         for k in stages:
             stages[k].append(result.timing_ms[k])
-    err_mm = 1e3 * float(np.linalg.norm(result.position - pose.position)) if result else float("nan")
+    err_mm = (
+        1e3 * float(np.linalg.norm(result.position - pose.position)) if result else float("nan")
+    )
     med_dec, med_loc = statistics.median(decode_ms), statistics.median(locate_ms)
     print(f"{name}: {camera.width} x {camera.height}, JPEG {data.size / 1e6:.1f} MB, {runs} runs")
     print(f"  cv2.imdecode          median {med_dec:7.1f} ms")
-    print(f"  camvlp.locate         median {med_loc:7.1f} ms   (locate / imdecode = "
-          f"{med_loc / med_dec:.2f})")
+    print(
+        f"  camvlp.locate         median {med_loc:7.1f} ms   (locate / imdecode = "
+        f"{med_loc / med_dec:.2f})"
+    )
     for k, v in stages.items():
         print(f"    {k:<8}            median {statistics.median(v):7.1f} ms")
-    print(f"  located: {bool(result)}, position error {err_mm:.3f} mm, "
-          f"{sum(f.used for f in result.fixtures)} fixtures used")
+    print(
+        f"  located: {bool(result)}, position error {err_mm:.3f} mm, "
+        f"{sum(f.used for f in result.fixtures)} fixtures used"
+    )
     return path, med_dec, med_loc
 
 
@@ -96,8 +102,13 @@ def main() -> int:
         tmp = Path(d)
         big, _, _ = _bench("20MP", thesis, fmap, pose, RenderSettings(seed=1), args.runs, tmp)
         _bench(
-            "1080p", hd, fmap, camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0]),
-            RenderSettings(seed=2), args.runs, tmp,
+            "1080p",
+            hd,
+            fmap,
+            camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0]),
+            RenderSettings(seed=2),
+            args.runs,
+            tmp,
         )
         mem = _peak_child(big)
     print(
@@ -105,8 +116,10 @@ def main() -> int:
         f"(after imports {mem['after_imports_mb']:.0f} MB, after decoding "
         f"{mem['after_decode_mb']:.0f} MB; located: {mem['located']})"
     )
-    print(f"(this process's own peak, renders included: "
-          f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)")
+    print(
+        f"(this process's own peak, renders included: "
+        f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB)"
+    )
     return 0
 
 
