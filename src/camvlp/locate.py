@@ -95,15 +95,14 @@ class FixtureResult:
     frequency_hz: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (NaN becomes null)."""
+        """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
         d: dict[str, Any] = {
             "id": self.id,
             "pixel": [round(float(v), 3) for v in self.pixel],
             "used": self.used,
             "margin": round(self.margin, 3),
+            "reason": self.reason,
         }
-        if self.reason:
-            d["reason"] = self.reason
         for key in ("hamming", "rows_spanned", "rows_per_chip", "residual_px", "frequency_hz"):
             v = getattr(self, key)
             if isinstance(v, float):
