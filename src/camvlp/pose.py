@@ -147,17 +147,19 @@ def _choose(
     mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
     if not valid:
         return None, np.inf, None, np.nan, mirrored
-    alt = valid[1] if len(valid) > 1 else (None, np.nan, None, None)
-    # drop near-duplicates of the best (both seeds converged to the same pose)
+    # The runner-up must be another pose, not the best one again: seeds that converge to
+    # the same minimum differ by the optimiser's tolerance (up to about 1e-4 of the distance
+    # for a small target), the planar ambiguity's other pose by about twice the tilt.
+    best = valid[0][3]
+    scale = float(np.linalg.norm(best.position - obj.mean(axis=0)))
+    alt = (np.nan, None, None, None)
     for s in valid[1:]:
-        if np.linalg.norm(s[3].position - valid[0][3].position) > 1e-6 * (
-            1 + np.linalg.norm(valid[0][3].position)
-        ):
+        cos_turn = (np.trace(s[3].world_from_camera.T @ best.world_from_camera) - 1.0) / 2.0
+        turn_deg = float(np.degrees(np.arccos(np.clip(cos_turn, -1.0, 1.0))))
+        if np.linalg.norm(s[3].position - best.position) > 1e-3 * scale or turn_deg > 0.1:
             alt = s
             break
-    else:
-        alt = (np.nan, None, None, None)
-    return valid[0][3], valid[0][0], alt[3], float(alt[0]), mirrored
+    return best, valid[0][0], alt[3], float(alt[0]), mirrored
 
 
 def estimate_pose(
