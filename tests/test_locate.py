@@ -241,3 +241,18 @@ def test_map_in_centimetres_gives_centimetres(small_render, small_camera, small_
     res = locate(small_render.image, small_camera, cm)
     assert res, res.error
     assert np.linalg.norm(res.position - 100 * small_render.pose.position) < 100 * MAX_ERROR_M
+
+
+def test_four_fixtures_one_misplaced_in_the_map_is_not_located(small_camera):
+    """Four fixtures, one of them 0.8 m from where the map says: no pose rather than a bad one."""
+    xz = ((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6))
+    room4 = make_small_room(ids=(5, 6, 9, 10), xz=xz)
+    pose = Pose.from_euler([0.1, 0.0, -0.1], (94.0, 4.0, 137.0))
+    r = render(small_camera, room4, pose, small_settings(seed=14))
+    assert locate(r.image, small_camera, room4)  # the photo itself is fine
+    wrong = make_small_room(ids=(5, 6, 9, 10), xz=(*xz[:3], (0.0, 0.6)))
+    res = locate(r.image, small_camera, wrong)
+    assert not res
+    assert res.position is None
+    assert res.error
+    assert not any(f.used for f in res.fixtures)
