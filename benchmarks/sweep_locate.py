@@ -23,12 +23,12 @@ from camvlp.simulate import RenderSettings, render
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def sample(rng: np.random.Generator, camera, fixture_map):
+def sample(rng: np.random.Generator, camera, fixture_map, rpc_range=(3.0, 8.0), heights=(0.0, 1.0)):
     """A random pose with all four fixtures fully in view, and random timing."""
     from camvlp.simulate import fixture_truths
 
     while True:
-        height = float(rng.choice([0.0, 1.0]))
+        height = float(rng.choice(heights))
         lim_x, lim_y = (10.0, 13.0) if height == 0 else (3.5, 5.0)
         pos = np.array([rng.uniform(-0.3, 0.3), -height, rng.uniform(-0.3, 0.3)])
         euler = [
@@ -39,7 +39,7 @@ def sample(rng: np.random.Generator, camera, fixture_map):
         pose = camvlp.Pose.from_euler(pos, euler)
         if all(t.fully_inside for t in fixture_truths(camera, fixture_map, pose)):
             break
-    rows_per_chip = rng.uniform(3.0, 8.0)
+    rows_per_chip = rng.uniform(*rpc_range)
     exposure_chips = rng.uniform(0.1, 1.0)
     return pose, rows_per_chip, exposure_chips
 
@@ -50,6 +50,10 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--brightness", type=float, default=4.0)
     ap.add_argument("--json", type=Path, help="write per-photo results here")
+    ap.add_argument(
+        "--rows-per-chip", default="3,8", help="range of rows per chip, MIN,MAX (default 3,8)"
+    )
+    ap.add_argument("--heights", default="0,1", help="camera heights to draw from, m (default 0,1)")
     args = ap.parse_args()
     camera = camvlp.load_camera(ROOT / "examples/thesis_camera.yaml")
     fmap = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
@@ -59,9 +63,17 @@ def main() -> int:
     eligible = decoded = wrong = 0
     errors = []
     failures = []
+    spans: list[float] = []
+    short = short_decoded = 0
     t_start = time.perf_counter()
     for k in range(args.n):
-        pose, rpc, exp_chips = sample(rng, camera, fmap)
+        pose, rpc, exp_chips = sample(
+            rng,
+            camera,
+            fmap,
+            tuple(map(float, args.rows_per_chip.split(","))),
+            tuple(map(float, args.heights.split(","))),
+        )
         chip_rate = 1.0 / (rpc * row_time)
         settings = RenderSettings(
             chip_rate_hz=chip_rate,
@@ -77,6 +89,10 @@ def main() -> int:
             tid = min(truth, key=lambda i: np.hypot(*(truth[i].pixel - f.pixel)))
             t = truth[tid]
             ok_frames = t.frames_spanned >= 1.2 and t.fully_inside
+            spans.append(t.frames_spanned)
+            if t.frames_spanned < 1.2 and t.fully_inside:
+                short += 1
+                short_decoded += int(f.id == tid)
             if f.id is not None and f.id != tid:
                 wrong += 1
             if ok_frames:
@@ -120,6 +136,8 @@ def main() -> int:
     located = np.isfinite(e)
     print(f"photos                 {args.n} ({time.perf_counter() - t_start:.0f} s)")
     print(f"located                {located.sum()} / {args.n}")
+    print(f"frames spanned         {min(spans):.2f} to {max(spans):.2f}")
+    print(f"fixtures < 1.2 frames  {short}, decoded anyway {short_decoded}")
     print(
         f"fixtures >= 1.2 frames {eligible}, decoded {decoded} "
         f"({100 * decoded / max(eligible, 1):.2f} %)"

@@ -59,10 +59,14 @@ def annotate(image: np.ndarray, result, camera: Camera, fixture_map: FixtureMap)
         label = f"ID {f.id}" if f.id is not None else "?"
         if not f.used and f.reason:
             label += f": {f.reason[:48]}"
+        (tw, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick)
+        x = u + max(radius, 6) + 4
+        if x + tw > w:  # no room on the right: write it on the left of the disc
+            x = max(0, u - max(radius, 6) - 4 - tw)
         cv2.putText(
             out,
             label,
-            (u + max(radius, 6) + 4, v),
+            (x, v),
             cv2.FONT_HERSHEY_SIMPLEX,
             font,
             colour,

@@ -86,9 +86,8 @@ def locate_command(
         print(json.dumps(result.to_dict()))
     else:
         _print_human(result, fixture_map.units, photo)
-    if not result:
-        if not as_json:
-            print(f"error: not located: {result.error} ({photo})", file=sys.stderr)
+    if not result:  # stdout keeps its JSON; the one error line goes to stderr either way
+        print(f"error: not located: {result.error} ({photo})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
 
 
