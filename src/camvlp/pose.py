@@ -21,15 +21,10 @@ import cv2
 import numpy as np
 
 from .camera import Camera, Pose
+from .pnp import SOLVERS as _SOLVERS
 
 __all__ = ["PoseEstimate", "estimate_pose"]
 
-_SOLVERS = {
-    "iterative": cv2.SOLVEPNP_ITERATIVE,
-    "sqpnp": cv2.SOLVEPNP_SQPNP,
-    "ippe": cv2.SOLVEPNP_IPPE,
-    "epnp": cv2.SOLVEPNP_EPNP,
-}
 
 
 @dataclass(frozen=True)
