@@ -26,7 +26,6 @@ from .pnp import SOLVERS as _SOLVERS
 __all__ = ["PoseEstimate", "estimate_pose"]
 
 
-
 @dataclass(frozen=True)
 class PoseEstimate:
     """A pose solve: the pose, or why there is none.
