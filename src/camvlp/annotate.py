@@ -146,7 +146,10 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
             zip(blobs, stages.gray_rois, stages.decodes, result.fixtures, strict=True)
         ):
             ax = axes[k, 0]
-            prof, _ = row_profile(g, b.mask, result.readout)
+            axis = result.readout.removesuffix("-reversed")
+            prof, _ = row_profile(g, b.mask, axis)
+            if result.readout.endswith("-reversed"):
+                prof = prof[::-1]
             ax.plot(prof, ".-", lw=0.8, ms=2, color="0.2")
             if prof.size >= 8:
                 lo, hi = np.percentile(prof, [2, 98])

@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 __all__ = [
+    "READOUTS",
     "Camera",
     "Pose",
     "euler_to_matrix",
@@ -29,6 +30,12 @@ __all__ = [
     "rotation_y",
     "rotation_z",
 ]
+
+
+#: Readout values of a camera: the image axis the sensor's rows follow, and ``-reversed``
+#: when time runs up (right to left) rather than down (left to right); None: find the axis
+#: from the stripes and take the forward direction.
+READOUTS = (None, "rows", "columns", "rows-reversed", "columns-reversed")
 
 
 def rotation_x(theta_deg: float) -> np.ndarray:
@@ -183,10 +190,14 @@ class Camera:
         Seconds between the starts of two consecutive sensor rows (rolling shutter).
     mirrored : bool
         The stored photographs are mirror images (flip them left-right before locating).
-    readout : {"rows", "columns", None}
+    readout : {"rows", "columns", "rows-reversed", "columns-reversed", None}
         Which image axis the sensor reads out along: ``"rows"`` when sensor rows are image
-        rows (stripes horizontal), ``"columns"`` for a photo stored in portrait (stripes
-        vertical); None to find it from the image.
+        rows, read from the top down (stripes horizontal), ``"columns"`` for a photo stored
+        in portrait, read from left to right (stripes vertical); ``-reversed`` when time runs
+        the other way (bottom up, right to left).  None finds the axis from the stripes and
+        takes the forward direction.  The direction matters for Manchester IDs: read
+        backwards, some IDs' frames are other IDs' frames (0 and 14, 2 and 6, 4 and 10,
+        8 and 12 in the default format).
     """
 
     width: int
@@ -218,8 +229,11 @@ class Camera:
             raise ValueError(
                 f"row_time_s must be a positive number of seconds, got {self.row_time_s}"
             )
-        if self.readout not in (None, "rows", "columns"):
-            raise ValueError(f"readout must be 'rows' or 'columns', got {self.readout!r}")
+        if self.readout not in READOUTS:
+            raise ValueError(
+                "readout must be rows, columns, rows-reversed or columns-reversed, "
+                f"got {self.readout!r}"
+            )
         object.__setattr__(self, "width", int(self.width))
         object.__setattr__(self, "height", int(self.height))
         object.__setattr__(self, "matrix", k)
@@ -284,7 +298,12 @@ class Camera:
     def with_size(self, width: int, height: int) -> Camera:
         """This camera with a new image size (the intrinsics are kept)."""
         return Camera(
-            width, height, self.matrix, self.distortion, self.row_time_s, self.mirrored,
+            width,
+            height,
+            self.matrix,
+            self.distortion,
+            self.row_time_s,
+            self.mirrored,
             self.readout,
         )
 

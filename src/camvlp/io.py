@@ -95,7 +95,8 @@ def load_camera(path: str | Path) -> Camera:
     ``focal_length_px`` with an optional ``principal_point`` (``[cx, cy]`` or ``centre``
     for the image centre, which also overrides a matrix's cx, cy); optional
     ``distortion_coefficients`` (1 x N, OpenCV order), ``row_time_s`` (seconds between
-    sensor rows), ``mirrored`` (bool), ``readout`` (``rows`` or ``columns``).
+    sensor rows), ``mirrored`` (bool), ``readout`` (``rows``, ``columns``, ``rows-reversed`` or
+    ``columns-reversed``).
 
     Raises
     ------

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .calibrate import estimate_stripe_period
-from .camera import Camera, Pose
+from .camera import READOUTS, Camera, Pose
 from .decode import StripeDecode, decode_profile, row_profile
 from .detect import Blob, Detection, detect_fixtures, to_gray
 from .fixtures import FixtureMap
@@ -38,7 +38,8 @@ class LocateSettings:
     min_diameter_px : float
         Smallest fixture image considered, pixels.
     readout : str or None
-        Readout axis ("rows" or "columns"); None takes the camera's, else finds it.
+        Readout ("rows", "columns", "rows-reversed", "columns-reversed"; see
+        :class:`camvlp.Camera`); None takes the camera's, else finds the axis (forward).
     mirrored : bool or None
         Flip the image left-right first; None takes the camera file's ``mirrored``.
     correct_perspective : bool
@@ -330,7 +331,11 @@ def locate(
     mirrored = camera.mirrored if st.mirrored is None else bool(st.mirrored)
     if mirrored:
         img = img[:, ::-1]
-    readout = st.readout or camera.readout
+    given = st.readout or camera.readout
+    if given not in READOUTS:
+        raise ValueError(f"readout must be one of {READOUTS[1:]}, got {given!r}")
+    reverse = bool(given) and given.endswith("-reversed")
+    readout = given.removesuffix("-reversed") if given else None
     detection = detect_fixtures(
         img, readout=readout, kernel_px=st.kernel_px, min_diameter_px=st.min_diameter_px
     )
@@ -351,8 +356,9 @@ def locate(
         )
         notes += [note] if note else []
     else:
+        step = -1 if reverse else 1  # the profile in the order the sensor read it
         decodes = [
-            decode_profile(row_profile(g, b.mask, readout)[0], fixture_map.frame)
+            decode_profile(row_profile(g, b.mask, readout)[0][::step], fixture_map.frame)
             for b, g in zip(blobs, gray_rois, strict=True)
         ]
     t2 = time.perf_counter()
@@ -475,7 +481,7 @@ def locate(
         fixtures=tuple(results),
         timing_ms=timing,
         error=error,
-        readout=readout,
+        readout=readout + ("-reversed" if reverse else ""),
         mirrored=mirrored,
         alternative_position=None
         if est is None or est.alternative is None

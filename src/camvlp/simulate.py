@@ -43,7 +43,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .camera import Camera, Pose
+from .camera import READOUTS, Camera, Pose
 from .fixtures import Fixture, FixtureMap
 
 __all__ = [
@@ -94,9 +94,10 @@ class RenderSettings:
         Electrons at full scale, for shot noise; 0 disables shot noise.
     read_noise : float
         Read-noise sigma, fraction of full scale; 0 disables it.
-    readout : {"rows", "columns"}
+    readout : {"rows", "columns", "rows-reversed", "columns-reversed"}
         ``"rows"``: exposure start grows with image row ``v`` (stripes horizontal);
-        ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical).
+        ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical);
+        ``-reversed``: it falls instead (read bottom up, or right to left).
     colours : tuple of (b, g, r) or None
         One BGR colour in 0..1 per fixture, in map order; None for white.
     seed : int
@@ -129,10 +130,15 @@ class RenderSettings:
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
             if not math.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value!r}")
-        if self.readout not in ("rows", "columns"):
-            raise ValueError(f"readout must be 'rows' or 'columns', got {self.readout!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or (
-            self.seed < 0
+        if self.readout not in READOUTS[1:]:
+            raise ValueError(
+                "readout must be rows, columns, rows-reversed or columns-reversed, "
+                f"got {self.readout!r}"
+            )
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, (int, np.integer))
+            or (self.seed < 0)
         ):
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         if self.colours is not None:
@@ -154,8 +160,10 @@ class RenderSettings:
 
 
 def _positive(value, name: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-        math.isfinite(value) and value > 0
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not (math.isfinite(value) and value > 0)
     ):
         raise ValueError(f"{name} must be a positive number, got {value!r}")
 
@@ -313,7 +321,7 @@ def _truths(
     s = settings.resolved(camera)
     normals = _fixture_normals(fixture_map, pose)
     rng = np.random.default_rng([int(s.seed), 1])
-    axis = 1 if s.readout == "rows" else 0
+    axis = 1 if s.readout.startswith("rows") else 0
     truths, rims = [], []
     w, h = camera.width, camera.height
     field = _field_radius(camera)
@@ -385,9 +393,7 @@ def _project_within_field(
     pixels = np.full_like(xy, np.nan)
     if np.any(front):
         obj = np.concatenate([xy[front], np.ones((int(front.sum()), 1))], axis=1)
-        uv, _ = cv2.projectPoints(
-            obj, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_or_none
-        )
+        uv, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_or_none)
         pixels[front] = uv.reshape(-1, 2)
     return pixels, clamped
 
@@ -638,10 +644,13 @@ def render(
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         u0, u1, v0, v1 = box
         chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
-        k = np.arange(v0, v1) if s.readout == "rows" else np.arange(u0, u1)
+        by_rows = s.readout.startswith("rows")
+        k = np.arange(v0, v1) if by_rows else np.arange(u0, u1)
+        if s.readout.endswith("-reversed"):  # sensor row 0 is the last image row (column)
+            k = (h if by_rows else w) - 1 - k
         on = _on_fraction(chips, chip_s, k * s.row_time_s + truth.phase_s, s.exposure_s)
         on = on.astype(np.float32)
-        lit = cov * (on[:, None] if s.readout == "rows" else on[None, :]) * np.float32(s.brightness)
+        lit = cov * (on[:, None] if by_rows else on[None, :]) * np.float32(s.brightness)
         patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
     image = _expose(patches, w, h, s)
     if camera.mirrored:

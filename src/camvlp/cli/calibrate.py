@@ -206,7 +206,7 @@ def calibrate_rows(
             fail(f"photo is {w} x {h} px but the camera is {camera.width} x {camera.height}; "
                  f"use the full-resolution photo ({photo})")
         if axis is None and camera.readout is not None and (w, h) == camera.size:
-            axis = camera.readout
+            axis = camera.readout.removesuffix("-reversed")
     est = estimate_row_time(image, frequency, axis=axis)
     if not est:
         fail(f"{est.message} ({photo})", EXIT_NOT_LOCATED)

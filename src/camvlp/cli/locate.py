@@ -11,6 +11,7 @@ import cv2
 import typer
 
 from ..annotate import annotate, write_debug_pictures
+from ..camera import READOUTS
 from ..io import InputError, load_camera, load_image, load_map
 from ..locate import LocateSettings, locate
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
@@ -35,7 +36,11 @@ def locate_command(
         str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
     ] = "iterative",
     readout: Annotated[
-        str | None, typer.Option(help="Sensor readout axis: rows or columns (default: find it).")
+        str | None,
+        typer.Option(
+            help="Sensor readout: rows (top down), columns (left to right), rows-reversed or "
+            "columns-reversed (default: the camera file's, else the axis found, forward)."
+        ),
     ] = None,
     mirrored: Annotated[
         bool | None,
@@ -58,8 +63,8 @@ def locate_command(
     """
     if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
         fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
-    if readout not in (None, "rows", "columns"):
-        fail(f"--readout must be rows or columns, got {readout!r}")
+    if readout not in READOUTS:
+        fail(f"--readout must be rows, columns, rows-reversed or columns-reversed, got {readout!r}")
     for out in (annotate_path,):
         if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
             fail(f"--annotate must end in .png or .jpg ({out})")

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ..camera import Pose
+from ..camera import READOUTS, Pose
 from ..io import load_camera, load_map
 from ..simulate import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
 from ._app import app, fail, handle_errors, parse_floats
@@ -21,14 +21,13 @@ def render_command(
         Path, typer.Option("--camera", help="Camera file (OpenCV calibration YAML or JSON).")
     ],
     map_path: Annotated[Path, typer.Option("--map", help="Map file of the fixtures (YAML/JSON).")],
-    position: Annotated[
-        str, typer.Option("--position", help="Camera centre X,Y,Z in map units.")
-    ],
+    position: Annotated[str, typer.Option("--position", help="Camera centre X,Y,Z in map units.")],
     euler: Annotated[
         str,
         typer.Option(
-            "--euler", help="The thesis' angles TX,TY,TZ in degrees (R = Rx Ry Rz); 90,0,0 "
-            "looks along world -y."
+            "--euler",
+            help="The thesis' angles TX,TY,TZ in degrees (R = Rx Ry Rz); 90,0,0 "
+            "looks along world -y.",
         ),
     ],
     out: Annotated[Path, typer.Option("--out", help="Output photo, .png or .jpg.")],
@@ -67,8 +66,9 @@ def render_command(
     readout: Annotated[
         str | None,
         typer.Option(
-            "--readout", help="rows (stripes horizontal) or columns (portrait, stripes "
-            "vertical) (default: camera file, else rows)."
+            "--readout",
+            help="rows (stripes horizontal) or columns (portrait, stripes "
+            "vertical) (default: camera file, else rows).",
         ),
     ] = None,
     colour: Annotated[
@@ -90,8 +90,8 @@ def render_command(
     noise_scale = _number(noise, "--noise")
     if noise_scale < 0:
         fail(f"--noise must be a non-negative number, got {noise}")
-    if readout is not None and readout not in ("rows", "columns"):
-        fail(f"--readout must be rows or columns, got {readout!r}")
+    if readout is not None and readout not in READOUTS:
+        fail(f"--readout must be rows, columns, rows-reversed or columns-reversed, got {readout!r}")
     xyz = parse_floats(position, 3, "--position")
     angles = parse_floats(euler, 3, "--euler")
     camera = load_camera(camera_path)
@@ -126,9 +126,7 @@ def render_command(
         f"readout {s.readout}"
     )
     for t in result.fixtures:
-        where = (
-            f"pixel ({t.pixel[0]:.1f}, {t.pixel[1]:.1f})" if t.in_front else "behind the camera"
-        )
+        where = f"pixel ({t.pixel[0]:.1f}, {t.pixel[1]:.1f})" if t.in_front else "behind the camera"
         print(
             f"fixture {t.id:>3}: {where}, fully inside {'yes' if t.fully_inside else 'no'}, "
             f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames"

@@ -38,10 +38,10 @@ FIGURES = {
 
 CameraOpt = Annotated[
     Path | None,
-    typer.Option("--camera", help="Camera file [default: examples/thesis_camera.yaml]."),
+    typer.Option("--camera", help="Camera file (default: examples/thesis_camera.yaml)."),
 ]
 MapOpt = Annotated[
-    Path | None, typer.Option("--map", help="Map file [default: examples/thesis_room.yaml].")
+    Path | None, typer.Option("--map", help="Map file (default: examples/thesis_room.yaml).")
 ]
 SolverOpt = Annotated[
     str, typer.Option("--solver", help="PnP method: iterative, sqpnp, ippe or epnp.")
@@ -310,8 +310,8 @@ def _forced(
     _finish(res, f"{kind}-error", st.plot_forced_error, out, as_json, lines)
 
 
-_POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) [default: thesis fig. 4.3, five along x]."
-_EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) [default: 90,0,0]; one or as many."
+_POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) (default: thesis fig. 4.3, five along x)."
+_EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) (default: 90,0,0); one or as many."
 _FIG_HELP = "Thesis figure preset for poses and height: 4.3, 4.4 or 4.5."
 _HGT_HELP = "Put every camera at this height above the floor (m), towards the lights."
 
@@ -322,7 +322,7 @@ def image_error(
     camera: CameraOpt = None,
     map_path: MapOpt = None,
     fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move [default: first].")
+        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
     ] = None,
     axis: Annotated[str, typer.Option("--axis", help="Image axis: x or y.")] = "x",
     value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (px).")] = (
@@ -358,7 +358,7 @@ def world_error(
     camera: CameraOpt = None,
     map_path: MapOpt = None,
     fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move [default: first].")
+        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
     ] = None,
     axis: Annotated[str, typer.Option("--axis", help="World axis: x, y or z.")] = "x",
     value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (m).")] = (
@@ -411,7 +411,7 @@ def coverage(
     ] = 10_000.0,
     row_time: Annotated[
         float | None,
-        typer.Option("--row-time", help="Seconds per sensor row [default: camera's, or 20e-6]."),
+        typer.Option("--row-time", help="Seconds per sensor row (default: camera's, or 20e-6)."),
     ] = None,
     min_frames: Annotated[
         float, typer.Option("--min-frames", help="Frames of rows a fixture must span.")
