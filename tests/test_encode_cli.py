@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import itertools
 import json
-import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -93,15 +93,19 @@ def test_bad_map_is_one_line_naming_the_file(tmp_path: Path):
     assert "absent.yaml" in _one_error_line(result)
 
 
-@pytest.mark.skipif(shutil.which("camvlp") is None, reason="console script not installed")
+#: The console script installed beside this Python (the virtual environment's bin/).
+CAMVLP = Path(sys.executable).with_name("camvlp")
+
+
+@pytest.mark.skipif(not CAMVLP.exists(), reason="console script not installed")
 def test_console_script():
     done = subprocess.run(
-        ["camvlp", "encode", "16"], capture_output=True, text=True, timeout=60, check=False
+        [str(CAMVLP), "encode", "16"], capture_output=True, text=True, timeout=60, check=False
     )
     assert done.returncode == 2
     assert done.stderr.startswith("error: ") and done.stderr.count("\n") == 1
     done = subprocess.run(
-        ["camvlp", "encode", "10", "--json"],
+        [str(CAMVLP), "encode", "10", "--json"],
         capture_output=True,
         text=True,
         timeout=60,
