@@ -8,9 +8,10 @@ Two measurements make a camera file (``docs/formats.md``) for camvlp:
   light blinking a 50 % square wave at a known frequency: the light appears as a disc of
   stripes whose period, in rows, is ``1 / (frequency * row_time)``.
 
-:func:`estimate_stripe_period` measures a stripe period inside any masked region and is
-shared with the decoders of frequency-coded fixtures.  :func:`render_chessboard` renders
-synthetic calibration photographs with a known camera (for tests and benchmarks).
+:func:`estimate_stripe_period` (from ``stripes.py``) measures a stripe period inside any
+masked region; the decoder of frequency-coded fixtures uses it too.
+:func:`render_chessboard` renders synthetic calibration photographs with a known camera (for
+tests and benchmarks).
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ import cv2
 import numpy as np
 
 from .camera import Camera, Pose
+from .detect import to_gray
 from .io import InputError, load_image
+from .stripes import StripePeriod, _gray_float, estimate_stripe_period
 
 __all__ = [
     "CalibrationResult",
@@ -118,21 +121,6 @@ def board_object_points(board: tuple[int, int], square_m: float) -> np.ndarray:
     return pts.astype(np.float32)
 
 
-def _to_gray_u8(image: np.ndarray) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] in (3, 4):
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY if img.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
-    elif img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim != 2:
-        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
-    if img.dtype == np.uint8:
-        return img
-    f = img.astype(np.float64)
-    top = 65535.0 if img.dtype == np.uint16 else max(float(np.nanmax(f)), 1e-12)
-    return np.clip(np.nan_to_num(f) * (255.0 / top), 0, 255).astype(np.uint8)
-
-
 def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray | None:
     """Sub-pixel chessboard inner corners of a photograph, or None when no board is found.
 
@@ -154,10 +142,12 @@ def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray 
         Pixel positions in the order of :func:`board_object_points`.
     """
     cols, rows = _parse_board(board)
-    gray = _to_gray_u8(image)
+    gray = to_gray(image)
     scale = min(1.0, DETECT_MAX_SIDE_PX / max(gray.shape))
-    small = gray if scale == 1.0 else cv2.resize(
-        gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA
+    small = (
+        gray
+        if scale == 1.0
+        else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
     )
     sb_flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
     found, corners = cv2.findChessboardCornersSB(small, (cols, rows), flags=sb_flags)
@@ -262,14 +252,19 @@ def calibrate_camera(
         size = Counter(s for _, s, _ in found).most_common(1)[0][0]
         for name, s, _ in found:
             if s != size:
-                rejected.append((name, f"size {s[0]}x{s[1]} differs from the others' "
-                                       f"{size[0]}x{size[1]}"))
+                rejected.append(
+                    (name, f"size {s[0]}x{s[1]} differs from the others' {size[0]}x{size[1]}")
+                )
         found = [f for f in found if f[1] == size]
     order = {n: k for k, n in enumerate(names)}
     rejected.sort(key=lambda r: order.get(r[0], 0))
     if len(found) < MIN_CALIBRATION_PHOTOS or size is None:
         return CalibrationResult(
-            None, float("nan"), (), tuple(n for n, _, _ in found), tuple(rejected),
+            None,
+            float("nan"),
+            (),
+            tuple(n for n, _, _ in found),
+            tuple(rejected),
             f"only {len(found)} of {len(images)} photos show the {board[0]}x{board[1]} board "
             f"(need {MIN_CALIBRATION_PHOTOS})",
         )
@@ -359,8 +354,12 @@ def render_chessboard(
     if camera.dist_or_none is None and in_front:
         ss_from_tex = ss_from_pix @ camera.matrix @ norm_from_board @ np.linalg.inv(tex_from_board)
         big = cv2.warpPerspective(
-            texture, ss_from_tex, size, flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT, borderValue=float(background),
+            texture,
+            ss_from_tex,
+            size,
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=float(background),
         )
     else:  # trace each supersampled ray through the lens model
         uu, vv = np.meshgrid(
@@ -375,226 +374,20 @@ def render_chessboard(
             mx = np.where(front, tex[:, 0] / tex[:, 2], -10.0)
             my = np.where(front, tex[:, 1] / tex[:, 2], -10.0)
         big = cv2.remap(
-            texture, mx.reshape(size[::-1]).astype(np.float32),
-            my.reshape(size[::-1]).astype(np.float32), cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT, borderValue=float(background),
+            texture,
+            mx.reshape(size[::-1]).astype(np.float32),
+            my.reshape(size[::-1]).astype(np.float32),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=float(background),
         )
     img = cv2.resize(big, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
 # --------------------------------------------------------------------------------------
-# Stripe period and row time
+# Row time
 # --------------------------------------------------------------------------------------
-
-#: Axis names: "rows" = stripes horizontal, the period is measured down the image rows
-#: (the sensor reads out row by row); "columns" = stripes vertical (a portrait photo).
-AXES = ("rows", "columns")
-
-
-@dataclass(frozen=True)
-class StripePeriod:
-    """The period of a region's stripes (:func:`estimate_stripe_period`).  Falsy on failure.
-
-    Attributes
-    ----------
-    period_px : float
-        Stripe period (one bright plus one dark stripe) in pixels along ``axis``; NaN on
-        failure.
-    axis : str
-        ``"rows"`` when the stripes are horizontal (the profile runs down the rows),
-        ``"columns"`` when they are vertical.
-    strength : float
-        Fraction (0-1) of the masked pixels' variance about the profile's trend that the
-        periodic model explains: near 1 for clean stripes across ``axis``, near 0 for
-        none (or for stripes along the other axis).
-    periods_seen : float
-        How many periods the region spans along ``axis`` (NaN on failure).
-    message : str
-        Why the estimate failed ("" on success).
-    """
-
-    period_px: float
-    axis: str
-    strength: float
-    periods_seen: float = float("nan")
-    message: str = ""
-
-    def __bool__(self) -> bool:
-        return bool(np.isfinite(self.period_px)) and not self.message
-
-
-def _gray_float(image: np.ndarray) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] in (3, 4):
-        img = img[:, :, :3].astype(np.float64).mean(axis=2)
-    elif img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim != 2:
-        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
-    return img.astype(np.float64)
-
-
-def _line_sums(
-    img: np.ndarray, mask: np.ndarray, axis: str
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Count, sum and sum of squares of the masked pixels of each row ('rows') or column."""
-    a = 1 if axis == "rows" else 0
-    v = np.where(mask, img, 0.0)
-    return mask.sum(axis=a).astype(np.float64), v.sum(axis=a), (v * v).sum(axis=a)
-
-
-def _design(x: np.ndarray, f: float, n_trend: int = 3, max_harmonics: int = 3) -> np.ndarray:
-    """Columns: polynomial trend, then cos/sin of the harmonics of f below Nyquist."""
-    cols = [x**p for p in range(n_trend)]
-    for k in range(1, max_harmonics + 1):
-        if k * f >= 0.48:
-            break
-        ph = 2.0 * np.pi * k * f * x
-        cols += [np.cos(ph), np.sin(ph)]
-    return np.column_stack(cols)
-
-
-def _fit(x: np.ndarray, y: np.ndarray, w: np.ndarray, f: float) -> tuple[float, np.ndarray]:
-    """Weighted least squares of the profile on :func:`_design`: (weighted RSS, model)."""
-    d = _design(x, f)
-    sw = np.sqrt(w)
-    coef, *_ = np.linalg.lstsq(d * sw[:, None], y * sw, rcond=None)
-    model = d @ coef
-    r = (y - model) * sw
-    return float(r @ r), model
-
-
-def _period_along(img: np.ndarray, mask: np.ndarray, axis: str) -> StripePeriod:
-    nan = float("nan")
-    counts, sums, sq = _line_sums(img, mask, axis)
-    if counts.max() <= 0:
-        return StripePeriod(nan, axis, 0.0, message="the mask is empty")
-    ok = counts >= 0.25 * counts.max()
-    idx = np.flatnonzero(ok)
-    lo, hi = idx[0], idx[-1] + 1
-    n = hi - lo
-    if n < 6:
-        return StripePeriod(
-            nan, axis, 0.0, message=f"the region spans only {n} px along the {axis}"
-        )
-    x = np.arange(lo, hi, dtype=np.float64) - (lo + hi - 1) / 2.0
-    w = np.where(ok[lo:hi], counts[lo:hi], 0.0)  # the mean's noise variance ~ 1 / count
-    c, s1, s2 = w, np.where(w > 0, sums[lo:hi], 0.0), np.where(w > 0, sq[lo:hi], 0.0)
-    y = np.where(w > 0, s1 / np.maximum(c, 1.0), 0.0)
-
-    def pixel_ss(line_value: np.ndarray) -> float:
-        """Sum over the used pixels of (pixel - its line's model value) ** 2."""
-        return float(np.sum(s2 - 2.0 * line_value * s1 + c * line_value**2))
-
-    # Weighted quadratic trend, then a Hann-windowed, zero-padded spectrum of the residual.
-    xs = x / max(n / 2.0, 1.0)
-    t = np.column_stack([np.ones(n), xs, xs**2])
-    sw = np.sqrt(w)
-    coef, *_ = np.linalg.lstsq(t * sw[:, None], y * sw, rcond=None)
-    trend = t @ coef
-    total = pixel_ss(trend)
-    resid = (y - trend) * (w > 0)
-    if total <= 0 or float((resid * sw) @ (resid * sw)) <= 1e-12 * total:
-        return StripePeriod(nan, axis, 0.0, message="the region has no stripes")
-    nfft = 1 << int(np.ceil(np.log2(max(64 * n, 4096))))
-    spec = np.abs(np.fft.rfft(resid * np.hanning(n), nfft))
-    freqs = np.fft.rfftfreq(nfft)
-    band = (freqs >= 1.5 / n) & (freqs <= 0.48)
-    if not band.any():
-        return StripePeriod(nan, axis, 0.0, message="the region is too short")
-    k = int(np.flatnonzero(band)[np.argmax(spec[band])])
-    f0 = freqs[k]
-    if 0 < k < len(spec) - 1:  # parabolic interpolation of the log spectrum's peak
-        a, b, cc = np.log(spec[k - 1 : k + 2] + 1e-300)
-        den = a - 2 * b + cc
-        if den < 0:
-            f0 = freqs[k] + 0.5 * (a - cc) / den * (freqs[1] - freqs[0])
-
-    # Refine: least-squares fit of trend + harmonics, optimised over the frequency.
-    from scipy.optimize import minimize_scalar  # here: SciPy's import costs 0.3 s
-
-    lo_f, hi_f = max(f0 - 0.5 / n, 1.0 / n), min(f0 + 0.5 / n, 0.49)
-    grid = np.linspace(lo_f, hi_f, 25)
-    g = int(np.argmin([_fit(x, y, w, fg)[0] for fg in grid]))
-    step = grid[1] - grid[0]
-    res = minimize_scalar(
-        lambda fr: _fit(x, y, w, fr)[0],
-        bounds=(max(grid[g] - step, lo_f), min(grid[g] + step, hi_f)),
-        method="bounded",
-        options={"xatol": 1e-9},
-    )
-    f = float(res.x)
-    _, model = _fit(x, y, w, f)
-    strength = float(np.clip(1.0 - pixel_ss(model) / total, 0.0, 1.0))
-    return StripePeriod(1.0 / f, axis, strength, periods_seen=n * f)
-
-
-def estimate_stripe_period(
-    image: np.ndarray, mask: np.ndarray | None = None, axis: str | None = None
-) -> StripePeriod:
-    """Period of the stripes a rolling shutter draws across a blinking light.
-
-    The masked pixels are averaged along each row (or column) into a profile; the profile's
-    weighted quadratic trend is removed, and the peak of its Hann-windowed, zero-padded
-    spectrum (refined by parabolic interpolation) seeds a weighted least-squares fit of a
-    periodic model (the fundamental and its harmonics below Nyquist, plus the trend) whose
-    frequency is optimised.  The harmonics let a square wave, clipped or not, fit exactly.
-
-    Precision: largest error of 20 synthetic discs per case (50 % square wave, blur sigma
-    1 px, noise 1 % of the stripe contrast, mask = the disc less 1.5 px), by the number of
-    periods the disc spans:
-
-    ===============  ========  ========  ========  ========
-    period (px)      2         2.5       3         5
-    ===============  ========  ========  ========  ========
-    4                fails     fails     1.4 %     0.3 %
-    6                fails     1.1 %     0.9 %     0.2 %
-    8                1.7 %     0.6 %     0.3 %     0.09 %
-    12               1.2 %     0.3 %     0.15 %    0.04 %
-    20               0.2 %     0.07 %    0.04 %    0.01 %
-    ===============  ========  ========  ========  ========
-
-    Over 10 periods the error is under 0.05 %.  The used rows must span at least 1.5
-    periods (a disc under about 12 px fails); periods under about 2.1 px cannot be told
-    from their aliases.
-
-    Parameters
-    ----------
-    image : ndarray, shape (H, W) or (H, W, 3)
-        The photograph or a region of it (any dtype; colour is averaged to gray).
-    mask : ndarray of bool, shape (H, W), optional
-        The pixels of the light; default all.  Rows (columns) with fewer than a quarter of
-        the widest row's pixels are left out.
-    axis : {"rows", "columns", None}
-        ``"rows"`` for horizontal stripes (period down the rows), ``"columns"`` for
-        vertical ones; None tries both and keeps the stronger periodic component.
-
-    Returns
-    -------
-    StripePeriod
-        Falsy, with a message, when the region is empty, too short, or flat.
-
-    Raises
-    ------
-    ValueError
-        A bad image shape, a mask of another shape, or an unknown axis.
-    """
-    img = _gray_float(image)
-    if mask is None:
-        m = np.ones(img.shape, dtype=bool)
-    else:
-        m = np.asarray(mask).astype(bool)
-        if m.shape != img.shape:
-            raise ValueError(f"mask shape {m.shape} differs from the image's {img.shape}")
-    if axis is not None and axis not in AXES:
-        raise ValueError(f"axis must be 'rows', 'columns' or None, got {axis!r}")
-    axes = AXES if axis is None else (axis,)
-    results = [_period_along(img, m, a) for a in axes]
-    good = [r for r in results if r]
-    if not good:
-        return results[0]
-    return max(good, key=lambda r: r.strength)
 
 
 def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
@@ -742,8 +535,9 @@ def estimate_row_time(
     mask = bright_blob_mask(image)
     area = int(mask.sum())
     if area < 16:
-        return RowTimeEstimate(nan, nan, axis or "rows", 0.0, nan, area, frequency_hz,
-                               "no bright light found")
+        return RowTimeEstimate(
+            nan, nan, axis or "rows", 0.0, nan, area, frequency_hz, "no bright light found"
+        )
     rows = np.flatnonzero(mask.any(axis=1))
     cols = np.flatnonzero(mask.any(axis=0))
     box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
@@ -752,10 +546,21 @@ def estimate_row_time(
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
     if sp.strength < MIN_STRIPE_STRENGTH:
         return RowTimeEstimate(
-            nan, sp.period_px, sp.axis, sp.strength, sp.periods_seen, area, frequency_hz,
+            nan,
+            sp.period_px,
+            sp.axis,
+            sp.strength,
+            sp.periods_seen,
+            area,
+            frequency_hz,
             f"no clear stripes in the light (periodic strength {sp.strength:.2f})",
         )
     return RowTimeEstimate(
-        1.0 / (frequency_hz * sp.period_px), sp.period_px, sp.axis, sp.strength,
-        sp.periods_seen, area, frequency_hz,
+        1.0 / (frequency_hz * sp.period_px),
+        sp.period_px,
+        sp.axis,
+        sp.strength,
+        sp.periods_seen,
+        area,
+        frequency_hz,
     )

@@ -8,7 +8,6 @@ from typing import Any
 
 import numpy as np
 
-from .calibrate import estimate_stripe_period
 from .camera import READOUTS, Camera, Pose
 from .decode import StripeDecode, decode_profile, row_profile
 from .detect import Blob, Detection, detect_fixtures, to_gray
@@ -16,6 +15,7 @@ from .fixtures import FixtureMap
 from .frequency import assign_frequencies
 from .io import InputError
 from .pose import PoseEstimate, estimate_pose
+from .stripes import estimate_stripe_period
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "locate"]
 
