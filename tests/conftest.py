@@ -100,8 +100,9 @@ def small_render(small_camera, small_room):
     from camvlp.camera import Pose
     from camvlp.simulate import render
 
-    return render(small_camera, small_room, Pose.from_euler([0, 0, 0], LOOK_UP),
-                  small_settings(seed=1))
+    return render(
+        small_camera, small_room, Pose.from_euler([0, 0, 0], LOOK_UP), small_settings(seed=1)
+    )
 
 
 @pytest.fixture(scope="session")
@@ -115,9 +116,30 @@ def small_files(tmp_path_factory, small_camera, small_room, small_render):
     from camvlp.io import save_camera, save_map
 
     d = tmp_path_factory.mktemp("small_room")
-    paths = {"dir": d, "camera": d / "camera.yaml", "map": d / "room.yaml",
-             "photo": d / "photo.png"}
+    paths = {
+        "dir": d,
+        "camera": d / "camera.yaml",
+        "map": d / "room.yaml",
+        "photo": d / "photo.png",
+    }
     save_camera(small_camera, paths["camera"])
     save_map(small_room, paths["map"])
     cv2.imwrite(str(paths["photo"]), small_render.image)
     return paths
+
+
+def one_error_line(result_or_stderr, stdout: str = "") -> str:
+    """Check that a command failed with exactly one ``error: ...`` line and no traceback.
+
+    ``result_or_stderr`` is a CliRunner or subprocess result (its ``stderr`` and ``stdout``
+    are read), or the stderr text itself.  Returns the error line.
+    """
+    if isinstance(result_or_stderr, str):
+        err, out = result_or_stderr, stdout
+    else:
+        err, out = result_or_stderr.stderr, result_or_stderr.stdout or ""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert "Traceback" not in err + out
+    return lines[0]

@@ -23,6 +23,7 @@ from camvlp.calibrate import (
 from camvlp.camera import Camera, Pose, rotation_x, rotation_z
 from camvlp.cli import app
 from camvlp.io import load_camera, save_camera
+from conftest import one_error_line
 
 runner = CliRunner()
 
@@ -303,12 +304,6 @@ def test_row_time_from_a_simulated_frequency_fixture():
 # Command line
 
 
-def _one_error_line(result) -> str:
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: ")
-    assert "Traceback" not in result.stderr + result.stdout
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -367,7 +362,7 @@ def test_cli_calibrate_bad_input(photo_dir: Path, tmp_path: Path, args, word):
     args = [a.replace("{dir}", str(photo_dir)) for a in args]
     result = runner.invoke(app, ["calibrate", *args, "--out", str(tmp_path / "c.yaml")])
     assert result.exit_code == 2
-    assert word in _one_error_line(result)
+    assert word in one_error_line(result)
     assert not (tmp_path / "c.yaml").exists()
 
 
@@ -377,7 +372,7 @@ def test_cli_calibrate_too_few_photos_exits_1(photo_dir: Path, tmp_path: Path):
               "--board", "9x6", "--square", "0.03", "--out", str(tmp_path / "c.yaml")],
     )
     assert result.exit_code == 1
-    assert "need 3" in _one_error_line(result)
+    assert "need 3" in one_error_line(result)
     assert "blank.png" in result.stdout
     assert not (tmp_path / "c.yaml").exists()
 
@@ -413,17 +408,17 @@ def test_cli_calibrate_rows_errors(tmp_path: Path):
     cv2.imwrite(str(photo), np.full((60, 80), 5, np.uint8))
     result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000"])
     assert result.exit_code == 1
-    assert "no bright light" in _one_error_line(result)
+    assert "no bright light" in one_error_line(result)
     result = runner.invoke(app, ["calibrate-rows", str(photo)])
-    assert result.exit_code == 2 and "--frequency" in _one_error_line(result)
+    assert result.exit_code == 2 and "--frequency" in one_error_line(result)
     result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000", "--out",
                                  str(tmp_path / "x.yaml")])
-    assert result.exit_code == 2 and "--camera" in _one_error_line(result)
+    assert result.exit_code == 2 and "--camera" in one_error_line(result)
     result = runner.invoke(app, ["calibrate-rows", str(tmp_path / "nope.png"), "--frequency",
                                  "1000"])
-    assert result.exit_code == 2 and "nope.png" in _one_error_line(result)
+    assert result.exit_code == 2 and "nope.png" in one_error_line(result)
     cam = tmp_path / "cam.yaml"
     save_camera(Camera.from_focal(640, 480, 500.0), cam)
     result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000",
                                  "--camera", str(cam)])
-    assert result.exit_code == 2 and "640 x 480" in _one_error_line(result)
+    assert result.exit_code == 2 and "640 x 480" in one_error_line(result)

@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from camvlp.cli import app
+from conftest import one_error_line
 
 runner = CliRunner()
 
@@ -20,12 +21,6 @@ def _run(*args: str):
     return runner.invoke(app, ["encode", *args])
 
 
-def _one_error_line(result) -> str:
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: ")
-    assert "Traceback" not in result.stderr + result.stdout
-    return lines[0]
 
 
 def test_prints_bits_and_chips_of_id_5():
@@ -55,7 +50,7 @@ def test_json_output():
 def test_id_that_does_not_fit_is_bad_input():
     result = _run("16")
     assert result.exit_code == 2
-    assert "16" in _one_error_line(result)
+    assert "16" in one_error_line(result)
     assert result.stdout == ""
 
 
@@ -63,7 +58,7 @@ def test_id_that_does_not_fit_is_bad_input():
 def test_non_positive_chip_rate_is_bad_input(rate):
     result = _run("5", "--chip-rate", rate)
     assert result.exit_code == 2
-    assert "--chip-rate" in _one_error_line(result)
+    assert "--chip-rate" in one_error_line(result)
 
 
 def test_frame_from_a_map(tmp_path: Path):
@@ -87,10 +82,10 @@ def test_bad_map_is_one_line_naming_the_file(tmp_path: Path):
     path.write_text("fixtures: [\n")
     result = _run("5", "--map", str(path))
     assert result.exit_code == 2
-    assert str(path) in _one_error_line(result)
+    assert str(path) in one_error_line(result)
     result = _run("5", "--map", str(tmp_path / "absent.yaml"))
     assert result.exit_code == 2
-    assert "absent.yaml" in _one_error_line(result)
+    assert "absent.yaml" in one_error_line(result)
 
 
 #: The console script installed beside this Python (the virtual environment's bin/).

@@ -26,6 +26,7 @@ from camvlp.fixtures import Fixture, FixtureMap
 from camvlp.io import InputError, load_camera, load_map, save_camera, save_map
 from camvlp.simulate import RenderSettings
 from camvlp.survey import floor_grid, render_survey
+from conftest import one_error_line
 
 runner = CliRunner()
 
@@ -75,12 +76,6 @@ def evaluate_cli(scene, survey_csv, out, *extra):
     return runner.invoke(app, args)
 
 
-def one_error_line(result) -> str:
-    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: ")
-    assert "Traceback" not in result.output
-    return lines[0]
 
 
 # --------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ from camvlp.camera import Pose
 from camvlp.cli import main
 from camvlp.io import save_map
 from camvlp.simulate import render
-from conftest import LOOK_UP, SMALL_ROOM_XZ, make_small_room, small_settings
+from conftest import LOOK_UP, SMALL_ROOM_XZ, make_small_room, one_error_line, small_settings
 
 CAMVLP = Path(sys.executable).with_name("camvlp")
 
@@ -33,12 +33,6 @@ def run(capsys, photo, camera, fixture_map, *extra) -> tuple[int, str, str]:
     return code, out, err
 
 
-def one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("error: "), err
-    assert "Traceback" not in err
-    return lines[0]
 
 
 def no_position(out: str) -> None:

@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 from camvlp.camera import Camera
 from camvlp.cli import app
 from camvlp.io import save_camera
+from conftest import one_error_line
 
 runner = CliRunner()
 
@@ -30,12 +31,6 @@ def run(camera, room, out, *extra):
     return runner.invoke(app, args)
 
 
-def one_error_line(result) -> str:
-    lines = [ln for ln in result.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: ")
-    assert "Traceback" not in result.output
-    return lines[0]
 
 
 @pytest.mark.parametrize("suffix", [".png", ".jpg"])
@@ -79,7 +74,7 @@ def test_render_options_reach_the_settings(tmp_path, small_camera_path, thesis_r
     assert image[:40].max() == 0  # no ambient, no noise: black away from the fixtures
 
 
-def test_bad_input_gives_one_error_line(tmp_path, small_camera_path, thesis_room_path):
+def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_path):
     bad_map = tmp_path / "bad.yaml"
     bad_map.write_text("fixtures: [ {id: 5, position: [0, 1]\n")
     cases = [

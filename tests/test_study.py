@@ -24,6 +24,7 @@ from camvlp.study import (
     rounding_study,
     set_height,
 )
+from conftest import one_error_line
 
 runner = CliRunner()
 FIG_4_4_EULERS = [(80, 0, 0), (85, 0, 0), (90, 0, 0), (95, 0, 0)]
@@ -282,12 +283,6 @@ def test_grid_helpers(room):
 # --------------------------------------------------------------------------------- CLI
 
 
-def _one_error_line(result) -> str:
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1, result.stderr
-    assert lines[0].startswith("error: ")
-    assert "Traceback" not in result.stderr + result.stdout
-    return lines[0]
 
 
 def test_cli_rounding_json_and_outputs(tmp_path, thesis_camera_path, thesis_room_path):
@@ -352,4 +347,4 @@ def test_cli_coverage_text(tmp_path):
 def test_cli_bad_input(args, needle):
     result = runner.invoke(app, ["study", *args])
     assert result.exit_code == 2
-    assert needle in _one_error_line(result)
+    assert needle in one_error_line(result)

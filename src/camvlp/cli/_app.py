@@ -5,11 +5,12 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from functools import wraps
-from typing import NoReturn, TypeVar
+from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
 from ..io import InputError
+from ..pnp import SOLVERS
 
 app = typer.Typer(
     name="camvlp",
@@ -61,3 +62,32 @@ def parse_floats(text: str, n: int, name: str) -> list[float]:
 @app.callback()
 def _root() -> None:
     """camvlp: find a camera's position from one photograph of coded ceiling lights."""
+
+
+#: ``--solver``: the OpenCV PnP method (checked by :func:`check_solver`).
+SolverOption = Annotated[
+    str, typer.Option("--solver", help="PnP solver: iterative, sqpnp, ippe or epnp.")
+]
+#: ``--outlier-px``: the locator's reprojection tolerance (checked by :func:`check_positive`).
+OutlierOption = Annotated[
+    float | None,
+    typer.Option(
+        "--outlier-px",
+        help="Drop a fixture whose reprojection error exceeds this (px); with only four "
+        "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px.",
+    ),
+]
+
+
+def check_solver(solver: str) -> str:
+    """``solver`` if it names an OpenCV PnP method, else a usage error (exit 2)."""
+    if solver not in SOLVERS:
+        fail(f"--solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    return solver
+
+
+def check_positive(value: float | None, option: str) -> float | None:
+    """``value`` if it is None or positive, else a usage error naming ``option`` (exit 2)."""
+    if value is not None and not value > 0:
+        fail(f"{option} must be a positive number, got {value}")
+    return value

@@ -12,7 +12,15 @@ from ..evaluate import AXES, Evaluation, evaluate_survey, read_survey, write_eva
 from ..io import load_camera, load_map
 from ..locate import LocateSettings
 from ..survey import default_jobs
-from ._app import app, fail, handle_errors
+from ._app import (
+    OutlierOption,
+    SolverOption,
+    app,
+    check_positive,
+    check_solver,
+    fail,
+    handle_errors,
+)
 
 
 @app.command("evaluate")
@@ -35,16 +43,8 @@ def evaluate_command(
         int | None, typer.Option("--jobs", "-j", help="Worker processes (default: all cores).")
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
-    solver: Annotated[
-        str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
-    ] = "iterative",
-    outlier_px: Annotated[
-        float | None,
-        typer.Option(
-            help="Drop a fixture whose reprojection error exceeds this (px); with only four "
-            "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px."
-        ),
-    ] = None,
+    solver: SolverOption = "iterative",
+    outlier_px: OutlierOption = None,
     magnify: Annotated[
         float | None,
         typer.Option(
@@ -63,12 +63,10 @@ def evaluate_command(
 
     Exit code 0 when the run completed (even with failures), 2 on bad input.
     """
-    if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
-        fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
+    check_solver(solver)
+    check_positive(outlier_px, "--outlier-px")
     if jobs is not None and jobs < 1:
         fail(f"--jobs must be at least 1, got {jobs}")
-    if outlier_px is not None and not outlier_px > 0:
-        fail(f"--outlier-px must be a positive number, got {outlier_px}")
     if magnify is not None and not magnify > 0:
         fail(f"--magnify must be a positive number, got {magnify}")
     if out.exists() and not out.is_dir():
@@ -115,7 +113,11 @@ def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
     ) as bar:
         task = bar.add_task("locate", total=len(survey))
         return evaluate_survey(
-            survey, camera, fixture_map, settings, jobs=jobs,
+            survey,
+            camera,
+            fixture_map,
+            settings,
+            jobs=jobs,
             progress=lambda done, total: bar.update(task, completed=done),
         )
 
@@ -127,26 +129,34 @@ def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:
         return "-" if x is None else f"{x * scale:.2f}"
 
     rate = "-" if s["success_rate"] is None else f"{100 * s['success_rate']:.1f} %"
-    print(f"photos     {s['photos']}: {s['located']} located, {s['failed']} failed ({rate} "
-          f"located)")
-    print(f"time       {s['wall_time_s']:.1f} s with {s['jobs']} job"
-          f"{'s' if s['jobs'] != 1 else ''}")
+    print(
+        f"photos     {s['photos']}: {s['located']} located, {s['failed']} failed ({rate} located)"
+    )
+    print(
+        f"time       {s['wall_time_s']:.1f} s with {s['jobs']} job{'s' if s['jobs'] != 1 else ''}"
+    )
     print()
     print(f"error ({unit})    mean   median      p95      max")
-    print(f"  position  {v(s['mean_error']):>7}  {v(s['median_error']):>7}  "
-          f"{v(s['p95_error']):>7}  {v(s['max_error']):>7}")
+    print(
+        f"  position  {v(s['mean_error']):>7}  {v(s['median_error']):>7}  "
+        f"{v(s['p95_error']):>7}  {v(s['max_error']):>7}"
+    )
     for ax in AXES:
         st = s["abs_error_per_axis"][ax]
-        print(f"  |{ax}|       {v(st['mean']):>7}  {v(st['median']):>7}  {v(st['p95']):>7}  "
-              f"{v(st['max']):>7}")
+        print(
+            f"  |{ax}|       {v(st['mean']):>7}  {v(st['median']):>7}  {v(st['p95']):>7}  "
+            f"{v(st['max']):>7}"
+        )
     if "angle_error_deg" in s:
         st = s["angle_error_deg"]
 
         def d(x) -> str:
             return "-" if x is None else f"{x:.3f}"
 
-        print(f"  angle deg {d(st['mean']):>7}  {d(st['median']):>7}  {d(st['p95']):>7}  "
-              f"{d(st['max']):>7}")
+        print(
+            f"  angle deg {d(st['mean']):>7}  {d(st['median']):>7}  {d(st['p95']):>7}  "
+            f"{d(st['max']):>7}"
+        )
     if s["failures"]:
         print()
         print("failures")

@@ -14,7 +14,16 @@ from ..annotate import annotate, write_debug_pictures
 from ..camera import READOUTS
 from ..io import InputError, load_camera, load_image, load_map
 from ..locate import LocateSettings, locate
-from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
+from ._app import (
+    EXIT_NOT_LOCATED,
+    OutlierOption,
+    SolverOption,
+    app,
+    check_positive,
+    check_solver,
+    fail,
+    handle_errors,
+)
 
 
 @app.command("locate")
@@ -32,9 +41,7 @@ def locate_command(
     debug_dir: Annotated[
         Path | None, typer.Option("--debug-dir", help="Write one picture per stage here.")
     ] = None,
-    solver: Annotated[
-        str, typer.Option(help="PnP solver: iterative, sqpnp, ippe or epnp.")
-    ] = "iterative",
+    solver: SolverOption = "iterative",
     readout: Annotated[
         str | None,
         typer.Option(
@@ -48,28 +55,20 @@ def locate_command(
             "--mirrored/--not-mirrored", help="The photo is a mirror image: flip it first."
         ),
     ] = None,
-    outlier_px: Annotated[
-        float | None,
-        typer.Option(
-            help="Drop a fixture whose reprojection error exceeds this (px); with only four "
-            "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px."
-        ),
-    ] = None,
+    outlier_px: OutlierOption = None,
 ) -> None:
     """Locate the camera that took PHOTO: position, orientation, fixtures seen.
 
     Exit code 0 when located, 1 when the photo could not be located (the reason is printed,
     and with --json the object still lists the fixtures), 2 on bad input.
     """
-    if solver not in ("iterative", "sqpnp", "ippe", "epnp"):
-        fail(f"--solver must be iterative, sqpnp, ippe or epnp, got {solver!r}")
+    check_solver(solver)
+    check_positive(outlier_px, "--outlier-px")
     if readout not in READOUTS:
         fail(f"--readout must be rows, columns, rows-reversed or columns-reversed, got {readout!r}")
     for out in (annotate_path,):
         if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
             fail(f"--annotate must end in .png or .jpg ({out})")
-    if outlier_px is not None and not outlier_px > 0:
-        fail(f"--outlier-px must be a positive number, got {outlier_px}")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     image = load_image(photo)

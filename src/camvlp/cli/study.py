@@ -15,8 +15,7 @@ from .. import study as st
 from ..camera import Camera
 from ..fixtures import FixtureMap
 from ..io import load_camera, load_map
-from ..pnp import SOLVERS
-from ._app import app, fail, handle_errors, parse_floats
+from ._app import SolverOption, app, check_solver, fail, handle_errors, parse_floats
 
 study_app = typer.Typer(
     name="study",
@@ -43,9 +42,7 @@ CameraOpt = Annotated[
 MapOpt = Annotated[
     Path | None, typer.Option("--map", help="Map file (default: examples/thesis_room.yaml).")
 ]
-SolverOpt = Annotated[
-    str, typer.Option("--solver", help="PnP method: iterative, sqpnp, ippe or epnp.")
-]
+SolverOpt = SolverOption
 NoiseOpt = Annotated[
     float,
     typer.Option("--noise-px", help="Monte Carlo: Gaussian sigma on every image point (px)."),
@@ -94,8 +91,7 @@ def _default_file(path: Path | None, name: str) -> Path:
 def _check(solver: str, noise_px: float, survey_error_m: float, trials: int,
            **positive: float) -> None:
     """Usage checks shared by the commands, naming the option at fault."""
-    if solver not in SOLVERS:
-        fail(f"--solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    check_solver(solver)
     for name, value in (("--noise-px", noise_px), ("--survey-error-m", survey_error_m)):
         if not value >= 0:
             fail(f"{name} must be a non-negative number, got {value}")
