@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from .camera import Camera
-from .decode import find_runs, row_profile
+from .decode import find_runs, stripe_threshold
 from .fixtures import FixtureMap
 
 __all__ = ["annotate", "write_debug_pictures"]
@@ -142,18 +142,13 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         written.append(p)
     if blobs:
         fig, axes = plt.subplots(len(blobs), 1, figsize=(10, 2.2 * len(blobs)), squeeze=False)
-        for k, (b, g, dec, fr) in enumerate(
-            zip(blobs, stages.gray_rois, stages.decodes, result.fixtures, strict=True)
+        for k, (prof, dec, fr) in enumerate(
+            zip(stages.profiles, stages.decodes, result.fixtures, strict=True)
         ):
             ax = axes[k, 0]
-            axis = result.readout.removesuffix("-reversed")
-            prof, _ = row_profile(g, b.mask, axis)
-            if result.readout.endswith("-reversed"):
-                prof = prof[::-1]
             ax.plot(prof, ".-", lw=0.8, ms=2, color="0.2")
             if prof.size >= 8:
-                lo, hi = np.percentile(prof, [2, 98])
-                runs = find_runs(prof, lo + 0.6 * (hi - lo))
+                runs = find_runs(prof, stripe_threshold(prof))
                 ax.axhline(runs.threshold, color="tab:orange", lw=0.8, label="threshold")
                 for e in runs.edges:
                     ax.axvline(e, color="tab:blue", lw=0.4, alpha=0.5)

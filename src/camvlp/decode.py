@@ -26,7 +26,15 @@ import numpy as np
 
 from .linecode import FrameFormat
 
-__all__ = ["Runs", "StripeDecode", "decode_profile", "find_runs", "row_profile"]
+__all__ = [
+    "Runs",
+    "StripeDecode",
+    "decode_profile",
+    "find_runs",
+    "row_profile",
+    "stripe_levels",
+    "stripe_threshold",
+]
 
 
 def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
@@ -82,6 +90,22 @@ def _otsu(values: np.ndarray) -> float:
     between = w0 * (1 - w0) * (m0 - m1) ** 2
     i = int(np.argmax(between))
     return 0.5 * (v[i] + v[i + 1])
+
+
+def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
+    """Dark and bright levels of a row profile: its 2nd and 98th percentiles."""
+    lo, hi = np.percentile(np.asarray(profile, dtype=float), [2, 98])
+    return float(lo), float(hi)
+
+
+def stripe_threshold(profile: np.ndarray, level: float = 0.6) -> float:
+    """Binarisation threshold ``level`` of the way from the dark to the bright level.
+
+    Above one half by default, so that dark stripes narrowed by a saturated neighbour's
+    bleeding still cross it.
+    """
+    lo, hi = stripe_levels(profile)
+    return lo + level * (hi - lo)
 
 
 @dataclass(frozen=True)
@@ -215,9 +239,7 @@ def decode_profile(
     max_rows_per_chip : float
         Longest chip length considered when measuring it.
     threshold_level : float
-        Binarisation threshold as a fraction of the way from the dark level (2nd percentile)
-        to the bright level (98th percentile).  Above one half, so that dark stripes
-        narrowed by a saturated neighbour's bleeding still cross it.
+        Binarisation threshold (see :func:`stripe_threshold`).
 
     Returns
     -------
@@ -236,10 +258,10 @@ def decode_profile(
 
     if p.size < 8:
         return fail(f"too small to decode ({p.size} rows)")
-    lo, hi = np.percentile(p, [2, 98])
+    lo, hi = stripe_levels(p)
     if hi - lo < 8:
         return fail("no stripes (a steady light, or too little contrast)")
-    runs = find_runs(p, lo + threshold_level * (hi - lo))
+    runs = find_runs(p, stripe_threshold(p, threshold_level))
     if runs.edges.size < 4:
         return fail("no stripes (a steady light, or too few stripes)")
     t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)

@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from .camera import READOUTS, Camera, Pose
@@ -201,6 +202,7 @@ class _Stages:
 
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
+    profiles: tuple[np.ndarray, ...]
     decodes: tuple[StripeDecode, ...]
 
 
@@ -227,8 +229,6 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
 
 def _perspective_offset(camera: Camera, pose: Pose, centre, diameter, normal) -> np.ndarray:
     """Image offset of a disc's ellipse centre from its centre's projection, pixels (2,)."""
-    import cv2
-
     n = np.asarray(normal, float) if normal is not None else pose.position - centre
     n = n / np.linalg.norm(n)
     a = np.cross(n, [1.0, 0.0, 0.0])
@@ -245,8 +245,15 @@ def _perspective_offset(camera: Camera, pose: Pose, centre, diameter, normal) ->
     return np.array([cx, cy]) - uv[0]
 
 
+def _extent(blob: Blob, readout: str) -> float:
+    """Sensor rows a detected disc spans along the readout axis."""
+    m = blob.mask if readout == "rows" else blob.mask.T
+    r = np.flatnonzero(m.any(axis=1))
+    return float(r[-1] - r[0] + 1) if r.size else 0.0
+
+
 def _decode_frequencies(
-    blobs, gray_rois, readout: str, camera: Camera, fixture_map: FixtureMap
+    blobs, gray_rois, extents: np.ndarray, readout: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
     periods = np.full(len(blobs), np.nan)
@@ -257,7 +264,6 @@ def _decode_frequencies(
             periods[k] = est.period_px
         else:
             failures[k] = est.message or "no stripe period could be measured"
-    extents = np.array([float(b.mask.any(axis=1 if readout == "rows" else 0).sum()) for b in blobs])
     fa = assign_frequencies(
         periods, fixture_map, camera.row_time_s, periods_spanned=extents / periods
     )
@@ -276,7 +282,6 @@ def _decode_frequencies(
         if fid is not None:
             target = fixture_map.get(fid).frequency_hz
             margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
-        extent = extents[k]
         decodes.append(
             StripeDecode(
                 fid,
@@ -286,7 +291,7 @@ def _decode_frequencies(
                 0.5 * periods[k],
                 float("nan"),
                 "",
-                extent / periods[k] if np.isfinite(periods[k]) else 0.0,
+                extents[k] / periods[k] if np.isfinite(periods[k]) else 0.0,
             )
         )
     return decodes, fa.frequencies_hz, note
@@ -348,30 +353,26 @@ def locate(
     t1 = time.perf_counter()
 
     gray_rois = [to_gray(img[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
+    extents = np.array([_extent(b, readout) for b in blobs])
+    step = -1 if reverse else 1  # each profile in the order the sensor read it
+    profiles = [
+        row_profile(g, b.mask, readout)[0][::step] for b, g in zip(blobs, gray_rois, strict=True)
+    ]
     notes: list[str] = []
     frequencies = np.full(len(blobs), np.nan)
     if fixture_map.mode == "frequency":
         decodes, frequencies, note = _decode_frequencies(
-            blobs, gray_rois, readout, camera, fixture_map
+            blobs, gray_rois, extents, readout, camera, fixture_map
         )
         notes += [note] if note else []
     else:
-        step = -1 if reverse else 1  # the profile in the order the sensor read it
-        decodes = [
-            decode_profile(row_profile(g, b.mask, readout)[0][::step], fixture_map.frame)
-            for b, g in zip(blobs, gray_rois, strict=True)
-        ]
+        decodes = [decode_profile(p, fixture_map.frame) for p in profiles]
     t2 = time.perf_counter()
 
     width = img.shape[1]
 
     def shown(pixel: np.ndarray) -> np.ndarray:  # pixel in the photo as given
         return np.array([width - 1 - pixel[0], pixel[1]]) if mirrored else pixel
-
-    def extent(b: Blob) -> float:
-        m = b.mask if readout == "rows" else b.mask.T
-        r = np.flatnonzero(m.any(axis=1))
-        return float(r[-1] - r[0] + 1) if r.size else 0.0
 
     reasons: list[str] = []
     ids: list[int | None] = []
@@ -456,7 +457,7 @@ def locate(
                 margin=dec.margin,
                 reason=reason,
                 hamming=dec.hamming,
-                rows_spanned=extent(b),
+                rows_spanned=float(extents[k]),
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,
                 frequency_hz=float(frequencies[k]),
@@ -469,10 +470,6 @@ def locate(
         "total": 1e3 * (t3 - t0),
     }
     pose = est.pose if est is not None else None
-    if mirrored and pose is not None:
-        # The solve ran on the flipped image: a flipped image of a proper camera is what a
-        # mirrored photo's camera really saw, so the pose is already in the map's frame.
-        pass
     result = LocateResult(
         position=None if pose is None else pose.position,
         rotation=None if pose is None else pose.world_from_camera,
@@ -490,5 +487,5 @@ def locate(
         notes=tuple(notes),
     )
     if _keep_stages:
-        return result, _Stages(detection, tuple(gray_rois), tuple(decodes))
+        return result, _Stages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
     return result
