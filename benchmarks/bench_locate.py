@@ -22,11 +22,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from camvlp.locate import locate
 
 import camvlp
-from camvlp.camera import Camera
-from camvlp.locate import locate
-from camvlp.simulate import RenderSettings, render
+from camvlp.model.camera import Camera
+from camvlp.sim.render import RenderSettings, render
 
 ROOT = Path(__file__).resolve().parents[1]
 

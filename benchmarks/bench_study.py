@@ -6,8 +6,8 @@ Usage::
 
 Two figures per solver, each the median of ``--repeats`` runs:
 
-* ``solve``: :func:`camvlp.pnp.solve_pnp_batch` alone (one ``cv2.solvePnP`` per pose);
-* ``study``: the whole pipeline of :func:`camvlp.study.rounding_study` (vectorised
+* ``solve``: :func:`camvlp.geometry.pnp.solve_pnp_batch` alone (one ``cv2.solvePnP`` per pose);
+* ``study``: the whole pipeline of :func:`camvlp.analysis.study.rounding_study` (vectorised
   projection, rounding, solve, error), on the thesis' camera and room.
 """
 
@@ -25,10 +25,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import cv2
 import numpy as np
 
-from camvlp.camera import euler_to_matrix
+from camvlp.analysis.study import round_pixels, rounding_study
+from camvlp.geometry.pnp import SOLVERS, project_batch, solve_pnp_batch
 from camvlp.io import load_camera, load_map
-from camvlp.pnp import SOLVERS, project_batch, solve_pnp_batch
-from camvlp.study import round_pixels, rounding_study
+from camvlp.model.camera import euler_to_matrix
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -15,17 +15,17 @@ import time
 from pathlib import Path
 
 import numpy as np
+from camvlp.locate import locate
 
 import camvlp
-from camvlp.locate import locate
-from camvlp.simulate import RenderSettings, render
+from camvlp.sim.render import RenderSettings, render
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def sample(rng: np.random.Generator, camera, fixture_map, rpc_range=(3.0, 8.0), heights=(0.0, 1.0)):
     """A random pose with all four fixtures fully in view, and random timing."""
-    from camvlp.simulate import fixture_truths
+    from camvlp.sim.render import fixture_truths
 
     while True:
         height = float(rng.choice(heights))

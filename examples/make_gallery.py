@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from camvlp import Pose, RenderSettings, load_camera, load_map, render, tilt_limit
-from camvlp.simulate import distinct_colours
+from camvlp.sim.render import distinct_colours
 
 ROOT = Path(__file__).resolve().parents[1]
 WIDTH = 1000  # px of the saved pictures
@@ -147,7 +147,7 @@ def _write_readme(out: Path, rows, limits) -> None:
         "## Tilt limits",
         "",
         "Tilt limits keeping all four discs wholly in the picture (bisection with",
-        "`camvlp.simulate.tilt_limit`; tilt about x is theta_x = 90 + t, about y is",
+        "`camvlp.sim.render.tilt_limit`; tilt about x is theta_x = 90 + t, about y is",
         "theta_y = t; the thesis, section 3.4, reports about 12 and 15 degrees from the floor",
         "and 4 and 6 from 1 m up):",
         "",

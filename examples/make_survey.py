@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp.camera import Pose
 from camvlp.io import InputError, load_camera, load_map
-from camvlp.simulate import RenderSettings, all_fully_inside
-from camvlp.survey import default_jobs, floor_grid, render_survey
+from camvlp.model.camera import Pose
+from camvlp.sim.render import RenderSettings, all_fully_inside
+from camvlp.sim.survey import default_jobs, floor_grid, render_survey
 
 
 def _range(text: str) -> tuple[float, float, float]:

@@ -53,7 +53,7 @@ LOOK_UP = (90.0, 0.0, 0.0)
 
 def make_small_camera(**kwargs):
     """The small test camera (see ``SMALL_SIZE``); keyword arguments go to ``Camera``."""
-    from camvlp.camera import Camera
+    from camvlp.model.camera import Camera
 
     kwargs.setdefault("row_time_s", SMALL_ROW_TIME_S)
     return Camera.from_focal(*SMALL_SIZE, SMALL_FOCAL_PX, **kwargs)
@@ -63,7 +63,7 @@ def make_small_room(ids=SMALL_ROOM_IDS, xz=SMALL_ROOM_XZ, diameter=SMALL_DIAMETE
     """A map of ceiling discs at ``(x, CEILING_Y, z)``, facing down (+y), metres."""
     import numpy as np
 
-    from camvlp.fixtures import Fixture, FixtureMap
+    from camvlp.model.fixtures import Fixture, FixtureMap
 
     return FixtureMap(
         tuple(
@@ -75,7 +75,7 @@ def make_small_room(ids=SMALL_ROOM_IDS, xz=SMALL_ROOM_XZ, diameter=SMALL_DIAMETE
 
 def small_settings(**kwargs):
     """Render settings of the small room (10 kHz chips, 25 us rows); overrides as keywords."""
-    from camvlp.simulate import RenderSettings
+    from camvlp.sim.render import RenderSettings
 
     kwargs.setdefault("chip_rate_hz", SMALL_CHIP_RATE_HZ)
     kwargs.setdefault("row_time_s", SMALL_ROW_TIME_S)
@@ -97,8 +97,8 @@ def small_room():
 @pytest.fixture(scope="session")
 def small_render(small_camera, small_room):
     """One render of the small room from the floor's origin, looking straight up (seed 1)."""
-    from camvlp.camera import Pose
-    from camvlp.simulate import render
+    from camvlp.model.camera import Pose
+    from camvlp.sim.render import render
 
     return render(
         small_camera, small_room, Pose.from_euler([0, 0, 0], LOOK_UP), small_settings(seed=1)

@@ -14,9 +14,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from camvlp.locate import LocateSettings, locate
 
 from camvlp.io import load_camera, load_image, load_map
-from camvlp.locate import LocateSettings, locate
 
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "iphone7-demo-floor"
 PHOTOS = ("2017-02-15-17-47-52-84.jpg", "test.jpg", "test2.jpg")

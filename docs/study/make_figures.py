@@ -13,9 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp.io import load_camera, load_map
-from camvlp.pnp import SOLVERS
-from camvlp.study import (
+from camvlp.analysis.study import (
     axis_values,
     coverage_study,
     forced_error_study,
@@ -25,6 +23,8 @@ from camvlp.study import (
     plot_rounding,
     rounding_study,
 )
+from camvlp.geometry.pnp import SOLVERS
+from camvlp.io import load_camera, load_map
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

@@ -4,12 +4,14 @@ Find a camera's position from one photograph of coded ceiling lights: detect the
 decode their IDs, look them up in a map of the room, and solve Perspective-n-Point.
 """
 
-from .camera import Camera, Pose, euler_to_matrix, matrix_to_euler, project_points
-from .fixtures import Fixture, FixtureMap
-from .io import InputError, load_camera, load_image, load_map, save_camera, save_map
-from .linecode import ChipDecode, FrameFormat, chip_schedule, manchester_encode
-from .locate import FixtureResult, LocateResult, LocateSettings, locate
-from .simulate import (
+from camvlp import _moved
+from camvlp.errors import InputError
+from camvlp.io import load_camera, load_image, load_map, save_camera, save_map
+from camvlp.model.camera import Camera, Pose, euler_to_matrix, matrix_to_euler, project_points
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.model.linecode import ChipDecode, FrameFormat, chip_schedule, manchester_encode
+from camvlp.pipeline.locate import FixtureResult, LocateResult, LocateSettings, locate
+from camvlp.sim.render import (
     FixtureTruth,
     Render,
     RenderSettings,
@@ -19,6 +21,8 @@ from .simulate import (
     save_render,
     tilt_limit,
 )
+
+_moved.install()
 
 __version__ = "0.1.0"
 

@@ -9,8 +9,8 @@ from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
-from ..io import InputError
-from ..pnp import SOLVERS
+from camvlp.geometry.pnp import SOLVERS
+from camvlp.io import InputError
 
 app = typer.Typer(
     name="camvlp",

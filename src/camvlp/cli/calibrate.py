@@ -11,8 +11,9 @@ from typing import Annotated
 
 import typer
 
-from ..calibrate import calibrate_camera, estimate_row_time
-from ..io import InputError, load_camera, load_image, save_camera
+from camvlp.analysis.calibrate import calibrate_camera, estimate_row_time
+from camvlp.io import InputError, load_camera, load_image, save_camera
+
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
 
 #: Image files taken from a directory given as an argument.

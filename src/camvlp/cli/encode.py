@@ -8,8 +8,9 @@ from typing import Annotated
 
 import typer
 
-from ..io import load_map
-from ..linecode import FrameFormat, chip_schedule
+from camvlp.io import load_map
+from camvlp.model.linecode import FrameFormat, chip_schedule
+
 from ._app import app, fail, handle_errors
 
 

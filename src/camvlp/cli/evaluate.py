@@ -8,10 +8,17 @@ from typing import Annotated
 
 import typer
 
-from ..evaluate import AXES, Evaluation, evaluate_survey, read_survey, write_evaluation
-from ..io import load_camera, load_map
-from ..locate import LocateSettings
-from ..survey import default_jobs
+from camvlp.analysis.evaluate import (
+    AXES,
+    Evaluation,
+    evaluate_survey,
+    read_survey,
+    write_evaluation,
+)
+from camvlp.io import load_camera, load_map
+from camvlp.pipeline.locate import LocateSettings
+from camvlp.sim.survey import default_jobs
+
 from ._app import (
     OutlierOption,
     SolverOption,

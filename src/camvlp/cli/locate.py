@@ -10,10 +10,11 @@ from typing import Annotated
 import cv2
 import typer
 
-from ..annotate import annotate, write_debug_pictures
-from ..camera import READOUTS
-from ..io import InputError, load_camera, load_image, load_map
-from ..locate import LocateSettings, locate
+from camvlp.io import InputError, load_camera, load_image, load_map
+from camvlp.model.camera import READOUTS
+from camvlp.pipeline.locate import LocateSettings, locate
+from camvlp.viz.annotate import annotate, write_debug_pictures
+
 from ._app import (
     EXIT_NOT_LOCATED,
     OutlierOption,

@@ -8,9 +8,10 @@ from typing import Annotated
 
 import typer
 
-from ..camera import READOUTS, Pose
-from ..io import load_camera, load_map
-from ..simulate import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
+from camvlp.io import load_camera, load_map
+from camvlp.model.camera import READOUTS, Pose
+from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
+
 from ._app import app, fail, handle_errors, parse_floats
 
 

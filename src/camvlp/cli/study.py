@@ -11,10 +11,11 @@ from typing import Annotated
 
 import typer
 
-from .. import study as st
-from ..camera import Camera
-from ..fixtures import FixtureMap
-from ..io import load_camera, load_map
+from camvlp.analysis import study as st
+from camvlp.io import load_camera, load_map
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+
 from ._app import SolverOption, app, check_solver, fail, handle_errors, parse_floats
 
 study_app = typer.Typer(

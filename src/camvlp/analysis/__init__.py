@@ -1,0 +1,1 @@
+"""Measuring camvlp and cameras: the error study, survey evaluation, camera calibration."""

@@ -1,0 +1,566 @@
+"""Camera calibration: intrinsics from chessboard photographs, row time from a blinking light.
+
+Two measurements make a camera file (``docs/formats.md``) for camvlp:
+
+* :func:`calibrate_camera` finds the intrinsic matrix and lens distortion from photographs
+  of a flat chessboard (OpenCV's ``findChessboardCornersSB`` and ``calibrateCamera``).
+* :func:`estimate_row_time` finds the rolling shutter's row time from one photograph of a
+  light blinking a 50 % square wave at a known frequency: the light appears as a disc of
+  stripes whose period, in rows, is ``1 / (frequency * row_time)``.
+
+:func:`estimate_stripe_period` (from ``stripes.py``) measures a stripe period inside any
+masked region; the decoder of frequency-coded fixtures uses it too.
+:func:`render_chessboard` renders synthetic calibration photographs with a known camera (for
+tests and benchmarks).
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvlp.io import InputError, load_image
+from camvlp.model.camera import Camera, Pose
+from camvlp.pipeline.detect import to_gray
+from camvlp.pipeline.stripes import StripePeriod, _gray_float, estimate_stripe_period
+
+__all__ = [
+    "CalibrationResult",
+    "RowTimeEstimate",
+    "StripePeriod",
+    "board_object_points",
+    "bright_blob_mask",
+    "calibrate_camera",
+    "estimate_row_time",
+    "estimate_stripe_period",
+    "find_board_corners",
+    "render_chessboard",
+]
+
+#: Fewest usable chessboard photographs :func:`calibrate_camera` accepts.
+MIN_CALIBRATION_PHOTOS = 3
+
+#: Longest image side (px) the board search runs at; corners are refined at full size.
+DETECT_MAX_SIDE_PX = 1600
+
+
+# --------------------------------------------------------------------------------------
+# Chessboard calibration
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CalibrationResult:
+    """The outcome of :func:`calibrate_camera`.  Falsy when calibration failed.
+
+    Attributes
+    ----------
+    camera : Camera or None
+        The calibrated camera (intrinsics, distortion, optional row time); None on failure.
+    rms_px : float
+        Root-mean-square reprojection error over all used photos' corners, pixels (NaN on
+        failure).
+    per_image_rms_px : tuple of float
+        RMS reprojection error of each used photo, pixels, in the order of ``used``.
+    used : tuple of str
+        Names of the photos whose board was found and used.
+    rejected : tuple of (str, str)
+        ``(name, reason)`` of each photo left out: unreadable, no board found, or a
+        different image size from the others.
+    message : str
+        Why calibration failed ("" on success).
+    """
+
+    camera: Camera | None
+    rms_px: float
+    per_image_rms_px: tuple[float, ...]
+    used: tuple[str, ...]
+    rejected: tuple[tuple[str, str], ...]
+    message: str = ""
+
+    def __bool__(self) -> bool:
+        return self.camera is not None
+
+
+def _parse_board(board) -> tuple[int, int]:
+    try:
+        cols, rows = (int(v) for v in board)
+    except (TypeError, ValueError):
+        raise ValueError(f"board must be (cols, rows) inner corners, got {board!r}") from None
+    if cols < 2 or rows < 2:
+        raise ValueError(f"board must have at least 2 x 2 inner corners, got {cols} x {rows}")
+    return cols, rows
+
+
+def board_object_points(board: tuple[int, int], square_m: float) -> np.ndarray:
+    """The board's inner corners in its own frame, in OpenCV's detection order.
+
+    Parameters
+    ----------
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+    square_m : float
+        Side of one square, metres.
+
+    Returns
+    -------
+    ndarray, shape (cols * rows, 3), float32
+        Corner ``(i, j)`` (column ``i``, row ``j``) at ``(i * square_m, j * square_m, 0)``,
+        row by row.
+    """
+    cols, rows = _parse_board(board)
+    if not (np.isfinite(square_m) and square_m > 0):
+        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
+    i, j = np.meshgrid(np.arange(cols), np.arange(rows))
+    pts = np.stack([i.ravel(), j.ravel(), np.zeros(i.size)], axis=1) * float(square_m)
+    return pts.astype(np.float32)
+
+
+def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray | None:
+    """Sub-pixel chessboard inner corners of a photograph, or None when no board is found.
+
+    Finds the board with ``cv2.findChessboardCornersSB`` (or, failing that, the classic
+    ``cv2.findChessboardCorners``) in a copy scaled to at most ``DETECT_MAX_SIDE_PX``
+    (1600 px) on its longer side, and refines the corners at full resolution with
+    ``cv2.cornerSubPix``, its window kept within 0.4 of the closest corners' spacing.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The photograph (gray or BGR, 8- or 16-bit or float).
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+
+    Returns
+    -------
+    ndarray, shape (cols * rows, 2), float32, or None
+        Pixel positions in the order of :func:`board_object_points`.
+    """
+    cols, rows = _parse_board(board)
+    gray = to_gray(image)
+    scale = min(1.0, DETECT_MAX_SIDE_PX / max(gray.shape))
+    small = (
+        gray
+        if scale == 1.0
+        else cv2.resize(gray, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA)
+    )
+    sb_flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    found, corners = cv2.findChessboardCornersSB(small, (cols, rows), flags=sb_flags)
+    if not found:
+        flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+        found, corners = cv2.findChessboardCorners(small, (cols, rows), flags=flags)
+        if not found:
+            return None
+    corners = np.asarray(corners, dtype=np.float32).reshape(rows, cols, 2)
+    if scale != 1.0:  # pixel centres: x_full + 0.5 = (x_small + 0.5) / scale
+        sx, sy = gray.shape[1] / small.shape[1], gray.shape[0] / small.shape[0]
+        corners = (corners + 0.5) * np.array([sx, sy], dtype=np.float32) - 0.5
+    # Refine with cornerSubPix, its window well inside the nearest neighbours' distance.
+    spacing = min(
+        float(np.linalg.norm(np.diff(corners, axis=0), axis=2).min()),
+        float(np.linalg.norm(np.diff(corners, axis=1), axis=2).min()),
+    )
+    half = int(np.clip(0.4 * spacing, 2, 11))
+    crit = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)
+    refined = cv2.cornerSubPix(gray, corners.reshape(-1, 1, 2), (half, half), (-1, -1), crit)
+    return refined.reshape(-1, 2)
+
+
+def calibrate_camera(
+    images: Sequence[np.ndarray | str | Path],
+    board: tuple[int, int],
+    square_m: float,
+    *,
+    names: Sequence[str] | None = None,
+    row_time_s: float | None = None,
+    fix_aspect: bool = False,
+    zero_tangent: bool = False,
+    on_image: Callable[[str], None] | None = None,
+) -> CalibrationResult:
+    """Calibrate a camera from photographs of a flat chessboard.
+
+    Parameters
+    ----------
+    images : sequence of ndarray or path
+        The photographs, as arrays ((H, W) or (H, W, 3)) or image files.  An unreadable
+        file is rejected with its reason, not raised.
+    board : (int, int)
+        Inner corners ``(cols, rows)`` of the board (a board of 10 x 7 squares has 9 x 6).
+        Use different numbers of columns and rows, so the detected corner order is unique.
+    square_m : float
+        Side of one square, metres.  It scales only the board poses, not the intrinsics.
+    names : sequence of str, optional
+        A name per image for the report; defaults to the file name or ``image <n>``.
+    row_time_s : float, optional
+        Rolling-shutter row time to store in the camera, seconds.
+    fix_aspect : bool
+        Keep ``fx = fy`` (square pixels).
+    zero_tangent : bool
+        Fix the tangential distortion ``p1 = p2 = 0``.
+    on_image : callable, optional
+        Called with each photo's name after its board search (for progress display).
+
+    Returns
+    -------
+    CalibrationResult
+        Truthy with the camera and the reprojection errors; falsy with a message when fewer
+        than three photos show the board.
+
+    Raises
+    ------
+    ValueError
+        No images, a bad ``board`` or ``square_m``, or ``names`` of the wrong length.
+    """
+    board = _parse_board(board)
+    objp = board_object_points(board, square_m)
+    if len(images) == 0:
+        raise ValueError("images must hold at least one photograph")
+    if names is None:
+        names = [
+            Path(im).name if isinstance(im, (str, Path)) else f"image {k + 1}"
+            for k, im in enumerate(images)
+        ]
+    if len(names) != len(images):
+        raise ValueError(f"names has {len(names)} entries for {len(images)} images")
+    if row_time_s is not None and not (0 < row_time_s < 1):
+        raise ValueError(f"row_time_s must be a positive number of seconds, got {row_time_s!r}")
+
+    rejected: list[tuple[str, str]] = []
+    found: list[tuple[str, tuple[int, int], np.ndarray]] = []
+    for name, item in zip(names, images, strict=True):
+        try:
+            img = load_image(item) if isinstance(item, (str, Path)) else np.asarray(item)
+            corners = find_board_corners(img, board)
+        except InputError as exc:
+            rejected.append((name, exc.what))
+            corners = None
+        else:
+            if corners is None:
+                rejected.append((name, f"no {board[0]}x{board[1]} board found"))
+            else:
+                found.append((name, (img.shape[1], img.shape[0]), corners))
+        if on_image is not None:
+            on_image(name)
+
+    size: tuple[int, int] | None = None
+    if found:
+        size = Counter(s for _, s, _ in found).most_common(1)[0][0]
+        for name, s, _ in found:
+            if s != size:
+                rejected.append(
+                    (name, f"size {s[0]}x{s[1]} differs from the others' {size[0]}x{size[1]}")
+                )
+        found = [f for f in found if f[1] == size]
+    order = {n: k for k, n in enumerate(names)}
+    rejected.sort(key=lambda r: order.get(r[0], 0))
+    if len(found) < MIN_CALIBRATION_PHOTOS or size is None:
+        return CalibrationResult(
+            None,
+            float("nan"),
+            (),
+            tuple(n for n, _, _ in found),
+            tuple(rejected),
+            f"only {len(found)} of {len(images)} photos show the {board[0]}x{board[1]} board "
+            f"(need {MIN_CALIBRATION_PHOTOS})",
+        )
+
+    flags = 0
+    k0 = np.eye(3)
+    if fix_aspect:
+        flags |= cv2.CALIB_FIX_ASPECT_RATIO  # ratio fx / fy taken from k0: 1
+    if zero_tangent:
+        flags |= cv2.CALIB_ZERO_TANGENT_DIST
+    obj = [objp] * len(found)
+    img_pts = [c.reshape(-1, 1, 2) for _, _, c in found]
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+    rms, k, dist, _, _, _, _, per_view = cv2.calibrateCameraExtended(
+        obj, img_pts, size, k0, np.zeros(5), flags=flags, criteria=crit
+    )
+    camera = Camera(size[0], size[1], k, np.asarray(dist).reshape(-1), row_time_s)
+    return CalibrationResult(
+        camera,
+        float(rms),
+        tuple(float(v) for v in np.asarray(per_view).reshape(-1)),
+        tuple(n for n, _, _ in found),
+        tuple(rejected),
+    )
+
+
+def render_chessboard(
+    camera: Camera,
+    pose: Pose,
+    board: tuple[int, int],
+    square_m: float,
+    *,
+    supersample: int = 3,
+    black: float = 25.0,
+    white: float = 230.0,
+    background: float = 110.0,
+) -> np.ndarray:
+    """Render a photograph of a chessboard seen by a camera (with its lens distortion).
+
+    The board lies in the plane ``z = 0`` of the world frame with its first inner corner at
+    the origin, columns along +x and rows along +y (:func:`board_object_points`); its
+    ``cols + 1`` by ``rows + 1`` squares are framed by a one-square white margin on a
+    uniform background.  Each pixel averages ``supersample ** 2`` rays.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, distortion and image size.
+    pose : Pose
+        The camera's pose in the board's frame (metres).
+    board : (int, int)
+        Inner corners ``(cols, rows)``.
+    square_m : float
+        Side of one square, metres.
+    supersample : int
+        Rays per pixel along each axis (anti-aliasing).
+    black, white, background : float
+        Gray levels (0-255) of the dark squares, the light squares and margin, and the
+        scene around the board.
+
+    Returns
+    -------
+    ndarray, shape (camera.height, camera.width), uint8
+    """
+    cols, rows = _parse_board(board)
+    s = float(square_m)
+    if not (np.isfinite(s) and s > 0):
+        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
+    n = int(supersample)
+    if n < 1:
+        raise ValueError(f"supersample must be at least 1, got {supersample!r}")
+    # Texture: t texels per square, from board coordinate (-2 s, -2 s) (the margin's corner).
+    t = 32
+    gx, gy = np.meshgrid(np.arange(cols + 3) - 2, np.arange(rows + 3) - 2)
+    squares = np.where((gx + gy) % 2 == 0, black, white)
+    squares[(gx < -1) | (gx > cols - 1) | (gy < -1) | (gy > rows - 1)] = white
+    texture = np.kron(squares, np.ones((t, t))).astype(np.float32)
+    tex_from_board = np.array([[t / s, 0, 2 * t - 0.5], [0, t / s, 2 * t - 0.5], [0, 0, 1.0]])
+    # Supersampled pixel U = n u + (n - 1) / 2 for pixel u.
+    ss_from_pix = np.array([[n, 0, (n - 1) / 2], [0, n, (n - 1) / 2], [0, 0, 1.0]])
+    r_cw = pose.camera_from_world
+    t_cw = -r_cw @ pose.position
+    norm_from_board = np.column_stack([r_cw[:, 0], r_cw[:, 1], t_cw])
+    size = (camera.width * n, camera.height * n)
+    corners = np.array([[-2, -2], [cols + 1, -2], [-2, rows + 1], [cols + 1, rows + 1]]) * s
+    in_front = bool(np.all(pose.to_camera(np.column_stack([corners, np.zeros(4)]))[:, 2] > 0))
+    if camera.dist_or_none is None and in_front:
+        ss_from_tex = ss_from_pix @ camera.matrix @ norm_from_board @ np.linalg.inv(tex_from_board)
+        big = cv2.warpPerspective(
+            texture,
+            ss_from_tex,
+            size,
+            flags=cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=float(background),
+        )
+    else:  # trace each supersampled ray through the lens model
+        uu, vv = np.meshgrid(
+            (np.arange(size[0]) - (n - 1) / 2) / n, (np.arange(size[1]) - (n - 1) / 2) / n
+        )
+        xy = camera.undistort_pixels(np.column_stack([uu.ravel(), vv.ravel()]))
+        ray = np.column_stack([xy, np.ones(len(xy))])
+        # tex[:, 2] is 1 / depth of the ray's hit on the board plane: > 0 in front.
+        tex = ray @ (tex_from_board @ np.linalg.inv(norm_from_board)).T
+        front = tex[:, 2] > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mx = np.where(front, tex[:, 0] / tex[:, 2], -10.0)
+            my = np.where(front, tex[:, 1] / tex[:, 2], -10.0)
+        big = cv2.remap(
+            texture,
+            mx.reshape(size[::-1]).astype(np.float32),
+            my.reshape(size[::-1]).astype(np.float32),
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=float(background),
+        )
+    img = cv2.resize(big, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+# --------------------------------------------------------------------------------------
+# Row time
+# --------------------------------------------------------------------------------------
+
+
+def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
+    """The pixels of the largest bright light in a photo, its dark stripes included.
+
+    Otsu's threshold of the lightly blurred image and a 3 x 3 opening against specks give
+    the bright stripes; starting from the largest, the stripes whose bounding boxes lie
+    within one and a half stripe thicknesses of the group join it (the dark gap between
+    two stripes of a 50 % square wave is about one stripe thick); the group's convex hull,
+    eroded by ``erode_px`` pixels to drop the blurred rim, is the light.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+    erode_px : int
+        Pixels to erode from the hull's edge.
+
+    Returns
+    -------
+    ndarray of bool, shape (H, W)
+        All False when nothing stands out from the background.
+    """
+    img = _gray_float(image)
+    empty = np.zeros(img.shape, dtype=bool)
+    lo, hi = float(img.min()), float(img.max())
+    if hi - lo <= 0:
+        return empty
+    u8 = np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+    u8 = cv2.GaussianBlur(u8, (3, 3), 0)
+    _, binary = cv2.threshold(u8, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
+    binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if n < 2:
+        return empty
+    x0 = stats[1:, cv2.CC_STAT_LEFT].astype(float)
+    y0 = stats[1:, cv2.CC_STAT_TOP].astype(float)
+    x1 = x0 + stats[1:, cv2.CC_STAT_WIDTH]
+    y1 = y0 + stats[1:, cv2.CC_STAT_HEIGHT]
+    thick = np.minimum(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT])
+    member = np.zeros(n - 1, dtype=bool)
+    member[int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))] = True
+    while True:
+        gx0, gy0 = x0[member].min(), y0[member].min()
+        gx1, gy1 = x1[member].max(), y1[member].max()
+        reach = 1.5 * float(thick[member].max()) + 2.0
+        gap = np.maximum(
+            np.maximum(gx0 - x1, x0 - gx1).clip(0), np.maximum(gy0 - y1, y0 - gy1).clip(0)
+        )
+        grown = member | (gap <= reach)
+        if grown.sum() == member.sum():
+            break
+        member = grown
+    pts = np.column_stack(np.nonzero(np.isin(labels, np.flatnonzero(member) + 1)))[:, ::-1]
+    if len(pts) < 3:
+        return empty
+    hull = cv2.convexHull(pts.astype(np.int32))
+    out = np.zeros(img.shape, dtype=np.uint8)
+    cv2.fillConvexPoly(out, hull, 1)
+    if erode_px > 0:
+        e = 2 * int(erode_px) + 1
+        out = cv2.erode(out, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (e, e)))
+    return out.astype(bool)
+
+
+@dataclass(frozen=True)
+class RowTimeEstimate:
+    """A rolling shutter's row time measured from a blinking light (:func:`estimate_row_time`).
+
+    Falsy on failure.
+
+    Attributes
+    ----------
+    row_time_s : float
+        Seconds between the starts of two consecutive sensor rows; NaN on failure.
+    period_px : float
+        Stripe period in pixels (sensor rows) along ``axis``.
+    axis : str
+        ``"rows"`` (stripes horizontal) or ``"columns"`` (stripes vertical, portrait photo).
+    strength : float
+        Periodic fraction of the profile's variance, 0-1 (see :class:`StripePeriod`).
+    periods_seen : float
+        Periods the light spans along ``axis``.
+    blob_area_px : int
+        Pixels in the light's mask.
+    frequency_hz : float
+        The light's blink frequency, Hz.
+    message : str
+        Why the estimate failed ("" on success).
+    """
+
+    row_time_s: float
+    period_px: float
+    axis: str
+    strength: float
+    periods_seen: float
+    blob_area_px: int
+    frequency_hz: float
+    message: str = ""
+
+    def __bool__(self) -> bool:
+        return not self.message
+
+    @property
+    def rows_per_s(self) -> float:
+        """Sensor rows read per second (``1 / row_time_s``)."""
+        return 1.0 / self.row_time_s
+
+
+#: Weakest periodic component :func:`estimate_row_time` accepts as stripes.
+MIN_STRIPE_STRENGTH = 0.3
+
+
+def estimate_row_time(
+    image: np.ndarray, frequency_hz: float, *, axis: str | None = None
+) -> RowTimeEstimate:
+    """Row time of a rolling-shutter camera from a photo of one light blinking a square wave.
+
+    The light (the largest bright blob, :func:`bright_blob_mask`) shows stripes of period
+    ``P`` rows; ``row_time = 1 / (frequency_hz * P)``.  The photo must be at the sensor's
+    full resolution (a downscaled photo scales ``P``), the exposure shorter than half a
+    blink period, and ``P`` above about 3 rows.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        The photograph.
+    frequency_hz : float
+        The light's blink frequency (a 50 % square wave), Hz.
+    axis : {"rows", "columns", None}
+        Readout axis if known (see :func:`estimate_stripe_period`); None finds it.
+
+    Returns
+    -------
+    RowTimeEstimate
+        Falsy, with a message, when no light or no clear stripes are found.
+
+    Raises
+    ------
+    ValueError
+        A non-positive frequency, a bad image or an unknown axis.
+    """
+    if not (np.isfinite(frequency_hz) and frequency_hz > 0):
+        raise ValueError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
+    nan = float("nan")
+    mask = bright_blob_mask(image)
+    area = int(mask.sum())
+    if area < 16:
+        return RowTimeEstimate(
+            nan, nan, axis or "rows", 0.0, nan, area, frequency_hz, "no bright light found"
+        )
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    sp = estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
+    if not sp:
+        return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
+    if sp.strength < MIN_STRIPE_STRENGTH:
+        return RowTimeEstimate(
+            nan,
+            sp.period_px,
+            sp.axis,
+            sp.strength,
+            sp.periods_seen,
+            area,
+            frequency_hz,
+            f"no clear stripes in the light (periodic strength {sp.strength:.2f})",
+        )
+    return RowTimeEstimate(
+        1.0 / (frequency_hz * sp.period_px),
+        sp.period_px,
+        sp.axis,
+        sp.strength,
+        sp.periods_seen,
+        area,
+        frequency_hz,
+    )

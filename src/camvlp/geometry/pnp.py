@@ -1,0 +1,321 @@
+"""Perspective-n-Point: a thin, checked wrapper over OpenCV's ``solvePnP``, one pose or many.
+
+Frames follow the package conventions (``camera.py``): a pose is ``world_from_camera``
+``R`` (camera axes as columns) and the camera centre ``C``; OpenCV's ``rvec, tvec`` are
+``camera_from_world``, so ``R = Rodrigues(rvec).T`` and ``C = -R @ tvec``.
+
+Solvers (:data:`SOLVERS`):
+
+``iterative``
+    Levenberg-Marquardt on the reprojection error, started from a homography (planar
+    targets) or DLT; the thesis' choice.  OpenCV refuses fewer than six points that are
+    not coplanar (fixtures at different heights); :func:`solve_pnp` then starts the
+    Levenberg-Marquardt refinement from the ``sqpnp`` solution.
+``sqpnp``
+    Globally optimal sequential quadratic programming; as accurate as ``iterative``.
+``ippe``
+    Infinitesimal plane-based pose; needs coplanar object points.  OpenCV 5.0 returns NaN
+    when the image points form an exact rectangle (common with a camera parallel to the
+    ceiling and rounded pixels); :func:`solve_pnp` then retries once with the image points
+    moved by at most :data:`IPPE_JITTER_PX`.
+``epnp``
+    Efficient PnP; fast but poorly conditioned with four coplanar points (metres off).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from camvlp.model.camera import Camera, Pose
+
+__all__ = [
+    "IPPE_JITTER_PX",
+    "SOLVERS",
+    "project_batch",
+    "rodrigues_batch",
+    "solve_pnp",
+    "solve_pnp_batch",
+]
+
+#: Solver names and the OpenCV flags they select.
+SOLVERS: dict[str, int] = {
+    "iterative": cv2.SOLVEPNP_ITERATIVE,
+    "sqpnp": cv2.SOLVEPNP_SQPNP,
+    "ippe": cv2.SOLVEPNP_IPPE,
+    "epnp": cv2.SOLVEPNP_EPNP,
+}
+
+#: Largest move (pixels) of an image point when IPPE is retried after returning NaN.
+IPPE_JITTER_PX = 1e-6
+
+# Deterministic, tiny, non-rectangular moves for the IPPE retry (pixels), cycled over points.
+_JITTER = IPPE_JITTER_PX * np.array([[1.0, 0.3], [-0.7, 0.9], [0.2, -1.0], [-0.4, -0.6]])
+
+
+def _solver_flag(solver: str) -> int:
+    if not isinstance(solver, str) or solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
+    return SOLVERS[solver]
+
+
+def _check_points(
+    object_points, image_points, *, batch: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """Validate and convert to contiguous float64; object points (N,3) or (B,N,3)."""
+    obj = np.ascontiguousarray(object_points, dtype=np.float64)
+    img = np.ascontiguousarray(image_points, dtype=np.float64)
+    want_img = "(B, N, 2)" if batch else "(N, 2)"
+    if img.ndim != (3 if batch else 2) or img.shape[-1] != 2:
+        raise ValueError(f"image_points must have shape {want_img}, got {img.shape}")
+    n = img.shape[-2]
+    if batch:
+        if obj.ndim not in (2, 3) or obj.shape[-1] != 3:
+            raise ValueError(f"object_points must have shape (N, 3) or (B, N, 3), got {obj.shape}")
+        if obj.ndim == 3 and obj.shape[0] != img.shape[0]:
+            raise ValueError(
+                f"object_points has {obj.shape[0]} poses but image_points has {img.shape[0]}"
+            )
+    elif obj.ndim != 2 or obj.shape[-1] != 3:
+        raise ValueError(f"object_points must have shape (N, 3), got {obj.shape}")
+    if obj.shape[-2] != n:
+        raise ValueError(
+            f"object_points has {obj.shape[-2]} points but image_points has {n}"
+        )
+    if n < 4:
+        raise ValueError(f"object_points and image_points need at least 4 points, got {n}")
+    if not np.all(np.isfinite(obj)):
+        raise ValueError("object_points must be finite")
+    return obj, img
+
+
+def _call(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int, guess=None):
+    """One ``cv2.solvePnP`` call; (rvec, tvec) as (3,) arrays, or None on failure."""
+    try:
+        if guess is None:
+            ok, rvec, tvec = cv2.solvePnP(obj, img, k, dist, flags=flag)
+        else:
+            rv0 = guess[0].reshape(3, 1).copy()
+            tv0 = guess[1].reshape(3, 1).copy()
+            ok, rvec, tvec = cv2.solvePnP(obj, img, k, dist, rv0, tv0, True, flags=flag)
+    except cv2.error:
+        return None
+    if not ok or not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+        return None
+    return rvec.reshape(3), tvec.reshape(3)
+
+
+def _solve_one(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int):
+    """Solve with the documented fall-backs; (rvec, tvec) or None."""
+    res = _call(obj, img, k, dist, flag)
+    if res is not None:
+        return res
+    if flag == cv2.SOLVEPNP_IPPE:
+        moved = img + _JITTER[np.arange(img.shape[0]) % len(_JITTER)]
+        return _call(obj, moved, k, dist, flag)
+    if flag == cv2.SOLVEPNP_ITERATIVE:
+        # OpenCV's ITERATIVE needs 6 points unless they are (nearly) coplanar: start
+        # Levenberg-Marquardt from SQPnP's answer instead of its own DLT.
+        init = _call(obj, img, k, dist, cv2.SOLVEPNP_SQPNP)
+        if init is None:
+            return None
+        return _call(obj, img, k, dist, flag, guess=init) or init
+    return None
+
+
+def solve_pnp(
+    object_points, image_points, camera: Camera, solver: str = "iterative"
+) -> Pose | None:
+    """Camera pose from point correspondences.
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3)
+        World coordinates of the points (map units), N >= 4.
+    image_points : array_like, shape (N, 2)
+        Their pixel coordinates ``[u, v]`` in the (distorted) image, same order.
+    camera : Camera
+        Intrinsics and distortion.
+    solver : {"iterative", "sqpnp", "ippe", "epnp"}
+        The OpenCV method (:data:`SOLVERS`).
+
+    Returns
+    -------
+    Pose or None
+        The camera pose in the world frame (position in map units), or None when OpenCV
+        fails or returns a non-finite pose.  No check that the points lie in front of the
+        camera is made here.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, fewer than four points, non-finite object points, or an unknown solver.
+    """
+    flag = _solver_flag(solver)
+    obj, img = _check_points(object_points, image_points, batch=False)
+    if not np.all(np.isfinite(img)):
+        return None
+    res = _solve_one(obj, img, camera.matrix, camera.dist_or_none, flag)
+    if res is None:
+        return None
+    try:
+        return Pose.from_rvec_tvec(*res)
+    except ValueError:
+        return None
+
+
+def rodrigues_batch(rvecs) -> np.ndarray:
+    """Rotation matrices from Rodrigues vectors, vectorised.
+
+    Parameters
+    ----------
+    rvecs : array_like, shape (B, 3)
+        Axis times angle (radians).
+
+    Returns
+    -------
+    ndarray, shape (B, 3, 3)
+        The rotations (same as ``cv2.Rodrigues`` one by one).
+    """
+    r = np.asarray(rvecs, dtype=np.float64).reshape(-1, 3)
+    theta = np.linalg.norm(r, axis=1)
+    small = theta < 1e-12
+    k = r / np.where(small, 1.0, theta)[:, None]
+    kx = np.zeros((r.shape[0], 3, 3))
+    kx[:, 0, 1], kx[:, 0, 2] = -k[:, 2], k[:, 1]
+    kx[:, 1, 0], kx[:, 1, 2] = k[:, 2], -k[:, 0]
+    kx[:, 2, 0], kx[:, 2, 1] = -k[:, 1], k[:, 0]
+    s = np.sin(theta)[:, None, None]
+    c = (1.0 - np.cos(theta))[:, None, None]
+    return np.eye(3)[None] + s * kx + c * (kx @ kx)
+
+
+def solve_pnp_batch(
+    object_points, image_points, camera: Camera, solver: str = "iterative"
+) -> np.ndarray:
+    """Camera positions for many sets of correspondences (one OpenCV call per set).
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3) or (B, N, 3)
+        World coordinates (map units), shared by every set or one array per set.
+    image_points : array_like, shape (B, N, 2)
+        Pixel coordinates; a set with a non-finite coordinate is not solved.
+    camera : Camera
+        Intrinsics and distortion.
+    solver : {"iterative", "sqpnp", "ippe", "epnp"}
+        The OpenCV method (:data:`SOLVERS`).
+
+    Returns
+    -------
+    ndarray, shape (B, 3)
+        Camera centres in world coordinates (map units); NaN rows where the solve failed.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, fewer than four points, non-finite object points, or an unknown solver.
+    """
+    flag = _solver_flag(solver)
+    obj, img = _check_points(object_points, image_points, batch=True)
+    b = img.shape[0]
+    k = np.ascontiguousarray(camera.matrix, dtype=np.float64)
+    dist = camera.dist_or_none
+    rvecs = np.full((b, 3), np.nan)
+    tvecs = np.full((b, 3), np.nan)
+    finite = np.all(np.isfinite(img), axis=(1, 2))
+    shared = obj.ndim == 2
+    solve = cv2.solvePnP
+    for i in np.flatnonzero(finite).tolist():
+        o = obj if shared else obj[i]
+        try:
+            ok, rv, tv = solve(o, img[i], k, dist, flags=flag)
+        except cv2.error:
+            continue
+        if ok:
+            rvecs[i] = rv.ravel()
+            tvecs[i] = tv.ravel()
+    # Rare: OpenCV failed or returned NaN (IPPE on an exact rectangle, ITERATIVE with four
+    # non-coplanar points); redo those with the fall-backs of solve_pnp.
+    bad = finite & ~(np.all(np.isfinite(rvecs), axis=1) & np.all(np.isfinite(tvecs), axis=1))
+    for i in np.flatnonzero(bad).tolist():
+        res = _solve_one(obj if shared else obj[i], img[i], k, dist, flag)
+        if res is not None:
+            rvecs[i], tvecs[i] = res
+    r_cw = rodrigues_batch(np.nan_to_num(rvecs))
+    centres = -np.einsum("bji,bj->bi", r_cw, tvecs)  # C = -R_cw^T t
+    return centres
+
+
+def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV's lens model on normalised coordinates (up to 12 coefficients)."""
+    c = np.zeros(12)
+    c[: d.size] = d
+    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = c
+    r2 = x * x + y * y
+    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
+    return xd, yd
+
+
+def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.ndarray:
+    """Project the same world points for many camera poses at once.
+
+    Pinhole projection ``K R^T (X - C)``; lens distortion is ignored unless ``distort`` is
+    set (the error study uses a distortion-free camera, as the thesis does).  The image
+    plane is infinite: points outside the sensor still get coordinates.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics (and distortion, with ``distort=True``; up to 12 coefficients).
+    R : array_like, shape (B, 3, 3) or (3, 3)
+        ``world_from_camera`` rotations (camera axes as columns).
+    C : array_like, shape (B, 3) or (3,)
+        Camera centres, world coordinates (map units).
+    points : array_like, shape (N, 3)
+        World points (map units).
+    distort : bool
+        Apply the camera's OpenCV distortion model.
+
+    Returns
+    -------
+    ndarray, shape (B, N, 2)
+        Pixel coordinates ``[u, v]``; NaN for points on or behind the camera plane.
+
+    Raises
+    ------
+    ValueError
+        Bad shapes, or ``distort`` with a 14-coefficient (tilted sensor) model.
+    """
+    r = np.asarray(R, dtype=np.float64)
+    c = np.asarray(C, dtype=np.float64)
+    if r.ndim == 2:
+        r = r[None]
+    if c.ndim == 1:
+        c = c[None]
+    if r.ndim != 3 or r.shape[1:] != (3, 3):
+        raise ValueError(f"R must have shape (B, 3, 3), got {np.shape(R)}")
+    if c.ndim != 2 or c.shape[1] != 3:
+        raise ValueError(f"C must have shape (B, 3), got {np.shape(C)}")
+    if r.shape[0] != c.shape[0]:
+        raise ValueError(f"R has {r.shape[0]} poses but C has {c.shape[0]}")
+    p = np.asarray(points, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {p.shape}")
+    # camera coordinates: X_c = R^T (X - C), for every pose and point
+    xc = np.einsum("bji,bnj->bni", r, p[None, :, :] - c[:, None, :])
+    z = xc[..., 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z_safe = np.where(z > 0, z, np.nan)
+        x = xc[..., 0] / z_safe
+        y = xc[..., 1] / z_safe
+    if distort and camera.distortion.size and np.any(camera.distortion):
+        if camera.distortion.size > 12:
+            raise ValueError("project_batch supports at most 12 distortion coefficients")
+        x, y = _distort(x, y, camera.distortion)
+    k = camera.matrix
+    u = k[0, 0] * x + k[0, 1] * y + k[0, 2]
+    v = k[1, 1] * y + k[1, 2]
+    return np.stack([u, v], axis=-1)

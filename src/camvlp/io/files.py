@@ -1,0 +1,280 @@
+"""File formats: camera files and map files.
+
+Every loader raises :class:`InputError` (a ValueError) with one readable line that names
+the file and, where it applies, the fixture or key at fault.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from camvlp.errors import InputError
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.model.linecode import FrameFormat
+
+__all__ = ["load_camera", "load_map", "save_camera", "save_map"]
+
+
+def _read_text(path: str | Path, kind: str) -> str:
+    p = Path(path)
+    if not p.exists():
+        raise InputError(f"{kind} file not found", p)
+    if p.is_dir():
+        raise InputError(f"{kind} file is a directory", p)
+    try:
+        return p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read {kind} file: {exc.__class__.__name__}", p) from None
+
+
+def _parse_mapping(text: str, path: Path, kind: str) -> dict:
+    """Parse JSON, YAML, or OpenCV FileStorage YAML (``%YAML:1.0``, ``!!opencv-matrix``)."""
+    if text.lstrip().startswith("%YAML"):
+        lines = text.lstrip().splitlines()[1:]
+        text = "\n".join(lines).replace("!!opencv-matrix", "").replace("!!opencv-nd-matrix", "")
+    try:
+        if path.suffix.lower() == ".json":
+            data = json.loads(text)
+        else:
+            data = yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else exc.__class__.__name__
+        raise InputError(f"malformed {kind} file: {first}", path) from None
+    if not isinstance(data, dict):
+        raise InputError(f"malformed {kind} file: expected a mapping of keys", path)
+    return data
+
+
+def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: Path) -> np.ndarray:
+    """A matrix given as nested lists, a flat list, or OpenCV's {rows, cols, data}."""
+    if isinstance(value, dict) and "data" in value:
+        value = value["data"]
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{key} must be numbers", path) from None
+    if arr.dtype == object or not np.all(np.isfinite(arr)):
+        raise InputError(f"{key} must be finite numbers", path)
+    if shape is not None:
+        if arr.size != int(np.prod(shape)):
+            raise InputError(f"{key} must have {int(np.prod(shape))} numbers, got {arr.size}", path)
+        arr = arr.reshape(shape)
+    return arr
+
+
+def _number(value: Any, key: str, path: Path, *, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InputError(f"{key} must be a number, got {value!r}", path)
+    v = float(value)
+    if not math.isfinite(v) or (positive and v <= 0):
+        kind = "positive number" if positive else "number"
+        raise InputError(f"{key} must be a {kind}, got {value!r}", path)
+    return v
+
+
+def load_camera(path: str | Path) -> Camera:
+    """Load a camera file (OpenCV calibration YAML, plain YAML, or JSON).
+
+    Keys: ``image_width``, ``image_height`` (pixels); ``camera_matrix`` (3 x 3), or
+    ``focal_length_px`` with an optional ``principal_point`` (``[cx, cy]`` or ``centre``
+    for the image centre, which also overrides a matrix's cx, cy); optional
+    ``distortion_coefficients`` (1 x N, OpenCV order), ``row_time_s`` (seconds between
+    sensor rows), ``mirrored`` (bool), ``readout`` (``rows``, ``columns``, ``rows-reversed`` or
+    ``columns-reversed``).
+
+    Raises
+    ------
+    InputError
+        Missing or malformed file, naming the file and the key.
+    """
+    p = Path(path)
+    data = _parse_mapping(_read_text(p, "camera"), p, "camera")
+    try:
+        width = int(_number(data.get("image_width"), "image_width", p, positive=True))
+        height = int(_number(data.get("image_height"), "image_height", p, positive=True))
+    except InputError:
+        if "image_width" not in data or "image_height" not in data:
+            raise InputError("camera file needs image_width and image_height", p) from None
+        raise
+    if "camera_matrix" in data:
+        k = _matrix(data["camera_matrix"], (3, 3), "camera_matrix", p)
+    elif "focal_length_px" in data:
+        f = _number(data["focal_length_px"], "focal_length_px", p, positive=True)
+        k = np.array([[f, 0, (width - 1) / 2], [0, f, (height - 1) / 2], [0, 0, 1.0]])
+    else:
+        raise InputError("camera file needs camera_matrix or focal_length_px", p)
+    pp = data.get("principal_point")
+    if isinstance(pp, str):
+        if pp.lower() not in ("centre", "center"):
+            raise InputError(f"principal_point must be [cx, cy] or 'centre', got {pp!r}", p)
+        k[0, 2], k[1, 2] = (width - 1) / 2, (height - 1) / 2
+    elif pp is not None:
+        k[0, 2], k[1, 2] = _matrix(pp, (2,), "principal_point", p)
+    dist_value = data.get("distortion_coefficients")
+    dist = (
+        np.zeros(0)
+        if dist_value is None
+        else _matrix(dist_value, None, "distortion_coefficients", p)
+    )
+    row_time = data.get("row_time_s")
+    if row_time is not None:
+        row_time = _number(row_time, "row_time_s", p, positive=True)
+    mirrored = data.get("mirrored", False)
+    if not isinstance(mirrored, bool):
+        raise InputError(f"mirrored must be true or false, got {mirrored!r}", p)
+    try:
+        return Camera(
+            width, height, k, dist.reshape(-1), row_time, mirrored, data.get("readout")
+        )
+    except ValueError as exc:
+        raise InputError(str(exc), p) from None
+
+
+def save_camera(camera: Camera, path: str | Path, *, extra: dict | None = None) -> None:
+    """Write a camera file: OpenCV FileStorage YAML (``.yaml``/``.yml``) or JSON (``.json``).
+
+    ``extra`` adds scalar keys (e.g. ``rms_px``) to the file.
+    """
+    p = Path(path)
+    fields: dict[str, Any] = {
+        "image_width": camera.width,
+        "image_height": camera.height,
+        "camera_matrix": camera.matrix,
+        "distortion_coefficients": camera.distortion.reshape(1, -1)
+        if camera.distortion.size
+        else np.zeros((1, 5)),
+    }
+    if camera.row_time_s is not None:
+        fields["row_time_s"] = float(camera.row_time_s)
+    if camera.mirrored:
+        fields["mirrored"] = 1
+    if camera.readout:
+        fields["readout"] = camera.readout
+    fields.update(extra or {})
+    if p.suffix.lower() == ".json":
+        out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fields.items()}
+        if camera.mirrored:
+            out["mirrored"] = True
+        p.write_text(json.dumps(out, indent=2) + "\n")
+        return
+    fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_WRITE)
+    for key, value in fields.items():
+        fs.write(key, value)
+    fs.release()
+    if camera.mirrored:  # FileStorage writes ints; say it as YAML's true for our loader
+        p.write_text(p.read_text().replace("mirrored: 1", "mirrored: true"))
+
+
+def load_map(path: str | Path) -> FixtureMap:
+    """Load a map file (YAML or JSON); see ``docs/formats.md``.
+
+    Raises
+    ------
+    InputError
+        Missing or malformed file, a duplicate ID, an ID that does not fit the frame, a
+        missing or non-numeric position, an ambiguous frame format; naming the file and the
+        fixture.
+    """
+    p = Path(path)
+    data = _parse_mapping(_read_text(p, "map"), p, "map")
+    units = data.get("units", "m")
+    frame_spec = data.get("frame") or {}
+    if not isinstance(frame_spec, dict):
+        raise InputError("frame must be a mapping", p)
+    mode = str(frame_spec.get("mode", frame_spec.get("line_code", "manchester"))).lower()
+    if mode not in ("manchester", "frequency"):
+        raise InputError(f"frame mode must be manchester or frequency, got {mode!r}", p)
+    for key, default in (("preamble", "111"), ("postamble", "00")):
+        # YAML reads an unquoted 00 as the number 0: insist on strings, never guess
+        if not isinstance(frame_spec.get(key, default), str):
+            raise InputError(
+                f'frame {key} must be a quoted string of 0 and 1 such as "{default}", '
+                f"got {frame_spec[key]!r}",
+                p,
+            )
+    try:
+        frame = FrameFormat(
+            frame_spec.get("preamble", "111"),
+            frame_spec.get("id_bits", 4),
+            frame_spec.get("postamble", "00"),
+        )
+    except ValueError as exc:
+        raise InputError(str(exc), p) from None
+    entries = data.get("fixtures")
+    if not isinstance(entries, list) or not entries:
+        raise InputError("map needs a non-empty list 'fixtures'", p)
+    fixtures = []
+    seen: set[int] = set()
+    for index, entry in enumerate(entries):
+        where = f"fixture #{index + 1}"
+        if not isinstance(entry, dict):
+            raise InputError(f"{where} must be a mapping", p)
+        fid = entry.get("id", index if mode == "frequency" else None)
+        if isinstance(fid, bool) or not isinstance(fid, int):
+            raise InputError(f"{where} needs an integer id, got {fid!r}", p)
+        where = f"fixture {fid}"
+        if fid in seen:
+            raise InputError(f"duplicate ID in {where}", p)
+        seen.add(fid)
+        if mode == "manchester":
+            try:
+                frame.check_id(fid)
+            except ValueError as exc:
+                raise InputError(f"{exc} in {where}", p) from None
+        pos = entry.get("position")
+        if pos is None:
+            raise InputError(f"{where} has no position", p)
+        if not (
+            isinstance(pos, list)
+            and len(pos) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pos)
+        ):
+            raise InputError(f"{where}: position must be three numbers, got {pos!r}", p)
+        kwargs: dict[str, Any] = {}
+        for key in ("diameter", "frequency_hz"):
+            if entry.get(key) is not None:
+                kwargs[key] = _number(entry[key], f"{where}: {key}", p, positive=True)
+        if entry.get("normal") is not None:
+            kwargs["normal"] = _matrix(entry["normal"], (3,), f"{where}: normal", p)
+        try:
+            fixtures.append(Fixture(fid, np.asarray(pos, dtype=float), **kwargs))
+        except ValueError as exc:
+            raise InputError(f"{where}: {exc}", p) from None
+    try:
+        return FixtureMap(tuple(fixtures), units=str(units), mode=mode, frame=frame, source=str(p))
+    except ValueError as exc:
+        raise InputError(str(exc), p) from None
+
+
+def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
+    """Write a map as YAML (or JSON for a ``.json`` path)."""
+    fm = fixture_map
+    frame: dict[str, Any] = {"mode": fm.mode}
+    if fm.mode == "manchester":
+        frame.update(
+            preamble=fm.frame.preamble, id_bits=fm.frame.id_bits, postamble=fm.frame.postamble
+        )
+    entries = []
+    for f in fm.fixtures:
+        e: dict[str, Any] = {"id": f.id, "position": [float(v) for v in f.position]}
+        if f.diameter is not None:
+            e["diameter"] = float(f.diameter)
+        if f.normal is not None:
+            e["normal"] = [float(v) for v in f.normal]
+        if f.frequency_hz is not None:
+            e["frequency_hz"] = float(f.frequency_hz)
+        entries.append(e)
+    data = {"units": fm.units, "frame": frame, "fixtures": entries}
+    p = Path(path)
+    if p.suffix.lower() == ".json":
+        p.write_text(json.dumps(data, indent=2) + "\n")
+    else:
+        p.write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None))

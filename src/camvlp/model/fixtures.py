@@ -1,0 +1,125 @@
+"""Fixtures and the map of a room: which ID (or frequency) is where."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.model.linecode import FrameFormat
+
+__all__ = ["UNITS_TO_M", "Fixture", "FixtureMap"]
+
+#: Length units a map may use, and their size in metres.
+UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+
+@dataclass(frozen=True)
+class Fixture:
+    """One light fixture.
+
+    Attributes
+    ----------
+    id : int
+        The ID it sends (Manchester mode), or its index in the map (frequency mode).
+    position : ndarray, shape (3,)
+        Centre of the fixture's disc, in map units and frame.
+    diameter : float or None
+        Diameter of the emitting disc, map units; None when not known.
+    normal : ndarray, shape (3,), or None
+        Unit vector the fixture faces (into the room); None when not given.
+    frequency_hz : float or None
+        Blinking frequency of a frequency-coded fixture, Hz.
+    """
+
+    id: int
+    position: np.ndarray
+    diameter: float | None = None
+    normal: np.ndarray | None = None
+    frequency_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        p = np.asarray(self.position, dtype=float).reshape(-1)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"position must be three finite numbers, got {self.position!r}")
+        object.__setattr__(self, "position", p)
+        if self.normal is not None:
+            n = np.asarray(self.normal, dtype=float).reshape(-1)
+            if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+                raise ValueError(f"normal must be a non-zero 3-vector, got {self.normal!r}")
+            object.__setattr__(self, "normal", n / np.linalg.norm(n))
+        if self.diameter is not None and not (np.isfinite(self.diameter) and self.diameter > 0):
+            raise ValueError(f"diameter must be a positive number, got {self.diameter!r}")
+        if self.frequency_hz is not None and not (
+            np.isfinite(self.frequency_hz) and self.frequency_hz > 0
+        ):
+            raise ValueError(f"frequency_hz must be a positive number, got {self.frequency_hz!r}")
+
+
+@dataclass(frozen=True)
+class FixtureMap:
+    """A room's fixtures and how they identify themselves.
+
+    Attributes
+    ----------
+    fixtures : tuple of Fixture
+        The fixtures, IDs unique.
+    units : str
+        Length unit of positions and diameters: ``"m"``, ``"cm"`` or ``"mm"``.
+    mode : str
+        ``"manchester"`` (IDs in Manchester frames) or ``"frequency"`` (one square-wave
+        frequency per fixture).
+    frame : FrameFormat
+        The Manchester frame format (also present, unused, in frequency mode).
+    source : str
+        Where the map was read from ("" when built in code).
+    """
+
+    fixtures: tuple[Fixture, ...]
+    units: str = "m"
+    mode: str = "manchester"
+    frame: FrameFormat = FrameFormat()  # noqa: RUF009 (frozen, so sharing it is safe)
+    source: str = ""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "fixtures", tuple(self.fixtures))
+        if self.units not in UNITS_TO_M:
+            raise ValueError(f"units must be one of {', '.join(UNITS_TO_M)}, got {self.units!r}")
+        if self.mode not in ("manchester", "frequency"):
+            raise ValueError(f"mode must be 'manchester' or 'frequency', got {self.mode!r}")
+        ids = [f.id for f in self.fixtures]
+        if len(set(ids)) != len(ids):
+            dup = sorted({i for i in ids if ids.count(i) > 1})
+            raise ValueError(f"duplicate fixture ID {dup[0]}")
+        if self.mode == "manchester":
+            for f in self.fixtures:
+                self.frame.check_id(f.id)
+        else:
+            missing = [f.id for f in self.fixtures if f.frequency_hz is None]
+            if missing:
+                raise ValueError(f"fixture {missing[0]} has no frequency_hz (frequency mode)")
+            freqs = [f.frequency_hz for f in self.fixtures]
+            if len(set(freqs)) != len(freqs):
+                raise ValueError("two fixtures share a frequency_hz")
+
+    @property
+    def unit_m(self) -> float:
+        """Size of one map unit in metres."""
+        return UNITS_TO_M[self.units]
+
+    @property
+    def ids(self) -> list[int]:
+        """The fixtures' IDs, in map order."""
+        return [f.id for f in self.fixtures]
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Fixture centres, shape (N, 3), map units."""
+        return np.array([f.position for f in self.fixtures], dtype=float).reshape(-1, 3)
+
+    def get(self, fixture_id: int) -> Fixture | None:
+        """The fixture with this ID, or None."""
+        for f in self.fixtures:
+            if f.id == fixture_id:
+                return f
+        return None

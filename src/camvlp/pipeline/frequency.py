@@ -1,0 +1,188 @@
+"""Frequency-coded fixtures: each light blinks a 50 % square wave at its own frequency.
+
+A rolling shutter turns a light blinking at ``f`` Hz into stripes with a period of
+``1 / (f * row_time)`` sensor rows.  With the camera's row time known, each measured period
+gives a frequency, and the map's nearest frequency identifies the fixture, but only when it
+is unambiguous: near enough, clearly nearer than any other map frequency, and claimed by no
+other fixture in the photo.  Without the row time, the set of periods is matched to the set
+of map frequencies by their ratios: the row time is the one that makes the most periods
+land on distinct map frequencies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.model.fixtures import FixtureMap
+
+__all__ = ["FrequencyAssignment", "assign_frequencies", "period_uncertainty"]
+
+
+@dataclass(frozen=True)
+class FrequencyAssignment:
+    """Which map fixture each measured stripe period belongs to.
+
+    Attributes
+    ----------
+    ids : tuple of (int or None)
+        Map ID per period, None where unidentified.
+    frequencies_hz : ndarray, shape (N,)
+        Measured frequency per period, Hz (NaN where the period is unknown).
+    reasons : tuple of str
+        Why each unidentified period has no ID ("" where identified).
+    row_time_s : float
+        Row time used, seconds (NaN when none could be found).
+    row_time_fitted : bool
+        True when the row time was found from the periods' ratios, not given.
+    """
+
+    ids: tuple[int | None, ...]
+    frequencies_hz: np.ndarray
+    reasons: tuple[str, ...]
+    row_time_s: float
+    row_time_fitted: bool
+
+
+def period_uncertainty(periods_spanned) -> np.ndarray:
+    """Relative uncertainty of a stripe period measured over ``periods_spanned`` periods.
+
+    A conservative model of the estimator's worst errors (``estimate_stripe_period``): 1 %
+    over 3 periods, falling with the square of the count (0.25 % over 6, 0.09 % over 10).
+    """
+    n = np.maximum(np.asarray(periods_spanned, dtype=float), 1.0)
+    return 0.01 * (3.0 / n) ** 2
+
+
+def _match(
+    freqs: np.ndarray, map_freqs: np.ndarray, tolerance: float, sigma: np.ndarray | None = None
+) -> tuple[list[int | None], list[str], np.ndarray]:
+    """Nearest unambiguous map frequency per measured frequency (indices into map_freqs).
+
+    Unambiguous: within ``tolerance``, and nearer than half-way to the next map frequency
+    by at least twice the measurement's relative uncertainty ``sigma``.
+    """
+    n = freqs.size
+    sig = np.zeros(n) if sigma is None else np.asarray(sigma, dtype=float)
+    # relative gap of each map frequency to its nearest neighbour in the map
+    gaps = np.full(map_freqs.size, np.inf)
+    for j, f in enumerate(map_freqs):
+        others = map_freqs[np.arange(map_freqs.size) != j]
+        if others.size:
+            gaps[j] = float(np.min(np.abs(np.log(others / f))))
+    picks: list[int | None] = [None] * n
+    reasons = ["" for _ in range(n)]
+    resid = np.full(n, np.nan)
+    for i, f in enumerate(freqs):
+        if not np.isfinite(f):
+            reasons[i] = "no stripe period could be measured"
+            continue
+        d = np.abs(np.log(map_freqs / f))
+        j = int(np.argmin(d))
+        resid[i] = d[j]
+        limit = min(tolerance, 0.5 * gaps[j] - 2.0 * sig[i])
+        if d[j] > limit:
+            reasons[i] = (
+                f"{f:.0f} Hz is {100 * d[j]:.1f} % from the nearest map frequency "
+                f"({map_freqs[j]:.0f} Hz; at most {100 * max(limit, 0):.2f} % accepted here)"
+            )
+            continue
+        picks[i] = j
+    for j in set(p for p in picks if p is not None):
+        claim = [i for i, p in enumerate(picks) if p == j]
+        if len(claim) > 1:
+            for i in claim:
+                picks[i] = None
+                reasons[i] = f"{len(claim)} lights measure {map_freqs[j]:.0f} Hz"
+    return picks, reasons, resid
+
+
+def assign_frequencies(
+    periods_rows,
+    fixture_map: FixtureMap,
+    row_time_s: float | None,
+    *,
+    periods_spanned=None,
+    tolerance: float = 0.05,
+) -> FrequencyAssignment:
+    """Identify frequency-coded fixtures from their stripe periods.
+
+    Parameters
+    ----------
+    periods_rows : array_like, shape (N,)
+        Stripe period of each detected light, sensor rows (NaN where unknown).
+    fixture_map : FixtureMap
+        A map in frequency mode (each fixture has ``frequency_hz``).
+    row_time_s : float or None
+        Seconds between sensor rows; None to fit it from the periods' ratios.
+    periods_spanned : array_like, shape (N,), optional
+        How many stripe periods each light spans; sets each measurement's uncertainty
+        (:func:`period_uncertainty`).  Default: 3 periods (1 %).
+    tolerance : float
+        Largest relative difference between a measured and a map frequency.  A light is also
+        left unidentified unless it is nearer than half-way to the next map frequency by
+        twice its measurement's uncertainty.
+
+    Returns
+    -------
+    FrequencyAssignment
+    """
+    if fixture_map.mode != "frequency":
+        raise ValueError("fixture_map must be in frequency mode")
+    p = np.asarray(periods_rows, dtype=float).reshape(-1)
+    spans = np.full(p.size, 3.0) if periods_spanned is None else periods_spanned
+    sigma = period_uncertainty(spans).reshape(-1)
+    map_freqs = np.array([f.frequency_hz for f in fixture_map.fixtures], dtype=float)
+    ids_of = [f.id for f in fixture_map.fixtures]
+    fitted = row_time_s is None
+    if fitted:
+        row_time_s = _fit_row_time(p, map_freqs, tolerance, sigma)
+    rt = float(row_time_s) if row_time_s is not None else float("nan")
+    freqs = 1.0 / (p * rt) if np.isfinite(rt) else np.full(p.size, np.nan)
+    if not np.isfinite(rt):
+        reasons = tuple(
+            "the row time is unknown and the periods fit no set of the map's frequencies" for _ in p
+        )
+        return FrequencyAssignment((None,) * p.size, freqs, reasons, rt, fitted)
+    picks, reasons, _ = _match(freqs, map_freqs, tolerance, sigma)
+    ids = tuple(None if j is None else ids_of[j] for j in picks)
+    return FrequencyAssignment(ids, freqs, tuple(reasons), rt, fitted)
+
+
+def _fit_row_time(
+    periods: np.ndarray, map_freqs: np.ndarray, tolerance: float, sigma: np.ndarray
+) -> float | None:
+    """The row time that puts the most periods on distinct map frequencies, or None.
+
+    Every pairing of a period with a map frequency proposes a row time; each proposal is
+    scored by how many periods it identifies and how closely.  The best must identify at
+    least two lights and be clearly better than any proposal with a different assignment.
+    """
+    good = np.isfinite(periods) & (periods > 0)
+    if good.sum() < 2:
+        return None
+    cands = (1.0 / (periods[good][:, None] * map_freqs[None, :])).ravel()
+    scored = []
+    for rt in cands:
+        picks, _, _ = _match(1.0 / (periods * rt), map_freqs, tolerance, sigma)
+        hits = [i for i, j in enumerate(picks) if j is not None]
+        if len(hits) < 2:
+            continue
+        # refine: least squares in log over the identified lights
+        logs = [-np.log(periods[i] * map_freqs[picks[i]]) for i in hits]
+        rt2 = float(np.exp(np.mean(logs)))
+        picks2, _, resid2 = _match(1.0 / (periods * rt2), map_freqs, tolerance, sigma)
+        hits2 = [i for i, j in enumerate(picks2) if j is not None]
+        if len(hits2) < 2:
+            continue
+        cost = float(np.sqrt(np.nanmean(resid2[hits2] ** 2)))
+        scored.append((-len(hits2), cost, rt2, tuple(picks2)))
+    if not scored:
+        return None
+    scored.sort(key=lambda s: (s[0], s[1]))
+    best = scored[0]
+    for other in scored[1:]:
+        if other[3] != best[3] and other[0] == best[0] and other[1] < 2.0 * best[1] + 0.002:
+            return None  # two different assignments fit about as well: ambiguous
+    return best[2]

@@ -1,0 +1,249 @@
+"""Stage 3: the camera's pose from identified fixtures (thesis section 5.5, made safe).
+
+* Fewer than four fixtures, or fixtures (nearly) on one line, in the world or in the image:
+  a failure that says so, never a pose.
+* Coplanar fixtures (the usual ceiling) have a two-fold pose ambiguity: both candidates of
+  IPPE are refined with Levenberg-Marquardt (OpenCV's SOLVEPNP_ITERATIVE criterion) and the
+  one that reprojects best with every fixture in front of the camera is kept.  The other is
+  reported too.
+* With five or more fixtures, a fixture that does not fit (a wrong ID, a moved light) is
+  dropped instead of pulling the pose: leave-one-out while the reprojection error is large.
+* Fixtures may carry a ``normal`` (the way they face).  A pose that puts the camera behind
+  them is refused: such a photo looks mirrored.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import cv2
+import numpy as np
+
+from camvlp.geometry.pnp import SOLVERS as _SOLVERS
+from camvlp.model.camera import Camera, Pose
+
+__all__ = ["PoseEstimate", "estimate_pose"]
+
+
+@dataclass(frozen=True)
+class PoseEstimate:
+    """A pose solve: the pose, or why there is none.
+
+    Attributes
+    ----------
+    pose : Pose or None
+        The camera's pose in the map frame; None when it failed.
+    reprojection_rms_px : float
+        RMS distance between the detected centres and the map points reprojected with the
+        pose, over the fixtures used, pixels (NaN on failure).
+    used : ndarray of bool, shape (N,)
+        Which of the given fixtures the pose uses.
+    residuals_px : ndarray, shape (N,)
+        Each fixture's reprojection error with the pose, pixels (NaN on failure).
+    alternative : Pose or None
+        The other candidate of a planar target, when there was one.
+    alternative_rms_px : float
+        Its reprojection RMS, pixels.
+    reason : str
+        Why it failed ("" on success).
+    """
+
+    pose: Pose | None
+    reprojection_rms_px: float
+    used: np.ndarray
+    residuals_px: np.ndarray
+    alternative: Pose | None = None
+    alternative_rms_px: float = float("nan")
+    reason: str = ""
+    mirrored: bool = field(default=False)
+
+    def __bool__(self) -> bool:
+        return self.pose is not None
+
+
+def _failure(n: int, reason: str, *, mirrored: bool = False) -> PoseEstimate:
+    nan = np.full(n, np.nan)
+    return PoseEstimate(
+        None, float("nan"), np.zeros(n, bool), nan, reason=reason, mirrored=mirrored
+    )
+
+
+def _spread(points: np.ndarray) -> np.ndarray:
+    """Singular values of the centred points (how far they are from a point, line, plane)."""
+    c = points - points.mean(axis=0)
+    return np.linalg.svd(c, compute_uv=False)
+
+
+def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
+    proj = camera.project(pose, obj)
+    r = np.linalg.norm(proj - img, axis=1)
+    return np.where(np.isfinite(r), r, np.inf)
+
+
+def _candidates(
+    camera: Camera, obj: np.ndarray, img: np.ndarray, solver: str, planar: bool
+) -> list[Pose]:
+    """Candidate poses, refined by Levenberg-Marquardt."""
+    o = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3)
+    i = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2)
+    k, d = camera.matrix, camera.dist_or_none
+    seeds: list[tuple[np.ndarray, np.ndarray]] = []
+    methods = [_SOLVERS[solver]]
+    if planar:
+        methods.append(cv2.SOLVEPNP_IPPE)
+    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
+    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
+    if obj.shape[0] >= 4:
+        methods.append(cv2.SOLVEPNP_SQPNP)
+    for method in dict.fromkeys(methods):
+        try:
+            n, rvecs, tvecs, _ = cv2.solvePnPGeneric(o, i, k, d, flags=method)
+        except cv2.error:
+            continue
+        seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
+    poses = []
+    for rvec, tvec in seeds:
+        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+            continue
+        rvec, tvec = rvec.copy(), tvec.copy()
+        if solver != "epnp" and solver != "ippe":
+            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
+        try:
+            poses.append(Pose.from_rvec_tvec(rvec, tvec))
+        except ValueError:
+            continue
+    return poses
+
+
+def _choose(
+    camera: Camera,
+    obj: np.ndarray,
+    img: np.ndarray,
+    normals: np.ndarray | None,
+    solver: str,
+    planar: bool,
+) -> tuple[Pose | None, float, Pose | None, float, bool]:
+    """Best valid candidate and the runner-up; flags a best fit that is behind the lights."""
+    scored = []
+    for pose in _candidates(camera, obj, img, solver, planar):
+        depth = pose.to_camera(obj)[:, 2]
+        in_front = bool(np.all(depth > 0))
+        facing = True
+        if normals is not None:
+            has = np.all(np.isfinite(normals), axis=1)
+            facing = bool(np.all(np.einsum("ij,ij->i", normals[has], pose.position - obj[has]) > 0))
+        r = _residuals(camera, pose, obj, img)
+        rms = float(np.sqrt(np.mean(r**2))) if np.all(np.isfinite(r)) else np.inf
+        scored.append((rms, in_front, facing, pose))
+    valid = sorted((s for s in scored if s[1] and s[2]), key=lambda s: s[0])
+    behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
+    mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
+    if not valid:
+        return None, np.inf, None, np.nan, mirrored
+    # The runner-up must be another pose, not the best one again: seeds that converge to
+    # the same minimum differ by the optimiser's tolerance (up to about 1e-4 of the distance
+    # for a small target), the planar ambiguity's other pose by about twice the tilt.
+    best = valid[0][3]
+    scale = float(np.linalg.norm(best.position - obj.mean(axis=0)))
+    alt = (np.nan, None, None, None)
+    for s in valid[1:]:
+        cos_turn = (np.trace(s[3].world_from_camera.T @ best.world_from_camera) - 1.0) / 2.0
+        turn_deg = float(np.degrees(np.arccos(np.clip(cos_turn, -1.0, 1.0))))
+        if np.linalg.norm(s[3].position - best.position) > 1e-3 * scale or turn_deg > 0.1:
+            alt = s
+            break
+    return best, valid[0][0], alt[3], float(alt[0]), mirrored
+
+
+def estimate_pose(
+    image_points,
+    object_points,
+    camera: Camera,
+    *,
+    normals=None,
+    solver: str = "iterative",
+    outlier_px: float = 4.0,
+) -> PoseEstimate:
+    """Solve Perspective-n-Point for identified fixtures.
+
+    Parameters
+    ----------
+    image_points : array_like, shape (N, 2)
+        Detected fixture centres, pixels (distorted image).
+    object_points : array_like, shape (N, 3)
+        The same fixtures' map positions, map units.
+    camera : Camera
+        Intrinsics and distortion.
+    normals : array_like, shape (N, 3), optional
+        The way each fixture faces (rows of NaN where unknown); a pose behind them is refused.
+    solver : {"iterative", "sqpnp", "ippe", "epnp"}
+        OpenCV's solver for the first estimate (the thesis uses iterative).
+    outlier_px : float
+        With five or more fixtures, a fixture whose reprojection error exceeds this (pixels)
+        after the others are fitted is dropped.
+
+    Returns
+    -------
+    PoseEstimate
+        Falsy, with a reason, when no pose can be trusted.
+    """
+    if solver not in _SOLVERS:
+        raise ValueError(f"solver must be one of {', '.join(_SOLVERS)}, got {solver!r}")
+    img = np.asarray(image_points, dtype=float).reshape(-1, 2)
+    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
+    if img.shape[0] != obj.shape[0]:
+        raise ValueError("image_points and object_points must have the same length")
+    nrm = None if normals is None else np.asarray(normals, dtype=float).reshape(-1, 3)
+    n = obj.shape[0]
+    if n < 4:
+        return _failure(n, f"{n} identified fixture{'s' if n != 1 else ''}, at least 4 are needed")
+    if not (np.all(np.isfinite(img)) and np.all(np.isfinite(obj))):
+        raise ValueError("image_points and object_points must be finite")
+    sw, si = _spread(obj), _spread(img)
+    if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
+        return _failure(n, "the fixtures are (nearly) on one line: the pose is not determined")
+    if np.unique(np.round(img, 3), axis=0).shape[0] < n:
+        return _failure(n, "two fixtures were detected at the same pixel")
+
+    def solve(idx: np.ndarray):
+        planar = bool(_spread(obj[idx])[2] <= 1e-4 * _spread(obj[idx])[0])
+        return _choose(
+            camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
+        )
+
+    idx = np.arange(n)
+    pose, rms, alt, alt_rms, mirrored = solve(idx)
+    if pose is None:
+        if mirrored:
+            return _failure(
+                n,
+                "the only pose that fits puts the camera behind the lights: the photo looks "
+                "mirrored (try --mirrored)",
+                mirrored=True,
+            )
+        return _failure(n, "no pose puts every fixture in front of the camera")
+    # leave-one-out while a fixture does not fit (needs at least five)
+    while idx.size >= 5 and np.max(_residuals(camera, pose, obj[idx], img[idx])) > outlier_px:
+        best = None
+        for subset in combinations(range(idx.size), idx.size - 1):
+            sub = idx[list(subset)]
+            p, r, a, ar, _ = solve(sub)
+            if p is not None and (best is None or r < best[1]):
+                best = (sub, r, p, a, ar)
+        if best is None:
+            break
+        idx, rms, pose, alt, alt_rms = best
+    residuals = _residuals(camera, pose, obj, img)
+    used = np.zeros(n, bool)
+    used[idx] = True
+    if float(np.max(residuals[used])) > outlier_px:
+        return PoseEstimate(
+            None,
+            rms,
+            np.zeros(n, bool),
+            residuals,
+            reason=f"the fixtures do not fit one pose (reprojection error up to "
+            f"{float(np.max(residuals[used])):.1f} px): a wrong ID, map or camera file",
+        )
+    return PoseEstimate(pose, rms, used, residuals, alt, alt_rms)

@@ -1,0 +1,1 @@
+"""Simulation: rolling-shutter photographs of a room, chessboard photos, whole surveys."""

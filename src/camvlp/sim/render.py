@@ -1,0 +1,729 @@
+"""Rolling-shutter photographs of coded ceiling lights (thesis chapter 3, made physical).
+
+The thesis' simulator (section 3.3) projects points on each fixture's rim, fills the polygon
+and lays a crude stripe mask over it.  This module renders the same scenes physically:
+
+* **Geometry.**  Each fixture is a disc of its map ``diameter`` in the plane through its
+  centre with the map's ``normal`` (else the plane through all the fixtures' centres, facing
+  the camera).  Each pixel of the fixture's image bounding box is undistorted into a ray,
+  the ray meets the fixture's plane, and the distance ``rho`` of that point from the centre
+  gives an anti-aliased coverage ``clip(0.5 - (rho - r) / |grad rho|, 0, 1)``, where
+  ``|grad rho|`` is the local size of a pixel on the fixture, map units.
+* **Optics.**  A Gaussian blur of the coverage (sigma ``blur_px``).
+* **Rolling shutter.**  Sensor row ``k`` (image row ``v``, or column ``u`` for a photo
+  stored in portrait) integrates light over ``[k * row_time, k * row_time + exposure]``.
+  Each LED repeats its frame's Manchester chips (or a 50 % square wave in frequency mode)
+  with its own random phase; the fraction of each row's exposure the LED is on is computed
+  exactly from the waveform's cumulative on-time.
+* **Sensor.**  Irradiance ``ambient + sum(brightness * colour * coverage * on_fraction)`` in
+  units of full scale, shot noise (Gaussian approximation of Poisson with ``full_well_e``
+  electrons at full scale), read noise, clipping to [0, 1] (saturation: bright stripes come
+  out wider than dark ones, the thesis' bleeding, section 5.3) and 8-bit quantisation.
+
+Time origin: sensor row 0 starts its exposure at ``t = 0``.  A fixture with phase ``phase_s``
+shows, at time ``t``, chip ``floor((t + phase_s) / chip_s) mod n_chips`` of its frame.
+
+A fixture seen from its back (the camera on the far side of its plane from its normal) is
+not drawn.  Points beyond the field of a distorted lens model (where OpenCV's distortion
+polynomial folds them back into the picture) count as outside the image.
+
+Pixel coordinates in the truth (:class:`FixtureTruth`) are those of the camera model
+(:meth:`Camera.project`); for a ``mirrored`` camera the stored image is flipped left-right
+after rendering, so a truth pixel ``u`` is at ``width - 1 - u`` in the stored image.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvlp.model.camera import READOUTS, Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
+
+__all__ = [
+    "FixtureTruth",
+    "Render",
+    "RenderSettings",
+    "all_fully_inside",
+    "distinct_colours",
+    "fixture_truths",
+    "render",
+    "save_render",
+    "tilt_limit",
+]
+
+#: Default row time (s) when neither the settings nor the camera give one.
+DEFAULT_ROW_TIME_S = 20e-6
+
+#: Rim points used for a fixture's projected outline (bounding box, visibility, extent).
+N_RIM = 64
+
+#: Image suffixes :func:`save_render` writes.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+_ROW_CHUNK = 128  # image rows per chunk of the full-frame noise pass
+
+
+@dataclass(frozen=True, kw_only=True)
+class RenderSettings:
+    """How to render a photograph: LED timing, sensor timing, light levels, noise.
+
+    Attributes
+    ----------
+    chip_rate_hz : float
+        Manchester chips per second sent by every LED.
+    row_time_s : float or None
+        Seconds between the exposure starts of two consecutive sensor rows; None takes the
+        camera's ``row_time_s``, else 20 us.
+    exposure_s : float or None
+        Exposure time of each row, s; None is half a chip (``0.5 / chip_rate_hz``).
+    brightness : float
+        Irradiance of a fully-on, fully-covered pixel, in units of the sensor's full scale
+        (above 1 saturates).
+    ambient : float
+        Background level, fraction of full scale.
+    blur_px : float
+        Sigma of the Gaussian optical blur, pixels (0 for none).
+    full_well_e : float
+        Electrons at full scale, for shot noise; 0 disables shot noise.
+    read_noise : float
+        Read-noise sigma, fraction of full scale; 0 disables it.
+    readout : {"rows", "columns", "rows-reversed", "columns-reversed"}
+        ``"rows"``: exposure start grows with image row ``v`` (stripes horizontal);
+        ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical);
+        ``-reversed``: it falls instead (read bottom up, or right to left).
+    colours : tuple of (b, g, r) or None
+        One BGR colour in 0..1 per fixture, in map order; None for white.
+    seed : int
+        Seed of the fixtures' phases and of the noise.
+    """
+
+    chip_rate_hz: float = 10_000.0
+    row_time_s: float | None = None
+    exposure_s: float | None = None
+    brightness: float = 4.0
+    ambient: float = 0.03
+    blur_px: float = 0.8
+    full_well_e: float = 8000.0
+    read_noise: float = 0.004
+    readout: str = "rows"
+    colours: tuple | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _positive(self.chip_rate_hz, "chip_rate_hz")
+        if self.row_time_s is not None:
+            _positive(self.row_time_s, "row_time_s")
+            if self.row_time_s >= 1:
+                raise ValueError(f"row_time_s must be below 1 s, got {self.row_time_s}")
+        if self.exposure_s is not None:
+            _positive(self.exposure_s, "exposure_s")
+        for name in ("brightness", "ambient", "blur_px", "full_well_e", "read_noise"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and value >= 0):
+                raise ValueError(f"{name} must be a non-negative number, got {value!r}")
+            if not math.isfinite(value):
+                raise ValueError(f"{name} must be finite, got {value!r}")
+        if self.readout not in READOUTS[1:]:
+            raise ValueError(
+                "readout must be rows, columns, rows-reversed or columns-reversed, "
+                f"got {self.readout!r}"
+            )
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, (int, np.integer))
+            or (self.seed < 0)
+        ):
+            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        if self.colours is not None:
+            try:
+                cols = np.asarray(self.colours, dtype=float)
+            except (TypeError, ValueError):
+                raise ValueError("colours must be BGR triples of numbers in 0..1") from None
+            if cols.ndim != 2 or cols.shape[1] != 3 or not np.all((cols >= 0) & (cols <= 1)):
+                raise ValueError("colours must be BGR triples of numbers in 0..1")
+            object.__setattr__(self, "colours", tuple(tuple(map(float, c)) for c in cols))
+
+    def resolved(self, camera: Camera) -> RenderSettings:
+        """These settings with ``row_time_s`` and ``exposure_s`` filled in for ``camera``."""
+        row_time = self.row_time_s
+        if row_time is None:
+            row_time = camera.row_time_s if camera.row_time_s is not None else DEFAULT_ROW_TIME_S
+        exposure = self.exposure_s if self.exposure_s is not None else 0.5 / self.chip_rate_hz
+        return dataclasses.replace(self, row_time_s=float(row_time), exposure_s=float(exposure))
+
+
+def _positive(value, name: str) -> None:
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float))
+        or not (math.isfinite(value) and value > 0)
+    ):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")
+
+
+@dataclass(frozen=True)
+class FixtureTruth:
+    """What the camera sees of one fixture (ground truth of a rendered photo).
+
+    Attributes
+    ----------
+    id : int
+        The fixture's ID.
+    pixel : ndarray, shape (2,)
+        Projection ``[u, v]`` of the disc's centre, pixels (camera model, with distortion);
+        NaN when the centre is behind the camera.
+    in_front : bool
+        The centre is in front of the camera.
+    fully_inside : bool
+        The whole disc projects inside the image (and in front of the camera).
+    rows_spanned : float
+        Extent of the disc's image along the readout axis (sensor rows), pixels.
+    frames_spanned : float
+        ``rows_spanned * row_time / frame_period``: Manchester frames (or, in frequency mode,
+        square-wave periods) the disc's image spans.
+    phase_s : float
+        The LED's time offset, s (see the module docstring).
+    """
+
+    id: int
+    pixel: np.ndarray
+    in_front: bool
+    fully_inside: bool
+    rows_spanned: float
+    frames_spanned: float
+    phase_s: float
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (NaN pixels become None)."""
+        return {
+            "id": int(self.id),
+            "pixel": [None if not np.isfinite(x) else float(x) for x in self.pixel],
+            "in_front": bool(self.in_front),
+            "fully_inside": bool(self.fully_inside),
+            "rows_spanned": float(self.rows_spanned),
+            "frames_spanned": float(self.frames_spanned),
+            "phase_s": float(self.phase_s),
+        }
+
+
+@dataclass(frozen=True)
+class Render:
+    """A rendered photograph and its ground truth.
+
+    Attributes
+    ----------
+    image : ndarray of uint8, shape (H, W, 3)
+        The photograph, BGR (mirrored left-right for a ``mirrored`` camera).
+    pose : Pose
+        The camera's pose, map units and frame.
+    fixtures : tuple of FixtureTruth
+        One per map fixture, in map order.
+    settings : RenderSettings
+        The settings used, with ``row_time_s`` and ``exposure_s`` resolved.
+    camera : Camera or None
+        The camera rendered with.
+    """
+
+    image: np.ndarray
+    pose: Pose
+    fixtures: tuple[FixtureTruth, ...]
+    settings: RenderSettings
+    camera: Camera | None = None
+
+    def truth_dict(self) -> dict:
+        """The ground truth as a JSON-ready dict.
+
+        Keys: ``camera_position`` [x, y, z] (map units), ``rotation`` (3 x 3 camera-to-world),
+        ``euler_deg`` (the thesis' angles), ``image_size`` [w, h], ``settings``, ``fixtures``
+        (list of :meth:`FixtureTruth.to_dict`), plus ``mirrored``.
+        """
+        h, w = self.image.shape[:2]
+        settings = dataclasses.asdict(self.settings)
+        if settings["colours"] is not None:
+            settings["colours"] = [list(c) for c in settings["colours"]]
+        return {
+            "camera_position": [float(x) for x in self.pose.position],
+            "rotation": self.pose.world_from_camera.tolist(),
+            "euler_deg": [float(x) for x in self.pose.euler_deg],
+            "image_size": [int(w), int(h)],
+            "mirrored": bool(self.camera.mirrored) if self.camera is not None else False,
+            "settings": settings,
+            "fixtures": [f.to_dict() for f in self.fixtures],
+        }
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry
+
+
+def _fixture_normals(fixture_map: FixtureMap, pose: Pose) -> np.ndarray:
+    """Unit normal of each fixture's disc, shape (N, 3).
+
+    The map's normal when given; otherwise the normal of the plane through all fixture
+    centres (when they span one), signed to face the camera; otherwise the direction from
+    the fixture towards the camera.
+    """
+    centres = fixture_map.positions
+    normals = np.empty_like(centres)
+    plane_normal = None
+    if len(centres) >= 3:
+        _, s, vt = np.linalg.svd(centres - centres.mean(axis=0))
+        if s[1] > 1e-9 * max(s[0], 1e-300):
+            plane_normal = vt[2]
+    for i, f in enumerate(fixture_map.fixtures):
+        to_cam = pose.position - f.position
+        if f.normal is not None:
+            normals[i] = f.normal
+        elif plane_normal is not None:
+            normals[i] = plane_normal if plane_normal @ to_cam >= 0 else -plane_normal
+        else:
+            d = np.linalg.norm(to_cam)
+            normals[i] = to_cam / d if d > 0 else np.array([0.0, 0.0, 1.0])
+    return normals
+
+
+def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors spanning the plane with this normal."""
+    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
+    e1 = np.cross(normal, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(normal, e1)
+
+
+def _rim_points(fixture: Fixture, normal: np.ndarray, n: int = N_RIM) -> np.ndarray:
+    """Points on the disc's rim, shape (n, 3), map units (the centre for no diameter)."""
+    if fixture.diameter is None:
+        return fixture.position[None, :]
+    e1, e2 = _plane_basis(normal)
+    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    r = 0.5 * fixture.diameter
+    return fixture.position + r * (np.cos(a)[:, None] * e1 + np.sin(a)[:, None] * e2)
+
+
+def _waveform(fixture_map: FixtureMap, fixture: Fixture, chip_rate_hz: float):
+    """The LED's periodic waveform: (chips of one period, chip duration s)."""
+    if fixture_map.mode == "frequency":
+        return np.array([1, 0], dtype=np.uint8), 0.5 / float(fixture.frequency_hz)
+    return fixture_map.frame.chips(fixture.id), 1.0 / chip_rate_hz
+
+
+def _truths(
+    camera: Camera, fixture_map: FixtureMap, pose: Pose, settings: RenderSettings
+) -> tuple[tuple[FixtureTruth, ...], np.ndarray, list[np.ndarray]]:
+    """Truth per fixture, plus the normals and projected rim points used to render."""
+    s = settings.resolved(camera)
+    normals = _fixture_normals(fixture_map, pose)
+    rng = np.random.default_rng([int(s.seed), 1])
+    axis = 1 if s.readout.startswith("rows") else 0
+    truths, rims = [], []
+    w, h = camera.width, camera.height
+    field = _field_radius(camera)
+    for f, n in zip(fixture_map.fixtures, normals, strict=True):
+        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        period = chips.size * chip_s
+        phase = float(rng.uniform(0.0, period))
+        centre_px = camera.project(pose, f.position[None, :])[0]
+        in_front = bool(pose.to_camera(f.position[None, :])[0, 2] > 0)
+        rim = _rim_points(f, n)
+        rim_px, clamped = _project_within_field(camera, pose, rim, field)
+        rims.append(rim_px)
+        ok = np.all(np.isfinite(rim_px))
+        fully = bool(
+            in_front
+            and ok
+            and not np.any(clamped)
+            and np.all((rim_px[:, 0] >= -0.5) & (rim_px[:, 0] <= w - 0.5))
+            and np.all((rim_px[:, 1] >= -0.5) & (rim_px[:, 1] <= h - 0.5))
+        )
+        span = float(np.ptp(rim_px[:, axis])) if ok else float("nan")
+        truths.append(
+            FixtureTruth(
+                id=f.id,
+                pixel=centre_px,
+                in_front=in_front,
+                fully_inside=fully,
+                rows_spanned=span,
+                frames_spanned=span * s.row_time_s / period,
+                phase_s=phase,
+            )
+        )
+    return tuple(truths), normals, rims
+
+
+def _field_radius(camera: Camera) -> float:
+    """Largest normalised (undistorted) radius seen in the image: the lens model's field."""
+    if camera.dist_or_none is None:
+        return float("inf")
+    w, h = camera.width - 1.0, camera.height - 1.0
+    border = np.array(
+        [[0, 0], [w / 2, 0], [w, 0], [w, h / 2], [w, h], [w / 2, h], [0, h], [0, h / 2]]
+    )
+    return float(np.linalg.norm(camera.undistort_pixels(border), axis=1).max())
+
+
+def _project_within_field(
+    camera: Camera, pose: Pose, points_world: np.ndarray, field: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Project points, first pulling those beyond the lens model's field back onto its edge.
+
+    OpenCV's distortion polynomial folds points far outside the field of view back into the
+    image; pulling them in radially keeps them (correctly) outside or on the image border.
+
+    Returns
+    -------
+    pixels : ndarray, shape (N, 2)
+        ``[u, v]``; NaN for points behind the camera.
+    clamped : ndarray of bool, shape (N,)
+        Points that were beyond the field (so outside the image).
+    """
+    pc = pose.to_camera(points_world)
+    front = pc[:, 2] > 0
+    xy = np.full((pc.shape[0], 2), np.nan)
+    xy[front] = pc[front, :2] / pc[front, 2:3]
+    radius = np.linalg.norm(xy, axis=1)
+    clamped = front & (radius > field)
+    xy[clamped] *= (field / radius[clamped])[:, None]
+    pixels = np.full_like(xy, np.nan)
+    if np.any(front):
+        obj = np.concatenate([xy[front], np.ones((int(front.sum()), 1))], axis=1)
+        uv, _ = cv2.projectPoints(obj, np.zeros(3), np.zeros(3), camera.matrix, camera.dist_or_none)
+        pixels[front] = uv.reshape(-1, 2)
+    return pixels, clamped
+
+
+def fixture_truths(
+    camera: Camera, fixture_map: FixtureMap, pose: Pose, settings: RenderSettings | None = None
+) -> tuple[FixtureTruth, ...]:
+    """What a photo from ``pose`` would show of each fixture, without rendering it.
+
+    Parameters
+    ----------
+    camera : Camera
+    fixture_map : FixtureMap
+    pose : Pose
+        Camera pose in the map's frame and units.
+    settings : RenderSettings, optional
+        Timing (for ``frames_spanned``), readout axis and seed (for the phases); the
+        same as :func:`render` gives for the same arguments.
+
+    Returns
+    -------
+    tuple of FixtureTruth
+        One per fixture, in map order.
+    """
+    return _truths(camera, fixture_map, pose, settings or RenderSettings())[0]
+
+
+def all_fully_inside(camera: Camera, fixture_map: FixtureMap, pose: Pose) -> bool:
+    """Whether every fixture's whole disc projects inside the image, in front of the camera."""
+    return all(t.fully_inside for t in fixture_truths(camera, fixture_map, pose))
+
+
+def tilt_limit(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    position,
+    euler_deg,
+    axis: int,
+    direction: float = 1.0,
+    *,
+    step_deg: float = 0.5,
+    max_deg: float = 90.0,
+    tol_deg: float = 1e-3,
+) -> float:
+    """Largest tilt keeping every fixture fully inside the image (bisection).
+
+    The tilt is added to one of the thesis' angles: the pose is
+    ``Pose.from_euler(position, euler_deg + direction * t * e_axis)``.
+
+    Parameters
+    ----------
+    camera : Camera
+    fixture_map : FixtureMap
+    position : array_like, shape (3,)
+        Camera centre, map units.
+    euler_deg : array_like, shape (3,)
+        The untilted thesis angles, degrees; every fixture must be fully inside there.
+    axis : {0, 1, 2}
+        Which angle to tilt (theta_x, theta_y or theta_z).
+    direction : float
+        +1 or -1: the sense of the tilt.
+    step_deg, max_deg, tol_deg : float
+        Search step, largest tilt tried, and bisection tolerance, degrees.
+
+    Returns
+    -------
+    float
+        The limit in degrees (non-negative); ``max_deg`` when never left, 0 when not fully
+        inside untilted.
+    """
+    if axis not in (0, 1, 2):
+        raise ValueError(f"axis must be 0, 1 or 2, got {axis!r}")
+    base = np.asarray(euler_deg, dtype=float).reshape(3)
+    unit = np.zeros(3)
+    unit[axis] = math.copysign(1.0, direction)
+
+    def inside(t: float) -> bool:
+        return all_fully_inside(camera, fixture_map, Pose.from_euler(position, base + t * unit))
+
+    if not inside(0.0):
+        return 0.0
+    lo = 0.0
+    while lo + step_deg <= max_deg and inside(lo + step_deg):
+        lo += step_deg
+    hi = lo + step_deg
+    if hi > max_deg:
+        return max_deg
+    while hi - lo > tol_deg:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if inside(mid) else (lo, mid)
+    return lo
+
+
+# --------------------------------------------------------------------------------------------
+# Rolling shutter
+
+
+def _on_fraction(
+    chips: np.ndarray, chip_s: float, t_start: np.ndarray, exposure_s: float
+) -> np.ndarray:
+    """Fraction of each exposure window ``[t, t + exposure]`` the LED is on.
+
+    Parameters
+    ----------
+    chips : ndarray of {0, 1}, shape (N,)
+        One period of the LED's chips (1 = on), each ``chip_s`` seconds long.
+    chip_s : float
+        Chip duration, s.
+    t_start : ndarray, shape (K,)
+        Window starts, s, in the LED's own time (chip 0 starts at 0).
+    exposure_s : float
+        Window length, s.
+
+    Returns
+    -------
+    ndarray of float64, shape (K,)
+        On fractions in [0, 1].
+    """
+    c = np.asarray(chips, dtype=np.float64)
+    period = c.size * chip_s
+    knots = np.arange(c.size + 1) * chip_s
+    cumulative = np.concatenate([[0.0], np.cumsum(c) * chip_s])  # on-time up to each knot
+
+    def on_time(t: np.ndarray) -> np.ndarray:
+        cycles = np.floor(t / period)
+        return cycles * cumulative[-1] + np.interp(t - cycles * period, knots, cumulative)
+
+    t = np.asarray(t_start, dtype=np.float64)
+    return np.clip((on_time(t + exposure_s) - on_time(t)) / exposure_s, 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Rendering
+
+
+def _box(rim_px: np.ndarray, width: int, height: int, margin: int):
+    """Pixel bounding box (u0, u1, v0, v1), end-exclusive, of a projected rim; None if empty."""
+    if np.all(np.isfinite(rim_px)):
+        u0 = math.floor(rim_px[:, 0].min()) - margin
+        u1 = math.ceil(rim_px[:, 0].max()) + margin + 1
+        v0 = math.floor(rim_px[:, 1].min()) - margin
+        v1 = math.ceil(rim_px[:, 1].max()) + margin + 1
+    else:  # the disc crosses the camera's plane: search the whole image
+        u0, u1, v0, v1 = 0, width, 0, height
+    u0, v0 = max(u0, 0), max(v0, 0)
+    u1, v1 = min(u1, width), min(v1, height)
+    if u1 <= u0 or v1 <= v0:
+        return None
+    return u0, u1, v0, v1
+
+
+def _coverage(
+    camera: Camera, pose: Pose, centre: np.ndarray, normal: np.ndarray, radius: float, box
+) -> np.ndarray:
+    """Anti-aliased disc coverage over a pixel box, float32 shape (v1 - v0, u1 - u0)."""
+    u0, u1, v0, v1 = box
+    uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
+    xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
+    rays = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1) @ pose.world_from_camera.T
+    denom = rays @ normal
+    offset = (centre - pose.position) @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = offset / denom
+    valid = np.isfinite(t) & (t > 0)
+    hit = pose.position + np.where(valid, t, 0.0)[:, None] * rays
+    rho = np.linalg.norm(hit - centre, axis=1)
+    far = 1e3 * radius + 1e3 * float(np.abs(pose.position - centre).max())
+    rho = np.where(valid, rho, far).reshape(uu.shape)
+    if rho.shape[0] > 1 and rho.shape[1] > 1:
+        gv, gu = np.gradient(rho)
+        scale = np.hypot(gu, gv)
+    elif rho.size > 1:
+        scale = np.abs(np.gradient(rho.ravel())).reshape(rho.shape)
+    else:
+        scale = np.full(rho.shape, radius)
+    scale = np.maximum(scale, 1e-12 * radius)
+    cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
+    cov[~valid.reshape(uu.shape)] = 0.0
+    return cov.astype(np.float32)
+
+
+def _colours(settings: RenderSettings, n: int) -> np.ndarray:
+    if settings.colours is None:
+        return np.ones((n, 3), dtype=np.float32)
+    cols = np.asarray(settings.colours, dtype=np.float32)
+    if cols.shape[0] != n:
+        raise ValueError(f"colours must give one BGR triple per fixture ({n}), got {cols.shape[0]}")
+    return cols
+
+
+def distinct_colours(n: int) -> tuple[tuple[float, float, float], ...]:
+    """``n`` distinct, saturated BGR colours in 0..1 (the thesis' colour per fixture)."""
+    hues = (np.arange(n) * 0.618034 + 0.0) % 1.0
+    full = np.full(n, 255, np.uint8)
+    hsv = np.stack([np.round(hues * 179).astype(np.uint8), full, full], axis=1).reshape(1, n, 3)
+    bgr = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).reshape(n, 3) / 255.0
+    return tuple(tuple(float(x) for x in c) for c in bgr)
+
+
+def render(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    pose: Pose,
+    settings: RenderSettings | None = None,
+) -> Render:
+    """Render a rolling-shutter photograph of the fixtures from a camera pose.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, distortion, image size, row time, mirroring.
+    fixture_map : FixtureMap
+        The fixtures; each needs a ``diameter`` (map units).
+    pose : Pose
+        The camera's pose in the map's frame and units.
+    settings : RenderSettings, optional
+        Timing, light levels, noise, readout axis, colours, seed.
+
+    Returns
+    -------
+    Render
+        The uint8 BGR image, shape (camera.height, camera.width, 3), and the ground truth.
+
+    Raises
+    ------
+    ValueError
+        A fixture without a diameter, or colours not matching the fixtures.
+    """
+    s = (settings or RenderSettings()).resolved(camera)
+    for f in fixture_map.fixtures:
+        if f.diameter is None:
+            raise ValueError(f"fixture {f.id} has no diameter (needed to render it)")
+    colours = _colours(s, len(fixture_map.fixtures))
+    truths, normals, rims = _truths(camera, fixture_map, pose, s)
+    w, h = camera.width, camera.height
+    margin = math.ceil(4.0 * s.blur_px) + 2
+    patches = []  # (v0, v1, u0, u1, signal float32 (bh, bw, 3))
+    for f, n, rim_px, truth, colour in zip(
+        fixture_map.fixtures, normals, rims, truths, colours, strict=True
+    ):
+        if not truth.in_front or n @ (pose.position - f.position) <= 0:
+            continue  # behind the camera, or seen from the fixture's back
+        box = _box(rim_px, w, h, margin)
+        if box is None:
+            continue
+        cov = _coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
+        if s.blur_px > 0:
+            cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
+        u0, u1, v0, v1 = box
+        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        by_rows = s.readout.startswith("rows")
+        k = np.arange(v0, v1) if by_rows else np.arange(u0, u1)
+        if s.readout.endswith("-reversed"):  # sensor row 0 is the last image row (column)
+            k = (h if by_rows else w) - 1 - k
+        on = _on_fraction(chips, chip_s, k * s.row_time_s + truth.phase_s, s.exposure_s)
+        on = on.astype(np.float32)
+        lit = cov * (on[:, None] if by_rows else on[None, :]) * np.float32(s.brightness)
+        patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
+    image = _expose(patches, w, h, s)
+    if camera.mirrored:
+        image = np.ascontiguousarray(image[:, ::-1])
+    return Render(image=image, pose=pose, fixtures=truths, settings=s, camera=camera)
+
+
+def _expose(patches, width: int, height: int, s: RenderSettings) -> np.ndarray:
+    """Add ambient light and noise, clip and quantise, in chunks of rows: uint8 (H, W, 3)."""
+    out = np.empty((height, width, 3), dtype=np.uint8)
+    rng = np.random.default_rng([int(s.seed), 2])
+    shot = 1.0 / s.full_well_e if s.full_well_e > 0 else 0.0
+    read_var = float(s.read_noise) ** 2
+    for r0 in range(0, height, _ROW_CHUNK):
+        r1 = min(r0 + _ROW_CHUNK, height)
+        value = np.full((r1 - r0, width, 3), s.ambient, dtype=np.float32)
+        for v0, v1, u0, u1, sig in patches:
+            a, b = max(v0, r0), min(v1, r1)
+            if a < b:
+                value[a - r0 : b - r0, u0:u1] += sig[a - v0 : b - v0]
+        if shot > 0 or read_var > 0:
+            sigma = value * np.float32(shot)
+            sigma += np.float32(read_var)
+            np.sqrt(sigma, out=sigma)
+            noise = rng.standard_normal(value.shape, dtype=np.float32)
+            noise *= sigma
+            value += noise
+        np.clip(value, 0.0, 1.0, out=value)
+        value *= np.float32(255.0)
+        np.rint(value, out=value)
+        out[r0:r1] = value.astype(np.uint8)
+    return out
+
+
+def save_render(result: Render, out_path, *, jpeg_quality: int = 95) -> Path:
+    """Write a rendered photo and, beside it, ``<stem>.json`` with its ground truth.
+
+    Parameters
+    ----------
+    result : Render
+    out_path : str or Path
+        Image path; the suffix (``.png``, ``.jpg``, ``.jpeg``) picks the format.
+    jpeg_quality : int
+        JPEG quality, 1 to 100.
+
+    Returns
+    -------
+    Path
+        The JSON file's path.
+
+    Raises
+    ------
+    ValueError
+        Unknown suffix, bad quality, or the files cannot be written (naming the path).
+    """
+    p = Path(out_path)
+    suffix = p.suffix.lower()
+    if suffix not in IMAGE_SUFFIXES:
+        raise ValueError(
+            f"output image must end in {', '.join(IMAGE_SUFFIXES)}, got {p.suffix or 'no suffix'!r}"
+            f" ({p})"
+        )
+    if isinstance(jpeg_quality, bool) or not 1 <= int(jpeg_quality) <= 100:
+        raise ValueError(f"jpeg_quality must be from 1 to 100, got {jpeg_quality!r}")
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if suffix != ".png" else []
+    ok, buf = cv2.imencode(suffix, result.image, params)
+    if not ok:
+        raise ValueError(f"cannot encode the image as {suffix} ({p})")
+    json_path = p.with_suffix(".json")
+    try:
+        p.write_bytes(buf.tobytes())
+        json_path.write_text(json.dumps(result.truth_dict(), indent=2) + "\n")
+    except OSError as exc:
+        what = exc.strerror or exc.__class__.__name__
+        raise ValueError(f"cannot write output: {what} ({p})") from None
+    return json_path

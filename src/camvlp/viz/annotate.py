@@ -1,0 +1,175 @@
+"""Pictures of a locate run: the annotated photo and one debug picture per stage."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.decode import find_runs, stripe_threshold
+
+__all__ = ["annotate", "write_debug_pictures"]
+
+_GREEN, _RED, _CYAN, _YELLOW, _WHITE = (
+    (60, 220, 60),
+    (60, 60, 255),
+    (255, 220, 0),
+    (0, 220, 255),
+    (255, 255, 255),
+)
+
+
+def annotate(image: np.ndarray, result, camera: Camera, fixture_map: FixtureMap) -> np.ndarray:
+    """Draw a locate result on a copy of the photo.
+
+    Green discs are fixtures used for the pose, red ones are not (with their reason); cyan
+    crosses are the map's fixtures reprojected with the found pose; the position is written
+    in the top-left corner.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3) or (H, W)
+        The photo as given to :func:`camvlp.locate`.
+    result : LocateResult
+    camera : Camera
+    fixture_map : FixtureMap
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+        BGR picture.
+    """
+    out = image.copy()
+    if out.ndim == 2:
+        out = cv2.cvtColor(out, cv2.COLOR_GRAY2BGR)
+    if out.dtype != np.uint8:
+        out = (out >> 8).astype(np.uint8) if out.dtype == np.uint16 else out.astype(np.uint8)
+    h, w = out.shape[:2]
+    scale = max(1.0, max(h, w) / 1500.0)
+    thick = max(1, round(2 * scale))
+    font = 0.6 * scale
+    for f in result.fixtures:
+        colour = _GREEN if f.used else _RED
+        u, v = (round(c) for c in f.pixel)
+        radius = round(0.5 * f.rows_spanned) if np.isfinite(f.rows_spanned) else 20
+        cv2.circle(out, (u, v), max(radius, 6), colour, thick, cv2.LINE_AA)
+        label = f"ID {f.id}" if f.id is not None else "?"
+        if not f.used and f.reason:
+            label += f": {f.reason[:48]}"
+        (tw, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick)
+        x = u + max(radius, 6) + 4
+        if x + tw > w:  # no room on the right: write it on the left of the disc
+            x = max(0, u - max(radius, 6) - 4 - tw)
+        cv2.putText(
+            out,
+            label,
+            (x, v),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            font,
+            colour,
+            thick,
+            cv2.LINE_AA,
+        )
+    pose = result.pose
+    if pose is not None:
+        uv = camera.project(pose, fixture_map.positions)
+        if result.mirrored:
+            uv[:, 0] = w - 1 - uv[:, 0]
+        for (u, v), fid in zip(uv, fixture_map.ids, strict=True):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            p = (round(u), round(v))
+            cv2.drawMarker(out, p, _CYAN, cv2.MARKER_CROSS, int(24 * scale), thick, cv2.LINE_AA)
+            cv2.putText(
+                out,
+                str(fid),
+                (p[0] + 6, p[1] + int(28 * scale)),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.8 * font,
+                _CYAN,
+                thick,
+                cv2.LINE_AA,
+            )
+        x, y, z = result.position
+        lines = [
+            f"position ({x:.3f}, {y:.3f}, {z:.3f}) {fixture_map.units}",
+            "angles ({:.1f}, {:.1f}, {:.1f}) deg".format(*result.euler_deg),
+            f"reprojection {result.reprojection_rms_px:.2f} px RMS",
+        ]
+    else:
+        lines = [f"not located: {result.error}"]
+    y0 = int(40 * scale)
+    for i, text in enumerate(lines):
+        org = (int(20 * scale), y0 + int(i * 34 * scale))
+        cv2.putText(
+            out, text, org, cv2.FONT_HERSHEY_SIMPLEX, font * 1.2, (0, 0, 0), thick + 3, cv2.LINE_AA
+        )
+        cv2.putText(
+            out, text, org, cv2.FONT_HERSHEY_SIMPLEX, font * 1.2, _YELLOW, thick, cv2.LINE_AA
+        )
+    return out
+
+
+def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages) -> list[Path]:
+    """Write one picture per stage into ``out_dir``.
+
+    * ``1_candidates.png``: the reduced image's closed candidate mask;
+    * ``2_fixture_<k>.png``: each fixture's region of interest beside its disc mask;
+    * ``3_profiles.png``: each fixture's row profile, threshold and chips read.
+
+    Returns the paths written.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    p = out / "1_candidates.png"
+    cv2.imwrite(str(p), stages.detection.candidate_mask)
+    written.append(p)
+    blobs = stages.detection.blobs
+    for k, (b, g) in enumerate(zip(blobs, stages.gray_rois, strict=True)):
+        m = b.mask.astype(np.uint8) * 255
+        pair = np.hstack([g, np.full((g.shape[0], 4), 128, np.uint8), m])
+        p = out / f"2_fixture_{k}.png"
+        cv2.imwrite(str(p), pair)
+        written.append(p)
+    if blobs:
+        fig, axes = plt.subplots(len(blobs), 1, figsize=(10, 2.2 * len(blobs)), squeeze=False)
+        for k, (prof, dec, fr) in enumerate(
+            zip(stages.profiles, stages.decodes, result.fixtures, strict=True)
+        ):
+            ax = axes[k, 0]
+            ax.plot(prof, ".-", lw=0.8, ms=2, color="0.2")
+            if prof.size >= 8:
+                runs = find_runs(prof, stripe_threshold(prof))
+                ax.axhline(runs.threshold, color="tab:orange", lw=0.8, label="threshold")
+                for e in runs.edges:
+                    ax.axvline(e, color="tab:blue", lw=0.4, alpha=0.5)
+            title = f"fixture {k} at ({fr.pixel[0]:.0f}, {fr.pixel[1]:.0f}): "
+            title += f"ID {dec.id}" if dec.id is not None else f"no ID ({dec.reason})"
+            if np.isfinite(dec.rows_per_chip):
+                title += f", {dec.rows_per_chip:.2f} rows/chip, bleed {dec.bleed_rows:.2f} rows"
+            ax.set_title(title, fontsize=9, loc="left")
+            ax.text(
+                0.0,
+                -0.42,
+                f"chips {dec.chips}",
+                transform=ax.transAxes,
+                fontsize=7,
+                family="monospace",
+            )
+            ax.set_ylabel("mean gray")
+        axes[-1, 0].set_xlabel(f"sensor row across the disc ({result.readout} readout)")
+        fig.tight_layout()
+        p = out / "3_profiles.png"
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+    return written

@@ -1,0 +1,95 @@
+"""Tests of ``camvlp render``: files written, the truth JSON, and one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from camvlp.cli import app
+from camvlp.io import save_camera
+from camvlp.model.camera import Camera
+from conftest import one_error_line
+
+runner = CliRunner()
+
+
+@pytest.fixture
+def small_camera_path(tmp_path):
+    """A 640 x 480 camera (f = 500 px) that sees the thesis' four fixtures from the floor."""
+    path = tmp_path / "cam.yaml"
+    save_camera(Camera.from_focal(640, 480, 500.0, row_time_s=20e-6), path)
+    return path
+
+
+def run(camera, room, out, *extra):
+    args = ["render", "--camera", str(camera), "--map", str(room), "--position", "0,0,0",
+            "--euler", "90,0,0", "--out", str(out), *extra]
+    return runner.invoke(app, args)
+
+
+
+
+@pytest.mark.parametrize("suffix", [".png", ".jpg"])
+def test_render_writes_image_and_truth(tmp_path, small_camera_path, thesis_room_path, suffix):
+    out = tmp_path / f"photo{suffix}"
+    result = run(small_camera_path, thesis_room_path, out, "--seed", "3", "--quality", "90")
+    assert result.exit_code == 0, result.output
+    image = cv2.imread(str(out))
+    assert image.shape == (480, 640, 3)
+    truth = json.loads((tmp_path / "photo.json").read_text())
+    for key in ("camera_position", "rotation", "euler_deg", "image_size", "settings", "fixtures"):
+        assert key in truth
+    assert truth["image_size"] == [640, 480]
+    assert truth["camera_position"] == [0, 0, 0]
+    assert truth["euler_deg"] == pytest.approx([90, 0, 0])
+    assert truth["settings"]["seed"] == 3
+    assert [f["id"] for f in truth["fixtures"]] == [5, 6, 9, 10]
+    for f in truth["fixtures"]:
+        assert set(f) >= {"id", "pixel", "in_front", "fully_inside", "rows_spanned",
+                          "frames_spanned", "phase_s"}
+        assert f["fully_inside"] is True
+        u, v = np.round(f["pixel"]).astype(int)
+        assert image[v - 2 : v + 3, u - 2 : u + 3].max() > 128  # a lit fixture there
+    assert "photo.json" in result.stdout
+    assert result.stdout.count("fixture") == 4
+
+
+def test_render_options_reach_the_settings(tmp_path, small_camera_path, thesis_room_path):
+    out = tmp_path / "p.png"
+    result = run(small_camera_path, thesis_room_path, out, "--chip-rate", "5000",
+                 "--row-time", "1e-5", "--exposure", "3e-5", "--brightness", "2",
+                 "--ambient", "0", "--blur", "0", "--noise", "0", "--readout", "columns",
+                 "--colour")
+    assert result.exit_code == 0, result.output
+    s = json.loads((tmp_path / "p.json").read_text())["settings"]
+    assert (s["chip_rate_hz"], s["row_time_s"], s["exposure_s"]) == (5000, 1e-5, 3e-5)
+    assert (s["brightness"], s["ambient"], s["blur_px"]) == (2, 0, 0)
+    assert (s["full_well_e"], s["read_noise"], s["readout"]) == (0, 0, "columns")
+    assert len(s["colours"]) == 4 and len({tuple(c) for c in s["colours"]}) == 4
+    image = cv2.imread(str(out))
+    assert image[:40].max() == 0  # no ambient, no noise: black away from the fixtures
+
+
+def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_path):
+    bad_map = tmp_path / "bad.yaml"
+    bad_map.write_text("fixtures: [ {id: 5, position: [0, 1]\n")
+    cases = [
+        (tmp_path / "missing.yaml", thesis_room_path, "p.png", [], "missing.yaml"),
+        (small_camera_path, bad_map, "p.png", [], "bad.yaml"),
+        (small_camera_path, thesis_room_path, "p.gif", [], ".gif"),
+        (small_camera_path, thesis_room_path, "p.png", ["--exposure", "abc"], "--exposure"),
+        (small_camera_path, thesis_room_path, "p.png", ["--chip-rate", "-5"], "--chip-rate"),
+        (small_camera_path, thesis_room_path, "p.png", ["--seed", "1.5"], "--seed"),
+        (small_camera_path, thesis_room_path, "p.png", ["--position", "0,0"], "--position"),
+        (small_camera_path, thesis_room_path, "p.png", ["--euler", "-90,0,0"], "behind"),
+        (small_camera_path, thesis_room_path, "nodir/p.png", [], "nodir"),
+    ]
+    for camera, room, out, extra, needle in cases:
+        result = run(camera, room, tmp_path / out, *extra)
+        assert result.exit_code == 2, (needle, result.output)
+        assert needle in one_error_line(result)
+    assert not list(tmp_path.glob("p.*"))

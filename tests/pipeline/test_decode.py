@@ -1,0 +1,206 @@
+"""Tests of the decoding stage on synthetic row profiles built from the frame's chips.
+
+A profile is made the way a rolling-shutter sensor makes it: the LED's chip stream is
+sampled finely in time, bright runs are widened by the bleeding of a saturated sensor, each
+row averages its own stretch of time (so edges fall between rows), then optical blur and
+noise are added.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter1d, maximum_filter1d
+
+from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline.decode import decode_profile, find_runs, row_profile
+
+FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
+SUB = 20  # time samples per row
+
+
+def synth_profile(
+    chips: np.ndarray,
+    n_rows: int,
+    rows_per_chip: float,
+    phase_chips: float = 0.0,
+    *,
+    bleed_rows: float = 0.0,
+    blur_rows: float = 0.0,
+    noise: float = 0.0,
+    rng: np.random.Generator | None = None,
+    repeat: bool = True,
+    dark: float = 20.0,
+    bright: float = 220.0,
+) -> np.ndarray:
+    """Row profile of a chip stream (1 = on) seen ``rows_per_chip`` rows per chip.
+
+    ``phase_chips`` is the chip (fractional) at the top of row 0; ``bleed_rows`` widens each
+    bright run by that many rows (half on each side); ``repeat`` repeats the chips cyclically,
+    else the stream is ``chips`` once (held at its ends).
+    """
+    t = (np.arange(n_rows * SUB) + 0.5) / SUB  # rows
+    k = np.floor(t / rows_per_chip + phase_chips).astype(int)
+    k = k % chips.size if repeat else np.clip(k, 0, chips.size - 1)
+    on = chips[k].astype(float)
+    widen = round(bleed_rows * SUB)
+    if widen > 0:
+        on = maximum_filter1d(on, size=widen + 1)
+    row = on.reshape(n_rows, SUB).mean(axis=1)
+    if blur_rows > 0:
+        row = gaussian_filter1d(row, blur_rows, mode="nearest")
+    p = dark + (bright - dark) * row
+    if noise > 0:
+        p = p + noise * rng.standard_normal(p.size)
+    return p
+
+
+def random_case(rng: np.random.Generator) -> dict:
+    """Random decodable conditions: 3-8 rows per chip, 1.2-2.5 frames, bleeding, blur, noise."""
+    rpc = rng.uniform(3.0, 8.0)
+    frames = rng.uniform(1.2, 2.5)
+    return dict(
+        n_rows=int(frames * FRAME.n_chips * rpc),
+        rows_per_chip=rpc,
+        phase_chips=rng.uniform(0.0, FRAME.n_chips),
+        bleed_rows=rng.uniform(0.0, 0.4 * rpc),
+        blur_rows=rng.uniform(0.0, 0.8),
+        noise=rng.uniform(0.0, 4.0),
+    )
+
+
+@pytest.mark.parametrize("fid", range(16))
+def test_every_id_decodes_under_bleeding_blur_and_noise(fid):
+    rng = np.random.default_rng(1000 + fid)
+    for _ in range(25):
+        case = random_case(rng)
+        p = synth_profile(FRAME.chips(fid), rng=rng, **case)
+        dec = decode_profile(p, FRAME)
+        assert dec.id == fid, (case, dec)
+        assert bool(dec)
+        assert dec.reason == ""
+        assert dec.rows_per_chip == pytest.approx(case["rows_per_chip"], rel=0.02)
+        assert 0.0 <= dec.margin <= 1.0
+        assert dec.frames >= 1.0
+
+
+def test_never_a_wrong_id_when_the_profile_is_too_short_or_too_noisy():
+    """Beyond the limits (less than 1.2 frames, heavy noise) an ID may be missing, never wrong."""
+    rng = np.random.default_rng(7)
+    missing = 0
+    for fid in range(16):
+        for _ in range(12):
+            case = random_case(rng)
+            case["n_rows"] = int(rng.uniform(0.9, 1.2) * FRAME.n_chips * case["rows_per_chip"])
+            case["noise"] = rng.uniform(0.0, 25.0)
+            dec = decode_profile(synth_profile(FRAME.chips(fid), rng=rng, **case), FRAME)
+            assert dec.id in (None, fid), (fid, case, dec)
+            if dec.id is None:
+                missing += 1
+                assert dec.reason
+    assert missing < 16 * 12  # the test exercises decoding, not only refusals
+
+
+def test_exact_chip_length_and_no_bleeding_on_a_clean_profile():
+    p = synth_profile(FRAME.chips(9), 200, 5.0, 0.0)
+    dec = decode_profile(p, FRAME)
+    assert dec.id == 9
+    assert dec.hamming == 0
+    assert dec.rows_per_chip == pytest.approx(5.0, rel=1e-3)
+    assert abs(dec.bleed_rows) < 0.3  # the threshold above half trims bright runs a little
+    assert dec.margin > 0.9
+
+
+def test_bleeding_is_measured():
+    for widen in (1.0, 2.0, 3.0):
+        p = synth_profile(FRAME.chips(6), 220, 6.0, 3.3, bleed_rows=widen)
+        dec = decode_profile(p, FRAME)
+        assert dec.id == 6
+        # bright runs ``widen`` rows longer than their chips, dark ones as much shorter
+        assert dec.bleed_rows == pytest.approx(widen, abs=0.35)
+
+
+def test_known_chip_length_is_used():
+    p = synth_profile(FRAME.chips(3), 180, 4.4, 1.7, bleed_rows=1.0)
+    dec = decode_profile(p, FRAME, rows_per_chip=4.4)
+    assert dec.id == 3
+    assert dec.rows_per_chip == 4.4
+
+
+def test_steady_light_gives_no_id_with_a_reason():
+    rng = np.random.default_rng(2)
+    steady = 200.0 + 2.0 * rng.standard_normal(150)
+    dec = decode_profile(steady, FRAME)
+    assert dec.id is None and not dec
+    assert "stripes" in dec.reason
+
+
+def test_less_than_one_frame_gives_no_id_with_a_reason():
+    rng = np.random.default_rng(3)
+    for fid in range(16):
+        rpc = rng.uniform(3.0, 8.0)
+        p = synth_profile(FRAME.chips(fid), int(0.8 * FRAME.n_chips * rpc), rpc,
+                          rng.uniform(0, FRAME.n_chips))
+        dec = decode_profile(p, FRAME)
+        assert dec.id is None, (fid, dec)
+        assert dec.reason
+        assert dec.frames < 1.0
+
+
+def test_tiny_profile_gives_no_id():
+    dec = decode_profile(np.array([10.0, 200, 10, 200, 10]), FRAME)
+    assert dec.id is None
+    assert "rows" in dec.reason
+
+
+@pytest.mark.parametrize("a", range(16))
+def test_copies_that_disagree_are_refused(a):
+    """A profile whose first frame is ID a and second frame ID b gives no ID."""
+    rng = np.random.default_rng(50 + a)
+    for b in range(16):
+        if b == a:
+            continue
+        rpc = rng.uniform(3.0, 8.0)
+        chips = np.concatenate([FRAME.chips(a), FRAME.chips(b)])
+        p = synth_profile(chips, int(2 * FRAME.n_chips * rpc) - 1, rpc, 0.0, repeat=False,
+                          bleed_rows=rng.uniform(0, 0.3 * rpc), noise=2.0, rng=rng)
+        dec = decode_profile(p, FRAME)
+        assert dec.id is None, (a, b, dec)
+        assert dec.reason
+
+
+def test_other_frame_formats_decode():
+    frame = FrameFormat("1111", 5, "000")
+    rng = np.random.default_rng(4)
+    for fid in rng.choice(frame.n_ids, 8, replace=False):
+        case = random_case(rng)
+        case["n_rows"] = int(1.5 * frame.n_chips * case["rows_per_chip"])
+        dec = decode_profile(synth_profile(frame.chips(int(fid)), rng=rng, **case), frame)
+        assert dec.id == fid
+
+
+def test_find_runs_locates_edges_between_rows():
+    # a bright run from 10.25 to 20.75 rows (exact area sampling), threshold half-way
+    p = synth_profile(np.array([0, 1, 0]), 32, 10.5, 1.0 - 10.25 / 10.5, repeat=False)
+    runs = find_runs(p, 120.0)
+    assert runs.edges.size == 2
+    assert runs.rising.tolist() == [True, False]
+    assert runs.bright.tolist() == [False, True, False]
+    # edge positions in row-centre coordinates (row k covers [k - 0.5, k + 0.5]), to a
+    # fraction of a row (linear interpolation between row centres)
+    assert runs.edges == pytest.approx([10.25 - 0.5, 20.75 - 0.5], abs=0.2)
+    assert runs.lengths.sum() == pytest.approx(p.size)
+
+
+def test_row_profile_rows_and_columns():
+    rng = np.random.default_rng(5)
+    values = rng.uniform(0, 255, 40)
+    yy, xx = np.mgrid[:40, :40]
+    disc = (yy - 19.5) ** 2 + (xx - 19.5) ** 2 <= 18.0**2
+    striped = np.where(disc, values[:, None], 0.0)
+    prof, first = row_profile(striped, disc, "rows")
+    assert first > 0 and prof.size < 40
+    assert prof == pytest.approx(values[first : first + prof.size])
+    prof_t, first_t = row_profile(striped.T, disc.T, "columns")
+    assert first_t == first
+    assert prof_t == pytest.approx(prof)

@@ -1,0 +1,187 @@
+"""Tests of the detection stage on simulated photographs of the small test room.
+
+The known answers are the simulator's: each fixture's projected centre, whether its whole
+disc is inside the image, and the readout axis it was rendered with.  For a tilted camera
+the centre of a disc's image (an ellipse) is not the projection of the disc's centre; the
+expected centre is then the centre of an ellipse fitted to the projected rim.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camvlp.model.camera import Pose
+from camvlp.pipeline.detect import detect_fixtures, to_gray
+from camvlp.sim.render import render
+from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
+
+# (position, thesis angles, readout, exposure s or None for half a chip, seed)
+FACING_UP = {
+    "rows": ((0.0, 0.0, 0.0), LOOK_UP, "rows", None, 1),
+    "columns-roll73": ((0.1, 0.0, 0.2), (90.0, 0.0, 73.0), "columns", None, 2),
+    "rows-roll200-long-exposure": ((0.0, 0.0, 0.0), (90.0, 0.0, 200.0), "rows", 1e-4, 3),
+    "columns-roll300-short-exposure": ((0.0, 0.0, 0.0), (90.0, 0.0, 300.0), "columns", 1e-5, 4),
+    "rows-1m-up": ((0.0, -1.0, 0.0), LOOK_UP, "rows", None, 7),
+}
+TILTED = {
+    "rows": ((0.1, 0.0, -0.2), (96.0, -5.0, 20.0), "rows", None, 5),
+    "columns": ((-0.1, 0.0, 0.1), (85.0, 4.0, 160.0), "columns", None, 6),
+}
+
+
+def render_case(camera, room, case):
+    position, euler, readout, exposure, seed = case
+    pose = Pose.from_euler(position, euler)
+    return render(camera, room, pose, small_settings(readout=readout, exposure_s=exposure,
+                                                      seed=seed))
+
+
+@pytest.fixture(scope="module")
+def facing_up(small_camera, small_room):
+    return {k: render_case(small_camera, small_room, c) for k, c in FACING_UP.items()}
+
+
+@pytest.fixture(scope="module")
+def tilted(small_camera, small_room):
+    return {k: render_case(small_camera, small_room, c) for k, c in TILTED.items()}
+
+
+def ellipse_centre(camera, pose, fixture) -> np.ndarray:
+    """Centre of the ellipse through the fixture's projected rim, pixels."""
+    n = fixture.normal
+    a = np.cross(n, [1.0, 0.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    t = np.linspace(0.0, 2 * np.pi, 720, endpoint=False)
+    rim = fixture.position + 0.5 * fixture.diameter * (
+        np.cos(t)[:, None] * a + np.sin(t)[:, None] * b
+    )
+    (cx, cy), _, _ = cv2.fitEllipse(camera.project(pose, rim).astype(np.float32))
+    return np.array([cx, cy])
+
+
+def match(blobs, pixel, radius_px) -> list:
+    """The blobs whose centre is within ``radius_px`` of ``pixel``."""
+    return [b for b in blobs if np.hypot(*(b.pixel - pixel)) < radius_px]
+
+
+def radius_px(camera, distance_m) -> float:
+    return 0.5 * SMALL_DIAMETER / distance_m * camera.focal_px
+
+
+@pytest.mark.parametrize("name", list(FACING_UP))
+def test_every_fixture_found_once_at_its_centre(name, facing_up, small_camera):
+    r = facing_up[name]
+    readout = FACING_UP[name][2]
+    distance = 2.7 + r.pose.position[1]  # the ceiling is at y = -2.7 m
+    radius = radius_px(small_camera, distance)
+    det = detect_fixtures(r.image)
+    assert all(t.fully_inside for t in r.fixtures)  # the scene is as intended
+    assert len(det.blobs) == len(r.fixtures)
+    for t in r.fixtures:
+        found = match(det.blobs, t.pixel, radius)
+        assert len(found) == 1, t.id
+        b = found[0]
+        assert np.hypot(*(b.pixel - t.pixel)) < 0.3, (t.id, b.pixel, t.pixel)
+        assert b.axis == readout
+        assert b.stripe_contrast > 2.0
+        assert not b.touches_border, t.id
+        # the diameter; a saturated disc's blurred rim reaches about a pixel further out
+        assert b.axes_px == pytest.approx([2 * radius + 1.5, 2 * radius + 1.5], abs=1.5)
+        # the mask is the disc with its stripes filled: its area is the disc's
+        assert b.mask.sum() == pytest.approx(np.pi * radius**2, rel=0.05)
+        x0, y0, x1, y1 = b.box
+        assert b.mask.shape == (y1 - y0, x1 - x0)
+        assert x0 <= t.pixel[0] < x1 and y0 <= t.pixel[1] < y1
+
+
+@pytest.mark.parametrize("name", list(TILTED))
+def test_tilted_view_centre_is_the_ellipse_centre(name, tilted, small_camera, small_room):
+    r = tilted[name]
+    det = detect_fixtures(r.image)
+    checked = 0
+    for t, f in zip(r.fixtures, small_room.fixtures, strict=True):
+        if not t.fully_inside:
+            continue
+        found = match(det.blobs, t.pixel, 40.0)
+        assert len(found) == 1, t.id
+        centre = ellipse_centre(small_camera, r.pose, f)
+        offset = np.hypot(*(centre - t.pixel))  # what perspective explains
+        assert np.hypot(*(found[0].pixel - centre)) < 0.3
+        assert np.hypot(*(found[0].pixel - t.pixel)) < 0.3 + offset
+        assert found[0].axis == TILTED[name][2]
+        checked += 1
+    assert checked >= 4
+
+
+def test_disc_cut_by_the_border_is_flagged(small_camera, small_room):
+    # 0.85 m to the side: the two fixtures at x = -0.8 m are cut by the image's edge
+    pose = Pose.from_euler([0.85, 0.0, 0.0], LOOK_UP)
+    r = render(small_camera, small_room, pose, small_settings(seed=9))
+    det = detect_fixtures(r.image)
+    cut = [t for t in r.fixtures if not t.fully_inside]
+    assert len(cut) == 2
+    for t in r.fixtures:
+        inside_image = 0 <= t.pixel[0] <= small_camera.width - 1
+        assert inside_image  # every centre is in the picture
+        found = match(det.blobs, t.pixel, radius_px(small_camera, 2.7))
+        assert len(found) == 1, t.id
+        assert found[0].touches_border == (not t.fully_inside), t.id
+
+
+def test_fully_inside_disc_near_the_border_is_not_flagged(facing_up, small_camera):
+    """From 1 m up the corner discs end a few pixels from the image's edge."""
+    r = facing_up["rows-1m-up"]
+    radius = radius_px(small_camera, 1.7)
+    gaps = [
+        min(t.pixel[0] - radius, small_camera.width - 1 - t.pixel[0] - radius,
+            t.pixel[1] - radius, small_camera.height - 1 - t.pixel[1] - radius)
+        for t in r.fixtures
+    ]
+    assert 2.0 < min(gaps) < 20.0  # the scene is as intended
+    det = detect_fixtures(r.image)
+    assert not any(b.touches_border for b in det.blobs)
+
+
+@pytest.mark.parametrize("readout", ["rows", "columns"])
+def test_given_readout_is_used(facing_up, readout):
+    det = detect_fixtures(facing_up["rows"].image, readout=readout)
+    assert {b.axis for b in det.blobs} == {readout}
+
+
+def test_black_image_has_no_blobs():
+    det = detect_fixtures(np.zeros((960, 1280, 3), np.uint8))
+    assert det.blobs == ()
+
+
+def test_noise_without_lights_has_no_blobs(small_camera, small_room):
+    # looking at the floor: no fixture in view, only ambient light and sensor noise
+    r = render(small_camera, small_room, Pose.from_euler([0, 0, 0], (-90.0, 0.0, 0.0)),
+               small_settings(seed=3))
+    assert r.image.max() > 0
+    assert detect_fixtures(r.image).blobs == ()
+
+
+def test_gray_and_16_bit_input(facing_up):
+    r = facing_up["rows"]
+    colour = detect_fixtures(r.image)
+    gray8 = cv2.cvtColor(r.image, cv2.COLOR_BGR2GRAY)
+    gray16 = gray8.astype(np.uint16) * 257
+    assert to_gray(gray16).dtype == np.uint8
+    assert np.array_equal(to_gray(gray16), gray8)
+    for img in (gray8, gray16, r.image.astype(np.uint16) * 257):
+        det = detect_fixtures(img)
+        assert len(det.blobs) == len(colour.blobs)
+        for a, b in zip(det.blobs, colour.blobs, strict=True):
+            assert np.hypot(*(a.pixel - b.pixel)) < 0.05
+    for t in r.fixtures:
+        assert len(match(detect_fixtures(gray16).blobs, t.pixel, 0.3)) == 1
+
+
+def test_bad_arguments_raise_value_error():
+    with pytest.raises(ValueError, match="readout"):
+        detect_fixtures(np.zeros((20, 20), np.uint8), readout="diagonal")
+    with pytest.raises(ValueError, match="8 x 8"):
+        detect_fixtures(np.zeros((4, 20), np.uint8))

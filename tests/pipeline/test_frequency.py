@@ -1,0 +1,162 @@
+"""Frequency-coded fixtures: assignment of stripe periods, and locate on synthetic renders."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from camvlp.locate import LocateSettings, locate
+
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.frequency import assign_frequencies
+from camvlp.sim.render import RenderSettings, render
+
+ROW_TIME_S = 26.5e-6
+FREQS_HZ = (2500.0, 3000.0, 3500.0, 4000.0, 4500.0)
+XZ = ((0.8, 0.6), (-0.8, 0.6), (-0.8, -0.6), (0.8, -0.6), (0.0, 0.0))
+
+
+def _room(freqs=FREQS_HZ, diameter=0.3, normal=(0.0, 1.0, 0.0)) -> FixtureMap:
+    """Five frequency-coded discs on the ceiling (y = -2.7 m), facing down (+y)."""
+    return FixtureMap(
+        tuple(
+            Fixture(i + 1, np.array([x, -2.7, z]), diameter, np.array(normal), frequency_hz=f)
+            for i, ((x, z), f) in enumerate(zip(XZ, freqs, strict=True))
+        ),
+        mode="frequency",
+    )
+
+
+def _camera(**kw) -> Camera:
+    kw.setdefault("row_time_s", ROW_TIME_S)
+    return Camera.from_focal(1280, 960, 1000.0, **kw)
+
+
+POSES = [
+    Pose.from_euler([0.05, 0.0, -0.1], [90.0, 0.0, 0.0]),
+    Pose.from_euler([-0.1, 0.0, 0.08], [93.0, -4.0, 37.0]),
+    Pose.from_euler([0.0, -0.6, 0.0], [88.0, 2.0, 200.0]),
+]
+
+
+def _settings(seed: int, readout: str = "rows") -> RenderSettings:
+    return RenderSettings(row_time_s=ROW_TIME_S, exposure_s=40e-6, seed=seed, readout=readout)
+
+
+@pytest.mark.parametrize("k", range(len(POSES)))
+def test_frequency_room_is_located_with_known_row_time(k):
+    camera, room = _camera(), _room()
+    pose = POSES[k]
+    photo = render(camera, room, pose, _settings(seed=10 + k))
+    res = locate(photo.image, camera, room)
+    assert res, res.error
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
+    truth = {t.id: t for t in photo.fixtures}
+    assert sorted(f.id for f in res.fixtures) == [1, 2, 3, 4, 5]
+    for f in res.fixtures:
+        # the right light, at the right place, with its frequency within 1 %
+        assert np.hypot(*(f.pixel - truth[f.id].pixel)) < 1.0
+        assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.01)
+        assert f.used
+    assert not res.notes
+
+
+def test_row_time_fitted_from_ratios_when_the_camera_file_has_none():
+    camera, room = _camera(row_time_s=None), _room()
+    pose = POSES[1]
+    photo = render(_camera(), room, pose, _settings(seed=3))
+    res = locate(photo.image, camera, room)
+    assert res, res.error
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
+    assert any("ratios" in n for n in res.notes)
+    for f in res.fixtures:
+        assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.01)
+
+
+def test_portrait_photo_with_vertical_stripes():
+    camera, room = _camera(), _room()
+    pose = POSES[0]
+    photo = render(camera, room, pose, _settings(seed=4, readout="columns"))
+    res = locate(photo.image, camera, room)
+    assert res, res.error
+    assert res.readout == "columns"
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
+
+
+def _match_truth(photo, res) -> dict:
+    """The detected fixture nearest each true fixture, by true ID."""
+    return {
+        t.id: min(res.fixtures, key=lambda f: np.hypot(*(f.pixel - t.pixel)))
+        for t in photo.fixtures
+    }
+
+
+def test_frequencies_too_close_to_tell_apart_are_not_guessed():
+    # two map frequencies 0.2 % apart, closer than the measurement can resolve: the lights
+    # blinking at them must stay unidentified, never swapped
+    freqs = (2500.0, 3000.0, 3500.0, 4000.0, 4008.0)
+    camera, room = _camera(), _room(freqs)
+    photo = render(camera, room, POSES[0], _settings(seed=5))
+    res = locate(photo.image, camera, room)
+    found = _match_truth(photo, res)
+    assert found[4].id is None and found[5].id is None
+    assert "accepted here" in found[5].reason or "lights measure" in found[5].reason
+    for i in (1, 2, 3):
+        assert found[i].id == i
+    assert not res  # three identified fixtures are not enough
+    assert res.position is None
+
+
+def test_frequencies_one_percent_apart_are_told_apart_over_many_periods():
+    # 1 % apart, each light spanning about 12 periods (measured to better than 0.1 %)
+    freqs = (2500.0, 3000.0, 3500.0, 4000.0, 4040.0)
+    camera, room = _camera(), _room(freqs)
+    photo = render(camera, room, POSES[0], _settings(seed=5))
+    res = locate(photo.image, camera, room)
+    found = _match_truth(photo, res)
+    assert {i: f.id for i, f in found.items()} == {1: 1, 2: 2, 3: 3, 4: 4, 5: 5}
+    assert res, res.error
+
+
+def test_assign_frequencies_rules():
+    room = _room()
+    rt = ROW_TIME_S
+    periods = 1.0 / (np.array([2510.0, 3490.0, 9000.0, np.nan]) * rt)
+    fa = assign_frequencies(periods, room, rt)
+    assert fa.ids[:2] == (1, 3)
+    assert fa.ids[2] is None and "9000 Hz" in fa.reasons[2]
+    assert fa.ids[3] is None and fa.reasons[3]
+    # two lights measuring the same frequency: neither is trusted
+    fa = assign_frequencies(1.0 / (np.array([3000.0, 3010.0]) * rt), room, rt)
+    assert fa.ids == (None, None)
+    assert all("2 lights" in r for r in fa.reasons)
+    with pytest.raises(ValueError, match="frequency mode"):
+        assign_frequencies([10.0], dataclasses.replace(room, mode="manchester"), rt)
+
+
+def test_ratio_fit_recovers_the_row_time_and_refuses_a_single_light():
+    room = _room()
+    rng = np.random.default_rng(7)
+    true_rt = 31e-6
+    f = np.array(FREQS_HZ) * (1 + rng.normal(0, 0.003, 5))
+    fa = assign_frequencies(1.0 / (f * true_rt), room, None)
+    assert fa.row_time_fitted
+    assert fa.row_time_s == pytest.approx(true_rt, rel=0.01)
+    assert fa.ids == (1, 2, 3, 4, 5)
+    one = assign_frequencies([1.0 / (3000.0 * true_rt)], room, None)
+    assert one.ids == (None,) and "row time is unknown" in one.reasons[0]
+
+
+def test_mirrored_photo_is_flagged_and_located_when_flipped():
+    room = _room()
+    pose = POSES[1]
+    photo = render(_camera(mirrored=True), room, pose, _settings(seed=6))
+    camera = _camera()
+    res = locate(photo.image, camera, room)
+    assert not res and res.position is None
+    assert "mirrored" in res.error
+    res = locate(photo.image, camera, room, LocateSettings(mirrored=True))
+    assert res, res.error
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
