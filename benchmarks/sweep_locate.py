@@ -121,7 +121,7 @@ def main() -> int:
                 exposure_chips=exp_chips,
                 located=bool(res),
                 error_mm=1e3 * err,
-                reason=res.error,
+                reason=res.reason,
             )
         )
         print(

@@ -40,7 +40,9 @@ def test_round_trip_general_points(solver):
         np.testing.assert_allclose(est.world_from_camera, pose.world_from_camera, atol=1e-6)
 
 
-@pytest.mark.parametrize("solver", list(SOLVERS))
+# EPnP is left out: with coplanar points it is ill-conditioned (documented in pnp.py; the
+# error study shows it metres off), and whether exact data round-trip depends on the build.
+@pytest.mark.parametrize("solver", ["iterative", "sqpnp", "ippe"])
 def test_round_trip_planar_points(solver):
     rng = np.random.default_rng(2)
     for _ in range(10):

@@ -131,7 +131,8 @@ def read_survey(path: str | Path) -> Survey:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"cannot read survey file: {exc.__class__.__name__}", p) from None
     lines = [
-        (k, ln) for k, ln in enumerate(text.splitlines(), 1)
+        (k, ln)
+        for k, ln in enumerate(text.splitlines(), 1)
         if ln.strip() and not ln.lstrip().startswith("#")
     ]
     if not lines:
@@ -145,7 +146,8 @@ def read_survey(path: str | Path) -> Survey:
     if missing:
         raise InputError(
             f"survey file lacks the column{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(missing)} (needs photo,x,y,z)", p
+            f"{', '.join(missing)} (needs photo,x,y,z)",
+            p,
         )
     if len(set(header)) != len(header):
         dup = next(h for h in header if header.count(h) > 1)
@@ -381,9 +383,7 @@ class Evaluation:
         if self.survey.euler_deg is not None:
             d["angle_error_deg"] = _stats(np.array([r.angle_error_deg for r in self.results]))
         rms = np.array([r.reprojection_rms_px for r in self.results])
-        d["reprojection_rms_px"] = {
-            "mean": _stats(rms)["mean"], "max": _stats(rms)["max"]
-        }
+        d["reprojection_rms_px"] = {"mean": _stats(rms)["mean"], "max": _stats(rms)["max"]}
         used = np.array([r.fixtures_used for r in self.results], float)[ok]
         d["fixtures_used"] = {"mean": _num(used.mean()) if used.size else None}
         d["floor_axes"] = [AXES[a], AXES[b]]
@@ -424,8 +424,7 @@ def _locate_one(photo: str, path: Path, true_position, true_euler) -> PhotoResul
 
     def failed(reason: str, **more) -> PhotoResult:
         ms = 1e3 * (time.perf_counter() - t0)
-        return PhotoResult(position=None, euler_deg=None, reason=reason, time_ms=ms, **base,
-                           **more)
+        return PhotoResult(position=None, euler_deg=None, reason=reason, time_ms=ms, **base, **more)
 
     try:
         image = load_image(path)
@@ -440,8 +439,7 @@ def _locate_one(photo: str, path: Path, true_position, true_euler) -> PhotoResul
     detected = len(res.fixtures)
     used = sum(f.used for f in res.fixtures)
     if not res:
-        return failed(f"not located: {res.error}", fixtures_detected=detected,
-                      fixtures_used=used)
+        return failed(f"not located: {res.error}", fixtures_detected=detected, fixtures_used=used)
     return PhotoResult(
         position=np.asarray(res.position, float),
         euler_deg=np.asarray(res.euler_deg, float),
@@ -530,7 +528,10 @@ def evaluate_survey(
                 except BrokenProcessPool:
                     photo, _, true_pos, true_eul = tasks[i]
                     results[i] = PhotoResult(
-                        photo=photo, true_position=true_pos, position=None, euler_deg=None,
+                        photo=photo,
+                        true_position=true_pos,
+                        position=None,
+                        euler_deg=None,
                         true_euler_deg=true_eul,
                         reason="failed: the worker process died (out of memory?)",
                     )
@@ -551,11 +552,30 @@ def evaluate_survey(
 
 #: Columns of ``results.csv`` (the survey's other columns follow).
 RESULT_COLUMNS = (
-    "photo", "true_x", "true_y", "true_z", "est_x", "est_y", "est_z",
-    "error", "error_x", "error_y", "error_z", "located", "reason",
-    "fixtures_detected", "fixtures_used", "reprojection_rms_px",
-    "true_theta_x", "true_theta_y", "true_theta_z", "est_theta_x", "est_theta_y", "est_theta_z",
-    "angle_error_deg", "time_ms",
+    "photo",
+    "true_x",
+    "true_y",
+    "true_z",
+    "est_x",
+    "est_y",
+    "est_z",
+    "error",
+    "error_x",
+    "error_y",
+    "error_z",
+    "located",
+    "reason",
+    "fixtures_detected",
+    "fixtures_used",
+    "reprojection_rms_px",
+    "true_theta_x",
+    "true_theta_y",
+    "true_theta_z",
+    "est_theta_x",
+    "est_theta_y",
+    "est_theta_z",
+    "angle_error_deg",
+    "time_ms",
 )
 
 
@@ -577,23 +597,25 @@ def write_results_csv(evaluation: Evaluation, path: str | Path) -> Path:
             est = r.position if r.position is not None else [None] * 3
             eul = r.euler_deg if r.euler_deg is not None else [None] * 3
             teul = r.true_euler_deg if r.true_euler_deg is not None else [None] * 3
-            w.writerow([
-                r.photo,
-                *(f(v) for v in r.true_position),
-                *(f(v) for v in est),
-                f(r.error),
-                *(f(v) for v in r.error_vector),
-                int(r.located),
-                r.reason,
-                r.fixtures_detected,
-                r.fixtures_used,
-                f(r.reprojection_rms_px, 4),
-                *(f(v, 6) for v in teul),
-                *(f(v, 6) for v in eul),
-                f(r.angle_error_deg, 4),
-                f(r.time_ms, 5),
-                *extra,
-            ])
+            w.writerow(
+                [
+                    r.photo,
+                    *(f(v) for v in r.true_position),
+                    *(f(v) for v in est),
+                    f(r.error),
+                    *(f(v) for v in r.error_vector),
+                    int(r.located),
+                    r.reason,
+                    r.fixtures_detected,
+                    r.fixtures_used,
+                    f(r.reprojection_rms_px, 4),
+                    *(f(v, 6) for v in teul),
+                    *(f(v, 6) for v in eul),
+                    f(r.angle_error_deg, 4),
+                    f(r.time_ms, 5),
+                    *extra,
+                ]
+            )
     return p
 
 
@@ -631,14 +653,23 @@ def plot_error_map(evaluation: Evaluation, path: str | Path, *, dpi: int = 110) 
     size = float(np.clip((0.55 * 330.0 / math.sqrt(n)) ** 2, 30.0, 900.0))
     if ok.any():
         sc = ax.scatter(
-            true[ok, a], true[ok, b], c=ev.errors[ok] * scale, s=size, marker="s",
-            cmap="viridis", edgecolors="none",
+            true[ok, a],
+            true[ok, b],
+            c=ev.errors[ok] * scale,
+            s=size,
+            marker="s",
+            cmap="viridis",
+            edgecolors="none",
         )
         cb = fig.colorbar(sc, ax=ax, shrink=0.9)
         cb.set_label(f"position error ({unit})")
     if (~ok).any():
         ax.scatter(
-            true[~ok, a], true[~ok, b], s=60, marker="x", color="0.45",
+            true[~ok, a],
+            true[~ok, b],
+            s=60,
+            marker="x",
+            color="0.45",
             label=f"not located ({int((~ok).sum())})",
         )
         ax.legend(loc="upper right", fontsize=8, framealpha=0.9)
@@ -649,10 +680,11 @@ def plot_error_map(evaluation: Evaluation, path: str | Path, *, dpi: int = 110) 
     errs = ev.errors[ok] * scale
     stats = (
         f"mean {errs.mean():.2f} {unit}, max {errs.max():.2f} {unit}, "
-        f"{int(ok.sum())}/{len(ok)} located" if ok.any() else f"0/{len(ok)} located"
+        f"{int(ok.sum())}/{len(ok)} located"
+        if ok.any()
+        else f"0/{len(ok)} located"
     )
-    ax.set_title(f"Position error over the floor ({AXES[a]}-{AXES[b]} plane)\n{stats}",
-                 fontsize=10)
+    ax.set_title(f"Position error over the floor ({AXES[a]}-{AXES[b]} plane)\n{stats}", fontsize=10)
     ax.grid(True, alpha=0.3)
     p = Path(path)
     fig.savefig(p, dpi=dpi)
@@ -728,11 +760,17 @@ def plot_positions(
             ax.add_collection(LineCollection(segs, colors="0.55", linewidths=0.8, zorder=1))
         ax.scatter(true[:, i], true[:, j], s=18, color=_BLUE, label="true", zorder=2)
         if ok.any():
-            ax.scatter(shown[:, i], shown[:, j], s=18, color=_ORANGE, label="estimated",
-                       zorder=3)
+            ax.scatter(shown[:, i], shown[:, j], s=18, color=_ORANGE, label="estimated", zorder=3)
         if (~ok).any():
-            ax.scatter(true[~ok, i], true[~ok, j], s=50, marker="x", color="0.3",
-                       label="not located", zorder=4)
+            ax.scatter(
+                true[~ok, i],
+                true[~ok, j],
+                s=50,
+                marker="x",
+                color="0.3",
+                label="not located",
+                zorder=4,
+            )
         ax.set_xlabel(f"{AXES[i]} ({ev.units})")
         offsets = f"; orange offsets x{magnify:g}" if magnify != 1 and j == v else ""
         ax.set_ylabel(f"{AXES[j]} ({ev.units}{offsets})")
@@ -747,8 +785,10 @@ def plot_positions(
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9)
     title = "True (blue) and estimated (orange) camera positions"
     if magnify != 1:
-        title += (f"; differences magnified {magnify:g}x: estimates drawn at "
-                  f"true + {magnify:g} x (estimate - true)")
+        title += (
+            f"; differences magnified {magnify:g}x: estimates drawn at "
+            f"true + {magnify:g} x (estimate - true)"
+        )
     fig.suptitle(title, fontsize=11)
     p = Path(path)
     fig.savefig(p, dpi=dpi)

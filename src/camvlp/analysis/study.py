@@ -32,9 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp.geometry.pnp import SOLVERS, project_batch, solve_pnp_batch
+from camvlp.geometry.disc import rim_points
+from camvlp.geometry.pnp import LOCATE_SOLVER, check_solver, project_batch, solve_pnp_batch
 from camvlp.model.camera import Camera, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
 
 __all__ = [
     "CoverageStudy",
@@ -69,9 +71,46 @@ _CHUNK = 4096  # poses per batch between progress reports
 
 
 def _check_solver(solver: str) -> str:
-    if solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    return solver
+    return check_solver(solver, allow_locate=True)
+
+
+def solve_positions(object_points, image_points, camera: Camera, solver: str) -> np.ndarray:
+    """Camera centres for many sets of correspondences, by any solver the study knows.
+
+    ``solver`` is an OpenCV method (:data:`camvlp.geometry.pnp.SOLVERS`, one
+    ``cv2.solvePnP`` call per set) or ``"locate"``: the locator's own pose stage
+    (:func:`camvlp.pipeline.pose.estimate_pose`: candidates from several solvers, refined,
+    the best in front of the camera), so that the study measures what ``locate`` gives.
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3) or (B, N, 3)
+        World points, metres.
+    image_points : array_like, shape (B, N, 2)
+        Pixels.
+    camera : Camera
+        Intrinsics and distortion.
+    solver : str
+        A key of ``SOLVERS`` or ``"locate"``.
+
+    Returns
+    -------
+    ndarray, shape (B, 3)
+        Camera centres, metres; NaN rows where no pose was found.
+    """
+    if _check_solver(solver) != LOCATE_SOLVER:
+        return solve_pnp_batch(object_points, image_points, camera, solver)
+    from camvlp.pipeline.pose import estimate_pose
+
+    img = np.asarray(image_points, dtype=float)
+    obj = np.broadcast_to(np.asarray(object_points, dtype=float), (*img.shape[:2], 3))
+    out = np.full((img.shape[0], 3), np.nan)
+    for i in range(img.shape[0]):
+        if np.all(np.isfinite(img[i])):
+            est = estimate_pose(img[i], obj[i], camera, outlier_px=np.inf)
+            if est:
+                out[i] = est.pose.position
+    return out
 
 
 def _plane_axes(plane: str) -> tuple[int, int, int]:
@@ -289,7 +328,7 @@ def _errors(
                 obj += world_offset[s:e]
             if survey_error_m > 0:
                 obj += rng.normal(0.0, survey_error_m, (e - s, n, 3))
-        est = solve_pnp_batch(obj, uv, camera, solver)
+        est = solve_positions(obj, uv, camera, solver)
         out[s:e] = np.linalg.norm(est - C[s:e], axis=1)
         if progress is not None:
             progress(e, b)
@@ -491,18 +530,40 @@ def rounding_study(
     noise_px, survey_error_m, trials, rng = _noise_settings(noise_px, survey_error_m, trials, seed)
     e, r = _rotations(euler_deg)
     u, v, pos = floor_grid(
-        pts, plane=plane, u_range_m=u_range_m, v_range_m=v_range_m, step_m=step_m,
+        pts,
+        plane=plane,
+        u_range_m=u_range_m,
+        v_range_m=v_range_m,
+        step_m=step_m,
         height_m=height_m,
     )
     c = np.repeat(pos.reshape(-1, 3), trials, axis=0)
     rr = np.broadcast_to(r[0], (c.shape[0], 3, 3))
     err = _errors(
-        camera, pts, rr, c, solver=solver, rounding=rounding, noise_px=noise_px,
-        survey_error_m=survey_error_m, rng=rng, progress=progress,
+        camera,
+        pts,
+        rr,
+        c,
+        solver=solver,
+        rounding=rounding,
+        noise_px=noise_px,
+        survey_error_m=survey_error_m,
+        rng=rng,
+        progress=progress,
     )
     return RoundingStudy(
-        solver, e[0], plane, u, v, float(height_m), pos, err.reshape(v.size, u.size, trials),
-        bool(rounding), noise_px, survey_error_m, int(seed),
+        solver,
+        e[0],
+        plane,
+        u,
+        v,
+        float(height_m),
+        pos,
+        err.reshape(v.size, u.size, trials),
+        bool(rounding),
+        noise_px,
+        survey_error_m,
+        int(seed),
     )
 
 
@@ -569,8 +630,9 @@ class ForcedErrorStudy:
         """JSON-ready summary, one entry per pose."""
         unit = self.offset_unit
         series = []
-        for p, a, e, f in zip(self.positions_m, self.euler_deg, self.errors_m, self.fits(),
-                              strict=True):
+        for p, a, e, f in zip(
+            self.positions_m, self.euler_deg, self.errors_m, self.fits(), strict=True
+        ):
             ok = np.isfinite(e)
             series.append(
                 {
@@ -601,14 +663,24 @@ class ForcedErrorStudy:
 
     @property
     def csv_header(self) -> tuple[str, ...]:
-        return ("pose", "x_m", "y_m", "z_m", "theta_x_deg", "theta_y_deg", "theta_z_deg",
-                f"offset_{self.offset_unit}", "error_m")
+        return (
+            "pose",
+            "x_m",
+            "y_m",
+            "z_m",
+            "theta_x_deg",
+            "theta_y_deg",
+            "theta_z_deg",
+            f"offset_{self.offset_unit}",
+            "error_m",
+        )
 
     def rows(self) -> list[list]:
         """CSV rows: pose index, position (m), angles (deg), offset, error (m)."""
         rows = []
-        for i, (p, a, e) in enumerate(zip(self.positions_m, self.euler_deg, self.errors_m,
-                                          strict=True)):
+        for i, (p, a, e) in enumerate(
+            zip(self.positions_m, self.euler_deg, self.errors_m, strict=True)
+        ):
             rows.extend([i, *p, *a, o, ei] for o, ei in zip(self.offsets, e, strict=True))
         return rows
 
@@ -709,8 +781,15 @@ def forced_error_study(
         world_offset[:, idx, a] = np.tile(off, p)
         image_offset = None
     err = _errors(
-        camera, pts, rr, cc, solver=solver, rounding=rounding, image_offset=image_offset,
-        world_offset=world_offset, progress=progress,
+        camera,
+        pts,
+        rr,
+        cc,
+        solver=solver,
+        rounding=rounding,
+        image_offset=image_offset,
+        world_offset=world_offset,
+        progress=progress,
     )
     return ForcedErrorStudy(kind, axis, fid, off, c, e, err.reshape(p, k), solver, bool(rounding))
 
@@ -768,14 +847,24 @@ class MonteCarloStudy:
             }
         )
 
-    csv_header = ("pose", "x_m", "y_m", "z_m", "theta_x_deg", "theta_y_deg", "theta_z_deg",
-                  "trial", "error_m")
+    csv_header = (
+        "pose",
+        "x_m",
+        "y_m",
+        "z_m",
+        "theta_x_deg",
+        "theta_y_deg",
+        "theta_z_deg",
+        "trial",
+        "error_m",
+    )
 
     def rows(self) -> list[list]:
         """CSV rows: pose index, position (m), angles (deg), trial, error (m)."""
         rows = []
-        for i, (p, a, e) in enumerate(zip(self.positions_m, self.euler_deg, self.errors_m,
-                                          strict=True)):
+        for i, (p, a, e) in enumerate(
+            zip(self.positions_m, self.euler_deg, self.errors_m, strict=True)
+        ):
             rows.extend([i, *p, *a, t, et] for t, et in enumerate(e))
         return rows
 
@@ -823,12 +912,25 @@ def monte_carlo_study(
     c, e = _poses(positions_m, euler_deg)
     _, r = _rotations(e)
     err = _errors(
-        camera, pts, np.repeat(r, trials, axis=0), np.repeat(c, trials, axis=0), solver=solver,
-        rounding=rounding, noise_px=noise_px, survey_error_m=survey_error_m, rng=rng,
+        camera,
+        pts,
+        np.repeat(r, trials, axis=0),
+        np.repeat(c, trials, axis=0),
+        solver=solver,
+        rounding=rounding,
+        noise_px=noise_px,
+        survey_error_m=survey_error_m,
+        rng=rng,
         progress=progress,
     )
     return MonteCarloStudy(
-        c, e, err.reshape(c.shape[0], trials), noise_px, survey_error_m, int(seed), solver,
+        c,
+        e,
+        err.reshape(c.shape[0], trials),
+        noise_px,
+        survey_error_m,
+        int(seed),
+        solver,
         bool(rounding),
     )
 
@@ -928,8 +1030,15 @@ class CoverageStudy:
             }
         )
 
-    csv_header = ("x_m", "y_m", "z_m", "fix_fraction", "orientations_with_fix",
-                  "mean_usable_fixtures", "mean_error_m")
+    csv_header = (
+        "x_m",
+        "y_m",
+        "z_m",
+        "fix_fraction",
+        "orientations_with_fix",
+        "mean_usable_fixtures",
+        "mean_error_m",
+    )
 
     def rows(self) -> list[list]:
         """CSV rows per floor point."""
@@ -938,23 +1047,10 @@ class CoverageStudy:
         nfix = self.fix.sum(-1).reshape(-1)
         usable = self.usable.mean(-1).reshape(-1)
         err = self.error_map_m.reshape(-1)
-        return [[*p, f, int(k), float(u), e]
-                for p, f, k, u, e in zip(pos, frac, nfix, usable, err, strict=True)]
-
-
-def _rim_points(fixtures_m: np.ndarray, diameters_m: np.ndarray, normals: np.ndarray,
-                n_rim: int) -> np.ndarray:
-    """Points on each fixture's rim, shape (N, n_rim, 3), metres."""
-    # two unit vectors spanning each disc's plane
-    helper = np.where(np.abs(normals[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
-    a = np.cross(normals, helper)
-    a /= np.linalg.norm(a, axis=1, keepdims=True)
-    b = np.cross(normals, a)
-    t = 2 * np.pi * np.arange(n_rim) / n_rim
-    r = 0.5 * diameters_m[:, None, None]
-    return fixtures_m[:, None, :] + r * (
-        np.cos(t)[None, :, None] * a[:, None, :] + np.sin(t)[None, :, None] * b[:, None, :]
-    )
+        return [
+            [*p, f, int(k), float(u), e]
+            for p, f, k, u, e in zip(pos, frac, nfix, usable, err, strict=True)
+        ]
 
 
 def _not_collinear(points: np.ndarray, mask: np.ndarray, tol_m: float = 1e-3) -> np.ndarray:
@@ -1055,7 +1151,11 @@ def coverage_study(
     if not (np.isfinite(tilt_step_deg) and tilt_step_deg > 0):
         raise ValueError(f"tilt_step_deg must be positive, got {tilt_step_deg!r}")
     u, v, pos = floor_grid(
-        pts, plane=plane, u_range_m=u_range_m, v_range_m=v_range_m, step_m=step_m,
+        pts,
+        plane=plane,
+        u_range_m=u_range_m,
+        v_range_m=v_range_m,
+        step_m=step_m,
         height_m=height_m,
     )
     _, _, vert = _plane_axes(plane)
@@ -1073,18 +1173,17 @@ def coverage_study(
             )
         diam.append(d)
     normals = np.array([f.normal if f.normal is not None else -up for f in fixture_map.fixtures])
-    rims = _rim_points(pts, np.asarray(diam), normals, int(n_rim))  # (N, K, 3)
+    rims = rim_points(pts, np.asarray(diam), normals, int(n_rim))  # (N, K, 3)
     n = pts.shape[0]
 
     frame_rows = fixture_map.frame.n_chips / (chip_rate_hz * rt)
     min_rows = min_frames * frame_rows
-    read_axis = 0 if camera.readout == "columns" else 1
+    read_axis = (camera.readout or Readout.ROWS).pixel_index
 
     tilts = axis_values((-tmax, tmax), tilt_step_deg, "tilt range")
     ta, tb = np.meshgrid(tilts, tilts, indexing="ij")
     base = np.asarray(base_euler_deg, dtype=float).reshape(3)
-    eul = np.stack([base[0] + ta.ravel(), base[1] + tb.ravel(),
-                    np.full(ta.size, base[2])], axis=1)
+    eul = np.stack([base[0] + ta.ravel(), base[1] + tb.ravel(), np.full(ta.size, base[2])], axis=1)
     _, rots = _rotations(eul)
 
     c = pos.reshape(-1, 3)
@@ -1101,8 +1200,10 @@ def coverage_study(
         uv = uv.reshape(g, n, -1, 2)
         with np.errstate(invalid="ignore"):
             inside = np.all(
-                (uv[..., 0] >= -0.5) & (uv[..., 0] <= w - 0.5)
-                & (uv[..., 1] >= -0.5) & (uv[..., 1] <= h - 0.5),
+                (uv[..., 0] >= -0.5)
+                & (uv[..., 0] <= w - 0.5)
+                & (uv[..., 1] >= -0.5)
+                & (uv[..., 1] <= h - 0.5),
                 axis=2,
             )
             span = np.ptp(uv[..., read_axis], axis=2)
@@ -1119,17 +1220,35 @@ def coverage_study(
                 sub = pts[pattern]
                 cm = np.repeat(c[members], trials, axis=0)
                 err = _errors(
-                    camera, sub, np.broadcast_to(rots[j], (cm.shape[0], 3, 3)), cm,
-                    solver=solver, rounding=rounding, noise_px=noise_px, rng=rng,
+                    camera,
+                    sub,
+                    np.broadcast_to(rots[j], (cm.shape[0], 3, 3)),
+                    cm,
+                    solver=solver,
+                    rounding=rounding,
+                    noise_px=noise_px,
+                    rng=rng,
                 )
                 errors[members, j] = err.reshape(-1, trials)
         if progress is not None:
             progress(j + 1, o)
     shape = (v.size, u.size)
     return CoverageStudy(
-        plane, u, v, float(height_m), pos, eul, usable.reshape(*shape, o),
-        fix.reshape(*shape, o), errors.reshape(*shape, o, trials), float(frame_rows),
-        float(min_rows), solver, noise_px, bool(rounding), int(seed),
+        plane,
+        u,
+        v,
+        float(height_m),
+        pos,
+        eul,
+        usable.reshape(*shape, o),
+        fix.reshape(*shape, o),
+        errors.reshape(*shape, o, trials),
+        float(frame_rows),
+        float(min_rows),
+        solver,
+        noise_px,
+        bool(rounding),
+        int(seed),
     )
 
 
@@ -1142,8 +1261,9 @@ def _figure(width: float = 6.4, height: float = 4.8):
     return Figure(figsize=(width, height), dpi=120, layout="constrained")
 
 
-def _heat(ax, fig, u, v, values, label: str, plane: str, cmap: str = "viridis",
-          vmin=None, vmax=None):
+def _heat(
+    ax, fig, u, v, values, label: str, plane: str, cmap: str = "viridis", vmin=None, vmax=None
+):
     du = (u[1] - u[0]) if u.size > 1 else 0.1
     dv = (v[1] - v[0]) if v.size > 1 else 0.1
     ue = np.append(u - du / 2, u[-1] + du / 2)
@@ -1161,8 +1281,9 @@ def plot_rounding(study: RoundingStudy, path: str | Path) -> None:
     """Heat map of the position error over the floor (mm), like the thesis' figure 4.2."""
     fig = _figure()
     ax = fig.add_subplot()
-    _heat(ax, fig, study.u_m, study.v_m, study.error_map_m * 1e3, "Position error (mm)",
-          study.plane)
+    _heat(
+        ax, fig, study.u_m, study.v_m, study.error_map_m * 1e3, "Position error (mm)", study.plane
+    )
     noise = ""
     if study.noise_px or study.survey_error_m:
         noise = f", noise {study.noise_px:g} px / {study.survey_error_m:g} m"
@@ -1196,8 +1317,10 @@ def _draw_forced_error(ax, study: ForcedErrorStudy, label: str = "") -> None:
         common.append(f"C = {_fmt3(study.positions_m[0])} m")
     if not vary_ang:
         common.append(f"θ = {_fmt3(study.euler_deg[0])}°")
-    ax.set_title(f"{label}{what.capitalize()} {study.axis} coordinate, {study.solver}"
-                 + (f"\n{', '.join(common)}" if common else ""))
+    ax.set_title(
+        f"{label}{what.capitalize()} {study.axis} coordinate, {study.solver}"
+        + (f"\n{', '.join(common)}" if common else "")
+    )
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize="small")
 
@@ -1223,7 +1346,7 @@ def plot_forced_error(
     axes = np.atleast_1d(fig.subplots(rows, cols)).reshape(-1)
     for i, (ax, s) in enumerate(zip(axes, studies, strict=False)):
         _draw_forced_error(ax, s, f"({chr(97 + i)}) " if len(studies) > 1 else "")
-    for ax in axes[len(studies):]:
+    for ax in axes[len(studies) :]:
         ax.set_visible(False)
     fig.savefig(path)
 
@@ -1256,16 +1379,32 @@ def plot_coverage(study: CoverageStudy, path: str | Path) -> None:
     """Two maps: fraction of orientations with a fix, and the mean error where there is one."""
     fig = _figure(12.0, 5.0)
     ax1, ax2 = fig.subplots(1, 2)
-    _heat(ax1, fig, study.u_m, study.v_m, study.fraction, "Fraction of orientations with a fix",
-          study.plane, cmap="magma", vmin=0.0,
-          vmax=float(study.fraction.max()) if study.fix.any() else 1.0)
+    _heat(
+        ax1,
+        fig,
+        study.u_m,
+        study.v_m,
+        study.fraction,
+        "Fraction of orientations with a fix",
+        study.plane,
+        cmap="magma",
+        vmin=0.0,
+        vmax=float(study.fraction.max()) if study.fix.any() else 1.0,
+    )
     t = np.ptp(study.euler_deg[:, 0]) / 2
     ax1.set_title(
         f"Fix possible: ≥ 4 fixtures in view and decodable\n"
         f"tilts up to ±{t:g}° about x and y, camera height {study.height_m:g} m"
     )
-    _heat(ax2, fig, study.u_m, study.v_m, study.error_map_m * 1e3,
-          "Mean position error (mm)", study.plane)
+    _heat(
+        ax2,
+        fig,
+        study.u_m,
+        study.v_m,
+        study.error_map_m * 1e3,
+        "Mean position error (mm)",
+        study.plane,
+    )
     ax2.set_title(
         f"Mean position error where a fix is possible\n"
         f"σ = {study.noise_px:g} px detection noise, {study.solver}"

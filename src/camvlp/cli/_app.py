@@ -9,8 +9,9 @@ from typing import Annotated, NoReturn, TypeVar
 
 import typer
 
-from camvlp.geometry.pnp import SOLVERS
+from camvlp.geometry import pnp
 from camvlp.io import InputError
+from camvlp.model.readout import Readout
 
 app = typer.Typer(
     name="camvlp",
@@ -79,11 +80,20 @@ OutlierOption = Annotated[
 ]
 
 
-def check_solver(solver: str) -> str:
-    """``solver`` if it names an OpenCV PnP method, else a usage error (exit 2)."""
-    if solver not in SOLVERS:
-        fail(f"--solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    return solver
+def check_solver(solver: str, *, allow_locate: bool = False) -> str:
+    """``solver`` if it names a PnP method, else a usage error (exit 2)."""
+    try:
+        return pnp.check_solver(solver, allow_locate=allow_locate)
+    except ValueError as exc:
+        fail(f"--{exc}")
+
+
+def parse_readout(value: str | None, option: str = "--readout") -> Readout | None:
+    """The readout named by ``value`` (None passes), else a usage error naming ``option``."""
+    try:
+        return Readout.parse_optional(value, option)
+    except ValueError as exc:
+        fail(str(exc))
 
 
 def check_positive(value: float | None, option: str) -> float | None:

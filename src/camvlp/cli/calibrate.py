@@ -59,8 +59,11 @@ def calibrate(
     ] = None,
     board: Annotated[
         str | None,
-        typer.Option("--board", metavar="COLSxROWS",
-                     help="Inner corners of the board, e.g. 9x6 for 10 x 7 squares."),
+        typer.Option(
+            "--board",
+            metavar="COLSxROWS",
+            help="Inner corners of the board, e.g. 9x6 for 10 x 7 squares.",
+        ),
     ] = None,
     square: Annotated[
         float | None,
@@ -72,8 +75,11 @@ def calibrate(
     ] = Path("camera.yaml"),
     row_time: Annotated[
         float | None,
-        typer.Option("--row-time", metavar="S",
-                     help="Row time to store in the camera file, seconds (calibrate-rows)."),
+        typer.Option(
+            "--row-time",
+            metavar="S",
+            help="Row time to store in the camera file, seconds (calibrate-rows).",
+        ),
     ] = None,
     fix_aspect: Annotated[
         bool, typer.Option("--fix-aspect", help="Keep fx = fy (square pixels).")
@@ -110,8 +116,13 @@ def calibrate(
     with Progress(console=console, transient=True, disable=not show) as progress:
         task = progress.add_task("finding the board", total=len(paths))
         result = calibrate_camera(
-            paths, cols_rows, square, row_time_s=row_time, fix_aspect=fix_aspect,
-            zero_tangent=zero_tangent, on_image=lambda _name: progress.advance(task),
+            paths,
+            cols_rows,
+            square,
+            row_time_s=row_time,
+            fix_aspect=fix_aspect,
+            zero_tangent=zero_tangent,
+            on_image=lambda _name: progress.advance(task),
         )
 
     camera = result.camera
@@ -120,34 +131,48 @@ def calibrate(
             for name, reason in result.rejected:
                 print(f"rejected  {name}: {reason}")
         else:
-            print(json.dumps({"ok": False, "message": result.message,
-                              "rejected": [{"photo": n, "reason": r}
-                                           for n, r in result.rejected]}))
+            print(
+                json.dumps(
+                    {
+                        "ok": False,
+                        "message": result.message,
+                        "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
+                    }
+                )
+            )
         fail(result.message, EXIT_NOT_LOCATED)
-    save_camera(camera, out, extra={"calibration_rms_px": result.rms_px,
-                                    "calibration_photos": len(result.used)})
+    save_camera(
+        camera,
+        out,
+        extra={"calibration_rms_px": result.rms_px, "calibration_photos": len(result.used)},
+    )
     k = camera.matrix
     if as_json:
-        print(json.dumps({
-            "ok": True,
-            "camera_file": str(out),
-            "image_width": camera.width,
-            "image_height": camera.height,
-            "camera_matrix": k.tolist(),
-            "distortion_coefficients": camera.distortion.tolist(),
-            "row_time_s": camera.row_time_s,
-            "rms_px": result.rms_px,
-            "used": [{"photo": n, "rms_px": e}
-                     for n, e in zip(result.used, result.per_image_rms_px, strict=True)],
-            "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
-        }))
+        print(
+            json.dumps(
+                {
+                    "ok": True,
+                    "camera_file": str(out),
+                    "image_width": camera.width,
+                    "image_height": camera.height,
+                    "camera_matrix": k.tolist(),
+                    "distortion_coefficients": camera.distortion.tolist(),
+                    "row_time_s": camera.row_time_s,
+                    "rms_px": result.rms_px,
+                    "used": [
+                        {"photo": n, "rms_px": e}
+                        for n, e in zip(result.used, result.per_image_rms_px, strict=True)
+                    ],
+                    "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
+                }
+            )
+        )
         return
     width = max(len(n) for n in (*result.used, *(n for n, _ in result.rejected)))
     print(f"camera     {camera.width} x {camera.height} px, written to {out}")
     print(f"focal      fx {k[0, 0]:.2f}  fy {k[1, 1]:.2f} px")
     print(f"centre     cx {k[0, 2]:.2f}  cy {k[1, 2]:.2f} px")
-    print("distortion " + " ".join(f"{v:.5g}" for v in camera.distortion)
-          + "  (k1 k2 p1 p2 k3)")
+    print("distortion " + " ".join(f"{v:.5g}" for v in camera.distortion) + "  (k1 k2 p1 p2 k3)")
     if camera.row_time_s is not None:
         print(f"row time   {camera.row_time_s * 1e6:.3f} us")
     print(f"rms        {result.rms_px:.3f} px over {len(result.used)} photos")
@@ -161,8 +186,8 @@ def calibrate(
 @handle_errors
 def calibrate_rows(
     photo: Annotated[
-        Path, typer.Argument(help="Photo of one light blinking a 50 % square wave.",
-                             show_default=False)
+        Path,
+        typer.Argument(help="Photo of one light blinking a 50 % square wave.", show_default=False),
     ],
     frequency: Annotated[
         float | None,
@@ -174,8 +199,9 @@ def calibrate_rows(
     ] = None,
     out: Annotated[
         Path | None,
-        typer.Option("--out", "-o", metavar="CAM2",
-                     help="Write --camera's file here with row_time_s added."),
+        typer.Option(
+            "--out", "-o", metavar="CAM2", help="Write --camera's file here with row_time_s added."
+        ),
     ] = None,
     axis: Annotated[
         str | None,
@@ -204,36 +230,47 @@ def calibrate_rows(
     h, w = image.shape[:2]
     if camera is not None:
         if (w, h) not in ((camera.width, camera.height), (camera.height, camera.width)):
-            fail(f"photo is {w} x {h} px but the camera is {camera.width} x {camera.height}; "
-                 f"use the full-resolution photo ({photo})")
+            fail(
+                f"photo is {w} x {h} px but the camera is {camera.width} x {camera.height}; "
+                f"use the full-resolution photo ({photo})"
+            )
         if axis is None and camera.readout is not None and (w, h) == camera.size:
-            axis = camera.readout.removesuffix("-reversed")
+            axis = camera.readout.axis
     est = estimate_row_time(image, frequency, axis=axis)
     if not est:
         fail(f"{est.message} ({photo})", EXIT_NOT_LOCATED)
     if out is not None and camera is not None:
         save_camera(dataclasses.replace(camera, row_time_s=est.row_time_s), out)
     if as_json:
-        print(json.dumps({
-            "photo": str(photo),
-            "frequency_hz": frequency,
-            "period_px": est.period_px,
-            "axis": est.axis,
-            "row_time_s": est.row_time_s,
-            "rows_per_s": est.rows_per_s,
-            "strength": est.strength,
-            "periods_seen": est.periods_seen,
-            "camera_file": str(out) if out is not None else None,
-        }))
+        print(
+            json.dumps(
+                {
+                    "photo": str(photo),
+                    "frequency_hz": frequency,
+                    "period_px": est.period_px,
+                    "axis": est.axis,
+                    "row_time_s": est.row_time_s,
+                    "rows_per_s": est.rows_per_s,
+                    "strength": est.strength,
+                    "periods_seen": est.periods_seen,
+                    "camera_file": str(out) if out is not None else None,
+                }
+            )
+        )
         return
     stripes = "horizontal" if est.axis == "rows" else "vertical"
     print(f"axis       {est.axis} (stripes {stripes})")
-    print(f"period     {est.period_px:.4f} px over {est.periods_seen:.1f} periods "
-          f"(strength {est.strength:.2f})")
+    print(
+        f"period     {est.period_px:.4f} px over {est.periods_seen:.1f} periods "
+        f"(strength {est.strength:.2f})"
+    )
     print(f"row time   {est.row_time_s * 1e6:.4f} us")
     print(f"rows/s     {est.rows_per_s:.1f}")
     if est.periods_seen < 3:
-        print(f"warning: only {est.periods_seen:.1f} periods in the light; a lower frequency "
-              "or a larger light gives a better estimate", file=sys.stderr)
+        print(
+            f"warning: only {est.periods_seen:.1f} periods in the light; a lower frequency "
+            "or a larger light gives a better estimate",
+            file=sys.stderr,
+        )
     if out is not None:
         print(f"written    {out}")

@@ -11,7 +11,6 @@ import cv2
 import typer
 
 from camvlp.io import InputError, load_camera, load_image, load_map
-from camvlp.model.camera import READOUTS
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
@@ -24,6 +23,7 @@ from ._app import (
     check_solver,
     fail,
     handle_errors,
+    parse_readout,
 )
 
 
@@ -65,8 +65,7 @@ def locate_command(
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
-    if readout not in READOUTS:
-        fail(f"--readout must be rows, columns, rows-reversed or columns-reversed, got {readout!r}")
+    given_readout = parse_readout(readout)
     for out in (annotate_path,):
         if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
             fail(f"--annotate must end in .png or .jpg ({out})")
@@ -74,10 +73,14 @@ def locate_command(
     fixture_map = load_map(map_path)
     image = load_image(photo)
     settings = LocateSettings(
-        solver=solver, readout=readout, mirrored=mirrored, outlier_px=outlier_px
+        solver=solver,
+        readout=given_readout,
+        mirrored=mirrored,
+        outlier_px=outlier_px,
+        keep_stages=debug_dir is not None,
     )
     try:
-        result, stages = locate(image, camera, fixture_map, settings, _keep_stages=True)
+        result = locate(image, camera, fixture_map, settings)
     except InputError as exc:
         raise InputError(exc.what, photo) from None
     if annotate_path is not None:
@@ -85,14 +88,14 @@ def locate_command(
             fail(f"cannot write the annotated photo ({annotate_path})")
     if debug_dir is not None:
         write_debug_pictures(
-            debug_dir, image[:, ::-1] if result.mirrored else image, result, stages
+            debug_dir, image[:, ::-1] if result.mirrored else image, result, result.stages
         )
     if as_json:
         print(json.dumps(result.to_dict()))
     else:
         _print_human(result, fixture_map.units, photo)
     if not result:  # stdout keeps its JSON; the one error line goes to stderr either way
-        print(f"error: not located: {result.error} ({photo})", file=sys.stderr)
+        print(f"error: not located: {result.reason} ({photo})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
 
 

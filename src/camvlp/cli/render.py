@@ -9,10 +9,11 @@ from typing import Annotated
 import typer
 
 from camvlp.io import load_camera, load_map
-from camvlp.model.camera import READOUTS, Pose
+from camvlp.model.camera import Pose
+from camvlp.model.readout import Readout
 from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
 
-from ._app import app, fail, handle_errors, parse_floats
+from ._app import app, fail, handle_errors, parse_floats, parse_readout
 
 
 @app.command("render")
@@ -91,8 +92,7 @@ def render_command(
     noise_scale = _number(noise, "--noise")
     if noise_scale < 0:
         fail(f"--noise must be a non-negative number, got {noise}")
-    if readout is not None and readout not in READOUTS:
-        fail(f"--readout must be rows, columns, rows-reversed or columns-reversed, got {readout!r}")
+    given_readout = parse_readout(readout)
     xyz = parse_floats(position, 3, "--position")
     angles = parse_floats(euler, 3, "--euler")
     camera = load_camera(camera_path)
@@ -108,7 +108,7 @@ def render_command(
             blur_px=_number(blur, "--blur"),
             full_well_e=base.full_well_e / noise_scale**2 if noise_scale > 0 else 0.0,
             read_noise=base.read_noise * noise_scale,
-            readout=readout or camera.readout or "rows",
+            readout=given_readout or camera.readout or Readout.ROWS,
             colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
             seed=_integer(seed, "--seed"),
         )

@@ -16,7 +16,7 @@ from camvlp.io import load_camera, load_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 
-from ._app import SolverOption, app, check_solver, fail, handle_errors, parse_floats
+from ._app import app, check_solver, fail, handle_errors, parse_floats
 
 study_app = typer.Typer(
     name="study",
@@ -24,7 +24,6 @@ study_app = typer.Typer(
     no_args_is_help=True,
 )
 app.add_typer(study_app, name="study")
-
 
 
 #: Thesis figure presets for image-error / world-error: positions (m), angles (deg), height.
@@ -43,7 +42,14 @@ CameraOpt = Annotated[
 MapOpt = Annotated[
     Path | None, typer.Option("--map", help="Map file (default: examples/thesis_room.yaml).")
 ]
-SolverOpt = SolverOption
+SolverOpt = Annotated[
+    str,
+    typer.Option(
+        "--solver",
+        help="PnP solver: iterative, sqpnp, ippe, epnp, or locate (the locator's own pose "
+        "stage: several solvers' candidates, refined, the best in front of the camera).",
+    ),
+]
 NoiseOpt = Annotated[
     float,
     typer.Option("--noise-px", help="Monte Carlo: Gaussian sigma on every image point (px)."),
@@ -89,10 +95,11 @@ def _default_file(path: Path | None, name: str) -> Path:
     return Path("examples") / name  # the loader reports it missing
 
 
-def _check(solver: str, noise_px: float, survey_error_m: float, trials: int,
-           **positive: float) -> None:
+def _check(
+    solver: str, noise_px: float, survey_error_m: float, trials: int, **positive: float
+) -> None:
     """Usage checks shared by the commands, naming the option at fault."""
-    check_solver(solver)
+    check_solver(solver, allow_locate=True)
     for name, value in (("--noise-px", noise_px), ("--survey-error-m", survey_error_m)):
         if not value >= 0:
             fail(f"{name} must be a non-negative number, got {value}")
@@ -123,8 +130,10 @@ def _ranges(plane: str, x: str, y: str | None, z: str | None) -> tuple[list, lis
     given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
     if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
         fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
-    return (parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
-            parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"))
+    return (
+        parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
+        parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
+    )
 
 
 @contextmanager
@@ -137,8 +146,12 @@ def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     with Progress(
-        TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(), console=Console(stderr=True), transient=True,
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.percentage:>3.0f}%"),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
     ) as bar:
         task = bar.add_task(label, total=None)
 
@@ -180,14 +193,24 @@ def _run(func, *args, **kwargs):
         fail(str(exc))
 
 
-def _monte_carlo(cam, fmap, positions, eulers, solver, noise_px, survey_m, trials, seed,
-                 rounding, out, as_json) -> None:
+def _monte_carlo(
+    cam, fmap, positions, eulers, solver, noise_px, survey_m, trials, seed, rounding, out, as_json
+) -> None:
     n = max(len(positions), len(eulers)) * trials
     with _progress(n, "Monte Carlo") as progress:
         res = _run(
-            st.monte_carlo_study, cam, fmap, positions_m=positions, euler_deg=eulers,
-            noise_px=noise_px, survey_error_m=survey_m, trials=trials, seed=seed,
-            solver=solver, rounding=rounding, progress=progress,
+            st.monte_carlo_study,
+            cam,
+            fmap,
+            positions_m=positions,
+            euler_deg=eulers,
+            noise_px=noise_px,
+            survey_error_m=survey_m,
+            trials=trials,
+            seed=seed,
+            solver=solver,
+            rounding=rounding,
+            progress=progress,
         )
     s = res.summary()
     lines = [
@@ -242,10 +265,22 @@ def rounding(
     est = 21 * 21 * (trials if noisy else 1) / (step / 0.1) ** 2
     with _progress(int(est), "rounding study") as progress:
         res = _run(
-            st.rounding_study, cam, fmap, euler_deg=angles, plane=plane, u_range_m=u_range,
-            v_range_m=v_range, step_m=step, height_m=height, solver=solver,
-            rounding=rounding, noise_px=noise_px, survey_error_m=survey_error_m, trials=trials,
-            seed=seed, progress=progress,
+            st.rounding_study,
+            cam,
+            fmap,
+            euler_deg=angles,
+            plane=plane,
+            u_range_m=u_range,
+            v_range_m=v_range,
+            step_m=step,
+            height_m=height,
+            solver=solver,
+            rounding=rounding,
+            noise_px=noise_px,
+            survey_error_m=survey_error_m,
+            trials=trials,
+            seed=seed,
+            progress=progress,
         )
     s = res.summary()
     lines = [
@@ -259,8 +294,26 @@ def rounding(
 
 
 def _forced(
-    kind: str, camera, map_path, fixture, axis, value_range, step, positions, eulers, height,
-    plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out, as_json,
+    kind: str,
+    camera,
+    map_path,
+    fixture,
+    axis,
+    value_range,
+    step,
+    positions,
+    eulers,
+    height,
+    plane,
+    figure,
+    solver,
+    noise_px,
+    survey_error_m,
+    trials,
+    seed,
+    rounding,
+    out,
+    as_json,
 ) -> None:
     _check(solver, noise_px, survey_error_m, trials, step=step)
     axes = "xy" if kind == "image" else "xyz"
@@ -272,30 +325,56 @@ def _forced(
     pos = _triples(positions if positions is not None else fig_pos, "--positions")
     eul = _triples(eulers if eulers is not None else fig_eul, "--eulers")
     if len(pos) > 1 and len(eul) > 1 and len(pos) != len(eul):
-        fail(f"--positions has {len(pos)} poses and --eulers {len(eul)}: give one of them once "
-             "or both the same number of times")
+        fail(
+            f"--positions has {len(pos)} poses and --eulers {len(eul)}: give one of them once "
+            "or both the same number of times"
+        )
     if height is None and figure is not None:
         height = fig_h
     cam, fmap = _inputs(camera, map_path)
     if height is not None:
-        pos = _run(st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane,
-                   height_m=height).tolist()
+        pos = _run(
+            st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane, height_m=height
+        ).tolist()
     if noise_px > 0 or survey_error_m > 0:
-        _monte_carlo(cam, fmap, pos, eul, solver, noise_px, survey_error_m, trials, seed,
-                     rounding, out, as_json)
+        _monte_carlo(
+            cam,
+            fmap,
+            pos,
+            eul,
+            solver,
+            noise_px,
+            survey_error_m,
+            trials,
+            seed,
+            rounding,
+            out,
+            as_json,
+        )
         return
     lo, hi = parse_floats(value_range, 2, "--range")
     offsets = _run(st.axis_values, (lo, hi), step, "--range")
     with _progress(len(offsets) * max(len(pos), len(eul)), f"{kind}-error study") as progress:
         res = _run(
-            st.forced_error_study, cam, fmap, kind=kind, axis=axis, offsets=offsets,
-            positions_m=pos, euler_deg=eul, fixture_id=fixture, solver=solver,
-            rounding=rounding, progress=progress,
+            st.forced_error_study,
+            cam,
+            fmap,
+            kind=kind,
+            axis=axis,
+            offsets=offsets,
+            positions_m=pos,
+            euler_deg=eul,
+            fixture_id=fixture,
+            solver=solver,
+            rounding=rounding,
+            progress=progress,
         )
     s = res.summary()
     unit = res.offset_unit
-    lines = [f"{kind}-error study: fixture {res.fixture_id}, {kind} {axis} from {lo:g} to {hi:g} "
-             f"{unit}, {solver}"]
+    lines = [
+        f"{kind}-error study: fixture {res.fixture_id}, {kind} {axis} from {lo:g} to {hi:g} "
+        f"{unit}, {solver}"
+    ]
     for ser in s["series"]:
         r2 = ser["r2_linear"]
         lines.append(
@@ -344,9 +423,28 @@ def image_error(
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
     """
-    _forced("image", camera, map_path, fixture, axis, value_range, step, positions, eulers,
-            height, plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out,
-            as_json)
+    _forced(
+        "image",
+        camera,
+        map_path,
+        fixture,
+        axis,
+        value_range,
+        step,
+        positions,
+        eulers,
+        height,
+        plane,
+        figure,
+        solver,
+        noise_px,
+        survey_error_m,
+        trials,
+        seed,
+        rounding,
+        out,
+        as_json,
+    )
 
 
 @study_app.command("world-error")
@@ -380,9 +478,28 @@ def world_error(
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
     """
-    _forced("world", camera, map_path, fixture, axis, value_range, step, positions, eulers,
-            height, plane, figure, solver, noise_px, survey_error_m, trials, seed, rounding, out,
-            as_json)
+    _forced(
+        "world",
+        camera,
+        map_path,
+        fixture,
+        axis,
+        value_range,
+        step,
+        positions,
+        eulers,
+        height,
+        plane,
+        figure,
+        solver,
+        noise_px,
+        survey_error_m,
+        trials,
+        seed,
+        rounding,
+        out,
+        as_json,
+    )
 
 
 @study_app.command("coverage")
@@ -430,19 +547,43 @@ def coverage(
     as_json: JsonOpt = False,
 ) -> None:
     """Where on the floor a fix is possible over a range of tilts, and its expected error."""
-    _check(solver, noise_px, 0.0, trials, step=step, tilt_step=tilt_step, chip_rate=chip_rate,
-           **({"row_time": row_time} if row_time is not None else {}))
+    _check(
+        solver,
+        noise_px,
+        0.0,
+        trials,
+        step=step,
+        tilt_step=tilt_step,
+        chip_rate=chip_rate,
+        **({"row_time": row_time} if row_time is not None else {}),
+    )
     base = parse_floats(euler, 3, "--euler")
     u_range, v_range = _ranges(plane, x_range, y_range, z_range)
     cam, fmap = _inputs(camera, map_path)
     n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
     with _progress(int(441 * n_tilts * (0.1 / step) ** 2), "coverage study") as progress:
         res = _run(
-            st.coverage_study, cam, fmap, plane=plane, u_range_m=u_range, v_range_m=v_range,
-            step_m=step, height_m=height, base_euler_deg=base, tilt_max_deg=tilt_max,
-            tilt_step_deg=tilt_step, chip_rate_hz=chip_rate, row_time_s=row_time,
-            min_frames=min_frames, default_diameter_m=diameter, noise_px=noise_px,
-            trials=trials, seed=seed, solver=solver, rounding=rounding, progress=progress,
+            st.coverage_study,
+            cam,
+            fmap,
+            plane=plane,
+            u_range_m=u_range,
+            v_range_m=v_range,
+            step_m=step,
+            height_m=height,
+            base_euler_deg=base,
+            tilt_max_deg=tilt_max,
+            tilt_step_deg=tilt_step,
+            chip_rate_hz=chip_rate,
+            row_time_s=row_time,
+            min_frames=min_frames,
+            default_diameter_m=diameter,
+            noise_px=noise_px,
+            trials=trials,
+            seed=seed,
+            solver=solver,
+            rounding=rounding,
+            progress=progress,
         )
     s = res.summary()
     lines = [

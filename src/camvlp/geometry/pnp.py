@@ -1,4 +1,5 @@
-"""Perspective-n-Point: a thin, checked wrapper over OpenCV's ``solvePnP``, one pose or many.
+"""Perspective-n-Point, the one home of every ``solvePnP`` call: one pose, many, or the
+locator's candidates.
 
 Frames follow the package conventions (``camera.py``): a pose is ``world_from_camera``
 ``R`` (camera axes as columns) and the camera centre ``C``; OpenCV's ``rvec, tvec`` are
@@ -31,7 +32,10 @@ from camvlp.model.camera import Camera, Pose
 
 __all__ = [
     "IPPE_JITTER_PX",
+    "LOCATE_SOLVER",
     "SOLVERS",
+    "check_solver",
+    "pnp_candidates",
     "project_batch",
     "rodrigues_batch",
     "solve_pnp",
@@ -53,15 +57,30 @@ IPPE_JITTER_PX = 1e-6
 _JITTER = IPPE_JITTER_PX * np.array([[1.0, 0.3], [-0.7, 0.9], [0.2, -1.0], [-0.4, -0.6]])
 
 
+#: The locator's own pose path (:func:`camvlp.pipeline.pose.estimate_pose`), which the error
+#: study can run beside OpenCV's methods to measure what ``locate`` gives.
+LOCATE_SOLVER = "locate"
+
+
+def check_solver(solver: str, *, allow_locate: bool = False) -> str:
+    """``solver`` if it names a PnP method (and ``"locate"`` when allowed).
+
+    Raises
+    ------
+    ValueError
+        One line listing the accepted names.
+    """
+    names = [*SOLVERS, LOCATE_SOLVER] if allow_locate else list(SOLVERS)
+    if not isinstance(solver, str) or solver not in names:
+        raise ValueError(f"solver must be one of {', '.join(names)}, got {solver!r}")
+    return solver
+
+
 def _solver_flag(solver: str) -> int:
-    if not isinstance(solver, str) or solver not in SOLVERS:
-        raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {solver!r}")
-    return SOLVERS[solver]
+    return SOLVERS[check_solver(solver)]
 
 
-def _check_points(
-    object_points, image_points, *, batch: bool
-) -> tuple[np.ndarray, np.ndarray]:
+def _check_points(object_points, image_points, *, batch: bool) -> tuple[np.ndarray, np.ndarray]:
     """Validate and convert to contiguous float64; object points (N,3) or (B,N,3)."""
     obj = np.ascontiguousarray(object_points, dtype=np.float64)
     img = np.ascontiguousarray(image_points, dtype=np.float64)
@@ -79,9 +98,7 @@ def _check_points(
     elif obj.ndim != 2 or obj.shape[-1] != 3:
         raise ValueError(f"object_points must have shape (N, 3), got {obj.shape}")
     if obj.shape[-2] != n:
-        raise ValueError(
-            f"object_points has {obj.shape[-2]} points but image_points has {n}"
-        )
+        raise ValueError(f"object_points has {obj.shape[-2]} points but image_points has {n}")
     if n < 4:
         raise ValueError(f"object_points and image_points need at least 4 points, got {n}")
     if not np.all(np.isfinite(obj)):
@@ -121,6 +138,68 @@ def _solve_one(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int)
             return None
         return _call(obj, img, k, dist, flag, guess=init) or init
     return None
+
+
+def pnp_candidates(
+    object_points, image_points, camera: Camera, solver: str = "iterative", *, planar: bool
+) -> list[Pose]:
+    """Every candidate pose for the locator to choose from (no check of which is valid).
+
+    The chosen solver's poses, IPPE's two poses when the object points are coplanar (a
+    planar target's two-fold ambiguity) and SQPnP's (IPPE's homography degenerates when three
+    of four points are on one line), each refined by Levenberg-Marquardt
+    (``cv2.solvePnPRefineLM``) unless the solver is ``ippe`` or ``epnp``, which are kept raw.
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3)
+        World points, map units, N >= 4.
+    image_points : array_like, shape (N, 2)
+        Their pixels in the (distorted) image.
+    camera : Camera
+        Intrinsics and distortion.
+    solver : str
+        A key of :data:`SOLVERS`.
+    planar : bool
+        The object points are coplanar (add IPPE's two candidates).
+
+    Returns
+    -------
+    list of Pose
+        Possibly empty; non-finite solutions are left out.
+    """
+    flag = _solver_flag(solver)
+    obj = np.asarray(object_points, dtype=np.float64)
+    img = np.asarray(image_points, dtype=np.float64)
+    o = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3)
+    i = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2)
+    k, d = camera.matrix, camera.dist_or_none
+    seeds: list[tuple[np.ndarray, np.ndarray]] = []
+    methods = [flag]
+    if planar:
+        methods.append(cv2.SOLVEPNP_IPPE)
+    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
+    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
+    if obj.shape[0] >= 4:
+        methods.append(cv2.SOLVEPNP_SQPNP)
+    for method in dict.fromkeys(methods):
+        try:
+            n, rvecs, tvecs, _ = cv2.solvePnPGeneric(o, i, k, d, flags=method)
+        except cv2.error:
+            continue
+        seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
+    poses = []
+    for rvec, tvec in seeds:
+        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+            continue
+        rvec, tvec = rvec.copy(), tvec.copy()
+        if solver != "epnp" and solver != "ippe":
+            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
+        try:
+            poses.append(Pose.from_rvec_tvec(rvec, tvec))
+        except ValueError:
+            continue
+    return poses
 
 
 def solve_pnp(

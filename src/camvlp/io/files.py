@@ -131,9 +131,7 @@ def load_camera(path: str | Path) -> Camera:
     if not isinstance(mirrored, bool):
         raise InputError(f"mirrored must be true or false, got {mirrored!r}", p)
     try:
-        return Camera(
-            width, height, k, dist.reshape(-1), row_time, mirrored, data.get("readout")
-        )
+        return Camera(width, height, k, dist.reshape(-1), row_time, mirrored, data.get("readout"))
     except ValueError as exc:
         raise InputError(str(exc), p) from None
 

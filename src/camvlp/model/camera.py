@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from camvlp.model.readout import Readout
+
 __all__ = [
-    "READOUTS",
     "Camera",
     "Pose",
     "euler_to_matrix",
@@ -35,7 +36,6 @@ __all__ = [
 #: Readout values of a camera: the image axis the sensor's rows follow, and ``-reversed``
 #: when time runs up (right to left) rather than down (left to right); None: find the axis
 #: from the stripes and take the forward direction.
-READOUTS = (None, "rows", "columns", "rows-reversed", "columns-reversed")
 
 
 def rotation_x(theta_deg: float) -> np.ndarray:
@@ -206,7 +206,7 @@ class Camera:
     distortion: np.ndarray = field(default_factory=lambda: np.zeros(0))
     row_time_s: float | None = None
     mirrored: bool = False
-    readout: str | None = None
+    readout: Readout | None = None
 
     def __post_init__(self) -> None:
         if int(self.width) <= 0 or int(self.height) <= 0:
@@ -229,11 +229,7 @@ class Camera:
             raise ValueError(
                 f"row_time_s must be a positive number of seconds, got {self.row_time_s}"
             )
-        if self.readout not in READOUTS:
-            raise ValueError(
-                "readout must be rows, columns, rows-reversed or columns-reversed, "
-                f"got {self.readout!r}"
-            )
+        object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
         object.__setattr__(self, "width", int(self.width))
         object.__setattr__(self, "height", int(self.height))
         object.__setattr__(self, "matrix", k)

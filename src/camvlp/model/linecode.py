@@ -234,7 +234,10 @@ class FrameFormat:
             return ChipDecode(None, d_best, d_second, offset, "two IDs fit equally well")
         if d_best > limit:
             return ChipDecode(
-                None, d_best, d_second, offset,
+                None,
+                d_best,
+                d_second,
+                offset,
                 f"{d_best} chips disagree with the nearest ID (at most {limit} correctable)",
             )
         return ChipDecode(best, d_best, d_second, offset)

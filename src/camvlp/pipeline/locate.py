@@ -1,4 +1,9 @@
-"""The whole pipeline: photograph -> fixtures -> IDs -> map -> pose (thesis chapter 5)."""
+"""The whole pipeline: photograph -> fixtures -> IDs -> map -> pose (thesis chapter 5).
+
+:func:`locate` runs the stages in order, each a function of its own here: prepare the image,
+detect the fixtures, cut each one's row profile, decode (Manchester IDs or frequencies),
+identify them in the map, solve the pose, and report every fixture.
+"""
 
 from __future__ import annotations
 
@@ -6,19 +11,21 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
-import cv2
 import numpy as np
 
-from camvlp.io import InputError
-from camvlp.model.camera import READOUTS, Camera, Pose
+from camvlp.errors import InputError
+from camvlp.geometry.disc import disc_normals, perspective_offset
+from camvlp.geometry.pnp import check_solver
+from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profile, row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import assign_frequencies
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.stripes import estimate_stripe_period
 
-__all__ = ["FixtureResult", "LocateResult", "LocateSettings", "locate"]
+__all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
 
 
 @dataclass(frozen=True)
@@ -38,23 +45,32 @@ class LocateSettings:
         Smallest closing length of the detector, full-resolution pixels.
     min_diameter_px : float
         Smallest fixture image considered, pixels.
-    readout : str or None
+    readout : Readout, str or None
         Readout ("rows", "columns", "rows-reversed", "columns-reversed"; see
-        :class:`camvlp.Camera`); None takes the camera's, else finds the axis (forward).
+        :class:`camvlp.model.readout.Readout`); None takes the camera's, else finds the axis
+        from the stripes (forward).
     mirrored : bool or None
         Flip the image left-right first; None takes the camera file's ``mirrored``.
     correct_perspective : bool
         Correct each disc's centre for the offset between an ellipse's centre and the
         projected centre of the disc (needs the map's diameters), then solve again.
+    keep_stages : bool
+        Keep the intermediate results (:class:`LocateStages`) in the result's ``stages``, for
+        debug pictures.
     """
 
     solver: str = "iterative"
     outlier_px: float | None = None
     kernel_px: int = 16
     min_diameter_px: float = 8.0
-    readout: str | None = None
+    readout: Readout | None = None
     mirrored: bool | None = None
     correct_perspective: bool = True
+    keep_stages: bool = False
+
+    def __post_init__(self) -> None:
+        check_solver(self.solver)
+        object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
 
 
 @dataclass(frozen=True)
@@ -131,16 +147,20 @@ class LocateResult:
         Every fixture detected, identified or not.
     timing_ms : dict
         Milliseconds per stage: ``detect``, ``decode``, ``pose``, ``total``.
-    error : str
-        Why it was not located ("" when it was).
-    readout : str
-        Readout axis used ("rows" or "columns").
+    reason : str
+        Why it was not located ("" when it was).  (``error`` is the same, its old name.)
+    readout : Readout
+        The readout the stripes were read with.
     mirrored : bool
         The image was flipped left-right before locating.
     alternative_position : ndarray, shape (3,), or None
         The other pose of a planar target's two-fold ambiguity, when it exists.
     alternative_rms_px : float
         Its reprojection RMS, pixels.
+    notes : tuple of str
+        Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
+    stages : LocateStages or None
+        Intermediate results, with ``LocateSettings(keep_stages=True)``.
     """
 
     position: np.ndarray | None
@@ -149,15 +169,21 @@ class LocateResult:
     reprojection_rms_px: float
     fixtures: tuple[FixtureResult, ...]
     timing_ms: dict[str, float]
-    error: str = ""
-    readout: str = "rows"
+    reason: str = ""
+    readout: Readout = Readout.ROWS
     mirrored: bool = False
     alternative_position: np.ndarray | None = None
     alternative_rms_px: float = float("nan")
     notes: tuple[str, ...] = field(default_factory=tuple)
+    stages: LocateStages | None = field(default=None, repr=False, compare=False)
 
     def __bool__(self) -> bool:
         return self.position is not None
+
+    @property
+    def error(self) -> str:
+        """Why it was not located: the same as ``reason`` (its former name)."""
+        return self.reason
 
     @property
     def pose(self) -> Pose | None:
@@ -181,7 +207,7 @@ class LocateResult:
             else round(self.reprojection_rms_px, 4),
             "fixtures": [f.to_dict() for f in self.fixtures],
             "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
-            "readout": self.readout,
+            "readout": str(self.readout),
             "mirrored": self.mirrored,
         }
         if self.alternative_position is not None:
@@ -191,14 +217,26 @@ class LocateResult:
             }
         if self.notes:
             d["notes"] = list(self.notes)
-        if self.error:
-            d["error"] = self.error
+        if self.reason:
+            d["error"] = self.reason
         return d
 
 
 @dataclass(frozen=True)
-class _Stages:
-    """Intermediate results kept for the debug pictures."""
+class LocateStages:
+    """Intermediate results of :func:`locate`, kept for the debug pictures.
+
+    Attributes
+    ----------
+    detection : Detection
+        The detector's output (blobs in the possibly mirrored image).
+    gray_rois : tuple of ndarray, each (h, w) uint8
+        Each blob's region of interest, gray.
+    profiles : tuple of ndarray, each (n,)
+        Each blob's row profile, in the order the sensor read it.
+    decodes : tuple of StripeDecode
+        Each blob's decode.
+    """
 
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
@@ -227,39 +265,21 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
     return img
 
 
-def _perspective_offset(camera: Camera, pose: Pose, centre, diameter, normal) -> np.ndarray:
-    """Image offset of a disc's ellipse centre from its centre's projection, pixels (2,)."""
-    n = np.asarray(normal, float) if normal is not None else pose.position - centre
-    n = n / np.linalg.norm(n)
-    a = np.cross(n, [1.0, 0.0, 0.0])
-    if np.linalg.norm(a) < 1e-6:
-        a = np.cross(n, [0.0, 1.0, 0.0])
-    a /= np.linalg.norm(a)
-    b = np.cross(n, a)
-    t = np.linspace(0, 2 * np.pi, 72, endpoint=False)
-    rim = centre + 0.5 * diameter * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b)
-    uv = camera.project(pose, np.vstack([centre, rim]))
-    if not np.all(np.isfinite(uv)):
-        return np.zeros(2)
-    (cx, cy), _, _ = cv2.fitEllipse(uv[1:].astype(np.float32))
-    return np.array([cx, cy]) - uv[0]
-
-
-def _extent(blob: Blob, readout: str) -> float:
-    """Sensor rows a detected disc spans along the readout axis."""
-    m = blob.mask if readout == "rows" else blob.mask.T
+def _extent(blob: Blob, axis: str) -> float:
+    """Sensor rows a detected disc spans along the readout axis ("rows" or "columns")."""
+    m = blob.mask if axis == "rows" else blob.mask.T
     r = np.flatnonzero(m.any(axis=1))
     return float(r[-1] - r[0] + 1) if r.size else 0.0
 
 
 def _decode_frequencies(
-    blobs, gray_rois, extents: np.ndarray, readout: str, camera: Camera, fixture_map: FixtureMap
+    blobs, gray_rois, extents: np.ndarray, axis: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
     periods = np.full(len(blobs), np.nan)
     failures = [""] * len(blobs)
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
-        est = estimate_stripe_period(g, b.mask, readout)
+        est = estimate_stripe_period(g, b.mask, axis)
         if est:
             periods[k] = est.period_px
         else:
@@ -297,83 +317,73 @@ def _decode_frequencies(
     return decodes, fa.frequencies_hz, note
 
 
-def locate(
-    image: np.ndarray,
-    camera: Camera,
-    fixture_map: FixtureMap,
-    settings: LocateSettings | None = None,
-    *,
-    _keep_stages: bool = False,
-):
-    """Locate the camera that took a photograph of a room's coded lights.
+@dataclass(frozen=True)
+class _Identified:
+    """The identify stage: each blob's ID (or None) and why it cannot be used ("" if it can)."""
 
-    Parameters
-    ----------
-    image : ndarray, shape (H, W, 3) or (H, W)
-        The photograph, BGR or gray, 8- or 16-bit, of the camera's size.
-    camera : Camera
-        The camera's intrinsics, distortion and (optionally) row time.
-    fixture_map : FixtureMap
-        The room's fixtures.
-    settings : LocateSettings, optional
-        Tuning options.
+    ids: tuple[int | None, ...]
+    reasons: tuple[str, ...]
+    usable: tuple[int, ...]  # indices of blobs with an ID and no reason
 
-    Returns
-    -------
-    LocateResult
-        Falsy (``position`` None, ``error`` set) when the photo could not be located; it still
-        lists every fixture found and why each one was or was not used.
 
-    Raises
-    ------
-    InputError
-        The image is not an image of the camera's size.
-    """
-    st = settings or LocateSettings()
-    outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
-    t0 = time.perf_counter()
+def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.ndarray, bool]:
+    """Stage 0: the checked image, flipped left-right when the photo is mirrored."""
     img = _check_image(image, camera)
     mirrored = camera.mirrored if st.mirrored is None else bool(st.mirrored)
-    if mirrored:
-        img = img[:, ::-1]
-    given = st.readout or camera.readout
-    if given not in READOUTS:
-        raise ValueError(f"readout must be one of {READOUTS[1:]}, got {given!r}")
-    reverse = bool(given) and given.endswith("-reversed")
-    readout = given.removesuffix("-reversed") if given else None
-    detection = detect_fixtures(
-        img, readout=readout, kernel_px=st.kernel_px, min_diameter_px=st.min_diameter_px
-    )
-    blobs = detection.blobs
-    if readout is None and blobs:
-        striped = [b for b in blobs if b.stripe_contrast > 2.0] or list(blobs)
-        votes = [b.axis for b in striped]
-        readout = max(set(votes), key=votes.count)
-    readout = readout or "rows"
-    t1 = time.perf_counter()
+    return (img[:, ::-1] if mirrored else img), mirrored
 
+
+def _detect(
+    img: np.ndarray, given: Readout | None, st: LocateSettings
+) -> tuple[Detection, Readout]:
+    """Stage 1: the fixtures, and the readout (given, else the axis most striped blobs show)."""
+    detection = detect_fixtures(
+        img,
+        readout=None if given is None else given.axis,
+        kernel_px=st.kernel_px,
+        min_diameter_px=st.min_diameter_px,
+    )
+    if given is not None:
+        return detection, given
+    blobs = detection.blobs
+    striped = [b for b in blobs if b.stripe_contrast > 2.0] or list(blobs)
+    votes = [b.axis for b in striped]
+    axis = max(set(votes), key=votes.count) if votes else "rows"
+    return detection, Readout.of(axis)
+
+
+def _profiles(
+    img: np.ndarray, blobs, readout: Readout
+) -> tuple[list[np.ndarray], np.ndarray, list[np.ndarray]]:
+    """Stage 2: each blob's gray region, its extent along the readout (rows) and row profile.
+
+    Each profile is in the order the sensor read it (reversed for a reversed readout).
+    """
     gray_rois = [to_gray(img[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
-    extents = np.array([_extent(b, readout) for b in blobs])
-    step = -1 if reverse else 1  # each profile in the order the sensor read it
+    extents = np.array([_extent(b, readout.axis) for b in blobs])
+    step = -1 if readout.reversed else 1
     profiles = [
-        row_profile(g, b.mask, readout)[0][::step] for b, g in zip(blobs, gray_rois, strict=True)
+        row_profile(g, b.mask, readout.axis)[0][::step]
+        for b, g in zip(blobs, gray_rois, strict=True)
     ]
-    notes: list[str] = []
-    frequencies = np.full(len(blobs), np.nan)
+    return gray_rois, extents, profiles
+
+
+def _decode(
+    blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
+) -> tuple[list[StripeDecode], np.ndarray, list[str]]:
+    """Stage 3: each blob's decode, measured frequencies (Hz, NaN in Manchester mode), notes."""
     if fixture_map.mode == "frequency":
         decodes, frequencies, note = _decode_frequencies(
-            blobs, gray_rois, extents, readout, camera, fixture_map
+            blobs, gray_rois, extents, readout.axis, camera, fixture_map
         )
-        notes += [note] if note else []
-    else:
-        decodes = [decode_profile(p, fixture_map.frame) for p in profiles]
-    t2 = time.perf_counter()
+        return decodes, frequencies, [note] if note else []
+    decodes = [decode_profile(p, fixture_map.frame) for p in profiles]
+    return decodes, np.full(len(blobs), np.nan), []
 
-    width = img.shape[1]
 
-    def shown(pixel: np.ndarray) -> np.ndarray:  # pixel in the photo as given
-        return np.array([width - 1 - pixel[0], pixel[1]]) if mirrored else pixel
-
+def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
+    """Stage 4: IDs looked up in the map; cut discs, unknown and repeated IDs set aside."""
     reasons: list[str] = []
     ids: list[int | None] = []
     for b, dec in zip(blobs, decodes, strict=True):
@@ -389,57 +399,71 @@ def locate(
     for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
         if i is not None and not r and decoded.count(i) > 1:
             reasons[k] = f"ID {i} was decoded for two fixtures"
-    usable = [k for k, r in enumerate(reasons) if ids[k] is not None and not r]
+    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
+    return _Identified(tuple(ids), tuple(reasons), usable)
 
+
+def _solve(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    blobs,
+    found: _Identified,
+    st: LocateSettings,
+    outlier_px: float,
+) -> tuple[PoseEstimate | None, str]:
+    """Stage 5: the pose from the usable fixtures, then again with perspective-corrected
+    centres; (estimate or None when too few fixtures, why it failed or "")."""
+    usable = found.usable
+    if len(usable) < 4:
+        return None, (
+            f"{len(usable)} usable fixture{'s' if len(usable) != 1 else ''} "
+            f"({len(blobs)} detected), at least 4 are needed"
+        )
     pixels = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
-    fixtures = [fixture_map.get(ids[k]) for k in usable]
+    fixtures = [fixture_map.get(found.ids[k]) for k in usable]
     obj = np.array([f.position for f in fixtures]).reshape(-1, 3)
     normals = None
     if any(f.normal is not None for f in fixtures):
         normals = np.array([f.normal if f.normal is not None else [np.nan] * 3 for f in fixtures])
-    est: PoseEstimate | None = None
-    error = ""
-    if len(usable) < 4:
-        n_found = len(blobs)
-        error = (
-            f"{len(usable)} usable fixture{'s' if len(usable) != 1 else ''} "
-            f"({n_found} detected), at least 4 are needed"
-        )
-    else:
-        est = estimate_pose(
-            pixels, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
-        )
-        if est and st.correct_perspective and all(f.diameter for f in fixtures):
-            offsets = np.array(
-                [
-                    _perspective_offset(camera, est.pose, f.position, f.diameter, f.normal)
-                    for f in fixtures
-                ]
-            )
-            if np.max(np.abs(offsets)) < 0.02:  # facing the lights: nothing to correct
-                est2 = None
-            else:
-                est2 = estimate_pose(
-                    pixels - offsets,
-                    obj,
-                    camera,
-                    normals=normals,
-                    solver=st.solver,
-                    outlier_px=outlier_px,
-                )
-            if est2:
-                est = est2
-        if not est:
-            error = est.reason
-    t3 = time.perf_counter()
 
+    def solve(points: np.ndarray) -> PoseEstimate:
+        return estimate_pose(
+            points, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
+        )
+
+    est = solve(pixels)
+    if est and st.correct_perspective and all(f.diameter for f in fixtures):
+        # discs without a map normal lie on the plane of the others, facing the camera
+        facing = disc_normals(obj, normals, est.pose.position)
+        offsets = np.array(
+            [
+                perspective_offset(camera, est.pose, f.position, f.diameter, n)
+                for f, n in zip(fixtures, facing, strict=True)
+            ]
+        )
+        if np.max(np.abs(offsets)) >= 0.02:  # below: facing the lights, nothing to correct
+            corrected = solve(pixels - offsets)
+            est = corrected if corrected else est
+    return est, "" if est else est.reason
+
+
+def _fixture_results(
+    blobs,
+    decodes,
+    found: _Identified,
+    est: PoseEstimate | None,
+    extents: np.ndarray,
+    frequencies: np.ndarray,
+    shown,
+) -> tuple[FixtureResult, ...]:
+    """Stage 6: every fixture seen, identified or not, with why it was not used."""
     results = []
     for k, (b, dec) in enumerate(zip(blobs, decodes, strict=True)):
-        reason = reasons[k]
+        reason = found.reasons[k]
         used = False
         residual = float("nan")
-        if k in usable:
-            j = usable.index(k)
+        if k in found.usable:
+            j = found.usable.index(k)
             if est is not None and est.pose is not None:
                 used = bool(est.used[j])
                 residual = float(est.residuals_px[j])
@@ -451,7 +475,7 @@ def locate(
                 reason = "fewer than 4 usable fixtures"
         results.append(
             FixtureResult(
-                id=ids[k],
+                id=found.ids[k],
                 pixel=shown(b.pixel),
                 used=used,
                 margin=dec.margin,
@@ -463,29 +487,82 @@ def locate(
                 frequency_hz=float(frequencies[k]),
             )
         )
-    timing = {
-        "detect": 1e3 * (t1 - t0),
-        "decode": 1e3 * (t2 - t1),
-        "pose": 1e3 * (t3 - t2),
-        "total": 1e3 * (t3 - t0),
-    }
+    return tuple(results)
+
+
+def locate(
+    image: np.ndarray,
+    camera: Camera,
+    fixture_map: FixtureMap,
+    settings: LocateSettings | None = None,
+) -> LocateResult:
+    """Locate the camera that took a photograph of a room's coded lights.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W, 3) or (H, W)
+        The photograph, BGR or gray, 8- or 16-bit, of the camera's size.
+    camera : Camera
+        The camera's intrinsics, distortion and (optionally) row time and readout.
+    fixture_map : FixtureMap
+        The room's fixtures.
+    settings : LocateSettings, optional
+        Tuning options (``keep_stages=True`` keeps the intermediate results).
+
+    Returns
+    -------
+    LocateResult
+        Falsy (``position`` None, ``reason`` set) when the photo could not be located; it
+        still lists every fixture found and why each one was or was not used.
+
+    Raises
+    ------
+    InputError
+        The image is not an image of the camera's size.
+    """
+    st = settings or LocateSettings()
+    outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
+    t0 = time.perf_counter()
+    img, mirrored = _prepare(image, camera, st)
+    detection, readout = _detect(img, st.readout or camera.readout, st)
+    blobs = detection.blobs
+    t1 = time.perf_counter()
+    gray_rois, extents, profiles = _profiles(img, blobs, readout)
+    decodes, frequencies, notes = _decode(
+        blobs, gray_rois, extents, profiles, readout, camera, fixture_map
+    )
+    t2 = time.perf_counter()
+    found = _identify(blobs, decodes, fixture_map)
+    est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px)
+    t3 = time.perf_counter()
+
+    width = img.shape[1]
+
+    def shown(pixel: np.ndarray) -> np.ndarray:  # pixel in the photo as given
+        return np.array([width - 1 - pixel[0], pixel[1]]) if mirrored else pixel
+
     pose = est.pose if est is not None else None
-    result = LocateResult(
+    return LocateResult(
         position=None if pose is None else pose.position,
         rotation=None if pose is None else pose.world_from_camera,
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
-        fixtures=tuple(results),
-        timing_ms=timing,
-        error=error,
-        readout=readout + ("-reversed" if reverse else ""),
+        fixtures=_fixture_results(blobs, decodes, found, est, extents, frequencies, shown),
+        timing_ms={
+            "detect": 1e3 * (t1 - t0),
+            "decode": 1e3 * (t2 - t1),
+            "pose": 1e3 * (t3 - t2),
+            "total": 1e3 * (t3 - t0),
+        },
+        reason=reason,
+        readout=readout,
         mirrored=mirrored,
         alternative_position=None
         if est is None or est.alternative is None
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
         notes=tuple(notes),
+        stages=LocateStages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
+        if st.keep_stages
+        else None,
     )
-    if _keep_stages:
-        return result, _Stages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
-    return result

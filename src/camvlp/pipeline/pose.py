@@ -2,10 +2,11 @@
 
 * Fewer than four fixtures, or fixtures (nearly) on one line, in the world or in the image:
   a failure that says so, never a pose.
-* Coplanar fixtures (the usual ceiling) have a two-fold pose ambiguity: both candidates of
-  IPPE are refined with Levenberg-Marquardt (OpenCV's SOLVEPNP_ITERATIVE criterion) and the
-  one that reprojects best with every fixture in front of the camera is kept.  The other is
-  reported too.
+* Candidates come from :func:`camvlp.geometry.pnp.pnp_candidates`: the chosen solver, IPPE's
+  two poses for coplanar fixtures (the usual ceiling has a two-fold pose ambiguity) and SQPnP,
+  each refined by Levenberg-Marquardt unless the solver is ``ippe`` or ``epnp`` (kept raw so
+  that they can be compared as they are).  The candidate that reprojects best with every
+  fixture in front of the camera is kept; the other pose of the ambiguity is reported too.
 * With five or more fixtures, a fixture that does not fit (a wrong ID, a moved light) is
   dropped instead of pulling the pose: leave-one-out while the reprojection error is large.
 * Fixtures may carry a ``normal`` (the way they face).  A pose that puts the camera behind
@@ -17,10 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from itertools import combinations
 
-import cv2
 import numpy as np
 
-from camvlp.geometry.pnp import SOLVERS as _SOLVERS
+from camvlp.geometry.pnp import check_solver, pnp_candidates
 from camvlp.model.camera import Camera, Pose
 
 __all__ = ["PoseEstimate", "estimate_pose"]
@@ -81,41 +81,6 @@ def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> 
     return np.where(np.isfinite(r), r, np.inf)
 
 
-def _candidates(
-    camera: Camera, obj: np.ndarray, img: np.ndarray, solver: str, planar: bool
-) -> list[Pose]:
-    """Candidate poses, refined by Levenberg-Marquardt."""
-    o = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3)
-    i = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2)
-    k, d = camera.matrix, camera.dist_or_none
-    seeds: list[tuple[np.ndarray, np.ndarray]] = []
-    methods = [_SOLVERS[solver]]
-    if planar:
-        methods.append(cv2.SOLVEPNP_IPPE)
-    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
-    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
-    if obj.shape[0] >= 4:
-        methods.append(cv2.SOLVEPNP_SQPNP)
-    for method in dict.fromkeys(methods):
-        try:
-            n, rvecs, tvecs, _ = cv2.solvePnPGeneric(o, i, k, d, flags=method)
-        except cv2.error:
-            continue
-        seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
-    poses = []
-    for rvec, tvec in seeds:
-        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
-            continue
-        rvec, tvec = rvec.copy(), tvec.copy()
-        if solver != "epnp" and solver != "ippe":
-            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
-        try:
-            poses.append(Pose.from_rvec_tvec(rvec, tvec))
-        except ValueError:
-            continue
-    return poses
-
-
 def _choose(
     camera: Camera,
     obj: np.ndarray,
@@ -126,7 +91,7 @@ def _choose(
 ) -> tuple[Pose | None, float, Pose | None, float, bool]:
     """Best valid candidate and the runner-up; flags a best fit that is behind the lights."""
     scored = []
-    for pose in _candidates(camera, obj, img, solver, planar):
+    for pose in pnp_candidates(obj, img, camera, solver, planar=planar):
         depth = pose.to_camera(obj)[:, 2]
         in_front = bool(np.all(depth > 0))
         facing = True
@@ -188,8 +153,7 @@ def estimate_pose(
     PoseEstimate
         Falsy, with a reason, when no pose can be trusted.
     """
-    if solver not in _SOLVERS:
-        raise ValueError(f"solver must be one of {', '.join(_SOLVERS)}, got {solver!r}")
+    check_solver(solver)
     img = np.asarray(image_points, dtype=float).reshape(-1, 2)
     obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
     if img.shape[0] != obj.shape[0]:
@@ -240,7 +204,7 @@ def estimate_pose(
     if float(np.max(residuals[used])) > outlier_px:
         return PoseEstimate(
             None,
-            rms,
+            float("nan"),
             np.zeros(n, bool),
             residuals,
             reason=f"the fixtures do not fit one pose (reprojection error up to "

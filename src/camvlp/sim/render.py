@@ -43,8 +43,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from camvlp.model.camera import READOUTS, Camera, Pose
+from camvlp.geometry.disc import disc_normals, rim_points
+from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.model.readout import Readout
 
 __all__ = [
     "FixtureTruth",
@@ -112,7 +114,7 @@ class RenderSettings:
     blur_px: float = 0.8
     full_well_e: float = 8000.0
     read_noise: float = 0.004
-    readout: str = "rows"
+    readout: Readout = Readout.ROWS
     colours: tuple | None = None
     seed: int = 0
 
@@ -130,11 +132,7 @@ class RenderSettings:
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
             if not math.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value!r}")
-        if self.readout not in READOUTS[1:]:
-            raise ValueError(
-                "readout must be rows, columns, rows-reversed or columns-reversed, "
-                f"got {self.readout!r}"
-            )
+        object.__setattr__(self, "readout", Readout.parse(self.readout))
         if (
             isinstance(self.seed, bool)
             or not isinstance(self.seed, (int, np.integer))
@@ -270,41 +268,17 @@ def _fixture_normals(fixture_map: FixtureMap, pose: Pose) -> np.ndarray:
     centres (when they span one), signed to face the camera; otherwise the direction from
     the fixture towards the camera.
     """
-    centres = fixture_map.positions
-    normals = np.empty_like(centres)
-    plane_normal = None
-    if len(centres) >= 3:
-        _, s, vt = np.linalg.svd(centres - centres.mean(axis=0))
-        if s[1] > 1e-9 * max(s[0], 1e-300):
-            plane_normal = vt[2]
-    for i, f in enumerate(fixture_map.fixtures):
-        to_cam = pose.position - f.position
-        if f.normal is not None:
-            normals[i] = f.normal
-        elif plane_normal is not None:
-            normals[i] = plane_normal if plane_normal @ to_cam >= 0 else -plane_normal
-        else:
-            d = np.linalg.norm(to_cam)
-            normals[i] = to_cam / d if d > 0 else np.array([0.0, 0.0, 1.0])
-    return normals
-
-
-def _plane_basis(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Two unit vectors spanning the plane with this normal."""
-    helper = np.eye(3)[int(np.argmin(np.abs(normal)))]
-    e1 = np.cross(normal, helper)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(normal, e1)
+    known = np.array(
+        [f.normal if f.normal is not None else [np.nan] * 3 for f in fixture_map.fixtures]
+    ).reshape(-1, 3)
+    return disc_normals(fixture_map.positions, known, pose.position)
 
 
 def _rim_points(fixture: Fixture, normal: np.ndarray, n: int = N_RIM) -> np.ndarray:
     """Points on the disc's rim, shape (n, 3), map units (the centre for no diameter)."""
     if fixture.diameter is None:
         return fixture.position[None, :]
-    e1, e2 = _plane_basis(normal)
-    a = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-    r = 0.5 * fixture.diameter
-    return fixture.position + r * (np.cos(a)[:, None] * e1 + np.sin(a)[:, None] * e2)
+    return rim_points(fixture.position[None, :], [fixture.diameter], normal[None, :], n)[0]
 
 
 def _waveform(fixture_map: FixtureMap, fixture: Fixture, chip_rate_hz: float):
@@ -321,7 +295,7 @@ def _truths(
     s = settings.resolved(camera)
     normals = _fixture_normals(fixture_map, pose)
     rng = np.random.default_rng([int(s.seed), 1])
-    axis = 1 if s.readout.startswith("rows") else 0
+    axis = s.readout.pixel_index
     truths, rims = [], []
     w, h = camera.width, camera.height
     field = _field_radius(camera)
@@ -644,9 +618,9 @@ def render(
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         u0, u1, v0, v1 = box
         chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
-        by_rows = s.readout.startswith("rows")
+        by_rows = s.readout.by_rows
         k = np.arange(v0, v1) if by_rows else np.arange(u0, u1)
-        if s.readout.endswith("-reversed"):  # sensor row 0 is the last image row (column)
+        if s.readout.reversed:  # sensor row 0 is the last image row (column)
             k = (h if by_rows else w) - 1 - k
         on = _on_fraction(chips, chip_s, k * s.row_time_s + truth.phase_s, s.exposure_s)
         on = on.astype(np.float32)

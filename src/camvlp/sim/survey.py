@@ -173,8 +173,9 @@ def render_survey(
     """
     pos = np.asarray(positions, dtype=float)
     if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0 or not np.isfinite(pos).all():
-        raise ValueError(f"positions must be a non-empty (N, 3) array of finite numbers, got "
-                         f"shape {pos.shape}")
+        raise ValueError(
+            f"positions must be a non-empty (N, 3) array of finite numbers, got shape {pos.shape}"
+        )
     n = pos.shape[0]
     eul = np.asarray(euler_deg, dtype=float)
     if eul.shape == (3,):
@@ -200,8 +201,13 @@ def render_survey(
 
     names = [f"photo_{i:03d}{suffix}" for i in range(n)]
     tasks = [
-        (pos[i], eul[i], dataclasses.replace(base, seed=int(base.seed) + i), out / names[i],
-         int(jpeg_quality))
+        (
+            pos[i],
+            eul[i],
+            dataclasses.replace(base, seed=int(base.seed) + i),
+            out / names[i],
+            int(jpeg_quality),
+        )
         for i in range(n)
     ]
     if n_jobs == 1 or n == 1:
@@ -229,8 +235,12 @@ def render_survey(
         writer.writerow(SURVEY_COLUMNS)
         for i in range(n):
             writer.writerow(
-                [names[i], *(f"{v:.6f}" for v in pos[i]), *(f"{v:.4f}" for v in eul[i]),
-                 int(base.seed) + i]
+                [
+                    names[i],
+                    *(f"{v:.6f}" for v in pos[i]),
+                    *(f"{v:.4f}" for v in eul[i]),
+                    int(base.seed) + i,
+                ]
             )
     return csv_path
 
