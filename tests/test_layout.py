@@ -47,5 +47,5 @@ def test_locating_does_not_import_matplotlib():
 def test_no_warning_from_the_new_paths():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        import camvlp.analysis.study  # noqa: F401
+        import camvlp.analysis.study
         import camvlp.pipeline.locate  # noqa: F401

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from camvlp.geometry.pnp import SOLVERS, project_batch, rodrigues_batch, solve_pnp, solve_pnp_batch
+from camvlp.geometry.pnp import project_batch, rodrigues_batch, solve_pnp, solve_pnp_batch
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 
 CAM = Camera.from_focal(640, 480, 500.0)
