@@ -252,6 +252,32 @@ def _refine(
     kernel_px: int,
     min_diameter_px: float,
 ) -> Blob | None:
+    """One candidate region at full resolution: its disc, readout axis and centre.
+
+    The region is thresholded at a quarter of the way from its background (10th percentile)
+    to its peak (99.5th): real lights are brighter in the middle than at the rim.  The dark
+    stripes are bridged by :func:`_disc_mask`; the centre is an ellipse fitted to sub-pixel
+    edge points of the lit sensor rows (:func:`_edge_points`), or the mask's centroid when
+    fewer than 12 edge points are found.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W) or (H, W, 3)
+        The whole photo.
+    box : tuple of int
+        The region, ``(x0, y0, x1, y1)`` in full-resolution pixels (x1, y1 exclusive).
+    readout : {"rows", "columns", None}
+        The readout axis, or None to find it from the region's stripes.
+    kernel_px : int
+        Smallest closing length, pixels.
+    min_diameter_px : float
+        Smallest disc kept, pixels.
+
+    Returns
+    -------
+    Blob or None
+        None when the region holds no light large and bright enough.
+    """
     x0, y0, x1, y1 = box
     gray8 = to_gray(img[y0:y1, x0:x1])
     if gray8.shape[0] < 3 or gray8.shape[1] < 3:
@@ -268,37 +294,9 @@ def _refine(
         axis, contrast = find_readout_axis(gray, cv2.dilate(lit_u8, np.ones((3, 3), np.uint8)) > 0)
     else:
         contrast = find_readout_axis(gray, lit)[1]
-    # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
-    along = lit if axis == "rows" else lit.T
-    centre_lines = along[
-        :, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)
-    ]
-    gap = 0
-    if centre_lines.size:
-        line = centre_lines.mean(axis=1) > 0.5
-        starts, lengths, vals = _runs(line)
-        interior = (~vals) & (starts > 0) & (starts + lengths < line.size)
-        gap = int(lengths[interior].max()) if np.any(interior) else 0
-    length = max(kernel_px, gap + 3) | 1
-    ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
-    # Close a copy padded by repeating its edge: OpenCV's own border keeps whatever the
-    # dilation brought to the edge, which would join a disc near the border to it.
-    m = length // 2 + 3
-    closed = cv2.copyMakeBorder(lit_u8, m, m, m, m, cv2.BORDER_REPLICATE)
-    closed = cv2.morphologyEx(
-        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
-    )
-    closed = cv2.morphologyEx(
-        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
-    )
-    closed = np.ascontiguousarray(closed[m:-m, m:-m])
-    # the largest outline, holes filled
-    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    if not contours:
+    mask = _disc_mask(lit, axis, kernel_px)
+    if mask is None:
         return None
-    filled = np.zeros_like(closed)
-    cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
-    mask = filled.astype(bool)
     area = float(mask.sum())
     if area < 0.5 * min_diameter_px**2:
         return None
@@ -333,6 +331,47 @@ def _refine(
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
     )
+
+
+def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
+    """The disc under a striped light: lit pixels with the dark stripes bridged.
+
+    A closing along the readout axis as long as the widest dark gap across the middle third
+    of the region (at least ``kernel_px``), a small round closing, and the largest outline
+    with its holes filled.  Returns a bool mask (h, w), or None when nothing is lit.
+    """
+    lit_u8 = lit.astype(np.uint8)
+    # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
+    along = lit if axis == "rows" else lit.T
+    centre_lines = along[
+        :, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)
+    ]
+    gap = 0
+    if centre_lines.size:
+        line = centre_lines.mean(axis=1) > 0.5
+        starts, lengths, vals = _runs(line)
+        interior = (~vals) & (starts > 0) & (starts + lengths < line.size)
+        gap = int(lengths[interior].max()) if np.any(interior) else 0
+    length = max(kernel_px, gap + 3) | 1
+    ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
+    # Close a copy padded by repeating its edge: OpenCV's own border keeps whatever the
+    # dilation brought to the edge, which would join a disc near the border to it.
+    m = length // 2 + 3
+    closed = cv2.copyMakeBorder(lit_u8, m, m, m, m, cv2.BORDER_REPLICATE)
+    closed = cv2.morphologyEx(
+        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
+    )
+    closed = cv2.morphologyEx(
+        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+    )
+    closed = np.ascontiguousarray(closed[m:-m, m:-m])
+    # the largest outline, holes filled
+    contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return None
+    filled = np.zeros_like(closed)
+    cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
+    return filled.astype(bool)
 
 
 def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: str) -> np.ndarray:
