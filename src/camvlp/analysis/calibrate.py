@@ -26,8 +26,8 @@ import numpy as np
 
 from camvlp.io import InputError, load_image
 from camvlp.model.camera import Camera, Pose
-from camvlp.pipeline.detect import to_gray
-from camvlp.pipeline.stripes import StripePeriod, _gray_float, estimate_stripe_period
+from camvlp.pipeline.detect import gray_float, to_gray
+from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
 
 __all__ = [
     "CalibrationResult",
@@ -410,7 +410,7 @@ def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
     ndarray of bool, shape (H, W)
         All False when nothing stands out from the background.
     """
-    img = _gray_float(image)
+    img = gray_float(image)
     empty = np.zeros(img.shape, dtype=bool)
     lo, hi = float(img.min()), float(img.max())
     if hi - lo <= 0:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["Blob", "Detection", "detect_fixtures", "find_readout_axis", "to_gray"]
+__all__ = ["Blob", "Detection", "detect_fixtures", "find_readout_axis", "gray_float", "to_gray"]
 
 
 @dataclass(frozen=True)
@@ -78,17 +78,31 @@ class Detection:
     threshold: float
 
 
-def to_gray(image: np.ndarray) -> np.ndarray:
-    """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+def _luma(image: np.ndarray, dtype=None) -> np.ndarray:
+    """One channel (H, W) from gray or BGR(A) pixels, OpenCV's luma weights (0.299 R +
+    0.587 G + 0.114 B), optionally converted to ``dtype`` first."""
     img = np.asarray(image)
     if img.ndim == 3 and img.shape[2] == 1:
         img = img[:, :, 0]
-    if img.ndim == 3:
-        if img.shape[2] == 4:
-            img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    if dtype is not None:
+        img = img.astype(dtype, copy=False)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        img = cv2.cvtColor(img, code)
     if img.ndim != 2:
         raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
+    return img
+
+
+def gray_float(image: np.ndarray) -> np.ndarray:
+    """Gray ``float64`` (H, W) from a BGR (H, W, 3) or gray image, in its own units (no
+    rescaling): the same weights as :func:`to_gray`, for measurements on raw levels."""
+    return _luma(image, np.float32).astype(np.float64)
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+    img = _luma(image)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
     elif img.dtype != np.uint8:

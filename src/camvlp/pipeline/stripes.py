@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camvlp.pipeline.detect import gray_float
+
 __all__ = ["AXES", "StripePeriod", "estimate_stripe_period"]
 
 
@@ -50,17 +52,6 @@ class StripePeriod:
 
     def __bool__(self) -> bool:
         return bool(np.isfinite(self.period_px)) and not self.message
-
-
-def _gray_float(image: np.ndarray) -> np.ndarray:
-    img = np.asarray(image)
-    if img.ndim == 3 and img.shape[2] in (3, 4):
-        img = img[:, :, :3].astype(np.float64).mean(axis=2)
-    elif img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim != 2:
-        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
-    return img.astype(np.float64)
 
 
 def _line_sums(
@@ -208,7 +199,7 @@ def estimate_stripe_period(
     ValueError
         A bad image shape, a mask of another shape, or an unknown axis.
     """
-    img = _gray_float(image)
+    img = gray_float(image)
     if mask is None:
         m = np.ones(img.shape, dtype=bool)
     else:
