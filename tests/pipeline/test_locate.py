@@ -9,15 +9,16 @@ working to whole pixels does not.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
 from camvlp.io import InputError
 from camvlp.model.camera import Pose
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.pose import estimate_pose
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
@@ -256,3 +257,19 @@ def test_four_fixtures_one_misplaced_in_the_map_is_not_located(small_camera):
     assert res.position is None
     assert res.error
     assert not any(f.used for f in res.fixtures)
+
+
+def test_a_map_without_normals_is_as_accurate_as_one_with_them(renders, small_camera, small_room):
+    # Without normals the discs' plane is inferred from the fixtures (coplanar, not on a
+    # line), facing the camera; assuming each disc faces the camera instead biased tilted
+    # photos by millimetres along the optical axis.
+    bare = FixtureMap(tuple(dataclasses.replace(f, normal=None) for f in small_room.fixtures))
+    for name in ("floor-tilt-rows-short-exposure", "floor-tilt-columns"):
+        r = renders[name]
+        truth = r.pose.position
+        with_n = locate(r.image, small_camera, small_room)
+        without = locate(r.image, small_camera, bare)
+        assert with_n and without, (with_n.reason, without.reason)
+        e_with = np.linalg.norm(with_n.position - truth)
+        e_without = np.linalg.norm(without.position - truth)
+        assert abs(e_without - e_with) < 0.3e-3, (name, e_with, e_without)
