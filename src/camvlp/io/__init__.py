@@ -1,7 +1,24 @@
 """File formats: camera and map files, photographs, survey tables and result writers."""
 
 from camvlp.errors import InputError
-from camvlp.io.files import load_camera, load_map, save_camera, save_map
-from camvlp.io.images import load_image
+from camvlp.io.files import (
+    camera_from_dict,
+    load_camera,
+    load_map,
+    map_from_dict,
+    save_camera,
+    save_map,
+)
+from camvlp.io.images import decode_image, load_image
 
-__all__ = ["InputError", "load_camera", "load_image", "load_map", "save_camera", "save_map"]
+__all__ = [
+    "InputError",
+    "camera_from_dict",
+    "decode_image",
+    "load_camera",
+    "load_image",
+    "load_map",
+    "map_from_dict",
+    "save_camera",
+    "save_map",
+]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +21,14 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.linecode import FrameFormat
 
-__all__ = ["load_camera", "load_map", "save_camera", "save_map"]
+__all__ = [
+    "camera_from_dict",
+    "load_camera",
+    "load_map",
+    "map_from_dict",
+    "save_camera",
+    "save_map",
+]
 
 
 def _read_text(path: str | Path, kind: str) -> str:
@@ -53,7 +61,7 @@ def _parse_mapping(text: str, path: Path, kind: str) -> dict:
     return data
 
 
-def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: Path) -> np.ndarray:
+def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: str | Path) -> np.ndarray:
     """A matrix given as nested lists, a flat list, or OpenCV's {rows, cols, data}."""
     if isinstance(value, dict) and "data" in value:
         value = value["data"]
@@ -70,7 +78,7 @@ def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: Path) -> 
     return arr
 
 
-def _number(value: Any, key: str, path: Path, *, positive: bool = False) -> float:
+def _number(value: Any, key: str, path: str | Path, *, positive: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"{key} must be a number, got {value!r}", path)
     v = float(value)
@@ -96,7 +104,23 @@ def load_camera(path: str | Path) -> Camera:
         Missing or malformed file, naming the file and the key.
     """
     p = Path(path)
-    data = _parse_mapping(_read_text(p, "camera"), p, "camera")
+    return camera_from_dict(_parse_mapping(_read_text(p, "camera"), p, "camera"), p)
+
+
+def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> Camera:
+    """Build a camera from an already-parsed mapping with a camera file's keys.
+
+    The one validation path of :func:`load_camera` (which calls it), for cameras that arrive
+    parsed (e.g. as JSON over HTTP).  ``source`` names the input in error messages.
+
+    Raises
+    ------
+    InputError
+        A missing or malformed key, naming ``source`` and the key.
+    """
+    p = source
+    if not isinstance(data, Mapping):
+        raise InputError("malformed camera: expected a mapping of keys", p)
     try:
         width = int(_number(data.get("image_width"), "image_width", p, positive=True))
         height = int(_number(data.get("image_height"), "image_height", p, positive=True))
@@ -182,7 +206,23 @@ def load_map(path: str | Path) -> FixtureMap:
         fixture.
     """
     p = Path(path)
-    data = _parse_mapping(_read_text(p, "map"), p, "map")
+    return map_from_dict(_parse_mapping(_read_text(p, "map"), p, "map"), p)
+
+
+def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> FixtureMap:
+    """Build a fixture map from an already-parsed mapping with a map file's keys.
+
+    The one validation path of :func:`load_map` (which calls it), for maps that arrive
+    parsed (e.g. as JSON over HTTP).  ``source`` names the input in error messages.
+
+    Raises
+    ------
+    InputError
+        As :func:`load_map`, naming ``source`` and the fixture at fault.
+    """
+    p = source
+    if not isinstance(data, Mapping):
+        raise InputError("malformed map: expected a mapping of keys", p)
     units = data.get("units", "m")
     frame_spec = data.get("frame") or {}
     if not isinstance(frame_spec, dict):

@@ -9,7 +9,7 @@ import numpy as np
 
 from camvlp.errors import InputError
 
-__all__ = ["load_image"]
+__all__ = ["decode_image", "load_image"]
 
 
 def load_image(path: str | Path) -> np.ndarray:
@@ -25,7 +25,31 @@ def load_image(path: str | Path) -> np.ndarray:
         raise InputError("photo not found", p)
     if p.is_dir():
         raise InputError("photo is a directory", p)
-    raw = np.fromfile(str(p), dtype=np.uint8)
+    return decode_image(np.fromfile(str(p), dtype=np.uint8), p)
+
+
+def decode_image(raw: bytes | np.ndarray, source: str | Path = "photo") -> np.ndarray:
+    """Decode an encoded photograph (JPEG, PNG, TIFF ... bytes) as :func:`load_image` does.
+
+    Parameters
+    ----------
+    raw : bytes or ndarray of uint8, shape (N,)
+        The encoded file's bytes.
+    source : str or Path
+        Names the photo in error messages.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3) BGR or (H, W) gray, uint8 or uint16
+        Upright as the EXIF orientation says.
+
+    Raises
+    ------
+    InputError
+        Empty, not an image, or a truncated/corrupt image.
+    """
+    p = source
+    raw = np.frombuffer(raw, dtype=np.uint8) if isinstance(raw, (bytes, bytearray)) else raw
     if raw.size == 0:
         raise InputError("photo is empty", p)
     if _truncated_jpeg(raw):
