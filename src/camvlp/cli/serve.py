@@ -1,0 +1,79 @@
+"""``camvlp serve``: the positioning service (HTTP API, site database, live page)."""
+
+from __future__ import annotations
+
+import os
+from typing import Annotated
+
+import typer
+
+from ._app import app, check_positive, fail, handle_errors
+
+
+@app.command("serve")
+@handle_errors
+def serve_command(
+    db: Annotated[
+        str,
+        typer.Option(
+            "--db",
+            help="Database URL: sqlite:///FILE (default camvlp.db here) or e.g. "
+            "postgresql+psycopg://USER@HOST/NAME.",
+        ),
+    ] = "sqlite:///camvlp.db",
+    host: Annotated[str, typer.Option("--host", help="Address to listen on.")] = "127.0.0.1",
+    port: Annotated[int, typer.Option("--port", help="TCP port.")] = 8000,
+    workers: Annotated[int, typer.Option("--workers", help="Service processes.")] = 1,
+    threads: Annotated[
+        int, typer.Option("--threads", help="Photos located at once by each process.")
+    ] = 2,
+    max_upload_mb: Annotated[
+        float, typer.Option("--max-upload-mb", help="Largest request body (MB); larger: 413.")
+    ] = 40.0,
+    max_megapixels: Annotated[
+        float, typer.Option("--max-megapixels", help="Largest photo (megapixels); larger: 413.")
+    ] = 50.0,
+    log_level: Annotated[
+        str, typer.Option("--log-level", help="uvicorn's: critical, error, warning, info, debug.")
+    ] = "info",
+) -> None:
+    """Serve the HTTP API (/api/v1, docs at /docs) and each site's live page (/sites/ID).
+
+    Sites, cameras, maps and fixes are kept in the database; several processes (--workers,
+    or several machines with one PostgreSQL database) share it.
+    """
+    import sqlalchemy as sa
+    import uvicorn
+
+    from ..service import ServiceSettings
+    from ..service.db import Store, make_engine
+
+    for value, option in ((workers, "--workers"), (threads, "--threads")):
+        check_positive(value, option)
+    check_positive(max_upload_mb, "--max-upload-mb")
+    check_positive(max_megapixels, "--max-megapixels")
+    if not 0 < port < 65536:
+        fail(f"--port must be 1 to 65535, got {port}")
+    try:
+        settings = ServiceSettings(
+            db=db,
+            max_upload_bytes=round(max_upload_mb * 1024 * 1024),
+            max_pixels=round(max_megapixels * 1e6),
+            locate_threads=threads,
+        )
+        engine = make_engine(db)
+        Store(engine).create_tables()  # once, before the workers start
+        engine.dispose()
+    except (sa.exc.ArgumentError, sa.exc.OperationalError, ModuleNotFoundError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        fail(f"cannot open the database: {first} (--db {db})")
+    os.environ.update(settings.to_env())  # the workers build their app from these
+    print(f"camvlp serve: http://{host}:{port}/docs  (database {db}, {workers} worker(s))")
+    uvicorn.run(
+        "camvlp.service:app_from_env",
+        factory=True,
+        host=host,
+        port=port,
+        workers=workers,
+        log_level=log_level,
+    )

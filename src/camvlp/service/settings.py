@@ -1,0 +1,68 @@
+"""Settings of the positioning service: the database, the limits and the locate pool."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, fields
+
+__all__ = ["ServiceSettings"]
+
+_ENV_PREFIX = "CAMVLP_"
+
+
+@dataclass(frozen=True)
+class ServiceSettings:
+    """What ``camvlp serve`` and :func:`camvlp.service.create_app` can be told.
+
+    Attributes
+    ----------
+    db : str
+        SQLAlchemy database URL: ``sqlite:///camvlp.db`` (a file next to where the service
+        runs) or e.g. ``postgresql+psycopg://user@host/camvlp`` for several machines.
+    max_upload_bytes : int
+        Largest request body accepted (bytes); larger ones get 413 before being read.
+    max_pixels : int
+        Largest photo accepted (width x height, pixels), read from the file's header; larger
+        ones get 413 without being decoded.
+    locate_threads : int
+        Photos located at once by one service process (OpenCV releases the GIL).
+    max_queued : int
+        Photos waiting for a locate thread, per process, before new ones get 503.
+    stream_poll_s : float
+        How often (seconds) a fix stream looks for new fixes in the database.
+    stream_max_s : float
+        How long (seconds) one fix stream stays open; clients reconnect with Last-Event-ID.
+    picture_max_px : int
+        Longest side (pixels) of the annotated pictures kept for the page.
+    """
+
+    db: str = "sqlite:///camvlp.db"
+    max_upload_bytes: int = 40 * 1024 * 1024
+    max_pixels: int = 50_000_000
+    locate_threads: int = 2
+    max_queued: int = 32
+    stream_poll_s: float = 0.5
+    stream_max_s: float = 600.0
+    picture_max_px: int = 1280
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.type in ("int", "float") and not value > 0:
+                raise ValueError(f"{f.name} must be positive, got {value!r}")
+
+    def to_env(self) -> dict[str, str]:
+        """The settings as ``CAMVLP_*`` environment variables (for worker processes)."""
+        return {_ENV_PREFIX + f.name.upper(): str(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_env(cls, env: dict[str, str] | None = None) -> ServiceSettings:
+        """Settings from ``CAMVLP_*`` environment variables; defaults for the others."""
+        env = dict(os.environ if env is None else env)
+        kwargs: dict[str, object] = {}
+        for f in fields(cls):
+            text = env.get(_ENV_PREFIX + f.name.upper())
+            if text is not None:
+                kind = {"int": int, "float": float}.get(str(f.type), str)
+                kwargs[f.name] = kind(text)
+        return cls(**kwargs)  # type: ignore[arg-type]

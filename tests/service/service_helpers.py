@@ -1,0 +1,93 @@
+"""Shared pieces of the service tests: the small room as JSON, a rendered photo, a client."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import (
+    CEILING_Y,
+    LOOK_UP,
+    SMALL_DIAMETER,
+    SMALL_FOCAL_PX,
+    SMALL_ROOM_IDS,
+    SMALL_ROOM_XZ,
+    SMALL_ROW_TIME_S,
+    SMALL_SIZE,
+    make_small_camera,
+    make_small_room,
+    small_settings,
+)
+
+#: The small test camera as a camera file's keys (JSON).
+CAMERA_JSON = {
+    "image_width": SMALL_SIZE[0],
+    "image_height": SMALL_SIZE[1],
+    "focal_length_px": SMALL_FOCAL_PX,
+    "row_time_s": SMALL_ROW_TIME_S,
+}
+#: The small test room as a map file's keys (JSON): y-down, ceiling at y = -2.7 m.
+MAP_JSON = {
+    "units": "m",
+    "fixtures": [
+        {"id": i, "position": [x, CEILING_Y, z], "diameter": SMALL_DIAMETER, "normal": [0, 1, 0]}
+        for i, (x, z) in zip(SMALL_ROOM_IDS, SMALL_ROOM_XZ, strict=True)
+    ],
+}
+#: Where the photos of :func:`render_photo` are taken (metres, thesis angles in degrees).
+PHOTO_POSITION = (0.1, 0.0, -0.05)
+PHOTO_EULER = (LOOK_UP[0], 0.0, 30.0)
+
+
+def render_photo(position=PHOTO_POSITION, euler=PHOTO_EULER, seed: int = 3) -> np.ndarray:
+    """A 1280 x 960 render of the small room (BGR uint8)."""
+    from camvlp.camera import Pose
+    from camvlp.simulate import render
+
+    pose = Pose.from_euler(list(position), list(euler))
+    return render(make_small_camera(), make_small_room(), pose, small_settings(seed=seed)).image
+
+
+def encode(image: np.ndarray, ext: str = ".png") -> bytes:
+    """The image encoded as PNG or JPEG bytes."""
+    ok, buf = cv2.imencode(ext, image)
+    assert ok
+    return buf.tobytes()
+
+
+@pytest.fixture(scope="session")
+def photo_png() -> bytes:
+    """PNG bytes of a render of the small room from ``PHOTO_POSITION``."""
+    return encode(render_photo())
+
+
+def make_client(tmp_path: Path, **settings):
+    """A TestClient of a fresh service on a SQLite file in ``tmp_path``."""
+    from fastapi.testclient import TestClient
+
+    from camvlp.service import ServiceSettings, create_app
+
+    settings.setdefault("stream_max_s", 1.0)
+    settings.setdefault("stream_poll_s", 0.05)
+    app = create_app(ServiceSettings(db=f"sqlite:///{tmp_path / 'service.db'}", **settings))
+    return TestClient(app)
+
+
+@pytest.fixture
+def client(tmp_path: Path):
+    """A TestClient of a fresh service (its lifespan runs)."""
+    with make_client(tmp_path) as c:
+        yield c
+
+
+def create_site(client, name: str = "small room", **extra) -> tuple[int, dict]:
+    """Create the small room's site: ``(site_id, headers with its key)``."""
+    r = client.post(
+        "/api/v1/sites", json={"name": name, "map": MAP_JSON, "camera": CAMERA_JSON, **extra}
+    )
+    assert r.status_code == 201, r.text
+    body = r.json()
+    return body["id"], {"Authorization": f"Bearer {body['api_key']}"}
