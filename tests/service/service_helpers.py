@@ -91,3 +91,63 @@ def create_site(client, name: str = "small room", **extra) -> tuple[int, dict]:
     assert r.status_code == 201, r.text
     body = r.json()
     return body["id"], {"Authorization": f"Bearer {body['api_key']}"}
+
+
+# --- a real server ---------------------------------------------------------------------------
+
+
+def free_port() -> int:
+    """A TCP port on 127.0.0.1 that is free right now."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
+    """Start ``camvlp serve`` on 127.0.0.1:port with a SQLite file; wait until it answers.
+
+    Returns the ``subprocess.Popen``; stop it with :func:`stop_server`.
+    """
+    import os
+    import subprocess
+    import sys
+    import time
+
+    import httpx
+
+    import camvlp
+
+    env = dict(os.environ)
+    src = str(Path(camvlp.__file__).resolve().parents[1])
+    env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
+    cmd = [sys.executable, "-m", "camvlp", "serve", "--db", f"sqlite:///{db_path}"]
+    cmd += ["--host", "127.0.0.1", "--port", str(port), "--log-level", "warning", *args]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if proc.poll() is not None:
+            out, err = proc.communicate()
+            raise RuntimeError(f"camvlp serve exited {proc.returncode}: {err.decode()[-2000:]}")
+        try:
+            if httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=1.0).status_code == 200:
+                return proc
+        except httpx.HTTPError:
+            pass
+        time.sleep(0.1)
+    stop_server(proc)
+    raise RuntimeError(f"camvlp serve did not answer within {timeout_s} s")
+
+
+def stop_server(proc) -> tuple[str, str]:
+    """Stop a server of :func:`start_server` (SIGTERM, then SIGKILL); its stdout and stderr."""
+    import subprocess
+
+    proc.terminate()
+    try:
+        out, err = proc.communicate(timeout=15)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    return out.decode(errors="replace"), err.decode(errors="replace")
