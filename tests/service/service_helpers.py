@@ -70,7 +70,7 @@ def make_client(tmp_path: Path, **settings):
 
     from camvlp.service import ServiceSettings, create_app
 
-    settings.setdefault("stream_max_s", 1.0)
+    settings.setdefault("stream_max_s", 0.5)
     settings.setdefault("stream_poll_s", 0.05)
     app = create_app(ServiceSettings(db=f"sqlite:///{tmp_path / 'service.db'}", **settings))
     return TestClient(app)

@@ -4,7 +4,6 @@
 Locating runs in a bounded thread pool (OpenCV releases the GIL), never on the event loop.
 """
 
-
 import asyncio
 import math
 import time
@@ -31,6 +30,8 @@ from fastapi.responses import (
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import Headers
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from .. import Camera, FixtureMap, InputError, LocateSettings, __version__, locate
 from ..annotate import annotate as annotate_photo
@@ -65,6 +66,50 @@ class _Gate:
 
     limit: int
     busy: int = 0
+
+
+class _BodyLimit:
+    """Refuse request bodies over ``max_bytes`` with 413 and a JSON ``detail``.
+
+    A declared Content-Length over the limit is refused before anything is read; a body
+    without one (chunked) is counted as it arrives and refused when it goes over.
+    """
+
+    def __init__(self, app: ASGIApp, max_bytes: int):
+        self.app, self.max_bytes = app, max_bytes
+        size = f"{max_bytes / 2**20:g} MB" if max_bytes >= 2**20 else f"{max_bytes} bytes"
+        self.message = f"request body over the limit of {size}"
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        length = Headers(scope=scope).get("content-length")
+        if length is not None and (not length.isdigit() or int(length) > self.max_bytes):
+            await JSONResponse({"detail": self.message}, status_code=413)(scope, receive, send)
+            return
+        total, started = 0, False
+
+        async def counted() -> Message:
+            nonlocal total
+            message = await receive()
+            if message["type"] == "http.request":
+                total += len(message.get("body", b""))
+                if total > self.max_bytes:
+                    raise HTTPException(413, self.message)
+            return message
+
+        async def watched(message: Message) -> None:
+            nonlocal started
+            started = started or message["type"] == "http.response.start"
+            await send(message)
+
+        try:
+            await self.app(scope, counted, watched)
+        except HTTPException as exc:
+            if started or exc.status_code != 413:
+                raise
+            await JSONResponse({"detail": exc.detail}, status_code=413)(scope, receive, send)
 
 
 def _iso(t: float) -> str:
@@ -183,9 +228,9 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
         summary="Camera positioning from photos of coded ceiling lights.",
         description="Create a site with its map and camera, send photos, get fixes. Every "
         "request about a site needs its key: `Authorization: Bearer KEY`.",
-        max_body_size=cfg.max_upload_bytes,
         lifespan=lifespan,
     )
+    app.add_middleware(_BodyLimit, max_bytes=cfg.max_upload_bytes)
     app.state.settings, app.state.store = cfg, store
 
     @app.exception_handler(RequestValidationError)
