@@ -128,7 +128,7 @@ def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         if proc.poll() is not None:
-            out, err = proc.communicate()
+            _, err = proc.communicate()
             raise RuntimeError(f"camvlp serve exited {proc.returncode}: {err.decode()[-2000:]}")
         try:
             if httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=1.0).status_code == 200:

@@ -15,9 +15,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
-from camvlp.cli import main
-from camvlp.io import InputError, load_map
 from service_helpers import (
     CAMERA_JSON,
     MAP_JSON,
@@ -28,6 +25,9 @@ from service_helpers import (
     make_client,
     photo_png,  # noqa: F401  (fixture)
 )
+
+from camvlp.cli import main
+from camvlp.io import InputError, load_map
 
 
 def upload(client, site_id, headers, data: bytes, *, name="p.png", query="", **form):
@@ -52,7 +52,7 @@ def detail(response) -> str:
 
 
 def test_create_site_returns_a_key_that_is_stored_only_as_its_hash(client, tmp_path: Path):
-    site_id, headers = create_site(client)
+    _, headers = create_site(client)
     key = headers["Authorization"].removeprefix("Bearer ")
     assert key.startswith("cvlp_") and len(key) > 40
     dump = "\n".join(sqlite3.connect(tmp_path / "service.db").iterdump())
