@@ -1,0 +1,87 @@
+"""The site's page in headless Chromium: it draws the plan, uploads a photo, shows the fix.
+
+Skipped when no Chromium (Debian's package) or no playwright is installed.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import httpx
+import pytest
+
+from service_helpers import (
+    CAMERA_JSON,
+    MAP_JSON,
+    free_port,
+    photo_png,  # noqa: F401  (fixture)
+    start_server,
+    stop_server,
+)
+
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+
+pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="no chromium installed")
+
+
+def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
+    sync_api = pytest.importorskip("playwright.sync_api")
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    proc = start_server(tmp_path / "page.db", port)
+    try:
+        site = httpx.post(
+            f"{base}/api/v1/sites", json={"name": "browser", "map": MAP_JSON, "camera": CAMERA_JSON}
+        ).json()
+        photo = tmp_path / "photo.png"
+        photo.write_bytes(photo_png)
+        with sync_api.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page()
+                errors: list[str] = []
+                page.on("pageerror", lambda exc: errors.append(str(exc)))
+                page.goto(f"{base}/sites/{site['id']}#key={site['api_key']}")
+                # the plan: one disc per fixture; the key left the address bar
+                page.wait_for_selector("g.fixture")
+                ids = page.eval_on_selector_all(
+                    "g.fixture", "els => els.map(e => Number(e.dataset.fixtureId))"
+                )
+                assert sorted(ids) == sorted(f["id"] for f in MAP_JSON["fixtures"])
+                assert "key=" not in page.url
+                assert page.locator("g.fix").count() == 0
+                page.wait_for_selector("#status.live")
+                # upload a photo: the fix is drawn, its text and picture shown
+                page.set_input_files("#photo", str(photo))
+                page.fill("#device", "browser-test")
+                page.click("#locate-button")
+                page.wait_for_selector("g.fix.latest[data-device='browser-test']", timeout=30_000)
+                page.wait_for_selector("#annotated:not([hidden])", timeout=30_000)
+                assert "position (0.10" in page.inner_text("#result-text")
+                width = page.eval_on_selector("#annotated", "img => img.naturalWidth")
+                assert width == CAMERA_JSON["image_width"]
+                # a fix made elsewhere arrives through the stream
+                httpx.post(
+                    f"{base}/api/v1/sites/{site['id']}/locate",
+                    headers={"Authorization": f"Bearer {site['api_key']}"},
+                    files={"photo": ("p.png", photo_png, "image/png")},
+                    data={"device": "robot-9"},
+                    timeout=60,
+                )
+                page.wait_for_selector("g.fix.latest[data-device='robot-9']", timeout=15_000)
+                assert errors == []
+            finally:
+                browser.close()
+    finally:
+        stop_server(proc)
