@@ -10,7 +10,6 @@ from pathlib import Path
 
 import httpx
 import pytest
-
 from service_helpers import (
     CAMERA_JSON,
     MAP_JSON,

@@ -36,7 +36,7 @@ def test_header_size_matches_the_decoded_image(ext, params, kind):
 
 
 def test_jpeg_header_behind_a_large_exif_segment():
-    ok, buf = cv2.imencode(".jpg", np.zeros((20, 30), np.uint8))
+    _, buf = cv2.imencode(".jpg", np.zeros((20, 30), np.uint8))
     raw = buf.tobytes()
     app1 = b"\xff\xe1" + (60_002).to_bytes(2, "big") + b"Exif\x00\x00" + b"\xff" * 59_994
     header = read_image_header(raw[:2] + app1 + raw[2:])

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import httpx
 import numpy as np
-
 from service_helpers import (
     CAMERA_JSON,
     MAP_JSON,
