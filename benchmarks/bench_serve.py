@@ -34,8 +34,8 @@ import numpy as np
 import yaml
 
 import camvlp
-from camvlp.camera import Camera
-from camvlp.simulate import RenderSettings, render
+from camvlp.model.camera import Camera
+from camvlp.sim.render import RenderSettings, render
 
 ROOT = Path(__file__).resolve().parents[1]
 HOST = "127.0.0.1"

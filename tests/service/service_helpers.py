@@ -44,8 +44,8 @@ PHOTO_EULER = (LOOK_UP[0], 0.0, 30.0)
 
 def render_photo(position=PHOTO_POSITION, euler=PHOTO_EULER, seed: int = 3) -> np.ndarray:
     """A 1280 x 960 render of the small room (BGR uint8)."""
-    from camvlp.camera import Pose
-    from camvlp.simulate import render
+    from camvlp.model.camera import Pose
+    from camvlp.sim.render import render
 
     pose = Pose.from_euler(list(position), list(euler))
     return render(make_small_camera(), make_small_room(), pose, small_settings(seed=seed)).image

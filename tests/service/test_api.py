@@ -294,7 +294,7 @@ def test_bad_photos_get_4xx_and_the_service_goes_on(tmp_path, photo_png):
             if words:
                 assert words in detail(r)
         for form, words in [
-            ({"readout": "diagonal"}, "readout must be one of"),
+            ({"readout": "diagonal"}, "readout must be rows, columns, rows-reversed or columns-"),
             ({"gravity": "1,2"}, "gravity must be three numbers"),
             ({"mirrored": "perhaps"}, "mirrored: "),
         ]:

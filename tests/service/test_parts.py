@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from camvlp.fixtures import Fixture, FixtureMap
+from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.service.auth import bearer_token, hash_key, keys_match, new_key
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import plan_view
@@ -139,7 +139,7 @@ def test_heading_of_a_level_camera_is_its_optical_axis():
 
 
 def test_heading_of_a_camera_looking_up_turns_with_its_roll():
-    from camvlp.camera import euler_to_matrix
+    from camvlp.model.camera import euler_to_matrix
 
     view = plan_view(_map([(a, -2.7, b) for a, b in SQUARE], (0, 1, 0)))
     # theta = (90, 0, 0) looks up with the top of the image towards -z: -90 deg on the plan;

@@ -45,8 +45,8 @@ def serve_command(
     import sqlalchemy as sa
     import uvicorn
 
-    from ..service import ServiceSettings
-    from ..service.db import Store, make_engine
+    from camvlp.service import ServiceSettings
+    from camvlp.service.db import Store, make_engine
 
     for value, option in ((workers, "--workers"), (threads, "--threads")):
         check_positive(value, option)

@@ -5,7 +5,7 @@ URL such as PostgreSQL for several machines); photos arrive over HTTP and their 
 recorded and streamed to each site's page.
 """
 
-from .app import app_from_env, create_app
-from .settings import ServiceSettings
+from camvlp.service.app import app_from_env, create_app
+from camvlp.service.settings import ServiceSettings
 
 __all__ = ["ServiceSettings", "app_from_env", "create_app"]

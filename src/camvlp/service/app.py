@@ -33,15 +33,27 @@ from starlette.concurrency import run_in_threadpool
 from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-from .. import Camera, FixtureMap, InputError, LocateSettings, __version__, locate
-from ..annotate import annotate as annotate_photo
-from ..io import camera_from_dict, decode_image, map_from_dict
-from .auth import hash_key, keys_match, new_key
-from .db import FixRow, Store, make_engine
-from .imagesize import read_image_header
-from .plan import PlanView, plan_view
-from .schemas import CameraPut, FixOut, FixPage, PlanFixture, SiteCreate, SiteCreated, SiteOut
-from .settings import ServiceSettings
+from camvlp import __version__
+from camvlp.errors import InputError
+from camvlp.io import camera_from_dict, decode_image, map_from_dict
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.locate import LocateSettings, locate
+from camvlp.service.auth import hash_key, keys_match, new_key
+from camvlp.service.db import FixRow, Store, make_engine
+from camvlp.service.imagesize import read_image_header
+from camvlp.service.plan import PlanView, plan_view
+from camvlp.service.schemas import (
+    CameraPut,
+    FixOut,
+    FixPage,
+    PlanFixture,
+    SiteCreate,
+    SiteCreated,
+    SiteOut,
+)
+from camvlp.service.settings import ServiceSettings
+from camvlp.viz.annotate import annotate as annotate_photo
 
 __all__ = ["app_from_env", "create_app"]
 
@@ -396,7 +408,10 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
             raise HTTPException(404, f"no camera {camera!r} in site {site_id}")
         cam = camera_from_dict(cameras[camera], "camera")
         fmap = map_from_dict(site_row.map, "map")
-        settings = LocateSettings(readout=readout, mirrored=mirrored)
+        try:
+            settings = LocateSettings(readout=readout, mirrored=mirrored)
+        except ValueError as exc:
+            raise HTTPException(422, str(exc)) from None
         if gate.busy >= gate.limit:
             raise HTTPException(
                 503, f"busy: {gate.busy} photos being located; retry", headers={"Retry-After": "1"}

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fixtures import FixtureMap
+from camvlp.model.fixtures import FixtureMap
 
 __all__ = ["PlanView", "plan_view"]
 
