@@ -234,7 +234,7 @@ def main() -> int:
     print()
     header = (
         f"{'photo':<6} {'workers':>7} {'requests':>8} {'fixes/s':>8} {'p50 ms':>8} "
-        f"{'p95 ms':>8} {'5xx':>4} {'lost':>4}  statuses / max position error"
+        f"{'p95 ms':>8} {'5xx':>4} {'lost':>4} {'load':>5}  statuses / max position error"
     )
     print(header)
     failed = False
@@ -242,11 +242,12 @@ def main() -> int:
         for photo in photos:
             for w in workers:
                 res = run(photo, w, args.threads, args, Path(d))
+                load = os.getloadavg()[0]  # 1-minute load average: others' jobs show here
                 failed |= res["lost"] > 0 or res["server_errors"] > 0
                 print(
                     f"{res['photo']:<6} {res['workers']:>7} {res['requests']:>8} "
                     f"{res['fixes_per_s']:>8.2f} {res['p50_ms']:>8.0f} {res['p95_ms']:>8.0f} "
-                    f"{res['server_errors']:>4} {res['lost']:>4}  {res['statuses']}, "
+                    f"{res['server_errors']:>4} {res['lost']:>4} {load:>5.1f}  {res['statuses']}, "
                     f"{res['located']} located, max error {res['max_error_mm']:.2f} mm",
                     flush=True,
                 )
