@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import cv2
@@ -64,16 +65,27 @@ def photo_png() -> bytes:
     return encode(render_photo())
 
 
+#: Run the API tests against this database instead of a SQLite file, e.g.
+#: ``postgresql+psycopg://user:password@127.0.0.1/camvlp_test`` (its tables are dropped first).
+TEST_DB_URL = os.environ.get("CAMVLP_TEST_DB_URL")
+
+
 def make_client(tmp_path: Path, **settings):
-    """A TestClient of a fresh service on a SQLite file in ``tmp_path``."""
+    """A TestClient of a fresh service on a SQLite file in ``tmp_path`` (or ``TEST_DB_URL``)."""
     from fastapi.testclient import TestClient
 
     from camvlp.service import ServiceSettings, create_app
+    from camvlp.service.db import make_engine, metadata
 
     settings.setdefault("stream_max_s", 0.5)
     settings.setdefault("stream_poll_s", 0.05)
-    app = create_app(ServiceSettings(db=f"sqlite:///{tmp_path / 'service.db'}", **settings))
-    return TestClient(app)
+    url = f"sqlite:///{tmp_path / 'service.db'}"
+    if TEST_DB_URL:
+        url = TEST_DB_URL
+        engine = make_engine(url)
+        metadata.drop_all(engine)
+        engine.dispose()
+    return TestClient(create_app(ServiceSettings(db=url, **settings)))
 
 
 @pytest.fixture

@@ -5,7 +5,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
-import sqlite3
 import struct
 import threading
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import sqlalchemy as sa
 from service_helpers import (
     CAMERA_JSON,
     MAP_JSON,
@@ -28,6 +28,7 @@ from service_helpers import (
 
 from camvlp.cli import main
 from camvlp.io import InputError, load_map
+from camvlp.service.db import sites
 
 
 def upload(client, site_id, headers, data: bytes, *, name="p.png", query="", **form):
@@ -51,11 +52,13 @@ def detail(response) -> str:
 # --- sites -----------------------------------------------------------------------------------
 
 
-def test_create_site_returns_a_key_that_is_stored_only_as_its_hash(client, tmp_path: Path):
+def test_create_site_returns_a_key_that_is_stored_only_as_its_hash(client):
     _, headers = create_site(client)
     key = headers["Authorization"].removeprefix("Bearer ")
     assert key.startswith("cvlp_") and len(key) > 40
-    dump = "\n".join(sqlite3.connect(tmp_path / "service.db").iterdump())
+    with client.app.state.store.engine.connect() as conn:
+        stored = [tuple(map(str, row)) for row in conn.execute(sa.select(sites))]
+    dump = repr(stored)
     assert key not in dump
     assert hashlib.sha256(key.encode()).hexdigest() in dump
     _, other = create_site(client, "second")

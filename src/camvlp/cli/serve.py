@@ -39,8 +39,8 @@ def serve_command(
 ) -> None:
     """Serve the HTTP API (/api/v1, docs at /docs) and each site's live page (/sites/ID).
 
-    Sites, cameras, maps and fixes are kept in the database; several processes (--workers,
-    or several machines with one PostgreSQL database) share it.
+    Sites, cameras, maps and fixes are kept in the database; several processes share it
+    (--workers, or several machines with one PostgreSQL database).
     """
     import sqlalchemy as sa
     import uvicorn
@@ -68,7 +68,8 @@ def serve_command(
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         fail(f"cannot open the database: {first} (--db {db})")
     os.environ.update(settings.to_env())  # the workers build their app from these
-    print(f"camvlp serve: http://{host}:{port}/docs  (database {db}, {workers} worker(s))")
+    shown = sa.engine.make_url(db).render_as_string(hide_password=True)
+    print(f"camvlp serve: http://{host}:{port}/docs  (database {shown}, {workers} worker(s))")
     uvicorn.run(
         "camvlp.service:app_from_env",
         factory=True,
