@@ -16,6 +16,8 @@ from service_helpers import (
     stop_server,
 )
 
+from conftest import one_error_line
+
 
 def test_a_fix_survives_a_restart(tmp_path: Path, photo_png):
     db = tmp_path / "camvlp.db"
@@ -56,18 +58,65 @@ def test_a_fix_survives_a_restart(tmp_path: Path, photo_png):
     assert "Traceback" not in err
 
 
-def test_serve_refuses_bad_options_in_one_line(tmp_path: Path):
-    import subprocess
-    import sys
+def test_serve_refuses_bad_options_in_one_line(tmp_path: Path, capsys):
+    from camvlp.cli import main
 
-    for args in (["--port", "0"], ["--workers", "0"], ["--db", "nosuchdb://x"]):
-        r = subprocess.run(
-            [sys.executable, "-m", "camvlp", "serve", *args],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            cwd=tmp_path,
+    db = f"sqlite:///{tmp_path / 'x.db'}"
+    for args, words in (
+        (["--port", "0"], "--port must be 1 to 65535"),
+        (["--workers", "0"], "--workers must be a positive number"),
+        (["--max-upload-mb", "-1"], "--max-upload-mb must be a positive number"),
+        (["--db", "nosuchdb://x"], "cannot open the database"),
+        (["--db", f"sqlite:///{tmp_path / 'no' / 'such' / 'dir.db'}"], "cannot open the database"),
+    ):
+        code = main(["serve", *(["--db", db] if "--db" not in args else []), *args])
+        assert code == 2, args
+        assert words in one_error_line(capsys.readouterr().err), args
+
+
+def test_the_stream_carries_fixes_of_every_worker(tmp_path: Path, photo_png):
+    """With two service processes, one stream sees every fix, whichever process made it."""
+    import json
+    import threading
+
+    port = free_port()
+    base = f"http://127.0.0.1:{port}/api/v1"
+    proc = start_server(tmp_path / "two.db", port, "--workers", "2")
+    try:
+        r = httpx.post(
+            f"{base}/sites", json={"name": "two", "map": MAP_JSON, "camera": CAMERA_JSON}
         )
-        assert r.returncode == 2, (args, r.stderr)
-        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
-        assert len(lines) == 1 and lines[0].startswith("error: "), r.stderr
+        site_id, headers = r.json()["id"], {"Authorization": f"Bearer {r.json()['api_key']}"}
+        seen: list[int] = []
+        opened = threading.Event()
+
+        def follow() -> None:
+            with httpx.stream(
+                "GET", f"{base}/sites/{site_id}/fixes/stream", headers=headers, timeout=30
+            ) as stream:
+                opened.set()
+                for line in stream.iter_lines():
+                    if line.startswith("data: "):
+                        seen.append(json.loads(line[6:])["id"])
+                        if len(seen) == 4:
+                            return
+
+        reader = threading.Thread(target=follow, daemon=True)
+        reader.start()
+        assert opened.wait(15)
+        made = []
+        for i in range(4):
+            with httpx.Client() as fresh:  # a new connection each: either process may take it
+                r = fresh.post(
+                    f"{base}/sites/{site_id}/locate",
+                    headers=headers,
+                    files={"photo": ("photo.png", photo_png, "image/png")},
+                    data={"device": f"w{i}"},
+                    timeout=60,
+                )
+            assert r.status_code == 200, r.text
+            made.append(r.json()["fix_id"])
+        reader.join(20)
+        assert seen == made
+    finally:
+        stop_server(proc)
