@@ -79,6 +79,20 @@ def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
                     timeout=60,
                 )
                 page.wait_for_selector("g.fix.latest[data-device='robot-9']", timeout=15_000)
+                # a tab without the key asks for it, refuses a wrong one, opens with the right one
+                ask = browser.new_page()
+                ask.on("pageerror", lambda exc: errors.append(str(exc)))
+                ask.goto(f"{base}/sites/{site['id']}")
+                ask.wait_for_selector("#key-panel:not([hidden])")
+                assert ask.is_hidden("#main")
+                ask.fill("#key-input", "cvlp_wrong")
+                ask.click("#key-form button")
+                ask.wait_for_selector("#key-error:not([hidden])")
+                assert ask.inner_text("#key-error") == "wrong API key" and ask.is_hidden("#main")
+                ask.fill("#key-input", site["api_key"])
+                ask.click("#key-form button")
+                ask.wait_for_selector("g.fix.latest[data-device='robot-9']", timeout=15_000)
+                assert ask.is_hidden("#key-panel")
                 assert errors == []
             finally:
                 browser.close()
