@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.service.auth import bearer_token, hash_key, keys_match, new_key
+from camvlp.service.auth import hash_key, keys_match, new_key
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import plan_view
 
@@ -68,22 +68,6 @@ def test_keys_are_random_and_stored_as_sha256():
     assert stored == hashlib.sha256(key.encode()).hexdigest() == hash_key(key)
     assert keys_match(key, stored)
     assert not keys_match(key + "x", stored) and not keys_match("", stored)
-
-
-@pytest.mark.parametrize(
-    ("header", "token"),
-    [
-        ("Bearer abc", "abc"),
-        ("bearer  abc ", "abc"),
-        (None, None),
-        ("", None),
-        ("Bearer", None),
-        ("Basic abc", None),
-        ("Bearer " + "x" * 500, None),
-    ],
-)
-def test_bearer_token(header, token):
-    assert bearer_token(header) == token
 
 
 # --- plan ------------------------------------------------------------------------------------

@@ -6,7 +6,7 @@ import hashlib
 import hmac
 import secrets
 
-__all__ = ["KEY_PREFIX", "bearer_token", "hash_key", "keys_match", "new_key"]
+__all__ = ["KEY_PREFIX", "hash_key", "keys_match", "new_key"]
 
 #: Every key starts with this, so that a leaked one is easy to recognise.
 KEY_PREFIX = "cvlp_"
@@ -33,14 +33,3 @@ def hash_key(key: str) -> str:
 def keys_match(key: str, stored_hash: str) -> bool:
     """Whether ``key`` hashes to ``stored_hash``, compared in constant time."""
     return hmac.compare_digest(hash_key(key).encode("ascii"), stored_hash.encode("ascii"))
-
-
-def bearer_token(authorization: str | None) -> str | None:
-    """The token of an ``Authorization: Bearer TOKEN`` header, or None."""
-    if not authorization:
-        return None
-    scheme, _, token = authorization.strip().partition(" ")
-    token = token.strip()
-    if scheme.lower() != "bearer" or not token or len(token) > 200:
-        return None
-    return token
