@@ -7,7 +7,6 @@ work alike; several service processes may share one database.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -196,15 +195,6 @@ class Store:
             ).all()
         return {name: cam for name, cam in rows}
 
-    def camera(self, site_id: int, name: str) -> dict | None:
-        """One camera of the site, or None."""
-        with self.engine.connect() as conn:
-            return conn.execute(
-                sa.select(cameras.c.camera).where(
-                    cameras.c.site_id == site_id, cameras.c.name == name
-                )
-            ).scalar_one_or_none()
-
     def put_camera(self, site_id: int, name: str, camera: dict) -> bool:
         """Create or replace a camera; True when it was created."""
         now = time.time()
@@ -329,14 +319,6 @@ class Store:
                 .join(fixes, fixes.c.id == pictures.c.fix_id)
                 .where(fixes.c.site_id == site_id, fixes.c.id == fix_id)
             ).scalar_one_or_none()
-
-    def count_fixes(self, site_ids: Sequence[int] | None = None) -> int:
-        """How many fixes there are (of these sites)."""
-        q = sa.select(sa.func.count()).select_from(fixes)
-        if site_ids is not None:
-            q = q.where(fixes.c.site_id.in_(list(site_ids)))
-        with self.engine.connect() as conn:
-            return int(conn.execute(q).scalar() or 0)
 
 
 def _fix_row(r) -> FixRow:
