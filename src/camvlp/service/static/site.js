@@ -126,12 +126,17 @@ function drawPlan() {
     const g = svg("g", { class: "fix latest", "data-fix-id": last.id, "data-device": device },
       fixLayer);
     const x = P.x(last.plan.position[0]), y = P.y(last.plan.position[1]);
+    let away = [1, 0];  // the label goes on the side the heading does not point to
     if (last.plan.heading_deg !== null) {
       const t = (last.plan.heading_deg * Math.PI) / 180;
       svg("line", { x1: x, y1: y, x2: x + 26 * Math.cos(t), y2: y - 26 * Math.sin(t) }, g);
+      away = [-Math.cos(t), Math.sin(t)];
     }
     svg("circle", { cx: x, cy: y, r: 8 }, g);
-    svg("text", { x: x + 12, y: y + 18 }, g, `${device || "(no name)"} #${last.id}`);
+    svg("text", {
+      x: x + 14 * away[0], y: y + 14 * away[1] + 4,
+      "text-anchor": away[0] < -0.3 ? "end" : away[0] > 0.3 ? "start" : "middle",
+    }, g, `${device || "(no name)"} #${last.id}`);
   }
 }
 
