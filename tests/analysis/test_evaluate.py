@@ -25,7 +25,7 @@ from camvlp.io import InputError, load_camera, load_map, save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.survey import floor_grid, render_survey
+from camvlp.sim.survey import render_survey
 from conftest import one_error_line
 
 runner = CliRunner()
@@ -80,16 +80,6 @@ def evaluate_cli(scene, survey_csv, out, *extra):
 
 # --------------------------------------------------------------------------------------------
 # Rendering a survey
-
-
-def test_floor_grid_includes_stop_and_level():
-    grid = floor_grid((-0.4, 0.4, 0.1), (-0.4, 0.4, 0.1), -1.0)
-    assert grid.shape == (81, 3)
-    assert np.allclose(np.unique(grid[:, 0].round(9)), np.linspace(-0.4, 0.4, 9))
-    assert np.all(grid[:, 1] == -1.0)
-    assert not np.any(np.signbit(floor_grid((0, 0, 1), (0, 0, 1), -0.0)))
-    with pytest.raises(ValueError, match="step"):
-        floor_grid((0, 1, 0), (0, 1, 0.5), 0.0)
 
 
 def test_render_survey_writes_photos_and_csv(scene, survey_dir):

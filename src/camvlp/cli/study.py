@@ -12,9 +12,12 @@ from typing import Annotated
 import typer
 
 from camvlp.analysis import study as st
+from camvlp.format import format_length
 from camvlp.io import load_camera, load_map
+from camvlp.io.writers import write_outputs
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats
 
@@ -162,12 +165,10 @@ def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None
 
 
 def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
+    """Write the files (with --out), then print the summary as JSON or as ``lines``."""
     summary = study.summary()
     if out is not None:
-        try:
-            summary = st.write_outputs(out, name, study, plot)
-        except OSError as exc:
-            fail(f"cannot write results: {exc.strerror or exc} ({out})")
+        summary = write_outputs(out, name, study, plot)  # InputError: one line, exit 2
         print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
     if as_json:
         print(json.dumps(summary))
@@ -177,13 +178,10 @@ def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list
 
 
 def _mm(v: float | None) -> str:
-    return "n/a" if v is None else f"{v * 1e3:.2f} mm"
+    return format_length(v, "mm")
 
 
-def _len(v: float | None) -> str:
-    if v is None:
-        return "n/a"
-    return f"{v:.3f} m" if v >= 0.5 else f"{v * 100:.2f} cm" if v >= 0.01 else f"{v * 1e3:.2f} mm"
+_len = format_length
 
 
 def _run(func, *args, **kwargs):
@@ -225,7 +223,7 @@ def _monte_carlo(
             f"{_len(p['mean_error_m'])}, median {_len(p['median_error_m'])}, "
             f"95% {_len(p['p95_error_m'])}"
         )
-    _finish(res, "monte-carlo", st.plot_monte_carlo, out, as_json, lines)
+    _finish(res, "monte-carlo", study_plots.plot_monte_carlo, out, as_json, lines)
 
 
 # -------------------------------------------------------------------------- commands
@@ -290,7 +288,7 @@ def rounding(
         f"95% {_mm(s['p95_error_m'])}, max {_mm(s['max_error_m'])}, "
         f"{s['poses']} poses, {s['failures']} failures",
     ]
-    _finish(res, "rounding", st.plot_rounding, out, as_json, lines)
+    _finish(res, "rounding", study_plots.plot_rounding, out, as_json, lines)
 
 
 def _forced(
@@ -383,7 +381,7 @@ def _forced(
             f"{_len(ser['error_at_max_offset_m'])}, linear R^2 "
             + ("n/a" if r2 is None else f"{r2:.3f}")
         )
-    _finish(res, f"{kind}-error", st.plot_forced_error, out, as_json, lines)
+    _finish(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
 
 
 _POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) (default: thesis fig. 4.3, five along x)."
@@ -391,115 +389,87 @@ _EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) (default: 90,0,0); one or 
 _FIG_HELP = "Thesis figure preset for poses and height: 4.3, 4.4 or 4.5."
 _HGT_HELP = "Put every camera at this height above the floor (m), towards the lights."
 
+FixtureOpt = Annotated[
+    int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
+]
+PositionsOpt = Annotated[str | None, typer.Option("--positions", help=_POS_HELP)]
+EulersOpt = Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)]
+ForcedHeightOpt = Annotated[float | None, typer.Option("--height", help=_HGT_HELP)]
+FigureOpt = Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)]
+TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")]
 
-@study_app.command("image-error")
-@handle_errors
-def image_error(
-    camera: CameraOpt = None,
-    map_path: MapOpt = None,
-    fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
-    ] = None,
-    axis: Annotated[str, typer.Option("--axis", help="Image axis: x or y.")] = "x",
-    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (px).")] = (
-        "-20,20"
-    ),
-    step: Annotated[float, typer.Option("--step", help="Forced error step (px).")] = 1.0,
-    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
-    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
-    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
-    plane: PlaneOpt = "xz",
-    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
-    solver: SolverOpt = "iterative",
-    noise_px: NoiseOpt = 0.0,
-    survey_error_m: SurveyOpt = 0.0,
-    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
-    seed: SeedOpt = 0,
-    rounding: RoundOpt = True,
-    out: OutOpt = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Position error against a forced error on one fixture's image point (fig. 4.3-4.5).
+
+def _forced_command(
+    kind: str, axes_help: str, unit: str, default_range: str, default_step: float, doc: str
+):
+    """The image-error or the world-error command: the same options in other units.
+
+    The three options that differ (``--axis``, ``--range``, ``--step``) take their help and
+    defaults from the arguments; the command passes every option on to :func:`_forced`.
+    """
+
+    def command(
+        camera: CameraOpt = None,
+        map_path: MapOpt = None,
+        fixture: FixtureOpt = None,
+        axis: str = typer.Option("x", "--axis", help=axes_help),
+        value_range: str = typer.Option(
+            default_range, "--range", help=f"Forced error 'lo,hi' ({unit})."
+        ),
+        step: float = typer.Option(default_step, "--step", help=f"Forced error step ({unit})."),
+        positions: PositionsOpt = None,
+        eulers: EulersOpt = None,
+        height: ForcedHeightOpt = None,
+        plane: PlaneOpt = "xz",
+        figure: FigureOpt = None,
+        solver: SolverOpt = "iterative",
+        noise_px: NoiseOpt = 0.0,
+        survey_error_m: SurveyOpt = 0.0,
+        trials: TrialsOpt = 1000,
+        seed: SeedOpt = 0,
+        rounding: RoundOpt = True,
+        out: OutOpt = None,
+        as_json: JsonOpt = False,
+    ) -> None:
+        options = {k: v for k, v in locals().items() if k != "kind"}
+        _forced(kind, **options)
+
+    command.__doc__ = doc
+    command.__name__ = f"{kind}_error"
+    return command
+
+
+image_error = study_app.command("image-error")(
+    handle_errors(
+        _forced_command(
+            "image",
+            "Image axis: x or y.",
+            "px",
+            "-20,20",
+            1.0,
+            """Position error against a forced error on one fixture's image point (fig. 4.3-4.5).
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
-    """
-    _forced(
-        "image",
-        camera,
-        map_path,
-        fixture,
-        axis,
-        value_range,
-        step,
-        positions,
-        eulers,
-        height,
-        plane,
-        figure,
-        solver,
-        noise_px,
-        survey_error_m,
-        trials,
-        seed,
-        rounding,
-        out,
-        as_json,
+    """,
+        )
     )
+)
 
-
-@study_app.command("world-error")
-@handle_errors
-def world_error(
-    camera: CameraOpt = None,
-    map_path: MapOpt = None,
-    fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
-    ] = None,
-    axis: Annotated[str, typer.Option("--axis", help="World axis: x, y or z.")] = "x",
-    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (m).")] = (
-        "-1,1"
-    ),
-    step: Annotated[float, typer.Option("--step", help="Forced error step (m).")] = 0.05,
-    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
-    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
-    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
-    plane: PlaneOpt = "xz",
-    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
-    solver: SolverOpt = "iterative",
-    noise_px: NoiseOpt = 0.0,
-    survey_error_m: SurveyOpt = 0.0,
-    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
-    seed: SeedOpt = 0,
-    rounding: RoundOpt = True,
-    out: OutOpt = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Position error against a forced error on one fixture's map position (fig. 4.3-4.5).
+world_error = study_app.command("world-error")(
+    handle_errors(
+        _forced_command(
+            "world",
+            "World axis: x, y or z.",
+            "m",
+            "-1,1",
+            0.05,
+            """Position error against a forced error on one fixture's map position (fig. 4.3-4.5).
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
-    """
-    _forced(
-        "world",
-        camera,
-        map_path,
-        fixture,
-        axis,
-        value_range,
-        step,
-        positions,
-        eulers,
-        height,
-        plane,
-        figure,
-        solver,
-        noise_px,
-        survey_error_m,
-        trials,
-        seed,
-        rounding,
-        out,
-        as_json,
+    """,
+        )
     )
+)
 
 
 @study_app.command("coverage")
@@ -596,4 +566,4 @@ def coverage(
         f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
         f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
     ]
-    _finish(res, "coverage", st.plot_coverage, out, as_json, lines)
+    _finish(res, "coverage", study_plots.plot_coverage, out, as_json, lines)

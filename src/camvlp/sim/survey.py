@@ -3,32 +3,46 @@
 A survey is a folder of photographs plus ``survey.csv``, one row per photograph: ``photo``
 (path relative to the CSV), ``x, y, z`` (the true camera centre, map units) and
 ``theta_x, theta_y, theta_z`` (the true thesis angles, degrees), followed by ``seed`` (the
-render seed of that photo).  :func:`camvlp.evaluate.evaluate_survey` reads it back,
-locates every photograph and compares.  This is the simulated counterpart of the thesis'
-floor-grid experiment (section 5.7).
+render seed of that photo); :mod:`camvlp.io.survey_csv` writes and reads it, and
+:func:`camvlp.analysis.evaluate.evaluate_survey` locates every photograph and compares.  This is
+the simulated counterpart of the thesis' floor-grid experiment (section 5.7).  Positions on a
+grid over the floor come from :func:`camvlp.sim.grid.grid_points`.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
+import importlib
 import multiprocessing
 import multiprocessing.context
 import os
+import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
+from camvlp.errors import InputError
+from camvlp.io.survey_csv import SURVEY_COLUMNS, write_survey
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, render, save_render
 
-__all__ = ["SURVEY_COLUMNS", "default_jobs", "floor_grid", "render_survey", "worker_context"]
+__all__ = ["SURVEY_COLUMNS", "default_jobs", "render_survey", "worker_context"]
 
-#: Columns of the ``survey.csv`` that :func:`render_survey` writes.
-SURVEY_COLUMNS = ("photo", "x", "y", "z", "theta_x", "theta_y", "theta_z", "seed")
+
+def __getattr__(name: str):
+    """The moved ``floor_grid``: now :func:`camvlp.sim.grid.grid_points`, with a warning."""
+    if name != "floor_grid":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    warnings.warn(
+        "camvlp.sim.survey.floor_grid has moved to camvlp.sim.grid.grid_points; "
+        "import it from there",
+        DeprecationWarning,
+        stacklevel=2,
+    )
+    return importlib.import_module("camvlp.sim.grid").grid_points
 
 
 def default_jobs() -> int:
@@ -46,55 +60,6 @@ def worker_context() -> multiprocessing.context.BaseContext:
     its first parallel OpenCV call; spawned workers start clean (about a second each).
     """
     return multiprocessing.get_context("spawn")
-
-
-def floor_grid(
-    first: tuple[float, float, float],
-    second: tuple[float, float, float],
-    level: float,
-    *,
-    axes: tuple[int, int] = (0, 2),
-) -> np.ndarray:
-    """Camera centres on a regular grid over a plane of constant coordinate.
-
-    Parameters
-    ----------
-    first, second : tuple of (start, stop, step)
-        The grid along the two in-plane axes, map units; ``stop`` is included when it falls
-        on the grid (within a millionth of a step).
-    level : float
-        Value of the third coordinate (for the thesis' room, ``y``: 0 on the floor, and
-        ``-h`` at height ``h`` since its ``y`` points down).
-    axes : tuple of int
-        Indices of the two in-plane axes; default ``(0, 2)``, the thesis' floor ``x, z``.
-
-    Returns
-    -------
-    ndarray, shape (N, 3)
-        The positions, the first axis varying slowest.
-
-    Raises
-    ------
-    ValueError
-        A step that is not positive, a stop below its start, or bad axes.
-    """
-    a, b = (int(k) for k in axes)
-    if {a, b} - {0, 1, 2} or a == b:
-        raise ValueError(f"axes must be two different indices from 0, 1, 2, got {axes!r}")
-    values = []
-    for name, (start, stop, step) in (("first", first), ("second", second)):
-        if not (np.isfinite([start, stop, step]).all() and step > 0 and stop >= start):
-            raise ValueError(
-                f"{name} grid must be start:stop:step with step > 0 and stop >= start, "
-                f"got {start}:{stop}:{step}"
-            )
-        n = int(np.floor((stop - start) / step + 1e-6)) + 1
-        values.append(start + step * np.arange(n))
-    ga, gb = np.meshgrid(values[0], values[1], indexing="ij")
-    out = np.full((ga.size, 3), float(level) + 0.0)  # + 0.0: no negative zero
-    out[:, a] = ga.ravel()
-    out[:, b] = gb.ravel()
-    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -135,7 +100,7 @@ def render_survey(
     """Render one photograph per camera pose and write ``survey.csv`` beside them.
 
     Photo ``i`` is ``out_dir/photo_{i:03d}<suffix>`` (with its ground-truth JSON,
-    ``photo_{i:03d}.json``, see :func:`camvlp.simulate.save_render`), rendered with seed
+    ``photo_{i:03d}.json``, see :func:`camvlp.sim.render.save_render`), rendered with seed
     ``settings.seed + i`` so that each photo has its own LED phases and noise.
 
     Parameters
@@ -197,7 +162,7 @@ def render_survey(
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ValueError(f"cannot create the output folder: {exc.strerror} ({out})") from None
+        raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
 
     names = [f"photo_{i:03d}{suffix}" for i in range(n)]
     tasks = [
@@ -229,19 +194,8 @@ def render_survey(
                 if progress is not None:
                     progress(done, n)
 
-    csv_path = out / "survey.csv"
-    with open(csv_path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(SURVEY_COLUMNS)
-        for i in range(n):
-            writer.writerow(
-                [
-                    names[i],
-                    *(f"{v:.6f}" for v in pos[i]),
-                    *(f"{v:.4f}" for v in eul[i]),
-                    int(base.seed) + i,
-                ]
-            )
+    seeds = [int(base.seed) + i for i in range(n)]
+    csv_path = write_survey(out / "survey.csv", names, pos, eul, seeds)
     return csv_path
 
 
