@@ -17,6 +17,7 @@ from camvlp.io import load_camera, load_map
 from camvlp.io.writers import write_outputs
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.sim.render import DEFAULT_ROW_TIME_S
 from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats
@@ -495,7 +496,10 @@ def coverage(
     ] = 10_000.0,
     row_time: Annotated[
         float | None,
-        typer.Option("--row-time", help="Seconds per sensor row (default: camera's, or 20e-6)."),
+        typer.Option(
+            "--row-time",
+            help=f"Seconds per sensor row (default: camera's, or {DEFAULT_ROW_TIME_S * 1e6:g} us).",
+        ),
     ] = None,
     min_frames: Annotated[
         float, typer.Option("--min-frames", help="Frames of rows a fixture must span.")

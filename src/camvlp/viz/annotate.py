@@ -10,6 +10,7 @@ import numpy as np
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import find_runs, stripe_threshold
+from camvlp.viz.figure import new_figure
 
 __all__ = ["annotate", "write_debug_pictures"]
 
@@ -122,11 +123,6 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
 
     Returns the paths written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -141,7 +137,8 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         cv2.imwrite(str(p), pair)
         written.append(p)
     if blobs:
-        fig, axes = plt.subplots(len(blobs), 1, figsize=(10, 2.2 * len(blobs)), squeeze=False)
+        fig = new_figure(10, 2.2 * len(blobs), dpi=100, layout=None)
+        axes = fig.subplots(len(blobs), 1, squeeze=False)
         for k, (prof, dec, fr) in enumerate(
             zip(stages.profiles, stages.decodes, result.fixtures, strict=True)
         ):
@@ -170,6 +167,5 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         fig.tight_layout()
         p = out / "3_profiles.png"
         fig.savefig(p, dpi=110)
-        plt.close(fig)
         written.append(p)
     return written
