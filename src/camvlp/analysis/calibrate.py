@@ -461,23 +461,14 @@ def estimate_row_time(
     sp = estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
     if not sp:
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
-    if sp.strength < MIN_STRIPE_STRENGTH:
-        return RowTimeEstimate(
-            nan,
-            sp.period_px,
-            sp.axis,
-            sp.strength,
-            sp.periods_seen,
-            area,
-            frequency_hz,
-            f"no clear stripes in the light (periodic strength {sp.strength:.2f})",
-        )
+    weak = sp.strength < MIN_STRIPE_STRENGTH
     return RowTimeEstimate(
-        1.0 / (frequency_hz * sp.period_px),
+        nan if weak else 1.0 / (frequency_hz * sp.period_px),
         sp.period_px,
         sp.axis,
         sp.strength,
         sp.periods_seen,
         area,
         frequency_hz,
+        f"no clear stripes in the light (periodic strength {sp.strength:.2f})" if weak else "",
     )

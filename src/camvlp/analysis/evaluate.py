@@ -18,10 +18,8 @@ and true versus estimated positions seen from the top and both sides (figure 5.1
 
 from __future__ import annotations
 
-import importlib
 import math
 import time
-import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -31,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import json_number, summary_stats
 from camvlp.io import InputError, load_image
 from camvlp.io.survey_csv import ANGLE_COLUMNS, AXES, REQUIRED_COLUMNS, Survey, read_survey
@@ -56,23 +55,13 @@ __all__ = [
 
 #: Names that lived here before the plots got their own module.
 _MOVED = {
-    "plot_error_map": "camvlp.viz.evaluate_plots",
-    "plot_positions": "camvlp.viz.evaluate_plots",
-    "RESULT_COLUMNS": "camvlp.io.writers",
+    "plot_error_map": "camvlp.viz.evaluate_plots.plot_error_map",
+    "plot_positions": "camvlp.viz.evaluate_plots.plot_positions",
+    "RESULT_COLUMNS": "camvlp.io.writers.RESULT_COLUMNS",
 }
 
 
-def __getattr__(name: str):
-    """The moved plot functions, with a DeprecationWarning naming their home."""
-    home = _MOVED.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    warnings.warn(
-        f"camvlp.analysis.evaluate.{name} has moved to {home}.{name}; import it from there",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return getattr(importlib.import_module(home), name)
+__getattr__ = forward_moved_names(__name__, _MOVED)
 
 
 # --------------------------------------------------------------------------------------------

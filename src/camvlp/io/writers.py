@@ -1,4 +1,4 @@
-"""Result files: CSV tables and JSON summaries of studies and survey evaluations.
+"""Result files: CSV tables and JSON summaries of studies and evaluations, rendered photos.
 
 Every writer turns an ``OSError`` (a folder that cannot be created, a full disk, no
 permission) into :class:`~camvlp.errors.InputError` naming the path, so a command line can
@@ -15,18 +15,24 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from camvlp.errors import InputError
 
 __all__ = [
+    "IMAGE_SUFFIXES",
     "RESULT_COLUMNS",
     "jsonable",
+    "save_render",
     "write_csv",
     "write_json",
     "write_outputs",
     "write_results_csv",
 ]
+
+#: Image suffixes :func:`save_render` writes.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
 @contextmanager
@@ -191,3 +197,50 @@ def write_results_csv(evaluation, path: str | Path) -> Path:
                 ]
             )
     return p
+
+
+def save_render(result, out_path, *, jpeg_quality: int = 95) -> Path:
+    """Write a rendered photo and, beside it, ``<stem>.json`` with its ground truth.
+
+    Parameters
+    ----------
+    result : camvlp.sim.render.Render
+        The rendered photo (``image``) and its truth (``truth_dict()``).
+    out_path : str or Path
+        Image path; the suffix (``.png``, ``.jpg``, ``.jpeg``) picks the format.
+    jpeg_quality : int
+        JPEG quality, 1 to 100.
+
+    Returns
+    -------
+    Path
+        The JSON file's path.
+
+    Raises
+    ------
+    ValueError
+        Unknown suffix or bad quality.
+    InputError
+        The files cannot be written (naming the path).
+    """
+    p = Path(out_path)
+    suffix = p.suffix.lower()
+    if suffix not in IMAGE_SUFFIXES:
+        raise ValueError(
+            f"output image must end in {', '.join(IMAGE_SUFFIXES)}, got {p.suffix or 'no suffix'!r}"
+            f" ({p})"
+        )
+    if isinstance(jpeg_quality, bool) or not 1 <= int(jpeg_quality) <= 100:
+        raise ValueError(f"jpeg_quality must be from 1 to 100, got {jpeg_quality!r}")
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if suffix != ".png" else []
+    ok, buf = cv2.imencode(suffix, result.image, params)
+    if not ok:
+        raise ValueError(f"cannot encode the image as {suffix} ({p})")
+    json_path = p.with_suffix(".json")
+    try:
+        p.write_bytes(buf.tobytes())
+        json_path.write_text(json.dumps(result.truth_dict(), indent=2) + "\n")
+    except OSError as exc:
+        what = exc.strerror or exc.__class__.__name__
+        raise InputError(f"cannot write output: {what}", p) from None
+    return json_path

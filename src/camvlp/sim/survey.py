@@ -12,37 +12,29 @@ grid over the floor come from :func:`camvlp.sim.grid.grid_points`.
 from __future__ import annotations
 
 import dataclasses
-import importlib
 import multiprocessing
 import multiprocessing.context
 import os
-import warnings
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 
+from camvlp._moved import forward_moved_names
 from camvlp.errors import InputError
 from camvlp.io.survey_csv import SURVEY_COLUMNS, write_survey
+from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, render, save_render
+from camvlp.sim.render import RenderSettings, render
 
 __all__ = ["SURVEY_COLUMNS", "default_jobs", "render_survey", "worker_context"]
 
 
-def __getattr__(name: str):
-    """The moved ``floor_grid``: now :func:`camvlp.sim.grid.grid_points`, with a warning."""
-    if name != "floor_grid":
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    warnings.warn(
-        "camvlp.sim.survey.floor_grid has moved to camvlp.sim.grid.grid_points; "
-        "import it from there",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return importlib.import_module("camvlp.sim.grid").grid_points
+#: ``floor_grid``, the list of positions of a survey's grid, is now ``grid_points`` in
+#: :mod:`camvlp.sim.grid`, beside the study's ``floor_grid``.
+__getattr__ = forward_moved_names(__name__, {"floor_grid": "camvlp.sim.grid.grid_points"})
 
 
 def default_jobs() -> int:

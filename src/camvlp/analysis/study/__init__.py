@@ -31,9 +31,7 @@ plots are in :mod:`camvlp.viz.study_plots` and the files in :mod:`camvlp.io.writ
 
 from __future__ import annotations
 
-import importlib
-import warnings
-
+from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import Progress, round_pixels, solve_positions
 from camvlp.analysis.study.coverage import CoverageStudy, coverage_study
@@ -62,23 +60,13 @@ __all__ = [
 
 #: Names that lived here before the plots and the writers got their own modules.
 _MOVED = {
-    "plot_coverage": "camvlp.viz.study_plots",
-    "plot_forced_error": "camvlp.viz.study_plots",
-    "plot_monte_carlo": "camvlp.viz.study_plots",
-    "plot_rounding": "camvlp.viz.study_plots",
-    "write_csv": "camvlp.io.writers",
-    "write_outputs": "camvlp.io.writers",
+    "plot_coverage": "camvlp.viz.study_plots.plot_coverage",
+    "plot_forced_error": "camvlp.viz.study_plots.plot_forced_error",
+    "plot_monte_carlo": "camvlp.viz.study_plots.plot_monte_carlo",
+    "plot_rounding": "camvlp.viz.study_plots.plot_rounding",
+    "write_csv": "camvlp.io.writers.write_csv",
+    "write_outputs": "camvlp.io.writers.write_outputs",
 }
 
 
-def __getattr__(name: str):
-    """The moved plot and writer functions, with a DeprecationWarning naming their home."""
-    home = _MOVED.get(name)
-    if home is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    warnings.warn(
-        f"camvlp.analysis.study.{name} has moved to {home}.{name}; import it from there",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return getattr(importlib.import_module(home), name)
+__getattr__ = forward_moved_names(__name__, _MOVED)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -12,16 +13,17 @@ from camvlp.model.fixtures import FixtureMap
 
 __all__ = [
     "Progress",
+    "StudyInputs",
     "check_study_solver",
     "fixture_index",
     "map_m",
-    "noise_settings",
     "nonneg",
     "poses",
     "position_errors",
     "rotations",
     "round_pixels",
     "solve_positions",
+    "study_inputs",
 ]
 
 #: Progress callback: ``progress(done, total)`` in poses.
@@ -88,14 +90,56 @@ def _trials(trials: int, noisy: bool) -> int:
     return int(trials) if noisy else 1
 
 
-def noise_settings(
-    noise_px: float, survey_error_m: float, trials: int, seed: int
-) -> tuple[float, float, int, np.random.Generator]:
-    """Checked noise sigmas (px, m), trials (1 without noise) and the seeded generator."""
+@dataclass(frozen=True)
+class StudyInputs:
+    """What every study checks and sets up first, before its own poses.
+
+    Attributes
+    ----------
+    fixtures_m : ndarray, shape (N, 3)
+        The map's fixture centres, metres (at least four).
+    solver : str
+        A solver :func:`solve_positions` knows.
+    rounding : bool
+        Round image points to whole pixels.
+    noise_px, survey_error_m : float
+        Gaussian sigma on every image point (px) and on every world point given to the
+        solver (m).
+    trials : int
+        Draws per pose (1 without noise).
+    rng : numpy.random.Generator
+        The seeded source of the noise.
+    """
+
+    fixtures_m: np.ndarray
+    solver: str
+    rounding: bool
+    noise_px: float
+    survey_error_m: float
+    trials: int
+    rng: np.random.Generator
+
+
+def study_inputs(
+    fixture_map: FixtureMap,
+    *,
+    solver: str,
+    rounding: bool,
+    noise_px: float = 0.0,
+    survey_error_m: float = 0.0,
+    trials: int = 1,
+    seed: int = 0,
+) -> StudyInputs:
+    """Check a study's common arguments (ValueError naming the one at fault) and bundle them."""
+    check_study_solver(solver)
+    pts = map_m(fixture_map)
     noise_px = nonneg(noise_px, "noise_px")
     survey_error_m = nonneg(survey_error_m, "survey_error_m")
     noisy = noise_px > 0 or survey_error_m > 0
-    return noise_px, survey_error_m, _trials(trials, noisy), np.random.default_rng(seed)
+    trials = _trials(trials, noisy)
+    return StudyInputs(
+        pts, solver, bool(rounding), noise_px, survey_error_m, trials, np.random.default_rng(seed)
+    )
 
 
 def round_pixels(uv: np.ndarray) -> np.ndarray:
@@ -155,45 +199,37 @@ def _solver_inputs(
     uv: np.ndarray,
     fixtures_m: np.ndarray,
     sl: slice,
-    *,
-    rounding: bool,
+    inputs: StudyInputs,
     image_offset: np.ndarray | None,
     world_offset: np.ndarray | None,
-    noise_px: float,
-    survey_error_m: float,
-    rng: np.random.Generator | None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The image points (B, N, 2) and world points the solver is given for one chunk."""
     b, n = uv.shape[:2]
-    if rounding:
+    if inputs.rounding:
         uv = round_pixels(uv)
     if image_offset is not None:
         uv = uv + image_offset[sl]
-    if noise_px > 0:
-        uv = uv + rng.normal(0.0, noise_px, (b, n, 2))
+    if inputs.noise_px > 0:
+        uv = uv + inputs.rng.normal(0.0, inputs.noise_px, (b, n, 2))
     obj = fixtures_m
-    if world_offset is not None or survey_error_m > 0:
+    if world_offset is not None or inputs.survey_error_m > 0:
         obj = np.broadcast_to(fixtures_m, (b, n, 3)).copy()
         if world_offset is not None:
             obj += world_offset[sl]
-        if survey_error_m > 0:
-            obj += rng.normal(0.0, survey_error_m, (b, n, 3))
+        if inputs.survey_error_m > 0:
+            obj += inputs.rng.normal(0.0, inputs.survey_error_m, (b, n, 3))
     return uv, obj
 
 
 def position_errors(
     camera: Camera,
-    fixtures_m: np.ndarray,
+    inputs: StudyInputs,
     R: np.ndarray,
     C: np.ndarray,
     *,
-    solver: str,
-    rounding: bool,
+    fixtures_m: np.ndarray | None = None,
     image_offset: np.ndarray | None = None,
     world_offset: np.ndarray | None = None,
-    noise_px: float = 0.0,
-    survey_error_m: float = 0.0,
-    rng: np.random.Generator | None = None,
     progress: Progress | None = None,
 ) -> np.ndarray:
     """Position error of each pose: project, round, perturb, solve, compare.
@@ -201,23 +237,18 @@ def position_errors(
     Parameters
     ----------
     camera : Camera
-    fixtures_m : ndarray, shape (N, 3)
-        True fixture centres, metres.
+    inputs : StudyInputs
+        Fixtures, solver, rounding and noise (drawn from ``inputs.rng``).
     R : ndarray, shape (B, 3, 3)
         World-to-camera rotations.
     C : ndarray, shape (B, 3)
         True camera centres, metres.
-    solver : str
-        See :func:`solve_positions`.
-    rounding : bool
-        Round the projections to whole pixels.
+    fixtures_m : ndarray, shape (N, 3), optional
+        The fixtures to use instead of all of ``inputs.fixtures_m`` (metres).
     image_offset : ndarray, shape (B, N, 2), optional
         Added to the image points after rounding, pixels.
     world_offset : ndarray, shape (B, N, 3), optional
         Added to the world points the solver is given, metres.
-    noise_px, survey_error_m : float
-        Gaussian sigma on every image point (px) and world point (m); need ``rng``.
-    rng : numpy.random.Generator, optional
     progress : callable, optional
         ``progress(done, B)`` after each chunk of poses.
 
@@ -226,24 +257,15 @@ def position_errors(
     ndarray, shape (B,)
         Distance between true and estimated centres, metres; NaN where the solve failed.
     """
+    pts = inputs.fixtures_m if fixtures_m is None else fixtures_m
     b = C.shape[0]
     distort = camera.dist_or_none is not None
     out = np.empty(b)
     for s in range(0, b, _CHUNK):
         sl = slice(s, min(b, s + _CHUNK))
-        uv = project_batch(camera, R[sl], C[sl], fixtures_m, distort=distort)
-        uv, obj = _solver_inputs(
-            uv,
-            fixtures_m,
-            sl,
-            rounding=rounding,
-            image_offset=image_offset,
-            world_offset=world_offset,
-            noise_px=noise_px,
-            survey_error_m=survey_error_m,
-            rng=rng,
-        )
-        est = solve_positions(obj, uv, camera, solver)
+        uv = project_batch(camera, R[sl], C[sl], pts, distort=distort)
+        uv, obj = _solver_inputs(uv, pts, sl, inputs, image_offset, world_offset)
+        est = solve_positions(obj, uv, camera, inputs.solver)
         out[sl] = np.linalg.norm(est - C[sl], axis=1)
         if progress is not None:
             progress(sl.stop, b)

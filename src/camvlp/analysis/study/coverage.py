@@ -10,13 +10,12 @@ import numpy as np
 from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import (
     Progress,
-    check_study_solver,
-    map_m,
+    StudyInputs,
     mean_over_last_axis,
-    noise_settings,
     nonneg,
     position_errors,
     rotations,
+    study_inputs,
 )
 from camvlp.geometry.disc import rim_points
 from camvlp.geometry.pnp import project_batch
@@ -215,17 +214,13 @@ def coverage_study(
     CoverageStudy
     """
 
-    check_study_solver(solver)
-    pts = map_m(fixture_map)
-    noise_px, _, trials, rng = noise_settings(noise_px, 0.0, trials, seed)
+    inp = study_inputs(
+        fixture_map, solver=solver, rounding=rounding, noise_px=noise_px, trials=trials, seed=seed
+    )
+    pts = inp.fixtures_m
     rt = _row_time(camera, row_time_s, chip_rate_hz, min_frames, n_rim)
     u, v, pos = floor_grid(
-        pts,
-        plane=plane,
-        u_range_m=u_range_m,
-        v_range_m=v_range_m,
-        step_m=step_m,
-        height_m=height_m,
+        pts, plane=plane, u_range_m=u_range_m, v_range_m=v_range_m, step_m=step_m, height_m=height_m
     )
     _, _, vert = plane_axes(plane)
     up = np.zeros(3)
@@ -239,15 +234,13 @@ def coverage_study(
     g, o = c.shape[0], eul.shape[0]
     usable = np.zeros((g, o), dtype=np.int64)
     fix = np.zeros((g, o), dtype=bool)
-    errors = np.full((g, o, trials), np.nan)
+    errors = np.full((g, o, inp.trials), np.nan)
     facing = np.einsum("ni,gni->gn", normals, c[:, None, :] - pts[None, :, :]) > 0  # (G, N)
     for j in range(o):
         ok = facing & _decodable_in_view(camera, rots[j], c, rims, min_rows)
         usable[:, j] = ok.sum(1)
         fix[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
-        errors[:, j] = _fix_errors(
-            camera, pts, rots[j], c, ok, fix[:, j], trials, solver, rounding, noise_px, rng
-        )
+        errors[:, j] = _fix_errors(camera, inp, rots[j], c, ok, fix[:, j])
         if progress is not None:
             progress(j + 1, o)
     shape = (v.size, u.size)
@@ -260,12 +253,12 @@ def coverage_study(
         eul,
         usable.reshape(*shape, o),
         fix.reshape(*shape, o),
-        errors.reshape(*shape, o, trials),
+        errors.reshape(*shape, o, inp.trials),
         float(frame_rows),
         float(min_rows),
         solver,
-        noise_px,
-        bool(rounding),
+        inp.noise_px,
+        inp.rounding,
         int(seed),
     )
 
@@ -357,22 +350,18 @@ def _decodable_in_view(
 
 def _fix_errors(
     camera: Camera,
-    pts: np.ndarray,
+    inputs: StudyInputs,
     rot: np.ndarray,
     centres: np.ndarray,
     usable: np.ndarray,
     fix: np.ndarray,
-    trials: int,
-    solver: str,
-    rounding: bool,
-    noise_px: float,
-    rng: np.random.Generator,
 ) -> np.ndarray:
     """Position errors (G, trials), metres, where there is a fix; NaN elsewhere.
 
     The positions that share the same set of usable fixtures (``usable``, (G, N)) are
     solved together with those fixtures only.
     """
+    trials = inputs.trials
     out = np.full((centres.shape[0], trials), np.nan)
     idx = np.flatnonzero(fix)
     if idx.size == 0:
@@ -381,16 +370,8 @@ def _fix_errors(
     for q, pattern in enumerate(patterns):
         members = idx[inverse.reshape(-1) == q]
         cm = np.repeat(centres[members], trials, axis=0)
-        err = position_errors(
-            camera,
-            pts[pattern],
-            np.broadcast_to(rot, (cm.shape[0], 3, 3)),
-            cm,
-            solver=solver,
-            rounding=rounding,
-            noise_px=noise_px,
-            rng=rng,
-        )
+        rr = np.broadcast_to(rot, (cm.shape[0], 3, 3))
+        err = position_errors(camera, inputs, rr, cm, fixtures_m=inputs.fixtures_m[pattern])
         out[members] = err.reshape(-1, trials)
     return out
 

@@ -10,13 +10,12 @@ from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import (
     POSE_COLUMNS,
     Progress,
-    check_study_solver,
     fixture_index,
-    map_m,
     pose_rows,
     poses,
     position_errors,
     rotations,
+    study_inputs,
 )
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import Camera
@@ -168,13 +167,12 @@ def forced_error_study(
     -------
     ForcedErrorStudy
     """
-    check_study_solver(solver)
+    inp = study_inputs(fixture_map, solver=solver, rounding=rounding)
     if kind not in ("image", "world"):
         raise ValueError(f"kind must be 'image' or 'world', got {kind!r}")
     axes = "xy" if kind == "image" else "xyz"
     if axis not in axes:
         raise ValueError(f"axis must be one of {', '.join(axes)} for {kind} errors, got {axis!r}")
-    pts = map_m(fixture_map)
     fid = fixture_map.ids[0] if fixture_id is None else int(fixture_id)
     idx = fixture_index(fixture_map, fid)
     off = np.asarray(offsets, dtype=float).reshape(-1)
@@ -182,7 +180,7 @@ def forced_error_study(
         raise ValueError("offsets must be finite numbers, at least one")
     c, e = poses(positions_m, euler_deg)
     _, r = rotations(e)
-    p, k, n = c.shape[0], off.size, pts.shape[0]
+    p, k, n = c.shape[0], off.size, inp.fixtures_m.shape[0]
     cc = np.repeat(c, k, axis=0)
     rr = np.repeat(r, k, axis=0)
     a = axes.index(axis)
@@ -195,14 +193,6 @@ def forced_error_study(
         world_offset[:, idx, a] = np.tile(off, p)
         image_offset = None
     err = position_errors(
-        camera,
-        pts,
-        rr,
-        cc,
-        solver=solver,
-        rounding=rounding,
-        image_offset=image_offset,
-        world_offset=world_offset,
-        progress=progress,
+        camera, inp, rr, cc, image_offset=image_offset, world_offset=world_offset, progress=progress
     )
     return ForcedErrorStudy(kind, axis, fid, off, c, e, err.reshape(p, k), solver, bool(rounding))

@@ -10,13 +10,11 @@ from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import (
     POSE_COLUMNS,
     Progress,
-    check_study_solver,
-    map_m,
-    noise_settings,
     pose_rows,
     poses,
     position_errors,
     rotations,
+    study_inputs,
 )
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import Camera
@@ -120,30 +118,26 @@ def monte_carlo_study(
     -------
     MonteCarloStudy
     """
-    check_study_solver(solver)
-    pts = map_m(fixture_map)
-    noise_px, survey_error_m, trials, rng = noise_settings(noise_px, survey_error_m, trials, seed)
-    c, e = poses(positions_m, euler_deg)
-    _, r = rotations(e)
-    err = position_errors(
-        camera,
-        pts,
-        np.repeat(r, trials, axis=0),
-        np.repeat(c, trials, axis=0),
+    inp = study_inputs(
+        fixture_map,
         solver=solver,
         rounding=rounding,
         noise_px=noise_px,
         survey_error_m=survey_error_m,
-        rng=rng,
-        progress=progress,
+        trials=trials,
+        seed=seed,
     )
+    c, e = poses(positions_m, euler_deg)
+    _, r = rotations(e)
+    rr, cc = np.repeat(r, inp.trials, axis=0), np.repeat(c, inp.trials, axis=0)
+    err = position_errors(camera, inp, rr, cc, progress=progress)
     return MonteCarloStudy(
         c,
         e,
-        err.reshape(c.shape[0], trials),
-        noise_px,
-        survey_error_m,
+        err.reshape(c.shape[0], inp.trials),
+        inp.noise_px,
+        inp.survey_error_m,
         int(seed),
         solver,
-        bool(rounding),
+        inp.rounding,
     )

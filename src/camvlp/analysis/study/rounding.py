@@ -10,12 +10,10 @@ import numpy as np
 from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import (
     Progress,
-    check_study_solver,
-    map_m,
     mean_over_last_axis,
-    noise_settings,
     position_errors,
     rotations,
+    study_inputs,
 )
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import Camera
@@ -168,31 +166,27 @@ def rounding_study(
     -------
     RoundingStudy
     """
-    check_study_solver(solver)
-    pts = map_m(fixture_map)
-    noise_px, survey_error_m, trials, rng = noise_settings(noise_px, survey_error_m, trials, seed)
+    inp = study_inputs(
+        fixture_map,
+        solver=solver,
+        rounding=rounding,
+        noise_px=noise_px,
+        survey_error_m=survey_error_m,
+        trials=trials,
+        seed=seed,
+    )
     e, r = rotations(euler_deg)
     u, v, pos = floor_grid(
-        pts,
+        inp.fixtures_m,
         plane=plane,
         u_range_m=u_range_m,
         v_range_m=v_range_m,
         step_m=step_m,
         height_m=height_m,
     )
-    c = np.repeat(pos.reshape(-1, 3), trials, axis=0)
-    rr = np.broadcast_to(r[0], (c.shape[0], 3, 3))
+    c = np.repeat(pos.reshape(-1, 3), inp.trials, axis=0)
     err = position_errors(
-        camera,
-        pts,
-        rr,
-        c,
-        solver=solver,
-        rounding=rounding,
-        noise_px=noise_px,
-        survey_error_m=survey_error_m,
-        rng=rng,
-        progress=progress,
+        camera, inp, np.broadcast_to(r[0], (c.shape[0], 3, 3)), c, progress=progress
     )
     return RoundingStudy(
         solver,
@@ -202,9 +196,9 @@ def rounding_study(
         v,
         float(height_m),
         pos,
-        err.reshape(v.size, u.size, trials),
-        bool(rounding),
-        noise_px,
-        survey_error_m,
+        err.reshape(v.size, u.size, inp.trials),
+        inp.rounding,
+        inp.noise_px,
+        inp.survey_error_m,
         int(seed),
     )
