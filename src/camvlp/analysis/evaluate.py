@@ -364,46 +364,64 @@ def evaluate_survey(
         )
         for i in range(n)
     ]
-    results: list[PhotoResult | None] = [None] * n
     t0 = time.perf_counter()
     if n_jobs == 1:
         _set_worker(camera, fixture_map, st)
+        results = []
         for i, task in enumerate(tasks):
-            results[i] = _locate_one(*task)
+            results.append(_locate_one(*task))
             if progress is not None:
                 progress(i + 1, n)
     else:
-        with ProcessPoolExecutor(
-            max_workers=n_jobs,
-            mp_context=worker_context(),
-            initializer=_init_worker,
-            initargs=(camera, fixture_map, st),
-        ) as pool:
-            futures = {pool.submit(_locate_one, *task): i for i, task in enumerate(tasks)}
-            for done, fut in enumerate(as_completed(futures), 1):
-                i = futures[fut]
-                try:
-                    results[i] = fut.result()
-                except BrokenProcessPool:
-                    photo, _, true_pos, true_eul = tasks[i]
-                    results[i] = PhotoResult(
-                        photo=photo,
-                        true_position=true_pos,
-                        position=None,
-                        euler_deg=None,
-                        true_euler_deg=true_eul,
-                        reason="failed: the worker process died (out of memory?)",
-                    )
-                if progress is not None:
-                    progress(done, n)
+        results = _locate_in_pool(tasks, camera, fixture_map, st, n_jobs, progress)
     wall = time.perf_counter() - t0
     return Evaluation(
-        results=tuple(r for r in results if r is not None),
+        results=tuple(results),
         units=fixture_map.units,
         survey=survey,
         jobs=n_jobs,
         wall_time_s=wall,
     )
+
+
+def _locate_in_pool(
+    tasks: list[tuple],
+    camera: Camera,
+    fixture_map: FixtureMap,
+    settings: LocateSettings,
+    n_jobs: int,
+    progress: Callable[[int, int], None] | None,
+) -> list[PhotoResult]:
+    """:func:`_locate_one` for every task in ``n_jobs`` worker processes, in task order.
+
+    A worker that dies (out of memory) fails its photo with a reason; the others go on.
+    """
+    n = len(tasks)
+    results: list[PhotoResult | None] = [None] * n
+    with ProcessPoolExecutor(
+        max_workers=n_jobs,
+        mp_context=worker_context(),
+        initializer=_init_worker,
+        initargs=(camera, fixture_map, settings),
+    ) as pool:
+        futures = {pool.submit(_locate_one, *task): i for i, task in enumerate(tasks)}
+        for done, fut in enumerate(as_completed(futures), 1):
+            i = futures[fut]
+            try:
+                results[i] = fut.result()
+            except BrokenProcessPool:
+                photo, _, true_pos, true_eul = tasks[i]
+                results[i] = PhotoResult(
+                    photo=photo,
+                    true_position=true_pos,
+                    position=None,
+                    euler_deg=None,
+                    true_euler_deg=true_eul,
+                    reason="failed: the worker process died (out of memory?)",
+                )
+            if progress is not None:
+                progress(done, n)
+    return [r for r in results if r is not None]
 
 
 # --------------------------------------------------------------------------------------------

@@ -52,6 +52,28 @@ def board_object_points(board: tuple[int, int], square_m: float) -> np.ndarray:
     return pts.astype(np.float32)
 
 
+#: Texels per square of the board's texture.
+_TEXELS = 32
+
+
+def _board_texture(
+    cols: int, rows: int, square_m: float, black: float, white: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The board with its margin as an image, and the homography from board metres to it.
+
+    The texture has :data:`_TEXELS` texels per square and starts at board coordinate
+    ``(-2 s, -2 s)``, the margin's outer corner.
+    """
+    t = _TEXELS
+    gx, gy = np.meshgrid(np.arange(cols + 3) - 2, np.arange(rows + 3) - 2)
+    squares = np.where((gx + gy) % 2 == 0, black, white)
+    squares[(gx < -1) | (gx > cols - 1) | (gy < -1) | (gy > rows - 1)] = white
+    texture = np.kron(squares, np.ones((t, t))).astype(np.float32)
+    s = square_m
+    tex_from_board = np.array([[t / s, 0, 2 * t - 0.5], [0, t / s, 2 * t - 0.5], [0, 0, 1.0]])
+    return texture, tex_from_board
+
+
 def render_chessboard(
     camera: Camera,
     pose: Pose,
@@ -97,13 +119,7 @@ def render_chessboard(
     n = int(supersample)
     if n < 1:
         raise ValueError(f"supersample must be at least 1, got {supersample!r}")
-    # Texture: t texels per square, from board coordinate (-2 s, -2 s) (the margin's corner).
-    t = 32
-    gx, gy = np.meshgrid(np.arange(cols + 3) - 2, np.arange(rows + 3) - 2)
-    squares = np.where((gx + gy) % 2 == 0, black, white)
-    squares[(gx < -1) | (gx > cols - 1) | (gy < -1) | (gy > rows - 1)] = white
-    texture = np.kron(squares, np.ones((t, t))).astype(np.float32)
-    tex_from_board = np.array([[t / s, 0, 2 * t - 0.5], [0, t / s, 2 * t - 0.5], [0, 0, 1.0]])
+    texture, tex_from_board = _board_texture(cols, rows, s, black, white)
     # Supersampled pixel U = n u + (n - 1) / 2 for pixel u.
     ss_from_pix = np.array([[n, 0, (n - 1) / 2], [0, n, (n - 1) / 2], [0, 0, 1.0]])
     r_cw = pose.camera_from_world

@@ -128,17 +128,7 @@ def render_survey(
         Bad shapes or values (naming the argument), a pose or map that cannot be rendered,
         or an output that cannot be written.
     """
-    pos = np.asarray(positions, dtype=float)
-    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0 or not np.isfinite(pos).all():
-        raise ValueError(
-            f"positions must be a non-empty (N, 3) array of finite numbers, got shape {pos.shape}"
-        )
-    n = pos.shape[0]
-    eul = np.asarray(euler_deg, dtype=float)
-    if eul.shape == (3,):
-        eul = np.broadcast_to(eul, (n, 3))
-    if eul.shape != (n, 3) or not np.isfinite(eul).all():
-        raise ValueError(f"euler_deg must have shape (3,) or ({n}, 3), got {eul.shape}")
+    pos, eul = _poses(positions, euler_deg)
     if suffix.lower() not in IMAGE_SUFFIXES:
         raise ValueError(f"suffix must be one of {', '.join(IMAGE_SUFFIXES)}, got {suffix!r}")
     if isinstance(jpeg_quality, bool) or not 1 <= int(jpeg_quality) <= 100:
@@ -155,40 +145,55 @@ def render_survey(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
-
+    n = pos.shape[0]
     names = [f"photo_{i:03d}{suffix}" for i in range(n)]
     tasks = [
-        (
-            pos[i],
-            eul[i],
-            dataclasses.replace(base, seed=int(base.seed) + i),
-            out / names[i],
-            int(jpeg_quality),
-        )
+        (pos[i], eul[i], dataclasses.replace(base, seed=int(base.seed) + i), out / names[i])
         for i in range(n)
     ]
-    if n_jobs == 1 or n == 1:
-        _init_worker_local(camera, fixture_map)
-        for done, task in enumerate(tasks, 1):
-            _render_one(*task)
-            if progress is not None:
-                progress(done, n)
-    else:
-        with ProcessPoolExecutor(
-            max_workers=min(n_jobs, n),
-            mp_context=worker_context(),
-            initializer=_init_worker,
-            initargs=(camera, fixture_map),
-        ) as pool:
-            futures = [pool.submit(_render_one, *task) for task in tasks]
-            for done, fut in enumerate(as_completed(futures), 1):
-                fut.result()  # re-raises a worker's ValueError
-                if progress is not None:
-                    progress(done, n)
-
+    _render_all(tasks, camera, fixture_map, int(jpeg_quality), n_jobs, progress)
     seeds = [int(base.seed) + i for i in range(n)]
     csv_path = write_survey(out / "survey.csv", names, pos, eul, seeds)
     return csv_path
+
+
+def _poses(positions, euler_deg) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and angles (N, 3, one set repeated for all), checked."""
+    pos = np.asarray(positions, dtype=float)
+    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0 or not np.isfinite(pos).all():
+        raise ValueError(
+            f"positions must be a non-empty (N, 3) array of finite numbers, got shape {pos.shape}"
+        )
+    n = pos.shape[0]
+    eul = np.asarray(euler_deg, dtype=float)
+    if eul.shape == (3,):
+        eul = np.broadcast_to(eul, (n, 3))
+    if eul.shape != (n, 3) or not np.isfinite(eul).all():
+        raise ValueError(f"euler_deg must have shape (3,) or ({n}, 3), got {eul.shape}")
+    return pos, eul
+
+
+def _render_all(tasks, camera, fixture_map, quality: int, n_jobs: int, progress) -> None:
+    """Render every ``(position, euler, settings, path)`` task, in this process or a pool."""
+    n = len(tasks)
+    if n_jobs == 1 or n == 1:
+        _init_worker_local(camera, fixture_map)
+        for done, task in enumerate(tasks, 1):
+            _render_one(*task, quality)
+            if progress is not None:
+                progress(done, n)
+        return
+    with ProcessPoolExecutor(
+        max_workers=min(n_jobs, n),
+        mp_context=worker_context(),
+        initializer=_init_worker,
+        initargs=(camera, fixture_map),
+    ) as pool:
+        futures = [pool.submit(_render_one, *task, quality) for task in tasks]
+        for done, fut in enumerate(as_completed(futures), 1):
+            fut.result()  # re-raises a worker's ValueError
+            if progress is not None:
+                progress(done, n)
 
 
 def _init_worker_local(camera: Camera, fixture_map: FixtureMap) -> None:

@@ -103,6 +103,24 @@ def _auto_magnify(max_error: float, span: float) -> float:
     return max(s * decade for s in (1.0, 2.0, 5.0) if s * decade <= m)
 
 
+def _draw_points(ax, true: np.ndarray, shown: np.ndarray, ok: np.ndarray) -> None:
+    """True points (N, 2) blue, shown estimates (M, 2) orange joined to them, misses as crosses.
+
+    ``ok`` (N,) marks the located photos, whose estimates are ``shown`` in order.
+    """
+    if ok.any():
+        segs = np.stack([true[ok], shown], axis=1)
+        ax.add_collection(_line_collection(segs, colors="0.55", linewidths=0.8, zorder=1))
+    ax.scatter(true[:, 0], true[:, 1], s=18, color=_BLUE, label="true", zorder=2)
+    if ok.any():
+        ax.scatter(shown[:, 0], shown[:, 1], s=18, color=_ORANGE, label="estimated", zorder=3)
+    if (~ok).any():
+        miss = true[~ok]
+        ax.scatter(
+            miss[:, 0], miss[:, 1], s=50, marker="x", color="0.3", label="not located", zorder=4
+        )
+
+
 def plot_positions(
     evaluation: Evaluation,
     path: str | Path,
@@ -154,22 +172,7 @@ def plot_positions(
     axes = fig.subplots(1, 3)
     views = ((a, b, "top view"), (a, v, "side view"), (b, v, "side view"))
     for ax, (i, j, name) in zip(axes, views, strict=True):
-        if ok.any():
-            segs = np.stack([true[ok][:, [i, j]], shown[:, [i, j]]], axis=1)
-            ax.add_collection(_line_collection(segs, colors="0.55", linewidths=0.8, zorder=1))
-        ax.scatter(true[:, i], true[:, j], s=18, color=_BLUE, label="true", zorder=2)
-        if ok.any():
-            ax.scatter(shown[:, i], shown[:, j], s=18, color=_ORANGE, label="estimated", zorder=3)
-        if (~ok).any():
-            ax.scatter(
-                true[~ok, i],
-                true[~ok, j],
-                s=50,
-                marker="x",
-                color="0.3",
-                label="not located",
-                zorder=4,
-            )
+        _draw_points(ax, true[:, [i, j]], shown[:, [i, j]], ok)
         ax.set_xlabel(f"{AXES[i]} ({ev.units})")
         offsets = f"; orange offsets x{magnify:g}" if magnify != 1 and j == v else ""
         ax.set_ylabel(f"{AXES[j]} ({ev.units}{offsets})")

@@ -202,48 +202,30 @@ def coverage_study(
         Sigma of the detection noise on each image coordinate, pixels.
     trials : int
         Noise draws per position and orientation.
-    seed : int
-    solver : str
-    rounding : bool
+    seed, solver, rounding, progress
+        As for :func:`~camvlp.analysis.study.rounding.rounding_study`.
     n_rim : int
         Points per rim (8 or more).
-    progress : callable, optional
 
     Returns
     -------
     CoverageStudy
     """
-
     inp = study_inputs(
         fixture_map, solver=solver, rounding=rounding, noise_px=noise_px, trials=trials, seed=seed
     )
-    pts = inp.fixtures_m
     rt = _row_time(camera, row_time_s, chip_rate_hz, min_frames, n_rim)
+    pts = inp.fixtures_m
     u, v, pos = floor_grid(
         pts, plane=plane, u_range_m=u_range_m, v_range_m=v_range_m, step_m=step_m, height_m=height_m
     )
-    _, _, vert = plane_axes(plane)
-    up = np.zeros(3)
-    up[vert] = up_sign(pts, vert)
-    normals, rims = _fixture_discs(fixture_map, up, default_diameter_m, int(n_rim))
+    normals, rims = _fixture_discs(fixture_map, plane, default_diameter_m, int(n_rim))
     frame_rows = fixture_map.frame.n_chips / (chip_rate_hz * rt)
-    min_rows = min_frames * frame_rows
     eul, rots = _orientations(base_euler_deg, tilt_max_deg, tilt_step_deg)
-
-    c = pos.reshape(-1, 3)
-    g, o = c.shape[0], eul.shape[0]
-    usable = np.zeros((g, o), dtype=np.int64)
-    fix = np.zeros((g, o), dtype=bool)
-    errors = np.full((g, o, inp.trials), np.nan)
-    facing = np.einsum("ni,gni->gn", normals, c[:, None, :] - pts[None, :, :]) > 0  # (G, N)
-    for j in range(o):
-        ok = facing & _decodable_in_view(camera, rots[j], c, rims, min_rows)
-        usable[:, j] = ok.sum(1)
-        fix[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
-        errors[:, j] = _fix_errors(camera, inp, rots[j], c, ok, fix[:, j])
-        if progress is not None:
-            progress(j + 1, o)
-    shape = (v.size, u.size)
+    usable, fix, errors = _sweep(
+        camera, inp, pos.reshape(-1, 3), rots, normals, rims, min_frames * frame_rows, progress
+    )
+    shape = (v.size, u.size, eul.shape[0])
     return CoverageStudy(
         plane,
         u,
@@ -251,16 +233,53 @@ def coverage_study(
         float(height_m),
         pos,
         eul,
-        usable.reshape(*shape, o),
-        fix.reshape(*shape, o),
-        errors.reshape(*shape, o, inp.trials),
+        usable.reshape(shape),
+        fix.reshape(shape),
+        errors.reshape(*shape, inp.trials),
         float(frame_rows),
-        float(min_rows),
+        float(min_frames * frame_rows),
         solver,
         inp.noise_px,
         inp.rounding,
         int(seed),
     )
+
+
+def _sweep(
+    camera: Camera,
+    inputs: StudyInputs,
+    centres: np.ndarray,
+    rots: np.ndarray,
+    normals: np.ndarray,
+    rims: np.ndarray,
+    min_rows: float,
+    progress: Progress | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every camera centre (G, 3) at every orientation (O, 3, 3): what it sees, and its error.
+
+    Returns
+    -------
+    usable : ndarray of int, shape (G, O)
+        Fixtures facing the camera, wholly in view and spanning ``min_rows`` rows.
+    fix : ndarray of bool, shape (G, O)
+        At least four usable fixtures, not all on a line.
+    errors : ndarray, shape (G, O, trials)
+        Position error where there is a fix, metres; NaN elsewhere.
+    """
+    pts = inputs.fixtures_m
+    g, o = centres.shape[0], rots.shape[0]
+    usable = np.zeros((g, o), dtype=np.int64)
+    fix = np.zeros((g, o), dtype=bool)
+    errors = np.full((g, o, inputs.trials), np.nan)
+    facing = np.einsum("ni,gni->gn", normals, centres[:, None, :] - pts[None, :, :]) > 0
+    for j in range(o):
+        ok = facing & _decodable_in_view(camera, rots[j], centres, rims, min_rows)
+        usable[:, j] = ok.sum(1)
+        fix[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
+        errors[:, j] = _fix_errors(camera, inputs, rots[j], centres, ok, fix[:, j])
+        if progress is not None:
+            progress(j + 1, o)
+    return usable, fix, errors
 
 
 def _row_time(
@@ -285,13 +304,17 @@ def _row_time(
 
 
 def _fixture_discs(
-    fixture_map: FixtureMap, up: np.ndarray, default_diameter_m: float | None, n_rim: int
+    fixture_map: FixtureMap, plane: str, default_diameter_m: float | None, n_rim: int
 ) -> tuple[np.ndarray, np.ndarray]:
     """Each fixture's normal (N, 3) and ``n_rim`` points on its rim (N, n_rim, 3), metres.
 
-    A fixture without a normal faces the floor (``-up``); one without a diameter takes
+    A fixture without a normal faces the floor of ``plane``; one without a diameter takes
     ``default_diameter_m``, and ValueError when there is none.
     """
+    pts = fixture_map.positions * fixture_map.unit_m
+    _, _, vert = plane_axes(plane)
+    down = np.zeros(3)
+    down[vert] = -up_sign(pts, vert)
     diam = []
     for f in fixture_map.fixtures:
         d = f.diameter * fixture_map.unit_m if f.diameter is not None else default_diameter_m
@@ -301,8 +324,7 @@ def _fixture_discs(
                 f"({fixture_map.source or 'map'})"
             )
         diam.append(d)
-    normals = np.array([f.normal if f.normal is not None else -up for f in fixture_map.fixtures])
-    pts = fixture_map.positions * fixture_map.unit_m
+    normals = np.array([f.normal if f.normal is not None else down for f in fixture_map.fixtures])
     return normals, rim_points(pts, np.asarray(diam), normals, n_rim)
 
 
