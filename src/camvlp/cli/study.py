@@ -294,6 +294,7 @@ def rounding(
 
 def _forced(
     kind: str,
+    *,
     camera,
     map_path,
     fixture,
@@ -314,6 +315,10 @@ def _forced(
     out,
     as_json,
 ) -> None:
+    """The image-error or world-error study (``kind``) from the command's options, by name.
+
+    With noise (--noise-px or --survey-error-m) the Monte Carlo study runs instead.
+    """
     _check(solver, noise_px, survey_error_m, trials, step=step)
     axes = "xy" if kind == "image" else "xyz"
     if axis not in axes:

@@ -16,7 +16,7 @@ from camvlp.io.survey_csv import AXES
 from camvlp.model.fixtures import FixtureMap
 from camvlp.viz.figure import new_figure
 
-__all__ = ["draw_error_map", "plot_error_map", "plot_positions"]
+__all__ = ["draw_error_map", "draw_positions", "plot_error_map", "plot_positions"]
 
 _BLUE, _ORANGE = "#1f77b4", "#ff7f0e"
 
@@ -121,6 +121,50 @@ def _draw_points(ax, true: np.ndarray, shown: np.ndarray, ok: np.ndarray) -> Non
         )
 
 
+def draw_positions(
+    axes,
+    evaluation: Evaluation,
+    *,
+    fixture_map: FixtureMap | None = None,
+    magnify: float | None = None,
+) -> float:
+    """Draw :func:`plot_positions`' three views on three matplotlib ``Axes``.
+
+    Returns
+    -------
+    float
+        The magnification used (``magnify``, or the automatic one).
+    """
+    ev = evaluation
+    a, b, v = floor_axes(ev.survey.positions)
+    true = ev.survey.positions
+    ok = ev.located
+    vec = ev.error_vectors
+    if magnify is None:
+        span = float(np.ptp(true[:, [a, b]], axis=0).max()) if len(true) else 0.0
+        magnify = _auto_magnify(float(np.nanmax(ev.errors)) if ok.any() else 0.0, span)
+    if not (math.isfinite(magnify) and magnify > 0):
+        raise ValueError(f"magnify must be a positive number, got {magnify!r}")
+    shown = true[ok] + magnify * vec[ok]
+    up_is_decreasing = False
+    if fixture_map is not None and len(fixture_map.fixtures) and len(true):
+        up_is_decreasing = fixture_map.positions[:, v].mean() < true[:, v].mean()
+    views = ((a, b, "top view"), (a, v, "side view"), (b, v, "side view"))
+    for ax, (i, j, name) in zip(axes, views, strict=True):
+        _draw_points(ax, true[:, [i, j]], shown[:, [i, j]], ok)
+        ax.set_xlabel(f"{AXES[i]} ({ev.units})")
+        offsets = f"; orange offsets x{magnify:g}" if magnify != 1 and j == v else ""
+        ax.set_ylabel(f"{AXES[j]} ({ev.units}{offsets})")
+        ax.set_title(f"{name} ({AXES[i]}-{AXES[j]})", fontsize=10)
+        ax.grid(True, alpha=0.3)
+        ax.margins(0.08)
+        if j == v and up_is_decreasing:
+            ax.invert_yaxis()
+        if name == "top view":
+            ax.set_aspect("equal", adjustable="datalim")
+    return magnify
+
+
 def plot_positions(
     evaluation: Evaluation,
     path: str | Path,
@@ -154,35 +198,9 @@ def plot_positions(
     Path
         ``path``.
     """
-    ev = evaluation
-    a, b, v = floor_axes(ev.survey.positions)
-    true = ev.survey.positions
-    ok = ev.located
-    vec = ev.error_vectors
-    if magnify is None:
-        span = float(np.ptp(true[:, [a, b]], axis=0).max()) if len(true) else 0.0
-        magnify = _auto_magnify(float(np.nanmax(ev.errors)) if ok.any() else 0.0, span)
-    if not (math.isfinite(magnify) and magnify > 0):
-        raise ValueError(f"magnify must be a positive number, got {magnify!r}")
-    shown = true[ok] + magnify * vec[ok]
-    up_is_decreasing = False
-    if fixture_map is not None and len(fixture_map.fixtures) and len(true):
-        up_is_decreasing = fixture_map.positions[:, v].mean() < true[:, v].mean()
     fig = new_figure(13.5, 4.6, dpi=100)
     axes = fig.subplots(1, 3)
-    views = ((a, b, "top view"), (a, v, "side view"), (b, v, "side view"))
-    for ax, (i, j, name) in zip(axes, views, strict=True):
-        _draw_points(ax, true[:, [i, j]], shown[:, [i, j]], ok)
-        ax.set_xlabel(f"{AXES[i]} ({ev.units})")
-        offsets = f"; orange offsets x{magnify:g}" if magnify != 1 and j == v else ""
-        ax.set_ylabel(f"{AXES[j]} ({ev.units}{offsets})")
-        ax.set_title(f"{name} ({AXES[i]}-{AXES[j]})", fontsize=10)
-        ax.grid(True, alpha=0.3)
-        ax.margins(0.08)
-        if j == v and up_is_decreasing:
-            ax.invert_yaxis()
-        if name == "top view":
-            ax.set_aspect("equal", adjustable="datalim")
+    magnify = draw_positions(axes, evaluation, fixture_map=fixture_map, magnify=magnify)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9)
     title = "True (blue) and estimated (orange) camera positions"
