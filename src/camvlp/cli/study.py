@@ -129,15 +129,21 @@ def _triples(text: str, name: str) -> list[list[float]]:
     return [parse_floats(p, 3, name) for p in parts]
 
 
-def _ranges(plane: str, x: str, y: str | None, z: str | None) -> tuple[list, list]:
-    """The (u, v) ranges of the plane's two axes from --x-range/--y-range/--z-range."""
+def _grid_options(
+    plane: str, x: str, y: str | None, z: str | None, step: float, height: float
+) -> dict:
+    """The floor grid's keyword arguments (see :func:`camvlp.sim.grid.floor_grid`) from the
+    options --plane, --x-range/--y-range/--z-range (the plane's two), --step and --height."""
     given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
     if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
         fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
-    return (
-        parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
-        parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
-    )
+    return {
+        "plane": plane,
+        "u_range_m": parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
+        "v_range_m": parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
+        "step_m": step,
+        "height_m": height,
+    }
 
 
 @contextmanager
@@ -178,6 +184,11 @@ def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list
             print(line)
 
 
+def _noise_options(noise_px: float, survey_error_m: float, trials: int, seed: int) -> dict:
+    """The Monte Carlo noise's keyword arguments of the study functions."""
+    return {"noise_px": noise_px, "survey_error_m": survey_error_m, "trials": trials, "seed": seed}
+
+
 def _mm(v: float | None) -> str:
     return format_length(v, "mm")
 
@@ -186,35 +197,38 @@ _len = format_length
 
 
 def _run(func, *args, **kwargs):
+    """``func(*args, **kwargs)``; a ValueError (bad value) becomes a usage error, exit 2."""
     try:
         return func(*args, **kwargs)
     except ValueError as exc:
         fail(str(exc))
 
 
-def _monte_carlo(
-    cam, fmap, positions, eulers, solver, noise_px, survey_m, trials, seed, rounding, out, as_json
-) -> None:
-    n = max(len(positions), len(eulers)) * trials
-    with _progress(n, "Monte Carlo") as progress:
-        res = _run(
-            st.monte_carlo_study,
-            cam,
-            fmap,
-            positions_m=positions,
-            euler_deg=eulers,
-            noise_px=noise_px,
-            survey_error_m=survey_m,
-            trials=trials,
-            seed=seed,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+def _study(func, label: str, total_hint: int, *args, **kwargs):
+    """Run a study function with a progress bar (long runs on a terminal) and :func:`_run`."""
+    with _progress(total_hint, label) as progress:
+        return _run(func, *args, progress=progress, **kwargs)
+
+
+def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, out, as_json) -> None:
+    """The Monte Carlo study of the image-error and world-error commands given noise."""
+    n = max(len(positions), len(eulers)) * noise["trials"]
+    res = _study(
+        st.monte_carlo_study,
+        "Monte Carlo",
+        n,
+        cam,
+        fmap,
+        positions_m=positions,
+        euler_deg=eulers,
+        solver=solver,
+        rounding=rounding,
+        **noise,
+    )
     s = res.summary()
     lines = [
-        f"monte carlo: sigma {noise_px:g} px (image), {survey_m:g} m (map), {s['trials']} trials "
-        f"per pose, {solver}",
+        f"monte carlo: sigma {noise['noise_px']:g} px (image), {noise['survey_error_m']:g} m "
+        f"(map), {s['trials']} trials per pose, {solver}",
         f"all poses: mean {_len(s['mean_error_m'])}, median {_len(s['median_error_m'])}, "
         f"95% {_len(s['p95_error_m'])}, failures {s['failures']}",
     ]
@@ -258,29 +272,22 @@ def rounding(
     """Position error from pixel rounding over a grid on the floor (thesis fig. 4.2)."""
     _check(solver, noise_px, survey_error_m, trials, step=step)
     angles = parse_floats(euler, 3, "--euler")
-    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
     cam, fmap = _inputs(camera, map_path)
-    noisy = noise_px > 0 or survey_error_m > 0
-    est = 21 * 21 * (trials if noisy else 1) / (step / 0.1) ** 2
-    with _progress(int(est), "rounding study") as progress:
-        res = _run(
-            st.rounding_study,
-            cam,
-            fmap,
-            euler_deg=angles,
-            plane=plane,
-            u_range_m=u_range,
-            v_range_m=v_range,
-            step_m=step,
-            height_m=height,
-            solver=solver,
-            rounding=rounding,
-            noise_px=noise_px,
-            survey_error_m=survey_error_m,
-            trials=trials,
-            seed=seed,
-            progress=progress,
-        )
+    noise = _noise_options(noise_px, survey_error_m, trials, seed)
+    est = 21 * 21 * (trials if noise_px > 0 or survey_error_m > 0 else 1) / (step / 0.1) ** 2
+    res = _study(
+        st.rounding_study,
+        "rounding study",
+        int(est),
+        cam,
+        fmap,
+        euler_deg=angles,
+        solver=solver,
+        rounding=rounding,
+        **grid,
+        **noise,
+    )
     s = res.summary()
     lines = [
         f"rounding study: theta=({euler}) deg, height {height:g} m, {s['grid']['points']} "
@@ -341,38 +348,26 @@ def _forced(
             st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane, height_m=height
         ).tolist()
     if noise_px > 0 or survey_error_m > 0:
-        _monte_carlo(
-            cam,
-            fmap,
-            pos,
-            eul,
-            solver,
-            noise_px,
-            survey_error_m,
-            trials,
-            seed,
-            rounding,
-            out,
-            as_json,
-        )
+        noise = _noise_options(noise_px, survey_error_m, trials, seed)
+        _monte_carlo(cam, fmap, pos, eul, solver, rounding, noise, out, as_json)
         return
     lo, hi = parse_floats(value_range, 2, "--range")
     offsets = _run(st.axis_values, (lo, hi), step, "--range")
-    with _progress(len(offsets) * max(len(pos), len(eul)), f"{kind}-error study") as progress:
-        res = _run(
-            st.forced_error_study,
-            cam,
-            fmap,
-            kind=kind,
-            axis=axis,
-            offsets=offsets,
-            positions_m=pos,
-            euler_deg=eul,
-            fixture_id=fixture,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+    res = _study(
+        st.forced_error_study,
+        f"{kind}-error study",
+        len(offsets) * max(len(pos), len(eul)),
+        cam,
+        fmap,
+        kind=kind,
+        axis=axis,
+        offsets=offsets,
+        positions_m=pos,
+        euler_deg=eul,
+        fixture_id=fixture,
+        solver=solver,
+        rounding=rounding,
+    )
     s = res.summary()
     unit = res.offset_unit
     lines = [
@@ -537,33 +532,29 @@ def coverage(
         **({"row_time": row_time} if row_time is not None else {}),
     )
     base = parse_floats(euler, 3, "--euler")
-    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
     cam, fmap = _inputs(camera, map_path)
     n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
-    with _progress(int(441 * n_tilts * (0.1 / step) ** 2), "coverage study") as progress:
-        res = _run(
-            st.coverage_study,
-            cam,
-            fmap,
-            plane=plane,
-            u_range_m=u_range,
-            v_range_m=v_range,
-            step_m=step,
-            height_m=height,
-            base_euler_deg=base,
-            tilt_max_deg=tilt_max,
-            tilt_step_deg=tilt_step,
-            chip_rate_hz=chip_rate,
-            row_time_s=row_time,
-            min_frames=min_frames,
-            default_diameter_m=diameter,
-            noise_px=noise_px,
-            trials=trials,
-            seed=seed,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+    res = _study(
+        st.coverage_study,
+        "coverage study",
+        int(441 * n_tilts * (0.1 / step) ** 2),
+        cam,
+        fmap,
+        base_euler_deg=base,
+        tilt_max_deg=tilt_max,
+        tilt_step_deg=tilt_step,
+        chip_rate_hz=chip_rate,
+        row_time_s=row_time,
+        min_frames=min_frames,
+        default_diameter_m=diameter,
+        noise_px=noise_px,
+        trials=trials,
+        seed=seed,
+        solver=solver,
+        rounding=rounding,
+        **grid,
+    )
     s = res.summary()
     lines = [
         f"coverage: {s['floor_points']} floor points x {s['orientations']} orientations "
