@@ -24,8 +24,9 @@ import numpy as np
 
 from camvlp.io import InputError, load_camera, load_map
 from camvlp.model.camera import Pose
+from camvlp.sim.grid import grid_points
 from camvlp.sim.render import RenderSettings, all_fully_inside
-from camvlp.sim.survey import default_jobs, floor_grid, render_survey
+from camvlp.sim.survey import default_jobs, render_survey
 
 
 def _range(text: str) -> tuple[float, float, float]:
@@ -80,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         camera = load_camera(args.camera)
         fixture_map = load_map(args.map)
-        positions = floor_grid(*args.grid, -args.height)
+        positions = grid_points(*args.grid, -args.height)
     except (InputError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

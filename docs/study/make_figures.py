@@ -18,13 +18,11 @@ from camvlp.analysis.study import (
     coverage_study,
     forced_error_study,
     monte_carlo_study,
-    plot_coverage,
-    plot_forced_error,
-    plot_rounding,
     rounding_study,
 )
 from camvlp.geometry.pnp import SOLVERS
 from camvlp.io import load_camera, load_map
+from camvlp.viz.study_plots import plot_coverage, plot_forced_error, plot_rounding
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]

@@ -65,3 +65,27 @@ def install() -> None:
     # The module path camvlp.locate: the module of the function camvlp.locate.  Registered
     # directly so that importing it never rebinds the package attribute (the function).
     sys.modules.setdefault("camvlp.locate", importlib.import_module("camvlp.pipeline.locate"))
+
+
+def forward_moved_names(module: str, moved: dict[str, str]):
+    """A module ``__getattr__`` for names that have moved to other modules.
+
+    ``moved`` maps each old name of ``module`` to the object's new dotted path; reading the
+    old name returns the object from its new home, with a DeprecationWarning naming it.  Use
+    as ``__getattr__ = forward_moved_names(__name__, {"plot_rounding":
+    "camvlp.viz.study_plots.plot_rounding"})``.
+    """
+
+    def __getattr__(name: str):
+        new = moved.get(name)
+        if new is None:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        warnings.warn(
+            f"{module}.{name} has moved to {new}; import it from there",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        home, attr = new.rsplit(".", 1)
+        return getattr(importlib.import_module(home), attr)
+
+    return __getattr__

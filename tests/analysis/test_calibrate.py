@@ -12,17 +12,16 @@ import pytest
 from typer.testing import CliRunner
 
 from camvlp.analysis.calibrate import (
-    board_object_points,
     bright_blob_mask,
     calibrate_camera,
     estimate_row_time,
     estimate_stripe_period,
     find_board_corners,
-    render_chessboard,
 )
 from camvlp.cli import app
 from camvlp.io import load_camera, save_camera
 from camvlp.model.camera import Camera, Pose, rotation_x, rotation_z
+from camvlp.sim.chessboard import board_object_points, render_chessboard
 from conftest import one_error_line
 
 runner = CliRunner()
@@ -422,3 +421,11 @@ def test_cli_calibrate_rows_errors(tmp_path: Path):
     result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000",
                                  "--camera", str(cam)])
     assert result.exit_code == 2 and "640 x 480" in one_error_line(result)
+
+
+def test_failure_values_carry_their_reason_under_both_names():
+    result = calibrate_camera(_photos()[:2], BOARD, SQUARE_M)
+    assert not result and result.reason.startswith("only 2 of 2")
+    assert result.message == result.reason
+    est = estimate_row_time(np.zeros((40, 40), np.uint8), 1000.0)
+    assert not est and est.reason == est.message == "no bright light found"

@@ -21,11 +21,11 @@ from camvlp.analysis.evaluate import (
     read_survey,
 )
 from camvlp.cli import app
-from camvlp.io import InputError, load_camera, load_map, save_camera, save_map
+from camvlp.io import load_camera, load_map, save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.survey import floor_grid, render_survey
+from camvlp.sim.survey import render_survey
 from conftest import one_error_line
 
 runner = CliRunner()
@@ -80,16 +80,6 @@ def evaluate_cli(scene, survey_csv, out, *extra):
 
 # --------------------------------------------------------------------------------------------
 # Rendering a survey
-
-
-def test_floor_grid_includes_stop_and_level():
-    grid = floor_grid((-0.4, 0.4, 0.1), (-0.4, 0.4, 0.1), -1.0)
-    assert grid.shape == (81, 3)
-    assert np.allclose(np.unique(grid[:, 0].round(9)), np.linspace(-0.4, 0.4, 9))
-    assert np.all(grid[:, 1] == -1.0)
-    assert not np.any(np.signbit(floor_grid((0, 0, 1), (0, 0, 1), -0.0)))
-    with pytest.raises(ValueError, match="step"):
-        floor_grid((0, 1, 0), (0, 1, 0.5), 0.0)
 
 
 def test_render_survey_writes_photos_and_csv(scene, survey_dir):
@@ -237,22 +227,6 @@ def test_out_that_is_a_file_exits_2(scene, survey_dir, tmp_path):
 # The pieces
 
 
-def test_read_survey_keeps_extra_columns_and_resolves_paths(tmp_path):
-    path = tmp_path / "s.csv"
-    path.write_text("# a comment\nphoto, x, y, z, note\nsub/a.jpg,1,2,3,first\n\n"
-                    "/abs/b.jpg,4,5,6,second\n")
-    survey = read_survey(path)
-    assert survey.photos == ("sub/a.jpg", "/abs/b.jpg")
-    assert survey.positions.tolist() == [[1, 2, 3], [4, 5, 6]]
-    assert survey.euler_deg is None
-    assert survey.extra_columns == ("note",) and survey.extra == (("first",), ("second",))
-    assert survey.photo_path(0) == tmp_path / "sub" / "a.jpg"
-    assert str(survey.photo_path(1)) == "/abs/b.jpg"
-    path.write_text("photo,x,y,z\na.jpg,nan,0,0\n")
-    with pytest.raises(InputError, match="finite"):
-        read_survey(path)
-
-
 def test_floor_axes_picks_the_two_widest():
     p = np.array([[0, 0, 5], [1, 0.1, 5], [0, 2, 5.01]])
     assert floor_axes(p) == (0, 1, 2)
@@ -272,6 +246,7 @@ def test_summary_statistics_of_known_errors(tmp_path):
     )
     survey = Survey(tmp_path / "s.csv", tuple(r.photo for r in results), true,
                     np.tile([90.0, 0, 0], (4, 1)), (), ((),) * 4)
+    assert [bool(r) for r in results] == [r.located for r in results] == [True] * 3 + [False]
     s = Evaluation(results, "m", survey, 1, 0.0).summary()
     assert (s["photos"], s["located"], s["failed"], s["success_rate"]) == (4, 3, 1, 0.75)
     # errors 3, 4, 5: linear-interpolated 95th percentile 4 + 0.9 * (5 - 4)

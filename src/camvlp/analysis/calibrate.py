@@ -10,8 +10,8 @@ Two measurements make a camera file (``docs/formats.md``) for camvlp:
 
 :func:`estimate_stripe_period` (from ``stripes.py``) measures a stripe period inside any
 masked region; the decoder of frequency-coded fixtures uses it too.
-:func:`render_chessboard` renders synthetic calibration photographs with a known camera (for
-tests and benchmarks).
+:func:`~camvlp.sim.chessboard.render_chessboard` (in :mod:`camvlp.sim.chessboard`, re-exported
+here) renders synthetic calibration photographs with a known camera (for tests and benchmarks).
 """
 
 from __future__ import annotations
@@ -25,9 +25,10 @@ import cv2
 import numpy as np
 
 from camvlp.io import InputError, load_image
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera
 from camvlp.pipeline.detect import gray_float, to_gray
 from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
+from camvlp.sim.chessboard import board_object_points, parse_board, render_chessboard
 
 __all__ = [
     "CalibrationResult",
@@ -72,7 +73,7 @@ class CalibrationResult:
     rejected : tuple of (str, str)
         ``(name, reason)`` of each photo left out: unreadable, no board found, or a
         different image size from the others.
-    message : str
+    reason : str
         Why calibration failed ("" on success).
     """
 
@@ -81,44 +82,15 @@ class CalibrationResult:
     per_image_rms_px: tuple[float, ...]
     used: tuple[str, ...]
     rejected: tuple[tuple[str, str], ...]
-    message: str = ""
+    reason: str = ""
 
     def __bool__(self) -> bool:
         return self.camera is not None
 
-
-def _parse_board(board) -> tuple[int, int]:
-    try:
-        cols, rows = (int(v) for v in board)
-    except (TypeError, ValueError):
-        raise ValueError(f"board must be (cols, rows) inner corners, got {board!r}") from None
-    if cols < 2 or rows < 2:
-        raise ValueError(f"board must have at least 2 x 2 inner corners, got {cols} x {rows}")
-    return cols, rows
-
-
-def board_object_points(board: tuple[int, int], square_m: float) -> np.ndarray:
-    """The board's inner corners in its own frame, in OpenCV's detection order.
-
-    Parameters
-    ----------
-    board : (int, int)
-        Inner corners ``(cols, rows)``.
-    square_m : float
-        Side of one square, metres.
-
-    Returns
-    -------
-    ndarray, shape (cols * rows, 3), float32
-        Corner ``(i, j)`` (column ``i``, row ``j``) at ``(i * square_m, j * square_m, 0)``,
-        row by row.
-    """
-    cols, rows = _parse_board(board)
-    if not (np.isfinite(square_m) and square_m > 0):
-        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
-    i, j = np.meshgrid(np.arange(cols), np.arange(rows))
-    pts = np.stack([i.ravel(), j.ravel(), np.zeros(i.size)], axis=1) * float(square_m)
-    return pts.astype(np.float32)
+    @property
+    def message(self) -> str:
+        """The former name of :attr:`reason`."""
+        return self.reason
 
 
 def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray | None:
@@ -141,7 +113,7 @@ def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray 
     ndarray, shape (cols * rows, 2), float32, or None
         Pixel positions in the order of :func:`board_object_points`.
     """
-    cols, rows = _parse_board(board)
+    cols, rows = parse_board(board)
     gray = to_gray(image)
     scale = min(1.0, DETECT_MAX_SIDE_PX / max(gray.shape))
     small = (
@@ -208,7 +180,7 @@ def calibrate_camera(
     Returns
     -------
     CalibrationResult
-        Truthy with the camera and the reprojection errors; falsy with a message when fewer
+        Truthy with the camera and the reprojection errors; falsy with a reason when fewer
         than three photos show the board.
 
     Raises
@@ -216,8 +188,33 @@ def calibrate_camera(
     ValueError
         No images, a bad ``board`` or ``square_m``, or ``names`` of the wrong length.
     """
-    board = _parse_board(board)
+    board = parse_board(board)
     objp = board_object_points(board, square_m)
+    names = _photo_names(images, names)
+    if row_time_s is not None and not (0 < row_time_s < 1):
+        raise ValueError(f"row_time_s must be a positive number of seconds, got {row_time_s!r}")
+    found, rejected = _find_boards(images, names, board, on_image)
+    found, size = _keep_common_size(found, rejected)
+    order = {n: k for k, n in enumerate(names)}
+    rejected.sort(key=lambda r: order.get(r[0], 0))
+    used = tuple(n for n, _, _ in found)
+    if len(found) < MIN_CALIBRATION_PHOTOS or size is None:
+        return CalibrationResult(
+            None,
+            float("nan"),
+            (),
+            used,
+            tuple(rejected),
+            f"only {len(found)} of {len(images)} photos show the {board[0]}x{board[1]} board "
+            f"(need {MIN_CALIBRATION_PHOTOS})",
+        )
+    corners = [c for _, _, c in found]
+    camera, rms, per_view = _calibrate(objp, corners, size, row_time_s, fix_aspect, zero_tangent)
+    return CalibrationResult(camera, rms, per_view, used, tuple(rejected))
+
+
+def _photo_names(images: Sequence, names: Sequence[str] | None) -> list[str]:
+    """A name per image: the given ones, else the file name or ``image <n>``."""
     if len(images) == 0:
         raise ValueError("images must hold at least one photograph")
     if names is None:
@@ -227,11 +224,22 @@ def calibrate_camera(
         ]
     if len(names) != len(images):
         raise ValueError(f"names has {len(names)} entries for {len(images)} images")
-    if row_time_s is not None and not (0 < row_time_s < 1):
-        raise ValueError(f"row_time_s must be a positive number of seconds, got {row_time_s!r}")
+    return list(names)
 
+
+#: One photo whose board was found: its name, its size (width, height) and its corners.
+_Found = tuple[str, tuple[int, int], np.ndarray]
+
+
+def _find_boards(
+    images: Sequence, names: Sequence[str], board: tuple[int, int], on_image
+) -> tuple[list[_Found], list[tuple[str, str]]]:
+    """The board's corners in every photo that shows it, and ``(name, reason)`` of the rest.
+
+    An unreadable file is rejected with its reason, not raised.
+    """
     rejected: list[tuple[str, str]] = []
-    found: list[tuple[str, tuple[int, int], np.ndarray]] = []
+    found: list[_Found] = []
     for name, item in zip(names, images, strict=True):
         try:
             img = load_image(item) if isinstance(item, (str, Path)) else np.asarray(item)
@@ -246,143 +254,47 @@ def calibrate_camera(
                 found.append((name, (img.shape[1], img.shape[0]), corners))
         if on_image is not None:
             on_image(name)
+    return found, rejected
 
-    size: tuple[int, int] | None = None
-    if found:
-        size = Counter(s for _, s, _ in found).most_common(1)[0][0]
-        for name, s, _ in found:
-            if s != size:
-                rejected.append(
-                    (name, f"size {s[0]}x{s[1]} differs from the others' {size[0]}x{size[1]}")
-                )
-        found = [f for f in found if f[1] == size]
-    order = {n: k for k, n in enumerate(names)}
-    rejected.sort(key=lambda r: order.get(r[0], 0))
-    if len(found) < MIN_CALIBRATION_PHOTOS or size is None:
-        return CalibrationResult(
-            None,
-            float("nan"),
-            (),
-            tuple(n for n, _, _ in found),
-            tuple(rejected),
-            f"only {len(found)} of {len(images)} photos show the {board[0]}x{board[1]} board "
-            f"(need {MIN_CALIBRATION_PHOTOS})",
-        )
 
+def _keep_common_size(
+    found: list[_Found], rejected: list[tuple[str, str]]
+) -> tuple[list[_Found], tuple[int, int] | None]:
+    """The photos of the most common size (the others appended to ``rejected``), and it."""
+    if not found:
+        return found, None
+    size = Counter(s for _, s, _ in found).most_common(1)[0][0]
+    for name, s, _ in found:
+        if s != size:
+            rejected.append(
+                (name, f"size {s[0]}x{s[1]} differs from the others' {size[0]}x{size[1]}")
+            )
+    return [f for f in found if f[1] == size], size
+
+
+def _calibrate(
+    objp: np.ndarray,
+    corners: list[np.ndarray],
+    size: tuple[int, int],
+    row_time_s: float | None,
+    fix_aspect: bool,
+    zero_tangent: bool,
+) -> tuple[Camera, float, tuple[float, ...]]:
+    """OpenCV's calibration of the found corners: the camera, the RMS and each photo's RMS (px)."""
     flags = 0
     k0 = np.eye(3)
     if fix_aspect:
         flags |= cv2.CALIB_FIX_ASPECT_RATIO  # ratio fx / fy taken from k0: 1
     if zero_tangent:
         flags |= cv2.CALIB_ZERO_TANGENT_DIST
-    obj = [objp] * len(found)
-    img_pts = [c.reshape(-1, 1, 2) for _, _, c in found]
+    obj = [objp] * len(corners)
+    img_pts = [c.reshape(-1, 1, 2) for c in corners]
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
     rms, k, dist, _, _, _, _, per_view = cv2.calibrateCameraExtended(
         obj, img_pts, size, k0, np.zeros(5), flags=flags, criteria=crit
     )
     camera = Camera(size[0], size[1], k, np.asarray(dist).reshape(-1), row_time_s)
-    return CalibrationResult(
-        camera,
-        float(rms),
-        tuple(float(v) for v in np.asarray(per_view).reshape(-1)),
-        tuple(n for n, _, _ in found),
-        tuple(rejected),
-    )
-
-
-def render_chessboard(
-    camera: Camera,
-    pose: Pose,
-    board: tuple[int, int],
-    square_m: float,
-    *,
-    supersample: int = 3,
-    black: float = 25.0,
-    white: float = 230.0,
-    background: float = 110.0,
-) -> np.ndarray:
-    """Render a photograph of a chessboard seen by a camera (with its lens distortion).
-
-    The board lies in the plane ``z = 0`` of the world frame with its first inner corner at
-    the origin, columns along +x and rows along +y (:func:`board_object_points`); its
-    ``cols + 1`` by ``rows + 1`` squares are framed by a one-square white margin on a
-    uniform background.  Each pixel averages ``supersample ** 2`` rays.
-
-    Parameters
-    ----------
-    camera : Camera
-        Intrinsics, distortion and image size.
-    pose : Pose
-        The camera's pose in the board's frame (metres).
-    board : (int, int)
-        Inner corners ``(cols, rows)``.
-    square_m : float
-        Side of one square, metres.
-    supersample : int
-        Rays per pixel along each axis (anti-aliasing).
-    black, white, background : float
-        Gray levels (0-255) of the dark squares, the light squares and margin, and the
-        scene around the board.
-
-    Returns
-    -------
-    ndarray, shape (camera.height, camera.width), uint8
-    """
-    cols, rows = _parse_board(board)
-    s = float(square_m)
-    if not (np.isfinite(s) and s > 0):
-        raise ValueError(f"square_m must be a positive number of metres, got {square_m!r}")
-    n = int(supersample)
-    if n < 1:
-        raise ValueError(f"supersample must be at least 1, got {supersample!r}")
-    # Texture: t texels per square, from board coordinate (-2 s, -2 s) (the margin's corner).
-    t = 32
-    gx, gy = np.meshgrid(np.arange(cols + 3) - 2, np.arange(rows + 3) - 2)
-    squares = np.where((gx + gy) % 2 == 0, black, white)
-    squares[(gx < -1) | (gx > cols - 1) | (gy < -1) | (gy > rows - 1)] = white
-    texture = np.kron(squares, np.ones((t, t))).astype(np.float32)
-    tex_from_board = np.array([[t / s, 0, 2 * t - 0.5], [0, t / s, 2 * t - 0.5], [0, 0, 1.0]])
-    # Supersampled pixel U = n u + (n - 1) / 2 for pixel u.
-    ss_from_pix = np.array([[n, 0, (n - 1) / 2], [0, n, (n - 1) / 2], [0, 0, 1.0]])
-    r_cw = pose.camera_from_world
-    t_cw = -r_cw @ pose.position
-    norm_from_board = np.column_stack([r_cw[:, 0], r_cw[:, 1], t_cw])
-    size = (camera.width * n, camera.height * n)
-    corners = np.array([[-2, -2], [cols + 1, -2], [-2, rows + 1], [cols + 1, rows + 1]]) * s
-    in_front = bool(np.all(pose.to_camera(np.column_stack([corners, np.zeros(4)]))[:, 2] > 0))
-    if camera.dist_or_none is None and in_front:
-        ss_from_tex = ss_from_pix @ camera.matrix @ norm_from_board @ np.linalg.inv(tex_from_board)
-        big = cv2.warpPerspective(
-            texture,
-            ss_from_tex,
-            size,
-            flags=cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=float(background),
-        )
-    else:  # trace each supersampled ray through the lens model
-        uu, vv = np.meshgrid(
-            (np.arange(size[0]) - (n - 1) / 2) / n, (np.arange(size[1]) - (n - 1) / 2) / n
-        )
-        xy = camera.undistort_pixels(np.column_stack([uu.ravel(), vv.ravel()]))
-        ray = np.column_stack([xy, np.ones(len(xy))])
-        # tex[:, 2] is 1 / depth of the ray's hit on the board plane: > 0 in front.
-        tex = ray @ (tex_from_board @ np.linalg.inv(norm_from_board)).T
-        front = tex[:, 2] > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
-            mx = np.where(front, tex[:, 0] / tex[:, 2], -10.0)
-            my = np.where(front, tex[:, 1] / tex[:, 2], -10.0)
-        big = cv2.remap(
-            texture,
-            mx.reshape(size[::-1]).astype(np.float32),
-            my.reshape(size[::-1]).astype(np.float32),
-            cv2.INTER_LINEAR,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=float(background),
-        )
-    img = cv2.resize(big, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
-    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    return camera, float(rms), tuple(float(v) for v in np.asarray(per_view).reshape(-1))
 
 
 # --------------------------------------------------------------------------------------
@@ -474,7 +386,7 @@ class RowTimeEstimate:
         Pixels in the light's mask.
     frequency_hz : float
         The light's blink frequency, Hz.
-    message : str
+    reason : str
         Why the estimate failed ("" on success).
     """
 
@@ -485,10 +397,15 @@ class RowTimeEstimate:
     periods_seen: float
     blob_area_px: int
     frequency_hz: float
-    message: str = ""
+    reason: str = ""
 
     def __bool__(self) -> bool:
-        return not self.message
+        return not self.reason
+
+    @property
+    def message(self) -> str:
+        """The former name of :attr:`reason`."""
+        return self.reason
 
     @property
     def rows_per_s(self) -> float:
@@ -522,7 +439,7 @@ def estimate_row_time(
     Returns
     -------
     RowTimeEstimate
-        Falsy, with a message, when no light or no clear stripes are found.
+        Falsy, with a reason, when no light or no clear stripes are found.
 
     Raises
     ------
@@ -544,23 +461,14 @@ def estimate_row_time(
     sp = estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
     if not sp:
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
-    if sp.strength < MIN_STRIPE_STRENGTH:
-        return RowTimeEstimate(
-            nan,
-            sp.period_px,
-            sp.axis,
-            sp.strength,
-            sp.periods_seen,
-            area,
-            frequency_hz,
-            f"no clear stripes in the light (periodic strength {sp.strength:.2f})",
-        )
+    weak = sp.strength < MIN_STRIPE_STRENGTH
     return RowTimeEstimate(
-        1.0 / (frequency_hz * sp.period_px),
+        nan if weak else 1.0 / (frequency_hz * sp.period_px),
         sp.period_px,
         sp.axis,
         sp.strength,
         sp.periods_seen,
         area,
         frequency_hz,
+        f"no clear stripes in the light (periodic strength {sp.strength:.2f})" if weak else "",
     )

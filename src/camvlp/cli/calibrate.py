@@ -7,11 +7,11 @@ import json
 import re
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import typer
 
-from camvlp.analysis.calibrate import calibrate_camera, estimate_row_time
+from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
 from camvlp.io import InputError, load_camera, load_image, save_camera
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
@@ -28,7 +28,10 @@ def _expand(paths: list[Path]) -> list[Path]:
     out: list[Path] = []
     for p in paths:
         if p.is_dir():
-            found = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES)
+            try:
+                found = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES)
+            except OSError as exc:
+                raise InputError(f"cannot list the directory: {exc.strerror or exc}", p) from None
             if not found:
                 raise InputError("no image files in the directory", p)
             out.extend(found)
@@ -107,7 +110,29 @@ def calibrate(
     if out.suffix.lower() not in (".yaml", ".yml", ".json"):
         fail(f"--out must end in .yaml, .yml or .json ({out})")
     paths = _expand(list(images))
+    result = _calibrate_with_progress(paths, cols_rows, square, row_time, fix_aspect, zero_tangent)
+    if not result:
+        _report_failure(result, as_json)
+    save_camera(
+        result.camera,
+        out,
+        extra={"calibration_rms_px": result.rms_px, "calibration_photos": len(result.used)},
+    )
+    if as_json:
+        print(json.dumps(_calibration_json(result, out)))
+    else:
+        _print_calibration(result, out)
 
+
+def _calibrate_with_progress(
+    paths: list[Path],
+    board: tuple[int, int],
+    square_m: float,
+    row_time_s: float | None,
+    fix_aspect: bool,
+    zero_tangent: bool,
+) -> CalibrationResult:
+    """:func:`calibrate_camera` with a progress bar on stderr (a terminal, 5 photos or more)."""
     from rich.console import Console
     from rich.progress import Progress
 
@@ -115,59 +140,59 @@ def calibrate(
     show = len(paths) >= PROGRESS_FROM and console.is_terminal
     with Progress(console=console, transient=True, disable=not show) as progress:
         task = progress.add_task("finding the board", total=len(paths))
-        result = calibrate_camera(
+        return calibrate_camera(
             paths,
-            cols_rows,
-            square,
-            row_time_s=row_time,
+            board,
+            square_m,
+            row_time_s=row_time_s,
             fix_aspect=fix_aspect,
             zero_tangent=zero_tangent,
             on_image=lambda _name: progress.advance(task),
         )
 
-    camera = result.camera
-    if camera is None:
-        if not as_json:
-            for name, reason in result.rejected:
-                print(f"rejected  {name}: {reason}")
-        else:
-            print(
-                json.dumps(
-                    {
-                        "ok": False,
-                        "message": result.message,
-                        "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
-                    }
-                )
-            )
-        fail(result.message, EXIT_NOT_LOCATED)
-    save_camera(
-        camera,
-        out,
-        extra={"calibration_rms_px": result.rms_px, "calibration_photos": len(result.used)},
-    )
-    k = camera.matrix
-    if as_json:
+
+def _report_failure(result: CalibrationResult, as_json: bool) -> NoReturn:
+    """Print the rejected photos (or the JSON failure) and exit 1 with the reason."""
+    if not as_json:
+        for name, reason in result.rejected:
+            print(f"rejected  {name}: {reason}")
+    else:
         print(
             json.dumps(
                 {
-                    "ok": True,
-                    "camera_file": str(out),
-                    "image_width": camera.width,
-                    "image_height": camera.height,
-                    "camera_matrix": k.tolist(),
-                    "distortion_coefficients": camera.distortion.tolist(),
-                    "row_time_s": camera.row_time_s,
-                    "rms_px": result.rms_px,
-                    "used": [
-                        {"photo": n, "rms_px": e}
-                        for n, e in zip(result.used, result.per_image_rms_px, strict=True)
-                    ],
+                    "ok": False,
+                    "message": result.reason,
                     "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
                 }
             )
         )
-        return
+    fail(result.reason, EXIT_NOT_LOCATED)
+
+
+def _calibration_json(result: CalibrationResult, out: Path) -> dict:
+    """The ``--json`` summary of a successful calibration."""
+    camera = result.camera
+    return {
+        "ok": True,
+        "camera_file": str(out),
+        "image_width": camera.width,
+        "image_height": camera.height,
+        "camera_matrix": camera.matrix.tolist(),
+        "distortion_coefficients": camera.distortion.tolist(),
+        "row_time_s": camera.row_time_s,
+        "rms_px": result.rms_px,
+        "used": [
+            {"photo": n, "rms_px": e}
+            for n, e in zip(result.used, result.per_image_rms_px, strict=True)
+        ],
+        "rejected": [{"photo": n, "reason": r} for n, r in result.rejected],
+    }
+
+
+def _print_calibration(result: CalibrationResult, out: Path) -> None:
+    """The human summary: intrinsics, distortion, RMS, each photo's error or reason."""
+    camera = result.camera
+    k = camera.matrix
     width = max(len(n) for n in (*result.used, *(n for n, _ in result.rejected)))
     print(f"camera     {camera.width} x {camera.height} px, written to {out}")
     print(f"focal      fx {k[0, 0]:.2f}  fy {k[1, 1]:.2f} px")
@@ -238,7 +263,7 @@ def calibrate_rows(
             axis = camera.readout.axis
     est = estimate_row_time(image, frequency, axis=axis)
     if not est:
-        fail(f"{est.message} ({photo})", EXIT_NOT_LOCATED)
+        fail(f"{est.reason} ({photo})", EXIT_NOT_LOCATED)
     if out is not None and camera is not None:
         save_camera(dataclasses.replace(camera, row_time_s=est.row_time_s), out)
     if as_json:

@@ -15,6 +15,7 @@ from camvlp.analysis.evaluate import (
     read_survey,
     write_evaluation,
 )
+from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
@@ -130,7 +131,7 @@ def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
 
 
 def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:
-    scale, unit = {"m": (1000.0, "mm"), "cm": (10.0, "mm")}.get(s["units"], (1.0, s["units"]))
+    scale, unit = mm_per_unit(s["units"])
 
     def v(x) -> str:
         return "-" if x is None else f"{x * scale:.2f}"

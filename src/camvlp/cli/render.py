@@ -9,9 +9,10 @@ from typing import Annotated
 import typer
 
 from camvlp.io import load_camera, load_map
+from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
-from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, distinct_colours, render, save_render
+from camvlp.sim.render import DEFAULT_ROW_TIME_S, RenderSettings, distinct_colours, render
 
 from ._app import app, fail, handle_errors, parse_floats, parse_readout
 
@@ -41,7 +42,8 @@ def render_command(
         typer.Option(
             "--row-time",
             metavar="S",
-            help="Seconds between sensor rows (default: camera file, else 20e-6).",
+            help="Seconds between sensor rows (default: camera file, else "
+            f"{DEFAULT_ROW_TIME_S * 1e6:g} us).",
         ),
     ] = None,
     exposure: Annotated[
@@ -97,7 +99,6 @@ def render_command(
     angles = parse_floats(euler, 3, "--euler")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
-    base = RenderSettings()
     try:
         settings = RenderSettings(
             chip_rate_hz=_number(chip_rate, "--chip-rate"),
@@ -106,8 +107,7 @@ def render_command(
             brightness=_number(brightness, "--brightness"),
             ambient=_number(ambient, "--ambient"),
             blur_px=_number(blur, "--blur"),
-            full_well_e=base.full_well_e / noise_scale**2 if noise_scale > 0 else 0.0,
-            read_noise=base.read_noise * noise_scale,
+            **_noise_settings(noise_scale),
             readout=given_readout or camera.readout or Readout.ROWS,
             colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
             seed=_integer(seed, "--seed"),
@@ -120,6 +120,20 @@ def render_command(
         json_path = save_render(result, out, jpeg_quality=jpeg_quality)
     except ValueError as exc:
         fail(str(exc))
+    _print_render(result, camera, out, json_path)
+
+
+def _noise_settings(scale: float) -> dict[str, float]:
+    """Full well and read noise for ``--noise`` (0 = no noise, 1 = the default sensor)."""
+    base = RenderSettings()
+    return {
+        "full_well_e": base.full_well_e / scale**2 if scale > 0 else 0.0,
+        "read_noise": base.read_noise * scale,
+    }
+
+
+def _print_render(result, camera, out: Path, json_path: Path) -> None:
+    """What was written, the timing used and where each fixture landed."""
     s = result.settings
     print(
         f"wrote {out} ({camera.width} x {camera.height}) and {json_path}; "

@@ -12,9 +12,13 @@ from typing import Annotated
 import typer
 
 from camvlp.analysis import study as st
+from camvlp.format import format_length
 from camvlp.io import load_camera, load_map
+from camvlp.io.writers import write_outputs
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.sim.render import DEFAULT_ROW_TIME_S
+from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats
 
@@ -125,15 +129,21 @@ def _triples(text: str, name: str) -> list[list[float]]:
     return [parse_floats(p, 3, name) for p in parts]
 
 
-def _ranges(plane: str, x: str, y: str | None, z: str | None) -> tuple[list, list]:
-    """The (u, v) ranges of the plane's two axes from --x-range/--y-range/--z-range."""
+def _grid_options(
+    plane: str, x: str, y: str | None, z: str | None, step: float, height: float
+) -> dict:
+    """The floor grid's keyword arguments (see :func:`camvlp.sim.grid.floor_grid`) from the
+    options --plane, --x-range/--y-range/--z-range (the plane's two), --step and --height."""
     given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
     if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
         fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
-    return (
-        parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
-        parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
-    )
+    return {
+        "plane": plane,
+        "u_range_m": parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
+        "v_range_m": parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
+        "step_m": step,
+        "height_m": height,
+    }
 
 
 @contextmanager
@@ -162,12 +172,10 @@ def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None
 
 
 def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
+    """Write the files (with --out), then print the summary as JSON or as ``lines``."""
     summary = study.summary()
     if out is not None:
-        try:
-            summary = st.write_outputs(out, name, study, plot)
-        except OSError as exc:
-            fail(f"cannot write results: {exc.strerror or exc} ({out})")
+        summary = write_outputs(out, name, study, plot)  # InputError: one line, exit 2
         print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
     if as_json:
         print(json.dumps(summary))
@@ -176,46 +184,51 @@ def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list
             print(line)
 
 
+def _noise_options(noise_px: float, survey_error_m: float, trials: int, seed: int) -> dict:
+    """The Monte Carlo noise's keyword arguments of the study functions."""
+    return {"noise_px": noise_px, "survey_error_m": survey_error_m, "trials": trials, "seed": seed}
+
+
 def _mm(v: float | None) -> str:
-    return "n/a" if v is None else f"{v * 1e3:.2f} mm"
+    return format_length(v, "mm")
 
 
-def _len(v: float | None) -> str:
-    if v is None:
-        return "n/a"
-    return f"{v:.3f} m" if v >= 0.5 else f"{v * 100:.2f} cm" if v >= 0.01 else f"{v * 1e3:.2f} mm"
+_len = format_length
 
 
 def _run(func, *args, **kwargs):
+    """``func(*args, **kwargs)``; a ValueError (bad value) becomes a usage error, exit 2."""
     try:
         return func(*args, **kwargs)
     except ValueError as exc:
         fail(str(exc))
 
 
-def _monte_carlo(
-    cam, fmap, positions, eulers, solver, noise_px, survey_m, trials, seed, rounding, out, as_json
-) -> None:
-    n = max(len(positions), len(eulers)) * trials
-    with _progress(n, "Monte Carlo") as progress:
-        res = _run(
-            st.monte_carlo_study,
-            cam,
-            fmap,
-            positions_m=positions,
-            euler_deg=eulers,
-            noise_px=noise_px,
-            survey_error_m=survey_m,
-            trials=trials,
-            seed=seed,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+def _study(func, label: str, total_hint: int, *args, **kwargs):
+    """Run a study function with a progress bar (long runs on a terminal) and :func:`_run`."""
+    with _progress(total_hint, label) as progress:
+        return _run(func, *args, progress=progress, **kwargs)
+
+
+def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, out, as_json) -> None:
+    """The Monte Carlo study of the image-error and world-error commands given noise."""
+    n = max(len(positions), len(eulers)) * noise["trials"]
+    res = _study(
+        st.monte_carlo_study,
+        "Monte Carlo",
+        n,
+        cam,
+        fmap,
+        positions_m=positions,
+        euler_deg=eulers,
+        solver=solver,
+        rounding=rounding,
+        **noise,
+    )
     s = res.summary()
     lines = [
-        f"monte carlo: sigma {noise_px:g} px (image), {survey_m:g} m (map), {s['trials']} trials "
-        f"per pose, {solver}",
+        f"monte carlo: sigma {noise['noise_px']:g} px (image), {noise['survey_error_m']:g} m "
+        f"(map), {s['trials']} trials per pose, {solver}",
         f"all poses: mean {_len(s['mean_error_m'])}, median {_len(s['median_error_m'])}, "
         f"95% {_len(s['p95_error_m'])}, failures {s['failures']}",
     ]
@@ -225,7 +238,7 @@ def _monte_carlo(
             f"{_len(p['mean_error_m'])}, median {_len(p['median_error_m'])}, "
             f"95% {_len(p['p95_error_m'])}"
         )
-    _finish(res, "monte-carlo", st.plot_monte_carlo, out, as_json, lines)
+    _finish(res, "monte-carlo", study_plots.plot_monte_carlo, out, as_json, lines)
 
 
 # -------------------------------------------------------------------------- commands
@@ -259,29 +272,22 @@ def rounding(
     """Position error from pixel rounding over a grid on the floor (thesis fig. 4.2)."""
     _check(solver, noise_px, survey_error_m, trials, step=step)
     angles = parse_floats(euler, 3, "--euler")
-    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
     cam, fmap = _inputs(camera, map_path)
-    noisy = noise_px > 0 or survey_error_m > 0
-    est = 21 * 21 * (trials if noisy else 1) / (step / 0.1) ** 2
-    with _progress(int(est), "rounding study") as progress:
-        res = _run(
-            st.rounding_study,
-            cam,
-            fmap,
-            euler_deg=angles,
-            plane=plane,
-            u_range_m=u_range,
-            v_range_m=v_range,
-            step_m=step,
-            height_m=height,
-            solver=solver,
-            rounding=rounding,
-            noise_px=noise_px,
-            survey_error_m=survey_error_m,
-            trials=trials,
-            seed=seed,
-            progress=progress,
-        )
+    noise = _noise_options(noise_px, survey_error_m, trials, seed)
+    est = 21 * 21 * (trials if noise_px > 0 or survey_error_m > 0 else 1) / (step / 0.1) ** 2
+    res = _study(
+        st.rounding_study,
+        "rounding study",
+        int(est),
+        cam,
+        fmap,
+        euler_deg=angles,
+        solver=solver,
+        rounding=rounding,
+        **grid,
+        **noise,
+    )
     s = res.summary()
     lines = [
         f"rounding study: theta=({euler}) deg, height {height:g} m, {s['grid']['points']} "
@@ -290,11 +296,12 @@ def rounding(
         f"95% {_mm(s['p95_error_m'])}, max {_mm(s['max_error_m'])}, "
         f"{s['poses']} poses, {s['failures']} failures",
     ]
-    _finish(res, "rounding", st.plot_rounding, out, as_json, lines)
+    _finish(res, "rounding", study_plots.plot_rounding, out, as_json, lines)
 
 
 def _forced(
     kind: str,
+    *,
     camera,
     map_path,
     fixture,
@@ -315,6 +322,10 @@ def _forced(
     out,
     as_json,
 ) -> None:
+    """The image-error or world-error study (``kind``) from the command's options, by name.
+
+    With noise (--noise-px or --survey-error-m) the Monte Carlo study runs instead.
+    """
     _check(solver, noise_px, survey_error_m, trials, step=step)
     axes = "xy" if kind == "image" else "xyz"
     if axis not in axes:
@@ -337,38 +348,26 @@ def _forced(
             st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane, height_m=height
         ).tolist()
     if noise_px > 0 or survey_error_m > 0:
-        _monte_carlo(
-            cam,
-            fmap,
-            pos,
-            eul,
-            solver,
-            noise_px,
-            survey_error_m,
-            trials,
-            seed,
-            rounding,
-            out,
-            as_json,
-        )
+        noise = _noise_options(noise_px, survey_error_m, trials, seed)
+        _monte_carlo(cam, fmap, pos, eul, solver, rounding, noise, out, as_json)
         return
     lo, hi = parse_floats(value_range, 2, "--range")
     offsets = _run(st.axis_values, (lo, hi), step, "--range")
-    with _progress(len(offsets) * max(len(pos), len(eul)), f"{kind}-error study") as progress:
-        res = _run(
-            st.forced_error_study,
-            cam,
-            fmap,
-            kind=kind,
-            axis=axis,
-            offsets=offsets,
-            positions_m=pos,
-            euler_deg=eul,
-            fixture_id=fixture,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+    res = _study(
+        st.forced_error_study,
+        f"{kind}-error study",
+        len(offsets) * max(len(pos), len(eul)),
+        cam,
+        fmap,
+        kind=kind,
+        axis=axis,
+        offsets=offsets,
+        positions_m=pos,
+        euler_deg=eul,
+        fixture_id=fixture,
+        solver=solver,
+        rounding=rounding,
+    )
     s = res.summary()
     unit = res.offset_unit
     lines = [
@@ -383,7 +382,7 @@ def _forced(
             f"{_len(ser['error_at_max_offset_m'])}, linear R^2 "
             + ("n/a" if r2 is None else f"{r2:.3f}")
         )
-    _finish(res, f"{kind}-error", st.plot_forced_error, out, as_json, lines)
+    _finish(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
 
 
 _POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) (default: thesis fig. 4.3, five along x)."
@@ -391,115 +390,87 @@ _EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) (default: 90,0,0); one or 
 _FIG_HELP = "Thesis figure preset for poses and height: 4.3, 4.4 or 4.5."
 _HGT_HELP = "Put every camera at this height above the floor (m), towards the lights."
 
+FixtureOpt = Annotated[
+    int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
+]
+PositionsOpt = Annotated[str | None, typer.Option("--positions", help=_POS_HELP)]
+EulersOpt = Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)]
+ForcedHeightOpt = Annotated[float | None, typer.Option("--height", help=_HGT_HELP)]
+FigureOpt = Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)]
+TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")]
 
-@study_app.command("image-error")
-@handle_errors
-def image_error(
-    camera: CameraOpt = None,
-    map_path: MapOpt = None,
-    fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
-    ] = None,
-    axis: Annotated[str, typer.Option("--axis", help="Image axis: x or y.")] = "x",
-    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (px).")] = (
-        "-20,20"
-    ),
-    step: Annotated[float, typer.Option("--step", help="Forced error step (px).")] = 1.0,
-    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
-    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
-    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
-    plane: PlaneOpt = "xz",
-    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
-    solver: SolverOpt = "iterative",
-    noise_px: NoiseOpt = 0.0,
-    survey_error_m: SurveyOpt = 0.0,
-    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
-    seed: SeedOpt = 0,
-    rounding: RoundOpt = True,
-    out: OutOpt = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Position error against a forced error on one fixture's image point (fig. 4.3-4.5).
+
+def _forced_command(
+    kind: str, axes_help: str, unit: str, default_range: str, default_step: float, doc: str
+):
+    """The image-error or the world-error command: the same options in other units.
+
+    The three options that differ (``--axis``, ``--range``, ``--step``) take their help and
+    defaults from the arguments; the command passes every option on to :func:`_forced`.
+    """
+
+    def command(
+        camera: CameraOpt = None,
+        map_path: MapOpt = None,
+        fixture: FixtureOpt = None,
+        axis: str = typer.Option("x", "--axis", help=axes_help),
+        value_range: str = typer.Option(
+            default_range, "--range", help=f"Forced error 'lo,hi' ({unit})."
+        ),
+        step: float = typer.Option(default_step, "--step", help=f"Forced error step ({unit})."),
+        positions: PositionsOpt = None,
+        eulers: EulersOpt = None,
+        height: ForcedHeightOpt = None,
+        plane: PlaneOpt = "xz",
+        figure: FigureOpt = None,
+        solver: SolverOpt = "iterative",
+        noise_px: NoiseOpt = 0.0,
+        survey_error_m: SurveyOpt = 0.0,
+        trials: TrialsOpt = 1000,
+        seed: SeedOpt = 0,
+        rounding: RoundOpt = True,
+        out: OutOpt = None,
+        as_json: JsonOpt = False,
+    ) -> None:
+        options = {k: v for k, v in locals().items() if k != "kind"}
+        _forced(kind, **options)
+
+    command.__doc__ = doc
+    command.__name__ = f"{kind}_error"
+    return command
+
+
+image_error = study_app.command("image-error")(
+    handle_errors(
+        _forced_command(
+            "image",
+            "Image axis: x or y.",
+            "px",
+            "-20,20",
+            1.0,
+            """Position error against a forced error on one fixture's image point (fig. 4.3-4.5).
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
-    """
-    _forced(
-        "image",
-        camera,
-        map_path,
-        fixture,
-        axis,
-        value_range,
-        step,
-        positions,
-        eulers,
-        height,
-        plane,
-        figure,
-        solver,
-        noise_px,
-        survey_error_m,
-        trials,
-        seed,
-        rounding,
-        out,
-        as_json,
+    """,
+        )
     )
+)
 
-
-@study_app.command("world-error")
-@handle_errors
-def world_error(
-    camera: CameraOpt = None,
-    map_path: MapOpt = None,
-    fixture: Annotated[
-        int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
-    ] = None,
-    axis: Annotated[str, typer.Option("--axis", help="World axis: x, y or z.")] = "x",
-    value_range: Annotated[str, typer.Option("--range", help="Forced error 'lo,hi' (m).")] = (
-        "-1,1"
-    ),
-    step: Annotated[float, typer.Option("--step", help="Forced error step (m).")] = 0.05,
-    positions: Annotated[str | None, typer.Option("--positions", help=_POS_HELP)] = None,
-    eulers: Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)] = None,
-    height: Annotated[float | None, typer.Option("--height", help=_HGT_HELP)] = None,
-    plane: PlaneOpt = "xz",
-    figure: Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)] = None,
-    solver: SolverOpt = "iterative",
-    noise_px: NoiseOpt = 0.0,
-    survey_error_m: SurveyOpt = 0.0,
-    trials: Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")] = 1000,
-    seed: SeedOpt = 0,
-    rounding: RoundOpt = True,
-    out: OutOpt = None,
-    as_json: JsonOpt = False,
-) -> None:
-    """Position error against a forced error on one fixture's map position (fig. 4.3-4.5).
+world_error = study_app.command("world-error")(
+    handle_errors(
+        _forced_command(
+            "world",
+            "World axis: x, y or z.",
+            "m",
+            "-1,1",
+            0.05,
+            """Position error against a forced error on one fixture's map position (fig. 4.3-4.5).
 
     With --noise-px or --survey-error-m: Monte Carlo over every fixture instead.
-    """
-    _forced(
-        "world",
-        camera,
-        map_path,
-        fixture,
-        axis,
-        value_range,
-        step,
-        positions,
-        eulers,
-        height,
-        plane,
-        figure,
-        solver,
-        noise_px,
-        survey_error_m,
-        trials,
-        seed,
-        rounding,
-        out,
-        as_json,
+    """,
+        )
     )
+)
 
 
 @study_app.command("coverage")
@@ -525,7 +496,10 @@ def coverage(
     ] = 10_000.0,
     row_time: Annotated[
         float | None,
-        typer.Option("--row-time", help="Seconds per sensor row (default: camera's, or 20e-6)."),
+        typer.Option(
+            "--row-time",
+            help=f"Seconds per sensor row (default: camera's, or {DEFAULT_ROW_TIME_S * 1e6:g} us).",
+        ),
     ] = None,
     min_frames: Annotated[
         float, typer.Option("--min-frames", help="Frames of rows a fixture must span.")
@@ -558,33 +532,29 @@ def coverage(
         **({"row_time": row_time} if row_time is not None else {}),
     )
     base = parse_floats(euler, 3, "--euler")
-    u_range, v_range = _ranges(plane, x_range, y_range, z_range)
+    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
     cam, fmap = _inputs(camera, map_path)
     n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
-    with _progress(int(441 * n_tilts * (0.1 / step) ** 2), "coverage study") as progress:
-        res = _run(
-            st.coverage_study,
-            cam,
-            fmap,
-            plane=plane,
-            u_range_m=u_range,
-            v_range_m=v_range,
-            step_m=step,
-            height_m=height,
-            base_euler_deg=base,
-            tilt_max_deg=tilt_max,
-            tilt_step_deg=tilt_step,
-            chip_rate_hz=chip_rate,
-            row_time_s=row_time,
-            min_frames=min_frames,
-            default_diameter_m=diameter,
-            noise_px=noise_px,
-            trials=trials,
-            seed=seed,
-            solver=solver,
-            rounding=rounding,
-            progress=progress,
-        )
+    res = _study(
+        st.coverage_study,
+        "coverage study",
+        int(441 * n_tilts * (0.1 / step) ** 2),
+        cam,
+        fmap,
+        base_euler_deg=base,
+        tilt_max_deg=tilt_max,
+        tilt_step_deg=tilt_step,
+        chip_rate_hz=chip_rate,
+        row_time_s=row_time,
+        min_frames=min_frames,
+        default_diameter_m=diameter,
+        noise_px=noise_px,
+        trials=trials,
+        seed=seed,
+        solver=solver,
+        rounding=rounding,
+        **grid,
+    )
     s = res.summary()
     lines = [
         f"coverage: {s['floor_points']} floor points x {s['orientations']} orientations "
@@ -596,4 +566,4 @@ def coverage(
         f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
         f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
     ]
-    _finish(res, "coverage", st.plot_coverage, out, as_json, lines)
+    _finish(res, "coverage", study_plots.plot_coverage, out, as_json, lines)

@@ -35,20 +35,20 @@ after rendering, so a truth pixel ``u`` is at ``width - 1 - u`` in the stored im
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from camvlp.geometry.disc import disc_normals, rim_points
+from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
 
 __all__ = [
+    "IMAGE_SUFFIXES",
     "FixtureTruth",
     "Render",
     "RenderSettings",
@@ -65,9 +65,6 @@ DEFAULT_ROW_TIME_S = 20e-6
 
 #: Rim points used for a fixture's projected outline (bounding box, visibility, extent).
 N_RIM = 64
-
-#: Image suffixes :func:`save_render` writes.
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 _ROW_CHUNK = 128  # image rows per chunk of the full-frame noise pass
 
@@ -657,47 +654,3 @@ def _expose(patches, width: int, height: int, s: RenderSettings) -> np.ndarray:
         np.rint(value, out=value)
         out[r0:r1] = value.astype(np.uint8)
     return out
-
-
-def save_render(result: Render, out_path, *, jpeg_quality: int = 95) -> Path:
-    """Write a rendered photo and, beside it, ``<stem>.json`` with its ground truth.
-
-    Parameters
-    ----------
-    result : Render
-    out_path : str or Path
-        Image path; the suffix (``.png``, ``.jpg``, ``.jpeg``) picks the format.
-    jpeg_quality : int
-        JPEG quality, 1 to 100.
-
-    Returns
-    -------
-    Path
-        The JSON file's path.
-
-    Raises
-    ------
-    ValueError
-        Unknown suffix, bad quality, or the files cannot be written (naming the path).
-    """
-    p = Path(out_path)
-    suffix = p.suffix.lower()
-    if suffix not in IMAGE_SUFFIXES:
-        raise ValueError(
-            f"output image must end in {', '.join(IMAGE_SUFFIXES)}, got {p.suffix or 'no suffix'!r}"
-            f" ({p})"
-        )
-    if isinstance(jpeg_quality, bool) or not 1 <= int(jpeg_quality) <= 100:
-        raise ValueError(f"jpeg_quality must be from 1 to 100, got {jpeg_quality!r}")
-    params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if suffix != ".png" else []
-    ok, buf = cv2.imencode(suffix, result.image, params)
-    if not ok:
-        raise ValueError(f"cannot encode the image as {suffix} ({p})")
-    json_path = p.with_suffix(".json")
-    try:
-        p.write_bytes(buf.tobytes())
-        json_path.write_text(json.dumps(result.truth_dict(), indent=2) + "\n")
-    except OSError as exc:
-        what = exc.strerror or exc.__class__.__name__
-        raise ValueError(f"cannot write output: {what} ({p})") from None
-    return json_path

@@ -3,14 +3,14 @@
 A survey is a folder of photographs plus ``survey.csv``, one row per photograph: ``photo``
 (path relative to the CSV), ``x, y, z`` (the true camera centre, map units) and
 ``theta_x, theta_y, theta_z`` (the true thesis angles, degrees), followed by ``seed`` (the
-render seed of that photo).  :func:`camvlp.evaluate.evaluate_survey` reads it back,
-locates every photograph and compares.  This is the simulated counterpart of the thesis'
-floor-grid experiment (section 5.7).
+render seed of that photo); :mod:`camvlp.io.survey_csv` writes and reads it, and
+:func:`camvlp.analysis.evaluate.evaluate_survey` locates every photograph and compares.  This is
+the simulated counterpart of the thesis' floor-grid experiment (section 5.7).  Positions on a
+grid over the floor come from :func:`camvlp.sim.grid.grid_points`.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import multiprocessing
 import multiprocessing.context
@@ -21,14 +21,20 @@ from pathlib import Path
 
 import numpy as np
 
+from camvlp._moved import forward_moved_names
+from camvlp.errors import InputError
+from camvlp.io.survey_csv import SURVEY_COLUMNS, write_survey
+from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import IMAGE_SUFFIXES, RenderSettings, render, save_render
+from camvlp.sim.render import RenderSettings, render
 
-__all__ = ["SURVEY_COLUMNS", "default_jobs", "floor_grid", "render_survey", "worker_context"]
+__all__ = ["SURVEY_COLUMNS", "default_jobs", "render_survey", "worker_context"]
 
-#: Columns of the ``survey.csv`` that :func:`render_survey` writes.
-SURVEY_COLUMNS = ("photo", "x", "y", "z", "theta_x", "theta_y", "theta_z", "seed")
+
+#: ``floor_grid``, the list of positions of a survey's grid, is now ``grid_points`` in
+#: :mod:`camvlp.sim.grid`, beside the study's ``floor_grid``.
+__getattr__ = forward_moved_names(__name__, {"floor_grid": "camvlp.sim.grid.grid_points"})
 
 
 def default_jobs() -> int:
@@ -46,55 +52,6 @@ def worker_context() -> multiprocessing.context.BaseContext:
     its first parallel OpenCV call; spawned workers start clean (about a second each).
     """
     return multiprocessing.get_context("spawn")
-
-
-def floor_grid(
-    first: tuple[float, float, float],
-    second: tuple[float, float, float],
-    level: float,
-    *,
-    axes: tuple[int, int] = (0, 2),
-) -> np.ndarray:
-    """Camera centres on a regular grid over a plane of constant coordinate.
-
-    Parameters
-    ----------
-    first, second : tuple of (start, stop, step)
-        The grid along the two in-plane axes, map units; ``stop`` is included when it falls
-        on the grid (within a millionth of a step).
-    level : float
-        Value of the third coordinate (for the thesis' room, ``y``: 0 on the floor, and
-        ``-h`` at height ``h`` since its ``y`` points down).
-    axes : tuple of int
-        Indices of the two in-plane axes; default ``(0, 2)``, the thesis' floor ``x, z``.
-
-    Returns
-    -------
-    ndarray, shape (N, 3)
-        The positions, the first axis varying slowest.
-
-    Raises
-    ------
-    ValueError
-        A step that is not positive, a stop below its start, or bad axes.
-    """
-    a, b = (int(k) for k in axes)
-    if {a, b} - {0, 1, 2} or a == b:
-        raise ValueError(f"axes must be two different indices from 0, 1, 2, got {axes!r}")
-    values = []
-    for name, (start, stop, step) in (("first", first), ("second", second)):
-        if not (np.isfinite([start, stop, step]).all() and step > 0 and stop >= start):
-            raise ValueError(
-                f"{name} grid must be start:stop:step with step > 0 and stop >= start, "
-                f"got {start}:{stop}:{step}"
-            )
-        n = int(np.floor((stop - start) / step + 1e-6)) + 1
-        values.append(start + step * np.arange(n))
-    ga, gb = np.meshgrid(values[0], values[1], indexing="ij")
-    out = np.full((ga.size, 3), float(level) + 0.0)  # + 0.0: no negative zero
-    out[:, a] = ga.ravel()
-    out[:, b] = gb.ravel()
-    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -135,7 +92,7 @@ def render_survey(
     """Render one photograph per camera pose and write ``survey.csv`` beside them.
 
     Photo ``i`` is ``out_dir/photo_{i:03d}<suffix>`` (with its ground-truth JSON,
-    ``photo_{i:03d}.json``, see :func:`camvlp.simulate.save_render`), rendered with seed
+    ``photo_{i:03d}.json``, see :func:`camvlp.sim.render.save_render`), rendered with seed
     ``settings.seed + i`` so that each photo has its own LED phases and noise.
 
     Parameters
@@ -171,17 +128,7 @@ def render_survey(
         Bad shapes or values (naming the argument), a pose or map that cannot be rendered,
         or an output that cannot be written.
     """
-    pos = np.asarray(positions, dtype=float)
-    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0 or not np.isfinite(pos).all():
-        raise ValueError(
-            f"positions must be a non-empty (N, 3) array of finite numbers, got shape {pos.shape}"
-        )
-    n = pos.shape[0]
-    eul = np.asarray(euler_deg, dtype=float)
-    if eul.shape == (3,):
-        eul = np.broadcast_to(eul, (n, 3))
-    if eul.shape != (n, 3) or not np.isfinite(eul).all():
-        raise ValueError(f"euler_deg must have shape (3,) or ({n}, 3), got {eul.shape}")
+    pos, eul = _poses(positions, euler_deg)
     if suffix.lower() not in IMAGE_SUFFIXES:
         raise ValueError(f"suffix must be one of {', '.join(IMAGE_SUFFIXES)}, got {suffix!r}")
     if isinstance(jpeg_quality, bool) or not 1 <= int(jpeg_quality) <= 100:
@@ -197,52 +144,56 @@ def render_survey(
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ValueError(f"cannot create the output folder: {exc.strerror} ({out})") from None
-
+        raise InputError(f"cannot create the output folder: {exc.strerror}", out) from None
+    n = pos.shape[0]
     names = [f"photo_{i:03d}{suffix}" for i in range(n)]
     tasks = [
-        (
-            pos[i],
-            eul[i],
-            dataclasses.replace(base, seed=int(base.seed) + i),
-            out / names[i],
-            int(jpeg_quality),
-        )
+        (pos[i], eul[i], dataclasses.replace(base, seed=int(base.seed) + i), out / names[i])
         for i in range(n)
     ]
+    _render_all(tasks, camera, fixture_map, int(jpeg_quality), n_jobs, progress)
+    seeds = [int(base.seed) + i for i in range(n)]
+    csv_path = write_survey(out / "survey.csv", names, pos, eul, seeds)
+    return csv_path
+
+
+def _poses(positions, euler_deg) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (N, 3) and angles (N, 3, one set repeated for all), checked."""
+    pos = np.asarray(positions, dtype=float)
+    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] == 0 or not np.isfinite(pos).all():
+        raise ValueError(
+            f"positions must be a non-empty (N, 3) array of finite numbers, got shape {pos.shape}"
+        )
+    n = pos.shape[0]
+    eul = np.asarray(euler_deg, dtype=float)
+    if eul.shape == (3,):
+        eul = np.broadcast_to(eul, (n, 3))
+    if eul.shape != (n, 3) or not np.isfinite(eul).all():
+        raise ValueError(f"euler_deg must have shape (3,) or ({n}, 3), got {eul.shape}")
+    return pos, eul
+
+
+def _render_all(tasks, camera, fixture_map, quality: int, n_jobs: int, progress) -> None:
+    """Render every ``(position, euler, settings, path)`` task, in this process or a pool."""
+    n = len(tasks)
     if n_jobs == 1 or n == 1:
         _init_worker_local(camera, fixture_map)
         for done, task in enumerate(tasks, 1):
-            _render_one(*task)
+            _render_one(*task, quality)
             if progress is not None:
                 progress(done, n)
-    else:
-        with ProcessPoolExecutor(
-            max_workers=min(n_jobs, n),
-            mp_context=worker_context(),
-            initializer=_init_worker,
-            initargs=(camera, fixture_map),
-        ) as pool:
-            futures = [pool.submit(_render_one, *task) for task in tasks]
-            for done, fut in enumerate(as_completed(futures), 1):
-                fut.result()  # re-raises a worker's ValueError
-                if progress is not None:
-                    progress(done, n)
-
-    csv_path = out / "survey.csv"
-    with open(csv_path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(SURVEY_COLUMNS)
-        for i in range(n):
-            writer.writerow(
-                [
-                    names[i],
-                    *(f"{v:.6f}" for v in pos[i]),
-                    *(f"{v:.4f}" for v in eul[i]),
-                    int(base.seed) + i,
-                ]
-            )
-    return csv_path
+        return
+    with ProcessPoolExecutor(
+        max_workers=min(n_jobs, n),
+        mp_context=worker_context(),
+        initializer=_init_worker,
+        initargs=(camera, fixture_map),
+    ) as pool:
+        futures = [pool.submit(_render_one, *task, quality) for task in tasks]
+        for done, fut in enumerate(as_completed(futures), 1):
+            fut.result()  # re-raises a worker's ValueError
+            if progress is not None:
+                progress(done, n)
 
 
 def _init_worker_local(camera: Camera, fixture_map: FixtureMap) -> None:

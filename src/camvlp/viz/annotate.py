@@ -10,6 +10,7 @@ import numpy as np
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import find_runs, stripe_threshold
+from camvlp.viz.figure import new_figure
 
 __all__ = ["annotate", "write_debug_pictures"]
 
@@ -49,50 +50,10 @@ def annotate(image: np.ndarray, result, camera: Camera, fixture_map: FixtureMap)
         out = (out >> 8).astype(np.uint8) if out.dtype == np.uint16 else out.astype(np.uint8)
     h, w = out.shape[:2]
     scale = max(1.0, max(h, w) / 1500.0)
-    thick = max(1, round(2 * scale))
-    font = 0.6 * scale
     for f in result.fixtures:
-        colour = _GREEN if f.used else _RED
-        u, v = (round(c) for c in f.pixel)
-        radius = round(0.5 * f.rows_spanned) if np.isfinite(f.rows_spanned) else 20
-        cv2.circle(out, (u, v), max(radius, 6), colour, thick, cv2.LINE_AA)
-        label = f"ID {f.id}" if f.id is not None else "?"
-        if not f.used and f.reason:
-            label += f": {f.reason[:48]}"
-        (tw, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick)
-        x = u + max(radius, 6) + 4
-        if x + tw > w:  # no room on the right: write it on the left of the disc
-            x = max(0, u - max(radius, 6) - 4 - tw)
-        cv2.putText(
-            out,
-            label,
-            (x, v),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            font,
-            colour,
-            thick,
-            cv2.LINE_AA,
-        )
-    pose = result.pose
-    if pose is not None:
-        uv = camera.project(pose, fixture_map.positions)
-        if result.mirrored:
-            uv[:, 0] = w - 1 - uv[:, 0]
-        for (u, v), fid in zip(uv, fixture_map.ids, strict=True):
-            if not (np.isfinite(u) and np.isfinite(v)):
-                continue
-            p = (round(u), round(v))
-            cv2.drawMarker(out, p, _CYAN, cv2.MARKER_CROSS, int(24 * scale), thick, cv2.LINE_AA)
-            cv2.putText(
-                out,
-                str(fid),
-                (p[0] + 6, p[1] + int(28 * scale)),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.8 * font,
-                _CYAN,
-                thick,
-                cv2.LINE_AA,
-            )
+        _draw_fixture(out, f, scale)
+    if result.pose is not None:
+        _draw_map_fixtures(out, result, camera, fixture_map, scale)
         x, y, z = result.position
         lines = [
             f"position ({x:.3f}, {y:.3f}, {z:.3f}) {fixture_map.units}",
@@ -100,17 +61,53 @@ def annotate(image: np.ndarray, result, camera: Camera, fixture_map: FixtureMap)
             f"reprojection {result.reprojection_rms_px:.2f} px RMS",
         ]
     else:
-        lines = [f"not located: {result.error}"]
+        lines = [f"not located: {result.reason}"]
     y0 = int(40 * scale)
     for i, text in enumerate(lines):
         org = (int(20 * scale), y0 + int(i * 34 * scale))
-        cv2.putText(
-            out, text, org, cv2.FONT_HERSHEY_SIMPLEX, font * 1.2, (0, 0, 0), thick + 3, cv2.LINE_AA
-        )
-        cv2.putText(
-            out, text, org, cv2.FONT_HERSHEY_SIMPLEX, font * 1.2, _YELLOW, thick, cv2.LINE_AA
-        )
+        _text(out, text, org, 0.72 * scale, (0, 0, 0), _thickness(scale) + 3)
+        _text(out, text, org, 0.72 * scale, _YELLOW, _thickness(scale))
     return out
+
+
+def _thickness(scale: float) -> int:
+    return max(1, round(2 * scale))
+
+
+def _text(out: np.ndarray, text: str, org, size: float, colour, thick: int) -> None:
+    cv2.putText(out, text, org, cv2.FONT_HERSHEY_SIMPLEX, size, colour, thick, cv2.LINE_AA)
+
+
+def _draw_fixture(out: np.ndarray, f, scale: float) -> None:
+    """A fixture's disc, green when used and red when not, labelled with its ID (and reason)."""
+    w = out.shape[1]
+    thick, font = _thickness(scale), 0.6 * scale
+    colour = _GREEN if f.used else _RED
+    u, v = (round(c) for c in f.pixel)
+    radius = round(0.5 * f.rows_spanned) if np.isfinite(f.rows_spanned) else 20
+    cv2.circle(out, (u, v), max(radius, 6), colour, thick, cv2.LINE_AA)
+    label = f"ID {f.id}" if f.id is not None else "?"
+    if not f.used and f.reason:
+        label += f": {f.reason[:48]}"
+    (tw, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick)
+    x = u + max(radius, 6) + 4
+    if x + tw > w:  # no room on the right: write it on the left of the disc
+        x = max(0, u - max(radius, 6) - 4 - tw)
+    _text(out, label, (x, v), font, colour, thick)
+
+
+def _draw_map_fixtures(out: np.ndarray, result, camera: Camera, fixture_map, scale: float) -> None:
+    """The map's fixtures reprojected with the found pose: cyan crosses with their IDs."""
+    thick = _thickness(scale)
+    uv = camera.project(result.pose, fixture_map.positions)
+    if result.mirrored:
+        uv[:, 0] = out.shape[1] - 1 - uv[:, 0]
+    for (u, v), fid in zip(uv, fixture_map.ids, strict=True):
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        p = (round(u), round(v))
+        cv2.drawMarker(out, p, _CYAN, cv2.MARKER_CROSS, int(24 * scale), thick, cv2.LINE_AA)
+        _text(out, str(fid), (p[0] + 6, p[1] + int(28 * scale)), 0.48 * scale, _CYAN, thick)
 
 
 def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages) -> list[Path]:
@@ -122,11 +119,6 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
 
     Returns the paths written.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -141,7 +133,8 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         cv2.imwrite(str(p), pair)
         written.append(p)
     if blobs:
-        fig, axes = plt.subplots(len(blobs), 1, figsize=(10, 2.2 * len(blobs)), squeeze=False)
+        fig = new_figure(10, 2.2 * len(blobs), dpi=100, layout=None)
+        axes = fig.subplots(len(blobs), 1, squeeze=False)
         for k, (prof, dec, fr) in enumerate(
             zip(stages.profiles, stages.decodes, result.fixtures, strict=True)
         ):
@@ -170,6 +163,5 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         fig.tight_layout()
         p = out / "3_profiles.png"
         fig.savefig(p, dpi=110)
-        plt.close(fig)
         written.append(p)
     return written

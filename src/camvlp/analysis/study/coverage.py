@@ -1,0 +1,409 @@
+"""The coverage study: where on the floor a fix is possible, over a range of tilts."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.analysis.stats import error_stats
+from camvlp.analysis.study.common import (
+    Progress,
+    StudyInputs,
+    mean_over_last_axis,
+    nonneg,
+    position_errors,
+    rotations,
+    study_inputs,
+)
+from camvlp.geometry.disc import rim_points
+from camvlp.geometry.pnp import project_batch
+from camvlp.io.writers import jsonable
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.sim.grid import axis_values, floor_grid, plane_axes, up_sign
+from camvlp.sim.render import DEFAULT_ROW_TIME_S
+
+__all__ = ["CoverageStudy", "coverage_study"]
+
+
+@dataclass(frozen=True)
+class CoverageStudy:
+    """Where on the floor a camera gets a fix, over a set of orientations.
+
+    A fix needs at least four fixtures, not all on one line, each facing the camera, with
+    its whole disc inside the image and spanning at least ``min_rows`` rows along the
+    readout axis.
+
+    Attributes
+    ----------
+    plane : str
+        Floor axes.
+    u_m, v_m : ndarray, shapes (NU,), (NV,)
+        Grid values, metres.
+    height_m : float
+        Camera height above the floor, metres.
+    positions_m : ndarray, shape (NV, NU, 3)
+        Camera centres, metres.
+    euler_deg : ndarray, shape (O, 3)
+        The orientations tried, degrees.
+    usable : ndarray of int, shape (NV, NU, O)
+        Fixtures usable (in view, facing, decodable) per position and orientation.
+    fix : ndarray of bool, shape (NV, NU, O)
+        A position can be computed.
+    errors_m : ndarray, shape (NV, NU, O, T)
+        Position error per trial where there is a fix, metres; NaN elsewhere.
+    frame_rows : float
+        Sensor rows one frame of chips lasts.
+    min_rows : float
+        Rows a fixture's disc must span to be decodable.
+    solver : str
+    noise_px : float
+    rounding : bool
+    seed : int
+    """
+
+    plane: str
+    u_m: np.ndarray
+    v_m: np.ndarray
+    height_m: float
+    positions_m: np.ndarray
+    euler_deg: np.ndarray
+    usable: np.ndarray
+    fix: np.ndarray
+    errors_m: np.ndarray
+    frame_rows: float
+    min_rows: float
+    solver: str
+    noise_px: float
+    rounding: bool
+    seed: int
+
+    @property
+    def fraction(self) -> np.ndarray:
+        """Fraction of orientations with a fix at each floor point, shape (NV, NU)."""
+        return self.fix.mean(axis=-1)
+
+    @property
+    def error_map_m(self) -> np.ndarray:
+        """Mean error over orientations with a fix and trials, shape (NV, NU); NaN if none."""
+        return mean_over_last_axis(self.errors_m.reshape(*self.fix.shape[:2], -1))
+
+    def summary(self) -> dict:
+        """JSON-ready summary of the coverage and the errors where there is a fix."""
+        frac = self.fraction
+        stats = error_stats(self.errors_m[self.fix])
+        return jsonable(
+            {
+                "study": "coverage",
+                "solver": self.solver,
+                "plane": self.plane,
+                "height_m": self.height_m,
+                "floor_points": int(frac.size),
+                "orientations": int(self.euler_deg.shape[0]),
+                "frame_rows": self.frame_rows,
+                "min_rows": self.min_rows,
+                "noise_px": self.noise_px,
+                "rounding": self.rounding,
+                "seed": self.seed,
+                "mean_fix_fraction": float(frac.mean()),
+                "floor_fraction_any_fix": float((frac > 0).mean()),
+                "floor_fraction_all_fix": float((frac == 1).mean()),
+                "fixes": int(self.fix.sum()),
+                **{k: v for k, v in stats.items() if k not in ("poses", "failures")},
+                "solves": stats["poses"],
+                "failures": stats["failures"],
+            }
+        )
+
+    csv_header = (
+        "x_m",
+        "y_m",
+        "z_m",
+        "fix_fraction",
+        "orientations_with_fix",
+        "mean_usable_fixtures",
+        "mean_error_m",
+    )
+
+    def rows(self) -> list[list]:
+        """CSV rows per floor point."""
+        pos = self.positions_m.reshape(-1, 3)
+        frac = self.fraction.reshape(-1)
+        nfix = self.fix.sum(-1).reshape(-1)
+        usable = self.usable.mean(-1).reshape(-1)
+        err = self.error_map_m.reshape(-1)
+        return [
+            [*p, f, int(k), float(u), e]
+            for p, f, k, u, e in zip(pos, frac, nfix, usable, err, strict=True)
+        ]
+
+
+def coverage_study(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    *,
+    plane: str = "xz",
+    u_range_m: Sequence[float] = (-1.0, 1.0),
+    v_range_m: Sequence[float] = (-1.0, 1.0),
+    step_m: float = 0.1,
+    height_m: float = 0.0,
+    base_euler_deg: Sequence[float] = (90.0, 0.0, 0.0),
+    tilt_max_deg: float = 15.0,
+    tilt_step_deg: float = 5.0,
+    chip_rate_hz: float = 10_000.0,
+    row_time_s: float | None = None,
+    min_frames: float = 1.2,
+    default_diameter_m: float | None = None,
+    noise_px: float = 0.5,
+    trials: int = 1,
+    seed: int = 0,
+    solver: str = "iterative",
+    rounding: bool = True,
+    n_rim: int = 16,
+    progress: Progress | None = None,
+) -> CoverageStudy:
+    """Map of the floor where a fix is possible, over a range of tilts, and its error.
+
+    Orientations: ``base_euler_deg + (a, b, 0)`` for tilts ``a`` (about x) and ``b`` (about
+    y) each from ``-tilt_max_deg`` to ``tilt_max_deg`` every ``tilt_step_deg``.  A fixture
+    is usable when it faces the camera, its whole rim (``n_rim`` points on a disc of its
+    diameter) projects inside the image, and the disc spans at least ``min_frames`` frames
+    of rows along the camera's readout axis, one frame lasting
+    ``n_chips / (chip_rate_hz * row_time_s)`` rows.  With four or more usable fixtures, not
+    all on a line, the centres are projected, rounded, given Gaussian noise of ``noise_px``
+    and solved with the usable fixtures, ``trials`` times.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, image size, distortion (used for what is in view), readout axis.
+    fixture_map : FixtureMap
+        Fixtures with diameters (else ``default_diameter_m``) and, optionally, normals
+        (default: facing down, towards the floor).
+    plane, u_range_m, v_range_m, step_m, height_m
+        The floor grid, see :func:`floor_grid`.
+    base_euler_deg : (3,)
+        Orientation with no tilt, degrees; (90, 0, 0) faces the thesis' ceiling.
+    tilt_max_deg, tilt_step_deg : float
+        Tilt range and step, degrees.
+    chip_rate_hz : float
+        Line-code chips per second.
+    row_time_s : float, optional
+        Seconds per sensor row; default the camera's ``row_time_s``, else
+        :data:`~camvlp.sim.render.DEFAULT_ROW_TIME_S` (20 us).
+    min_frames : float
+        Frames of rows a disc must span (1 for cyclic decoding; 1.2 leaves a margin).
+    default_diameter_m : float, optional
+        Diameter for fixtures the map gives none, metres.
+    noise_px : float
+        Sigma of the detection noise on each image coordinate, pixels.
+    trials : int
+        Noise draws per position and orientation.
+    seed, solver, rounding, progress
+        As for :func:`~camvlp.analysis.study.rounding.rounding_study`.
+    n_rim : int
+        Points per rim (8 or more).
+
+    Returns
+    -------
+    CoverageStudy
+    """
+    inp = study_inputs(
+        fixture_map, solver=solver, rounding=rounding, noise_px=noise_px, trials=trials, seed=seed
+    )
+    rt = _row_time(camera, row_time_s, chip_rate_hz, min_frames, n_rim)
+    pts = inp.fixtures_m
+    u, v, pos = floor_grid(
+        pts, plane=plane, u_range_m=u_range_m, v_range_m=v_range_m, step_m=step_m, height_m=height_m
+    )
+    normals, rims = _fixture_discs(fixture_map, plane, default_diameter_m, int(n_rim))
+    frame_rows = fixture_map.frame.n_chips / (chip_rate_hz * rt)
+    eul, rots = _orientations(base_euler_deg, tilt_max_deg, tilt_step_deg)
+    usable, fix, errors = _sweep(
+        camera, inp, pos.reshape(-1, 3), rots, normals, rims, min_frames * frame_rows, progress
+    )
+    shape = (v.size, u.size, eul.shape[0])
+    return CoverageStudy(
+        plane,
+        u,
+        v,
+        float(height_m),
+        pos,
+        eul,
+        usable.reshape(shape),
+        fix.reshape(shape),
+        errors.reshape(*shape, inp.trials),
+        float(frame_rows),
+        float(min_frames * frame_rows),
+        solver,
+        inp.noise_px,
+        inp.rounding,
+        int(seed),
+    )
+
+
+def _sweep(
+    camera: Camera,
+    inputs: StudyInputs,
+    centres: np.ndarray,
+    rots: np.ndarray,
+    normals: np.ndarray,
+    rims: np.ndarray,
+    min_rows: float,
+    progress: Progress | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Every camera centre (G, 3) at every orientation (O, 3, 3): what it sees, and its error.
+
+    Returns
+    -------
+    usable : ndarray of int, shape (G, O)
+        Fixtures facing the camera, wholly in view and spanning ``min_rows`` rows.
+    fix : ndarray of bool, shape (G, O)
+        At least four usable fixtures, not all on a line.
+    errors : ndarray, shape (G, O, trials)
+        Position error where there is a fix, metres; NaN elsewhere.
+    """
+    pts = inputs.fixtures_m
+    g, o = centres.shape[0], rots.shape[0]
+    usable = np.zeros((g, o), dtype=np.int64)
+    fix = np.zeros((g, o), dtype=bool)
+    errors = np.full((g, o, inputs.trials), np.nan)
+    facing = np.einsum("ni,gni->gn", normals, centres[:, None, :] - pts[None, :, :]) > 0
+    for j in range(o):
+        ok = facing & _decodable_in_view(camera, rots[j], centres, rims, min_rows)
+        usable[:, j] = ok.sum(1)
+        fix[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
+        errors[:, j] = _fix_errors(camera, inputs, rots[j], centres, ok, fix[:, j])
+        if progress is not None:
+            progress(j + 1, o)
+    return usable, fix, errors
+
+
+def _row_time(
+    camera: Camera, row_time_s: float | None, chip_rate_hz: float, min_frames: float, n_rim: int
+) -> float:
+    """The row time to use (s), after checking the timing arguments."""
+    if not (np.isfinite(chip_rate_hz) and chip_rate_hz > 0):
+        raise ValueError(f"chip_rate_hz must be positive, got {chip_rate_hz!r}")
+    if row_time_s is not None:
+        rt = row_time_s
+    elif camera.row_time_s is not None:
+        rt = camera.row_time_s
+    else:
+        rt = DEFAULT_ROW_TIME_S
+    if not (np.isfinite(rt) and 0 < rt < 1):
+        raise ValueError(f"row_time_s must be a positive number of seconds, got {row_time_s!r}")
+    if not (np.isfinite(min_frames) and min_frames >= 0):
+        raise ValueError(f"min_frames must be non-negative, got {min_frames!r}")
+    if int(n_rim) < 8:
+        raise ValueError(f"n_rim must be at least 8, got {n_rim!r}")
+    return float(rt)
+
+
+def _fixture_discs(
+    fixture_map: FixtureMap, plane: str, default_diameter_m: float | None, n_rim: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each fixture's normal (N, 3) and ``n_rim`` points on its rim (N, n_rim, 3), metres.
+
+    A fixture without a normal faces the floor of ``plane``; one without a diameter takes
+    ``default_diameter_m``, and ValueError when there is none.
+    """
+    pts = fixture_map.positions * fixture_map.unit_m
+    _, _, vert = plane_axes(plane)
+    down = np.zeros(3)
+    down[vert] = -up_sign(pts, vert)
+    diam = []
+    for f in fixture_map.fixtures:
+        d = f.diameter * fixture_map.unit_m if f.diameter is not None else default_diameter_m
+        if d is None or not (np.isfinite(d) and d > 0):
+            raise ValueError(
+                f"fixture {f.id} has no diameter; coverage needs one "
+                f"({fixture_map.source or 'map'})"
+            )
+        diam.append(d)
+    normals = np.array([f.normal if f.normal is not None else down for f in fixture_map.fixtures])
+    return normals, rim_points(pts, np.asarray(diam), normals, n_rim)
+
+
+def _orientations(
+    base_euler_deg: Sequence[float], tilt_max_deg: float, tilt_step_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Angles (O, 3), degrees, of every tilt pair about x and y, and their rotations."""
+    tmax = nonneg(tilt_max_deg, "tilt_max_deg")
+    if not (np.isfinite(tilt_step_deg) and tilt_step_deg > 0):
+        raise ValueError(f"tilt_step_deg must be positive, got {tilt_step_deg!r}")
+    tilts = axis_values((-tmax, tmax), tilt_step_deg, "tilt range")
+    ta, tb = np.meshgrid(tilts, tilts, indexing="ij")
+    base = np.asarray(base_euler_deg, dtype=float).reshape(3)
+    eul = np.stack([base[0] + ta.ravel(), base[1] + tb.ravel(), np.full(ta.size, base[2])], axis=1)
+    return rotations(eul)
+
+
+def _decodable_in_view(
+    camera: Camera, rot: np.ndarray, centres: np.ndarray, rims: np.ndarray, min_rows: float
+) -> np.ndarray:
+    """Which fixtures (G, N) have their whole rim in the image and span ``min_rows`` rows.
+
+    ``rot`` (3, 3) is the orientation shared by the camera centres (G, 3); ``rims``
+    (N, K, 3) are the fixtures' rim points, metres.  Rows are counted along the camera's
+    readout axis.
+    """
+    g, n = centres.shape[0], rims.shape[0]
+    read_axis = (camera.readout or Readout.ROWS).pixel_index
+    distort = camera.dist_or_none is not None
+    rr = np.broadcast_to(rot, (g, 3, 3))
+    uv = project_batch(camera, rr, centres, rims.reshape(-1, 3), distort=distort)
+    uv = uv.reshape(g, n, -1, 2)
+    w, h = camera.width, camera.height
+    with np.errstate(invalid="ignore"):
+        inside = np.all(
+            (uv[..., 0] >= -0.5)
+            & (uv[..., 0] <= w - 0.5)
+            & (uv[..., 1] >= -0.5)
+            & (uv[..., 1] <= h - 0.5),
+            axis=2,
+        )
+        span = np.ptp(uv[..., read_axis], axis=2)
+        return inside & (span >= min_rows)
+
+
+def _fix_errors(
+    camera: Camera,
+    inputs: StudyInputs,
+    rot: np.ndarray,
+    centres: np.ndarray,
+    usable: np.ndarray,
+    fix: np.ndarray,
+) -> np.ndarray:
+    """Position errors (G, trials), metres, where there is a fix; NaN elsewhere.
+
+    The positions that share the same set of usable fixtures (``usable``, (G, N)) are
+    solved together with those fixtures only.
+    """
+    trials = inputs.trials
+    out = np.full((centres.shape[0], trials), np.nan)
+    idx = np.flatnonzero(fix)
+    if idx.size == 0:
+        return out
+    patterns, inverse = np.unique(usable[idx], axis=0, return_inverse=True)
+    for q, pattern in enumerate(patterns):
+        members = idx[inverse.reshape(-1) == q]
+        cm = np.repeat(centres[members], trials, axis=0)
+        rr = np.broadcast_to(rot, (cm.shape[0], 3, 3))
+        err = position_errors(camera, inputs, rr, cm, fixtures_m=inputs.fixtures_m[pattern])
+        out[members] = err.reshape(-1, trials)
+    return out
+
+
+def _not_collinear(points: np.ndarray, mask: np.ndarray, tol_m: float = 1e-3) -> np.ndarray:
+    """True where the masked points (B, N) of ``points`` (N, 3) do not all lie on one line."""
+    w = mask.astype(float)
+    cnt = w.sum(1).clip(1)
+    mean = (w @ points) / cnt[:, None]
+    d = points[None, :, :] - mean[:, None, :]
+    scatter = np.einsum("bn,bni,bnj->bij", w, d, d) / cnt[:, None, None]
+    ev = np.linalg.eigvalsh(scatter)  # ascending
+    return ev[:, 1] > tol_m**2

@@ -1,0 +1,206 @@
+"""Plots of the error study: heat maps over the floor, error curves, error distributions.
+
+Each ``draw_*`` function draws on a matplotlib ``Axes`` the caller gives (to compose its own
+figure); each ``plot_*`` function makes a figure with :func:`~camvlp.viz.figure.new_figure`,
+draws and writes the PNG.  matplotlib is imported only when a figure is made.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from camvlp.analysis.study import CoverageStudy, ForcedErrorStudy, MonteCarloStudy, RoundingStudy
+from camvlp.format import length_unit
+from camvlp.viz.figure import new_figure
+
+__all__ = [
+    "draw_coverage",
+    "draw_forced_error",
+    "draw_heat_map",
+    "draw_monte_carlo",
+    "draw_rounding",
+    "plot_coverage",
+    "plot_forced_error",
+    "plot_monte_carlo",
+    "plot_rounding",
+]
+
+
+def _fmt3(v) -> str:
+    return "(" + ", ".join(f"{x:g}" for x in np.asarray(v, dtype=float)) + ")"
+
+
+def _errors_unit(errors_m: np.ndarray) -> tuple[float, str]:
+    """Factor from metres and unit name for an axis of these errors (m, cm or mm)."""
+    big = np.nanmax(errors_m) if np.isfinite(errors_m).any() else 0.0
+    return length_unit(float(big))
+
+
+def draw_heat_map(
+    ax, u, v, values, label: str, plane: str, cmap: str = "viridis", vmin=None, vmax=None
+):
+    """Draw ``values`` (NV, NU) over the floor grid ``u`` (NU,), ``v`` (NV,) metres, with a
+    colour bar labelled ``label``; NaN cells are grey."""
+    du = (u[1] - u[0]) if u.size > 1 else 0.1
+    dv = (v[1] - v[0]) if v.size > 1 else 0.1
+    ue = np.append(u - du / 2, u[-1] + du / 2)
+    ve = np.append(v - dv / 2, v[-1] + dv / 2)
+    masked = np.ma.masked_invalid(values)
+    mesh = ax.pcolormesh(ue, ve, masked, cmap=cmap, shading="flat", vmin=vmin, vmax=vmax)
+    ax.set_xlabel(f"Camera {plane[0]} (m)")
+    ax.set_ylabel(f"Camera {plane[1]} (m)")
+    ax.set_aspect("equal")
+    ax.set_facecolor("0.85")
+    ax.figure.colorbar(mesh, ax=ax, label=label)
+    return mesh
+
+
+def draw_rounding(ax, study: RoundingStudy) -> None:
+    """Heat map of the position error over the floor (mm), like the thesis' figure 4.2."""
+    draw_heat_map(
+        ax, study.u_m, study.v_m, study.error_map_m * 1e3, "Position error (mm)", study.plane
+    )
+    noise = ""
+    if study.noise_px or study.survey_error_m:
+        noise = f", noise {study.noise_px:g} px / {study.survey_error_m:g} m"
+    ax.set_title(
+        f"θ = {_fmt3(study.euler_deg)}°, height {study.height_m:g} m, {study.solver}{noise}\n"
+        f"mean = {study.mean_error_m * 1e3:.2f} mm, max = {study.max_error_m * 1e3:.2f} mm"
+    )
+
+
+def plot_rounding(study: RoundingStudy, path: str | Path) -> None:
+    """Write :func:`draw_rounding` as a PNG."""
+    fig = new_figure()
+    draw_rounding(fig.add_subplot(), study)
+    fig.savefig(path)
+
+
+def draw_forced_error(ax, study: ForcedErrorStudy, label: str = "") -> None:
+    """Position error against the forced error, one line per camera pose.
+
+    ``label`` prefixes the title (e.g. ``"(a) "``).  What all poses share (position or
+    orientation) goes in the title, what differs in the legend.
+    """
+    scale, unit = _errors_unit(study.errors_m)
+    vary_pos = len({tuple(p) for p in study.positions_m.round(9)}) > 1
+    vary_ang = len({tuple(a) for a in study.euler_deg.round(9)}) > 1
+    for p, a, e in zip(study.positions_m, study.euler_deg, study.errors_m, strict=True):
+        parts = []
+        if vary_pos or not vary_ang:
+            parts.append(f"C = {_fmt3(p)} m")
+        if vary_ang or not vary_pos:
+            parts.append(f"θ = {_fmt3(a)}°")
+        ax.plot(study.offsets, e * scale, marker=".", ms=4, label=", ".join(parts))
+    what = "image" if study.kind == "image" else "world"
+    ax.set_xlabel(
+        f"Forced error on fixture {study.fixture_id}'s {what} {study.axis} coordinate "
+        f"({study.offset_unit})"
+    )
+    ax.set_ylabel(f"Position error ({unit})")
+    common = []
+    if not vary_pos:
+        common.append(f"C = {_fmt3(study.positions_m[0])} m")
+    if not vary_ang:
+        common.append(f"θ = {_fmt3(study.euler_deg[0])}°")
+    ax.set_title(
+        f"{label}{what.capitalize()} {study.axis} coordinate, {study.solver}"
+        + (f"\n{', '.join(common)}" if common else "")
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+
+
+def plot_forced_error(
+    study: ForcedErrorStudy | Sequence[ForcedErrorStudy], path: str | Path, *, ncols: int = 2
+) -> None:
+    """Position error against the forced error, one line per camera pose.
+
+    Parameters
+    ----------
+    study : ForcedErrorStudy or sequence of them
+        One panel per study (panels labelled (a), (b), ... when there are several).
+    path : str or Path
+        PNG file to write.
+    ncols : int
+        Panels per row.
+    """
+    studies = [study] if isinstance(study, ForcedErrorStudy) else list(study)
+    cols = min(ncols, len(studies))
+    rows = -(-len(studies) // cols)
+    fig = new_figure(6.4 * cols, 4.8 * rows)
+    axes = np.atleast_1d(fig.subplots(rows, cols)).reshape(-1)
+    for i, (ax, s) in enumerate(zip(axes, studies, strict=False)):
+        draw_forced_error(ax, s, f"({chr(97 + i)}) " if len(studies) > 1 else "")
+    for ax in axes[len(studies) :]:
+        ax.set_visible(False)
+    fig.savefig(path)
+
+
+def draw_monte_carlo(ax, study: MonteCarloStudy) -> None:
+    """Cumulative distribution of the position error, one line per pose."""
+    scale, unit = _errors_unit(study.errors_m)
+    for p, a, e in zip(study.positions_m, study.euler_deg, study.errors_m, strict=True):
+        s = np.sort(e[np.isfinite(e)]) * scale
+        frac = np.arange(1, s.size + 1) / e.size
+        ax.step(s, frac, where="post", label=f"C = {_fmt3(p)} m, θ = {_fmt3(a)}°")
+    ax.axhline(0.95, color="0.5", lw=0.8, ls="--", label="95 %")
+    ax.set_xlabel(f"Position error ({unit})")
+    ax.set_ylabel("Fraction of trials")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(
+        f"Monte Carlo: σ = {study.noise_px:g} px on image points, "
+        f"{study.survey_error_m:g} m on world points\n"
+        f"{study.errors_m.shape[1]} trials per pose, {study.solver}"
+    )
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize="small")
+
+
+def plot_monte_carlo(study: MonteCarloStudy, path: str | Path) -> None:
+    """Write :func:`draw_monte_carlo` as a PNG."""
+    fig = new_figure()
+    draw_monte_carlo(fig.add_subplot(), study)
+    fig.savefig(path)
+
+
+def draw_coverage(ax_fix, ax_error, study: CoverageStudy) -> None:
+    """Two maps: fraction of orientations with a fix, and the mean error where there is one."""
+    draw_heat_map(
+        ax_fix,
+        study.u_m,
+        study.v_m,
+        study.fraction,
+        "Fraction of orientations with a fix",
+        study.plane,
+        cmap="magma",
+        vmin=0.0,
+        vmax=float(study.fraction.max()) if study.fix.any() else 1.0,
+    )
+    t = np.ptp(study.euler_deg[:, 0]) / 2
+    ax_fix.set_title(
+        f"Fix possible: ≥ 4 fixtures in view and decodable\n"
+        f"tilts up to ±{t:g}° about x and y, camera height {study.height_m:g} m"
+    )
+    draw_heat_map(
+        ax_error,
+        study.u_m,
+        study.v_m,
+        study.error_map_m * 1e3,
+        "Mean position error (mm)",
+        study.plane,
+    )
+    ax_error.set_title(
+        f"Mean position error where a fix is possible\n"
+        f"σ = {study.noise_px:g} px detection noise, {study.solver}"
+    )
+
+
+def plot_coverage(study: CoverageStudy, path: str | Path) -> None:
+    """Write :func:`draw_coverage` as a PNG, the two maps side by side."""
+    fig = new_figure(12.0, 5.0)
+    draw_coverage(*fig.subplots(1, 2), study)
+    fig.savefig(path)

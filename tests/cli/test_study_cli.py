@@ -1,0 +1,98 @@
+"""Tests for ``camvlp study``: the thesis' chapter 4 findings.
+
+Bounds come from the thesis text (figures 3.8, 3.10, 4.2 to 4.5) or from first-order
+reasoning, not from this code's output.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from camvlp.cli import app
+from conftest import one_error_line
+
+runner = CliRunner()
+
+
+# --------------------------------------------------------------------------------- CLI
+
+
+
+
+def test_cli_rounding_json_and_outputs(tmp_path, thesis_camera_path, thesis_room_path):
+    out = tmp_path / "r"
+    result = runner.invoke(app, [
+        "study", "rounding", "--camera", str(thesis_camera_path), "--map", str(thesis_room_path),
+        "--step", "0.5", "--euler", "70,20,0", "--out", str(out), "--json",
+    ])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["poses"] == 25 and summary["euler_deg"] == [70, 20, 0]
+    assert 0 < summary["mean_error_m"] <= summary["max_error_m"] < 0.01
+    assert json.loads((out / "summary.json").read_text()) == summary
+    rows = (out / "rounding.csv").read_text().splitlines()
+    assert rows[0].startswith("x_m,y_m,z_m,error_m") and len(rows) == 26
+    assert (out / "rounding.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_cli_forced_and_monte_carlo(tmp_path):
+    result = runner.invoke(app, [
+        "study", "world-error", "--figure", "4.5", "--axis", "z", "--range", "-1,1",
+        "--step", "0.5", "--json", "--out", str(tmp_path / "w"),
+    ])
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.stdout)
+    assert len(s["series"]) == 4
+    assert all(ser["position_m"] == [0, -1, 0] for ser in s["series"])  # 1 m up, y down
+    assert (tmp_path / "w" / "world-error.csv").exists()
+    result = runner.invoke(app, [
+        "study", "image-error", "--positions", "0,0,0", "--noise-px", "0.5", "--trials", "20",
+        "--json",
+    ])
+    assert result.exit_code == 0, result.output
+    s = json.loads(result.stdout)
+    assert s["study"] == "monte-carlo" and s["trials"] == 20 and s["poses"] == 20
+
+
+def test_cli_coverage_text(tmp_path):
+    result = runner.invoke(app, [
+        "study", "coverage", "--step", "1", "--tilt-max", "5", "--tilt-step", "5",
+        "--out", str(tmp_path),
+    ])
+    assert result.exit_code == 0, result.output
+    assert "fix possible" in result.stdout
+    assert (tmp_path / "coverage.png").exists() and (tmp_path / "coverage.csv").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["rounding", "--solver", "dls"], "--solver"),
+        (["rounding", "--euler", "90,0"], "--euler"),
+        (["rounding", "--step", "0"], "--step"),
+        (["rounding", "--camera", "missing.yaml"], "missing.yaml"),
+        (["image-error", "--fixture", "7"], "fixture 7"),
+        (["image-error", "--axis", "z"], "--axis"),
+        (["world-error", "--positions", "1,2"], "--positions"),
+        (["coverage", "--tilt-step", "0"], "--tilt-step"),
+        (["coverage", "--noise-px", "-1"], "--noise-px"),
+    ],
+)
+def test_cli_bad_input(args, needle):
+    result = runner.invoke(app, ["study", *args])
+    assert result.exit_code == 2
+    assert needle in one_error_line(result)
+
+
+
+def test_study_cli_accepts_the_locate_solver_and_refuses_others():
+    res = runner.invoke(app, ["study", "rounding", "--step", "0.5", "--solver", "locate",
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["solver"] == "locate"
+    bad = runner.invoke(app, ["study", "rounding", "--solver", "dlt"])
+    assert bad.exit_code == 2
+    assert "locate" in one_error_line(bad)
