@@ -10,9 +10,9 @@ import typer
 
 from camvlp.io import load_camera, load_map
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
-from camvlp.model.camera import Pose
+from camvlp.model.camera import DEFAULT_ROW_TIME_S, Pose
 from camvlp.model.readout import Readout
-from camvlp.sim.render import DEFAULT_ROW_TIME_S, RenderSettings, distinct_colours, render
+from camvlp.sim.render import RenderSettings, distinct_colours, render
 
 from ._app import app, fail, handle_errors, parse_floats, parse_readout
 

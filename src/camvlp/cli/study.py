@@ -15,9 +15,8 @@ from camvlp.analysis import study as st
 from camvlp.format import format_length
 from camvlp.io import load_camera, load_map
 from camvlp.io.writers import write_outputs
-from camvlp.model.camera import Camera
+from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import DEFAULT_ROW_TIME_S
 from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats

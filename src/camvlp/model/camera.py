@@ -22,6 +22,7 @@ import numpy as np
 from camvlp.model.readout import Readout
 
 __all__ = [
+    "DEFAULT_ROW_TIME_S",
     "Camera",
     "Pose",
     "euler_to_matrix",
@@ -31,6 +32,10 @@ __all__ = [
     "rotation_y",
     "rotation_z",
 ]
+
+#: Row time (s) assumed where neither a camera file nor an option gives one: the thesis'
+#: camera's assumed 20 us (the renderer and the coverage study use it).
+DEFAULT_ROW_TIME_S = 20e-6
 
 
 #: Readout values of a camera: the image axis the sensor's rows follow, and ``-reversed``

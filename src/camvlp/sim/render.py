@@ -43,7 +43,7 @@ import numpy as np
 
 from camvlp.geometry.disc import disc_normals, rim_points
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
 
@@ -59,9 +59,6 @@ __all__ = [
     "save_render",
     "tilt_limit",
 ]
-
-#: Default row time (s) when neither the settings nor the camera give one.
-DEFAULT_ROW_TIME_S = 20e-6
 
 #: Rim points used for a fixture's projected outline (bounding box, visibility, extent).
 N_RIM = 64

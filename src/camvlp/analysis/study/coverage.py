@@ -20,11 +20,10 @@ from camvlp.analysis.study.common import (
 from camvlp.geometry.disc import rim_points
 from camvlp.geometry.pnp import project_batch
 from camvlp.io.writers import jsonable
-from camvlp.model.camera import Camera
+from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.sim.grid import axis_values, floor_grid, plane_axes, up_sign
-from camvlp.sim.render import DEFAULT_ROW_TIME_S
 
 __all__ = ["CoverageStudy", "coverage_study"]
 
@@ -193,7 +192,7 @@ def coverage_study(
         Line-code chips per second.
     row_time_s : float, optional
         Seconds per sensor row; default the camera's ``row_time_s``, else
-        :data:`~camvlp.sim.render.DEFAULT_ROW_TIME_S` (20 us).
+        :data:`~camvlp.model.camera.DEFAULT_ROW_TIME_S` (20 us).
     min_frames : float
         Frames of rows a disc must span (1 for cyclic decoding; 1.2 leaves a margin).
     default_diameter_m : float, optional
