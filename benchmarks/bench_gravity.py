@@ -66,19 +66,22 @@ def sample_pose(rng, camera, room, settings, k: int, height: float, tilt_max: fl
     raise RuntimeError(f"no pose with exactly {k} fixtures in view")
 
 
-def run_case(camera, room, k: int, height: float, n: int, sigma: float, rng) -> dict:
+def run_case(
+    camera, room, k: int, height: float, n: int, sigma: float, rng, sigma_given: float = 1.0
+) -> dict:
     """Render and locate ``n`` photos with exactly ``k`` fixtures in view."""
-    up = map_up(room.positions, up=getattr(room, "up", None))
+    up = map_up(room.positions, up=room.up)
     errors, wrong_positions, wrong_ids, solvers = [], 0, 0, []
     reasons: list[str] = []
+    settings = camvlp.LocateSettings(gravity_sigma_deg=sigma_given)
     for _ in range(n):
-        settings = camvlp.RenderSettings(
+        render_settings = camvlp.RenderSettings(
             exposure_s=rng.uniform(0.1, 1.0) / 10_000.0, seed=int(rng.integers(1 << 30))
         )
-        pose = sample_pose(rng, camera, room, settings, k, height)
-        photo = camvlp.render(camera, room, pose, settings)
+        pose = sample_pose(rng, camera, room, render_settings, k, height)
+        photo = camvlp.render(camera, room, pose, render_settings)
         g = noisy_gravity(pose, up, sigma, rng)
-        res = camvlp.locate(photo.image, camera, room, gravity=g, gravity_sigma_deg=1.0)
+        res = camvlp.locate(photo.image, camera, room, settings, gravity=g)
         truth = {t.id: t.pixel for t in photo.fixtures if t.in_front}
         bad = 0
         for f in res.fixtures:
@@ -115,8 +118,10 @@ def renders(args) -> int:
     room = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
     rng = np.random.default_rng(args.seed)
     print(f"gravity noise {args.gravity_noise_deg} deg per axis, sigma given 1 deg")
-    print("fixtures | height | located | wrong IDs | positions from wrong IDs | "
-          "mean / median / max error (mm)")
+    print(
+        "fixtures | height | located | wrong IDs | positions from wrong IDs | "
+        "mean / median / max error (mm)"
+    )
     t0 = time.perf_counter()
     for k in (2, 3):
         for height in (0.0, 1.0):
@@ -137,11 +142,13 @@ def sweep(args) -> int:
     room = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
     pts = room.positions
     normals = np.array([f.normal for f in room.fixtures])
-    up = map_up(pts, up=getattr(room, "up", None), normals=normals)
+    up = map_up(pts, up=room.up, normals=normals)
     angles = [0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0]
     rows = []
-    print(f"pixel noise {args.noise_px} px, {args.trials} poses per cell (floor and 1 m up, "
-          "tilts up to 10 deg), sigma given 1 deg; error in mm: mean / median / 95 %")
+    print(
+        f"pixel noise {args.noise_px} px, {args.trials} poses per cell (floor and 1 m up, "
+        "tilts up to 10 deg), sigma given 1 deg; error in mm: mean / median / 95 %"
+    )
     print("gravity error (deg) | 2 fixtures | 3 fixtures | 4 fixtures | 4 fixtures, no gravity")
     for angle in angles:
         rng = np.random.default_rng(args.seed)
@@ -169,8 +176,9 @@ def sweep(args) -> int:
             ok = np.isfinite(e)
             mean, med, p95 = np.mean(e[ok]), np.median(e[ok]), np.percentile(e[ok], 95)
             fails = int((~ok).sum())
-            cells.append(f"{mean:.2f} / {med:.2f} / {p95:.2f}" + (f" ({fails} failed)" if fails
-                                                                  else ""))
+            cells.append(
+                f"{mean:.2f} / {med:.2f} / {p95:.2f}" + (f" ({fails} failed)" if fails else "")
+            )
             row += [mean, med, p95, fails]
         rows.append(row)
         print(f"{angle:g} | " + " | ".join(cells))
@@ -178,7 +186,8 @@ def sweep(args) -> int:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
         header = ["gravity_error_deg"] + [
-            f"{key}_{stat}" for key in ("two", "three", "four", "four_no_gravity")
+            f"{key}_{stat}"
+            for key in ("two", "three", "four", "four_no_gravity")
             for stat in ("mean_mm", "median_mm", "p95_mm", "failures")
         ]
         with open(out / "gravity_error.csv", "w", newline="") as fh:
@@ -195,8 +204,12 @@ def plot(rows: np.ndarray, path: Path, args) -> None:
 
     fig = Figure(figsize=(6.4, 4.4), layout="constrained")
     ax = fig.subplots()
-    labels = ["2 fixtures + gravity", "3 fixtures + gravity", "4 fixtures + gravity",
-              "4 fixtures, no gravity"]
+    labels = [
+        "2 fixtures + gravity",
+        "3 fixtures + gravity",
+        "4 fixtures + gravity",
+        "4 fixtures, no gravity",
+    ]
     for j, label in enumerate(labels):
         ax.plot(rows[:, 0], rows[:, 1 + 4 * j], "o-", label=f"{label} (mean)")
     ax.set_yscale("log")

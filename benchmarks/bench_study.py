@@ -46,8 +46,9 @@ def main() -> None:
     rng = np.random.default_rng(0)
     n = args.poses
     c = np.column_stack([rng.uniform(-1, 1, n), np.zeros(n), rng.uniform(-1, 1, n)])
-    eul = np.column_stack([90 + rng.uniform(-20, 20, n), rng.uniform(-20, 20, n),
-                           rng.uniform(-180, 180, n)])
+    eul = np.column_stack(
+        [90 + rng.uniform(-20, 20, n), rng.uniform(-20, 20, n), rng.uniform(-180, 180, n)]
+    )
     r = np.stack([euler_to_matrix(e) for e in eul])
     uv = round_pixels(project_batch(cam, r, c, pts))
     # the study pipeline: a floor grid with as many points as --poses (square grid)
@@ -55,8 +56,10 @@ def main() -> None:
     step = 2.0 / (side - 1)
     grid_poses = side * side
 
-    print(f"OpenCV {cv2.__version__}, {n} poses per solve run, {grid_poses} per study run, "
-          f"median of {args.repeats}")
+    print(
+        f"OpenCV {cv2.__version__}, {n} poses per solve run, {grid_poses} per study run, "
+        f"median of {args.repeats}"
+    )
     print(f"{'solver':<10} {'solve (poses/s)':>16} {'study (poses/s)':>16}")
     for solver in SOLVERS:
         solve_t, study_t = [], []
@@ -67,8 +70,10 @@ def main() -> None:
             t = time.perf_counter()
             rounding_study(cam, room, euler_deg=(70, 20, 0), step_m=step, solver=solver)
             study_t.append(time.perf_counter() - t)
-        print(f"{solver:<10} {n / statistics.median(solve_t):>16,.0f} "
-              f"{grid_poses / statistics.median(study_t):>16,.0f}")
+        print(
+            f"{solver:<10} {n / statistics.median(solve_t):>16,.0f} "
+            f"{grid_poses / statistics.median(study_t):>16,.0f}"
+        )
 
 
 if __name__ == "__main__":

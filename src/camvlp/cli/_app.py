@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Callable
 from functools import wraps
@@ -78,6 +79,28 @@ OutlierOption = Annotated[
         "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px.",
     ),
 ]
+
+
+#: ``--gravity-sigma-deg``: the accelerometer's uncertainty (checked by :func:`check_positive`).
+GravitySigmaOption = Annotated[
+    float | None,
+    typer.Option(
+        "--gravity-sigma-deg",
+        help="Uncertainty of the gravity direction, degrees (default: the sidecar's, else 1).",
+    ),
+]
+
+
+def parse_gravity(text: str | None) -> list[float] | None:
+    """``--gravity GX,GY,GZ``: three finite numbers, not all zero (None passes)."""
+    if text is None:
+        return None
+    values = parse_floats(text, 3, "--gravity")
+    if not all(math.isfinite(v) for v in values):
+        fail(f"--gravity must be finite, got {text!r}")
+    if not any(values):
+        fail("--gravity has zero length: its direction is not known")
+    return values
 
 
 def check_solver(solver: str, *, allow_locate: bool = False) -> str:

@@ -11,11 +11,13 @@ import cv2
 import typer
 
 from camvlp.io import InputError, load_camera, load_image, load_map
+from camvlp.io.sidecar import load_sidecar
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
 from ._app import (
     EXIT_NOT_LOCATED,
+    GravitySigmaOption,
     OutlierOption,
     SolverOption,
     app,
@@ -23,6 +25,7 @@ from ._app import (
     check_solver,
     fail,
     handle_errors,
+    parse_gravity,
     parse_readout,
 )
 
@@ -57,6 +60,15 @@ def locate_command(
         ),
     ] = None,
     outlier_px: OutlierOption = None,
+    gravity: Annotated[
+        str | None,
+        typer.Option(
+            "--gravity",
+            help="Gravity in the camera frame, GX,GY,GZ (x right, y down, z forward; any "
+            "length): two or three fixtures are then enough. Default: PHOTO.json's, if any.",
+        ),
+    ] = None,
+    gravity_sigma_deg: GravitySigmaOption = None,
 ) -> None:
     """Locate the camera that took PHOTO: position, orientation, fixtures seen.
 
@@ -65,6 +77,8 @@ def locate_command(
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
+    check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
+    g = parse_gravity(gravity)
     given_readout = parse_readout(readout)
     for out in (annotate_path,):
         if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
@@ -72,15 +86,21 @@ def locate_command(
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     image = load_image(photo)
+    sidecar = load_sidecar(photo) if g is None else None
+    if sidecar is not None:
+        g = sidecar.gravity
+        if gravity_sigma_deg is None:
+            gravity_sigma_deg = sidecar.gravity_sigma_deg
     settings = LocateSettings(
         solver=solver,
         readout=given_readout,
         mirrored=mirrored,
         outlier_px=outlier_px,
         keep_stages=debug_dir is not None,
+        gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
     )
     try:
-        result = locate(image, camera, fixture_map, settings)
+        result = locate(image, camera, fixture_map, settings, gravity=g)
     except InputError as exc:
         raise InputError(exc.what, photo) from None
     if annotate_path is not None:
@@ -99,6 +119,13 @@ def locate_command(
         raise typer.Exit(EXIT_NOT_LOCATED)
 
 
+def _tilt(result) -> str:
+    text = f"pose {result.gravity_residual_deg:.2f} deg from gravity"
+    if result.tilt_disagreement_deg == result.tilt_disagreement_deg:  # not NaN
+        text += f", the photo's own tilt {result.tilt_disagreement_deg:.2f} deg"
+    return text
+
+
 def _print_human(result, units: str, photo: Path) -> None:
     if result:
         x, y, z = result.position
@@ -106,6 +133,10 @@ def _print_human(result, units: str, photo: Path) -> None:
         print(f"position      ({x:.4f}, {y:.4f}, {z:.4f}) {units}")
         print(f"orientation   theta = ({tx:.2f}, {ty:.2f}, {tz:.2f}) deg")
         print(f"reprojection  {result.reprojection_rms_px:.3f} px RMS")
+        if result.solver != "pnp":
+            print(
+                f"solver        {result.solver}, {result.fixtures_used} fixtures, {_tilt(result)}"
+            )
     print(
         f"fixtures      {len(result.fixtures)} detected, "
         f"{sum(f.used for f in result.fixtures)} used ({result.readout} readout"

@@ -30,11 +30,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from itertools import combinations
 
+import cv2
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
-from .. import Camera, InputError, Pose
+from camvlp.errors import InputError
+from camvlp.model.camera import Camera, Pose
 
 __all__ = [
     "MAX_TILT_SIGMAS",
@@ -184,8 +184,8 @@ def tilt_rotation(gravity_camera, up_world) -> np.ndarray:
             return np.eye(3)
         # opposite: half a turn about any axis perpendicular to g
         perp = np.cross(g, [1.0, 0.0, 0.0] if abs(g[0]) < 0.9 else [0.0, 1.0, 0.0])
-        return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
-    return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
+        return _rotvec_matrix(np.pi * perp / np.linalg.norm(perp))
+    return _rotvec_matrix(axis / s * np.arctan2(s, c))
 
 
 def tilt_error_deg(rotation, gravity_camera, up_world) -> float:
@@ -304,6 +304,11 @@ class GravityPose:
     def __bool__(self) -> bool:
         return self.pose is not None
 
+    @property
+    def alternative_rms_px(self) -> float:
+        """Reprojection RMS of :attr:`alternative`, pixels (NaN when there is none)."""
+        return float("nan")
+
 
 def _solver_for(n: int) -> str:
     return "gravity-2" if n == 2 else "gravity-3" if n == 3 else "pnp+gravity"
@@ -320,6 +325,11 @@ def _rays(bearings: np.ndarray) -> np.ndarray:
     return b / np.linalg.norm(b, axis=1, keepdims=True)
 
 
+def _rotvec_matrix(rotvec) -> np.ndarray:
+    """Rotation matrix (3, 3) of a rotation vector (axis times angle, radians)."""
+    return cv2.Rodrigues(np.asarray(rotvec, dtype=np.float64).reshape(3, 1))[0]
+
+
 def _basis(up: np.ndarray) -> np.ndarray:
     """Columns e1, e2, up: a right-handed world basis with up as its third axis."""
     helper = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -329,7 +339,7 @@ def _basis(up: np.ndarray) -> np.ndarray:
 
 
 def _about_up(up: np.ndarray, psi: float) -> np.ndarray:
-    return Rotation.from_rotvec(psi * up).as_matrix()
+    return _rotvec_matrix(psi * up)
 
 
 def _valid(pose: Pose, points: np.ndarray, normals: np.ndarray | None) -> tuple[bool, bool]:
@@ -411,7 +421,7 @@ def solve_two_fixtures(bearings, points, gravity, up) -> tuple[list[Pose], str]:
 
 
 def _pose_from(params: np.ndarray, r_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return Rotation.from_rotvec(params[:3]).as_matrix() @ r_ref, params[3:]
+    return _rotvec_matrix(params[:3]) @ r_ref, params[3:]
 
 
 def _reprojection(rot, centre, points, bearings, focal_px) -> np.ndarray:
@@ -433,13 +443,15 @@ def _fit_heading_position(start: Pose, points, bearings, r0, up, focal_px) -> Po
     """Least squares over heading and position with the tilt held."""
     # heading of the start relative to r0
     rel = start.world_from_camera @ r0.T
-    psi0 = float(Rotation.from_matrix(rel).as_rotvec() @ up)
+    psi0 = float(cv2.Rodrigues(rel)[0].reshape(3) @ up)
 
     def fun(p):
         rot = _about_up(up, p[0]) @ r0
         return _reprojection(rot, p[1:], points, bearings, focal_px)
 
     x0 = np.concatenate([[psi0], start.position])
+    from scipy.optimize import least_squares  # imported here: it slows the CLI's start-up
+
     sol = least_squares(fun, x0, method="lm", x_scale="jac")
     return Pose(_about_up(up, sol.x[0]) @ r0, sol.x[1:])
 
@@ -468,6 +480,8 @@ def _refine(
 
     x0 = np.concatenate([np.zeros(3), start.position])
     m = 2 * len(points) + (0 if gravity is None else 3)
+    from scipy.optimize import least_squares  # imported here: it slows the CLI's start-up
+
     sol = least_squares(fun, x0, method="lm" if m >= 6 else "trf", x_scale="jac")
     rot, centre = _pose_from(sol.x, r_ref)
     u, _, vt = np.linalg.svd(rot)

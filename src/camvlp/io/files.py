@@ -286,8 +286,15 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
             fixtures.append(Fixture(fid, np.asarray(pos, dtype=float), **kwargs))
         except ValueError as exc:
             raise InputError(f"{where}: {exc}", p) from None
+    up = None
+    if data.get("up") is not None:
+        up = _matrix(data["up"], (3,), "up", p)
+        if not np.any(up):
+            raise InputError("up must be a non-zero 3-vector (the map's up direction)", p)
     try:
-        return FixtureMap(tuple(fixtures), units=str(units), mode=mode, frame=frame, source=str(p))
+        return FixtureMap(
+            tuple(fixtures), units=str(units), mode=mode, frame=frame, source=str(p), up=up
+        )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
 
@@ -310,7 +317,10 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
         if f.frequency_hz is not None:
             e["frequency_hz"] = float(f.frequency_hz)
         entries.append(e)
-    data = {"units": fm.units, "frame": frame, "fixtures": entries}
+    data: dict[str, Any] = {"units": fm.units, "frame": frame}
+    if fm.up is not None:
+        data["up"] = [float(v) for v in fm.up]
+    data["fixtures"] = entries
     p = Path(path)
     if p.suffix.lower() == ".json":
         p.write_text(json.dumps(data, indent=2) + "\n")

@@ -73,6 +73,9 @@ class FixtureMap:
         The Manchester frame format (also present, unused, in frequency mode).
     source : str
         Where the map was read from ("" when built in code).
+    up : ndarray, shape (3,), or None
+        Unit vector pointing up in the map's frame (against gravity); None when not given.
+        Used only with a measured gravity direction (``locate(..., gravity=...)``).
     """
 
     fixtures: tuple[Fixture, ...]
@@ -80,9 +83,15 @@ class FixtureMap:
     mode: str = "manchester"
     frame: FrameFormat = FrameFormat()  # noqa: RUF009 (frozen, so sharing it is safe)
     source: str = ""
+    up: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "fixtures", tuple(self.fixtures))
+        if self.up is not None:
+            u = np.asarray(self.up, dtype=float).reshape(-1)
+            if u.shape != (3,) or not np.all(np.isfinite(u)) or np.linalg.norm(u) == 0:
+                raise ValueError(f"up must be a non-zero 3-vector, got {self.up!r}")
+            object.__setattr__(self, "up", u / np.linalg.norm(u))
         if self.units not in UNITS_TO_M:
             raise ValueError(f"units must be one of {', '.join(UNITS_TO_M)}, got {self.units!r}")
         if self.mode not in ("manchester", "frequency"):

@@ -15,6 +15,13 @@ import numpy as np
 
 from camvlp.errors import InputError
 from camvlp.geometry.disc import disc_normals, perspective_offset
+from camvlp.geometry.gravity import (
+    GravityPose,
+    check_gravity,
+    check_gravity_view,
+    map_up,
+    solve_pose_gravity,
+)
 from camvlp.geometry.pnp import check_solver
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
@@ -57,6 +64,9 @@ class LocateSettings:
     keep_stages : bool
         Keep the intermediate results (:class:`LocateStages`) in the result's ``stages``, for
         debug pictures.
+    gravity_sigma_deg : float
+        Uncertainty of a gravity direction given to :func:`locate`, degrees: weighs the
+        gravity residual against the reprojection residuals (one pixel each).
     """
 
     solver: str = "iterative"
@@ -67,9 +77,15 @@ class LocateSettings:
     mirrored: bool | None = None
     correct_perspective: bool = True
     keep_stages: bool = False
+    gravity_sigma_deg: float = 1.0
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
+        sigma = self.gravity_sigma_deg
+        if isinstance(sigma, bool) or not (
+            isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
+        ):
+            raise InputError(f"gravity_sigma_deg must be a positive number, got {sigma!r}")
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
 
 
@@ -161,6 +177,16 @@ class LocateResult:
         Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
     stages : LocateStages or None
         Intermediate results, with ``LocateSettings(keep_stages=True)``.
+    solver : str
+        How the pose was solved: ``"pnp"`` (four or more fixtures, no gravity), or with a
+        gravity direction ``"gravity-2"``, ``"gravity-3"`` or ``"pnp+gravity"`` (see
+        :data:`camvlp.geometry.gravity.SOLVER_NAMES`).
+    tilt_disagreement_deg : float
+        With gravity and four or more fixtures: the angle between the down of the pose the
+        pixels alone give and the measured gravity, degrees (NaN otherwise).
+    gravity_residual_deg : float
+        With gravity: the angle between the located pose's down and the measured gravity,
+        degrees (NaN otherwise).
     """
 
     position: np.ndarray | None
@@ -176,6 +202,14 @@ class LocateResult:
     alternative_rms_px: float = float("nan")
     notes: tuple[str, ...] = field(default_factory=tuple)
     stages: LocateStages | None = field(default=None, repr=False, compare=False)
+    solver: str = "pnp"
+    tilt_disagreement_deg: float = float("nan")
+    gravity_residual_deg: float = float("nan")
+
+    @property
+    def fixtures_used(self) -> int:
+        """How many fixtures the pose uses."""
+        return sum(f.used for f in self.fixtures)
 
     def __bool__(self) -> bool:
         return self.position is not None
@@ -209,7 +243,13 @@ class LocateResult:
             "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
             "readout": str(self.readout),
             "mirrored": self.mirrored,
+            "solver": self.solver,
+            "fixtures_used": self.fixtures_used,
         }
+        for key in ("tilt_disagreement_deg", "gravity_residual_deg"):
+            v = getattr(self, key)
+            if np.isfinite(v):
+                d[key] = round(float(v), 4)
         if self.alternative_position is not None:
             d["alternative"] = {
                 "position": arr(self.alternative_position),
@@ -410,14 +450,19 @@ def _solve(
     found: _Identified,
     st: LocateSettings,
     outlier_px: float,
-) -> tuple[PoseEstimate | None, str]:
+    gravity: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[PoseEstimate | GravityPose | None, str]:
     """Stage 5: the pose from the usable fixtures, then again with perspective-corrected
-    centres; (estimate or None when too few fixtures, why it failed or "")."""
+    centres; (estimate or None when too few fixtures, why it failed or "").  With
+    ``gravity`` (its unit direction in the camera frame, the map's up), two fixtures are
+    enough (``geometry/gravity.py``)."""
     usable = found.usable
-    if len(usable) < 4:
+    needed = 4 if gravity is None else 2
+    if len(usable) < needed:
         return None, (
             f"{len(usable)} usable fixture{'s' if len(usable) != 1 else ''} "
-            f"({len(blobs)} detected), at least 4 are needed"
+            f"({len(blobs)} detected), at least {needed} are needed"
+            + (" (or 2 with gravity)" if gravity is None else " with gravity")
         )
     pixels = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
     fixtures = [fixture_map.get(found.ids[k]) for k in usable]
@@ -426,7 +471,18 @@ def _solve(
     if any(f.normal is not None for f in fixtures):
         normals = np.array([f.normal if f.normal is not None else [np.nan] * 3 for f in fixtures])
 
-    def solve(points: np.ndarray) -> PoseEstimate:
+    def solve(points: np.ndarray) -> PoseEstimate | GravityPose:
+        if gravity is not None:
+            return solve_pose_gravity(
+                points,
+                obj,
+                camera,
+                gravity[0],
+                up=gravity[1],
+                normals=normals,
+                sigma_deg=st.gravity_sigma_deg,
+                outlier_px=outlier_px,
+            )
         return estimate_pose(
             points, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
         )
@@ -451,10 +507,11 @@ def _fixture_results(
     blobs,
     decodes,
     found: _Identified,
-    est: PoseEstimate | None,
+    est: PoseEstimate | GravityPose | None,
     extents: np.ndarray,
     frequencies: np.ndarray,
     shown,
+    needed: int = 4,
 ) -> tuple[FixtureResult, ...]:
     """Stage 6: every fixture seen, identified or not, with why it was not used."""
     results = []
@@ -472,7 +529,7 @@ def _fixture_results(
             elif est is not None:
                 reason = "no pose"
             else:
-                reason = "fewer than 4 usable fixtures"
+                reason = f"fewer than {needed} usable fixtures"
         results.append(
             FixtureResult(
                 id=found.ids[k],
@@ -495,6 +552,8 @@ def locate(
     camera: Camera,
     fixture_map: FixtureMap,
     settings: LocateSettings | None = None,
+    *,
+    gravity=None,
 ) -> LocateResult:
     """Locate the camera that took a photograph of a room's coded lights.
 
@@ -508,6 +567,11 @@ def locate(
         The room's fixtures.
     settings : LocateSettings, optional
         Tuning options (``keep_stages=True`` keeps the intermediate results).
+    gravity : array_like, shape (3,), optional
+        The direction of gravity in the camera's frame when the photo was taken (OpenCV axes:
+        x right, y down, z forward; any length), e.g. from the phone's accelerometer.  With
+        it, two or three identified fixtures are enough (``result.solver`` says how the pose
+        was solved); the map's ``up`` says which way is up in its frame.
 
     Returns
     -------
@@ -518,12 +582,25 @@ def locate(
     Raises
     ------
     InputError
-        The image is not an image of the camera's size.
+        The image is not an image of the camera's size; gravity is not three finite numbers,
+        is of zero length, or leaves the map's lights out of the camera's view (a camera
+        looking along gravity, at the floor, cannot see lights that face down).
     """
     st = settings or LocateSettings()
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
     img, mirrored = _prepare(image, camera, st)
+    down = None
+    if gravity is not None:
+        g = check_gravity(gravity)
+        if mirrored:  # the flipped image's x axis is the camera's -x
+            g = g * np.array([-1.0, 1.0, 1.0])
+        normals = np.array(
+            [f.normal if f.normal is not None else [np.nan] * 3 for f in fixture_map.fixtures]
+        )
+        up = map_up(fixture_map.positions, up=fixture_map.up, normals=normals)
+        check_gravity_view(g, camera, up, normals)
+        down = (g, up)
     detection, readout = _detect(img, st.readout or camera.readout, st)
     blobs = detection.blobs
     t1 = time.perf_counter()
@@ -533,7 +610,7 @@ def locate(
     )
     t2 = time.perf_counter()
     found = _identify(blobs, decodes, fixture_map)
-    est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px)
+    est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px, down)
     t3 = time.perf_counter()
 
     width = img.shape[1]
@@ -547,7 +624,9 @@ def locate(
         rotation=None if pose is None else pose.world_from_camera,
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
-        fixtures=_fixture_results(blobs, decodes, found, est, extents, frequencies, shown),
+        fixtures=_fixture_results(
+            blobs, decodes, found, est, extents, frequencies, shown, 4 if down is None else 2
+        ),
         timing_ms={
             "detect": 1e3 * (t1 - t0),
             "decode": 1e3 * (t2 - t1),
@@ -565,4 +644,11 @@ def locate(
         stages=LocateStages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
         if st.keep_stages
         else None,
+        solver="pnp" if not isinstance(est, GravityPose) else est.solver,
+        tilt_disagreement_deg=est.tilt_disagreement_deg
+        if isinstance(est, GravityPose) and pose is not None
+        else float("nan"),
+        gravity_residual_deg=est.gravity_residual_deg
+        if isinstance(est, GravityPose) and pose is not None
+        else float("nan"),
     )
