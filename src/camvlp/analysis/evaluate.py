@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ import numpy as np
 from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import json_number, summary_stats
 from camvlp.io import InputError, load_image
+from camvlp.io.sidecar import load_sidecar
 from camvlp.io.survey_csv import ANGLE_COLUMNS, AXES, REQUIRED_COLUMNS, Survey, read_survey
 from camvlp.io.writers import write_json, write_results_csv
 from camvlp.model.camera import Camera, euler_to_matrix
@@ -93,6 +94,9 @@ class PhotoResult:
         RMS reprojection error of the fixtures used, pixels (NaN when not located).
     time_ms : float
         Time to read and locate the photo, milliseconds.
+    solver : str
+        How the pose was solved (``LocateResult.solver``; "" when the photo was not read).
+        Photos with a sidecar ``PHOTO.json`` giving gravity are located with it.
     """
 
     photo: str
@@ -105,6 +109,7 @@ class PhotoResult:
     fixtures_used: int = 0
     reprojection_rms_px: float = math.nan
     time_ms: float = math.nan
+    solver: str = ""
 
     def __bool__(self) -> bool:
         """True when the photo was located (the package's result convention)."""
@@ -289,8 +294,18 @@ def _locate_one(photo: str, path: Path, true_position, true_euler) -> PhotoResul
         image = load_image(path)
     except InputError as exc:
         return failed(f"unreadable: {exc.what}")
+    settings = _WORKER["settings"]
     try:
-        res = locate(image, _WORKER["camera"], _WORKER["map"], _WORKER["settings"])
+        sidecar = load_sidecar(path)  # gravity from the photo's PHOTO.json, when there is one
+    except InputError as exc:
+        return failed(f"unreadable: {exc}")
+    gravity = None
+    if sidecar is not None:
+        gravity = sidecar.gravity
+        if sidecar.gravity_sigma_deg is not None:
+            settings = replace(settings, gravity_sigma_deg=sidecar.gravity_sigma_deg)
+    try:
+        res = locate(image, _WORKER["camera"], _WORKER["map"], settings, gravity=gravity)
     except InputError as exc:  # e.g. an image of another size than the camera's
         return failed(f"unreadable: {exc.what}")
     except Exception as exc:  # one bad photo must not stop a survey
@@ -298,7 +313,12 @@ def _locate_one(photo: str, path: Path, true_position, true_euler) -> PhotoResul
     detected = len(res.fixtures)
     used = sum(f.used for f in res.fixtures)
     if not res:
-        return failed(f"not located: {res.reason}", fixtures_detected=detected, fixtures_used=used)
+        return failed(
+            f"not located: {res.reason}",
+            fixtures_detected=detected,
+            fixtures_used=used,
+            solver=res.solver,
+        )
     return PhotoResult(
         position=np.asarray(res.position, float),
         euler_deg=np.asarray(res.euler_deg, float),
@@ -307,6 +327,7 @@ def _locate_one(photo: str, path: Path, true_position, true_euler) -> PhotoResul
         fixtures_used=used,
         reprojection_rms_px=float(res.reprojection_rms_px),
         time_ms=1e3 * (time.perf_counter() - t0),
+        solver=res.solver,
         **base,
     )
 

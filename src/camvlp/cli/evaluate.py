@@ -21,6 +21,7 @@ from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
 
 from ._app import (
+    GravitySigmaOption,
     OutlierOption,
     SolverOption,
     app,
@@ -60,6 +61,7 @@ def evaluate_command(
             "(default: automatic, 1 for large errors)."
         ),
     ] = None,
+    gravity_sigma_deg: GravitySigmaOption = None,
 ) -> None:
     """Locate every photo of SURVEY and compare with the true positions.
 
@@ -67,12 +69,14 @@ def evaluate_command(
 
     OUT/error_map.png (the error over the floor) and OUT/positions.png (true and estimated).
 
-    Photos that cannot be read or located are counted and listed; the run goes on.
+    Photos that cannot be read or located are counted and listed; the run goes on. A photo
+    with a sidecar PHOTO.json giving gravity is located with it (two fixtures are enough).
 
     Exit code 0 when the run completed (even with failures), 2 on bad input.
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
+    check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
     if jobs is not None and jobs < 1:
         fail(f"--jobs must be at least 1, got {jobs}")
     if magnify is not None and not magnify > 0:
@@ -83,7 +87,11 @@ def evaluate_command(
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     n_jobs = min(jobs or default_jobs(), len(survey))
-    settings = LocateSettings(solver=solver, outlier_px=outlier_px)
+    settings = LocateSettings(
+        solver=solver,
+        outlier_px=outlier_px,
+        gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
+    )
     evaluation = _run(survey, camera, fixture_map, settings, n_jobs)
     try:
         paths = write_evaluation(evaluation, out, fixture_map=fixture_map, magnify=magnify)

@@ -43,6 +43,7 @@ __all__ = [
     "check_gravity",
     "check_gravity_view",
     "map_up",
+    "refine_gravity_batch",
     "solve_pose_gravity",
     "solve_two_fixtures",
     "tilt_error_deg",
@@ -420,18 +421,6 @@ def solve_two_fixtures(bearings, points, gravity, up) -> tuple[list[Pose], str]:
     return poses, ""
 
 
-def _pose_from(params: np.ndarray, r_ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return _rotvec_matrix(params[:3]) @ r_ref, params[3:]
-
-
-def _reprojection(rot, centre, points, bearings, focal_px) -> np.ndarray:
-    """Residuals on the normalised image plane times the focal length, (2N,) pixels."""
-    pc = (points - centre) @ rot
-    z = pc[:, 2]
-    z = np.where(np.abs(z) < 1e-12, 1e-12, z)
-    return (focal_px * (pc[:, :2] / z[:, None] - bearings)).ravel()
-
-
 def _pixel_residuals(pose: Pose, points, bearings, focal_px) -> np.ndarray:
     pc = pose.to_camera(points)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -439,21 +428,32 @@ def _pixel_residuals(pose: Pose, points, bearings, focal_px) -> np.ndarray:
     return np.where((pc[:, 2] > 0) & np.isfinite(r), r, np.inf)
 
 
-def _fit_heading_position(start: Pose, points, bearings, r0, up, focal_px) -> Pose:
-    """Least squares over heading and position with the tilt held."""
-    # heading of the start relative to r0
-    rel = start.world_from_camera @ r0.T
-    psi0 = float(cv2.Rodrigues(rel)[0].reshape(3) @ up)
+#: Gravity sigma (degrees) that holds the tilt while heading and position are fitted.
+_TILT_HELD_DEG = 1e-4
 
-    def fun(p):
-        rot = _about_up(up, p[0]) @ r0
-        return _reprojection(rot, p[1:], points, bearings, focal_px)
 
-    x0 = np.concatenate([[psi0], start.position])
-    from scipy.optimize import least_squares  # imported here: it slows the CLI's start-up
-
-    sol = least_squares(fun, x0, method="lm", x_scale="jac")
-    return Pose(_about_up(up, sol.x[0]) @ r0, sol.x[1:])
+def _fit_heading_position(
+    starts: list[Pose], points, bearings, gravity, up, focal_px
+) -> list[Pose]:
+    """Least squares over heading and position with the tilt held, from each start."""
+    if not starts:
+        return []
+    rots, centres = refine_gravity_batch(
+        np.array([p.world_from_camera for p in starts]),
+        np.array([p.position for p in starts]),
+        points,
+        np.broadcast_to(bearings, (len(starts), *bearings.shape)),
+        np.broadcast_to(gravity, (len(starts), 3)),
+        up,
+        focal_px=focal_px,
+        sigma_deg=_TILT_HELD_DEG,
+    )
+    out = []
+    for r, c in zip(rots, centres, strict=True):
+        if np.all(np.isfinite(r)) and np.all(np.isfinite(c)):
+            u, _, vt = np.linalg.svd(r)
+            out.append(Pose(u @ vt, c))
+    return out
 
 
 def _refine(
@@ -464,28 +464,29 @@ def _refine(
     *,
     gravity=None,
     up=None,
-    sigma_rad: float = 1.0,
+    sigma_deg: float = 1.0,
     pixel_sigma_px: float = 1.0,
 ) -> Pose:
-    """Full six-degree refinement: reprojection (pixels / pixel sigma) and gravity residual."""
-    r_ref = start.world_from_camera
-    down = None if up is None else -np.asarray(up, float)
-
-    def fun(p):
-        rot, centre = _pose_from(p, r_ref)
-        res = _reprojection(rot, centre, points, bearings, focal_px) / pixel_sigma_px
-        if gravity is None:
-            return res
-        return np.concatenate([res, np.cross(rot @ gravity, down) / sigma_rad])
-
-    x0 = np.concatenate([np.zeros(3), start.position])
-    m = 2 * len(points) + (0 if gravity is None else 3)
-    from scipy.optimize import least_squares  # imported here: it slows the CLI's start-up
-
-    sol = least_squares(fun, x0, method="lm" if m >= 6 else "trf", x_scale="jac")
-    rot, centre = _pose_from(sol.x, r_ref)
-    u, _, vt = np.linalg.svd(rot)
-    return Pose(u @ vt, centre)
+    """Full six-degree refinement: reprojection (pixels / pixel sigma) and gravity residual;
+    without ``gravity``, the reprojection alone."""
+    if gravity is None:  # the pose's own down, weighted by nothing
+        up = np.array([0.0, 0.0, 1.0])
+        gravity, sigma_deg = start.world_from_camera.T @ -up, 1e12
+    rots, centres = refine_gravity_batch(
+        start.world_from_camera[None],
+        start.position[None],
+        points,
+        bearings[None],
+        np.asarray(gravity, float)[None],
+        up,
+        focal_px=focal_px,
+        sigma_deg=sigma_deg,
+        pixel_sigma_px=pixel_sigma_px,
+    )
+    if not (np.all(np.isfinite(rots)) and np.all(np.isfinite(centres))):
+        return start
+    u, _, vt = np.linalg.svd(rots[0])
+    return Pose(u @ vt, centres[0])
 
 
 def solve_pose_gravity(
@@ -559,7 +560,6 @@ def solve_pose_gravity(
         )
     bearings = camera.undistort_pixels(img)
     focal = camera.focal_px
-    sigma = float(np.radians(sigma_deg))
     if n == 2:
         return _two(bearings, obj, g, u, nrm, focal)
 
@@ -577,7 +577,7 @@ def solve_pose_gravity(
             focal,
             gravity=g,
             up=u,
-            sigma_rad=sigma,
+            sigma_deg=sigma_deg,
             pixel_sigma_px=pixel_sigma_px,
         )
         res = _pixel_residuals(pose, obj[idx], bearings[idx], focal)
@@ -681,26 +681,24 @@ def _two(bearings, obj, g, u, nrm, focal) -> GravityPose:
 
 def _least_squares(bearings, obj, g, u, nrm, focal) -> tuple[Pose | None, str]:
     """Heading and position with the tilt held, from the two-fixture solutions of pairs."""
-    r0 = tilt_rotation(g, u)
     n = obj.shape[0]
     pairs = sorted(
         combinations(range(n), 2),
         key=lambda ij: -float(np.linalg.norm(np.cross(obj[ij[0]] - obj[ij[1]], u))),
     )[:4]
-    best, best_cost, reasons = None, np.inf, []
+    starts, reasons = [], []
     for i, j in pairs:
-        starts, reason = solve_two_fixtures(bearings[[i, j]], obj[[i, j]], g, u)
+        found, reason = solve_two_fixtures(bearings[[i, j]], obj[[i, j]], g, u)
         reasons += [reason] if reason else []
-        for start in starts:
-            if not _valid(start, obj[[i, j]], None)[0]:
-                continue
-            pose = _fit_heading_position(start, obj, bearings, r0, u, focal)
-            in_front, lit = _valid(pose, obj, nrm)
-            if not (in_front and lit):
-                continue
-            cost = float(np.sum(_pixel_residuals(pose, obj, bearings, focal) ** 2))
-            if cost < best_cost:
-                best, best_cost = pose, cost
+        starts += [p for p in found if _valid(p, obj[[i, j]], None)[0]]
+    best, best_cost = None, np.inf
+    for pose in _fit_heading_position(starts, obj, bearings, g, u, focal):
+        in_front, lit = _valid(pose, obj, nrm)
+        if not (in_front and lit):
+            continue
+        cost = float(np.sum(_pixel_residuals(pose, obj, bearings, focal) ** 2))
+        if cost < best_cost:
+            best, best_cost = pose, cost
     if best is None:
         return None, (
             reasons[0]
@@ -709,3 +707,99 @@ def _least_squares(bearings, obj, g, u, nrm, focal) -> tuple[Pose | None, str]:
             "on its lit side"
         )
     return best, ""
+
+
+def refine_gravity_batch(
+    rotations,
+    centres,
+    points,
+    bearings,
+    gravity,
+    up,
+    *,
+    focal_px: float,
+    sigma_deg: float = 1.0,
+    pixel_sigma_px: float = 1.0,
+    mask=None,
+    iterations: int = 12,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Many poses refined at once on the cost of :func:`solve_pose_gravity`.
+
+    Gauss-Newton (forward-difference Jacobians, a little Levenberg-Marquardt damping) on the
+    reprojection residuals (pixels / ``pixel_sigma_px``) and the gravity residual
+    (``(R g) x down / sigma``), for studies that start each pose near its answer (the
+    true pose): it finds the same local minimum as the solver, without its search for a
+    start.
+
+    Parameters
+    ----------
+    rotations : array_like, shape (B, 3, 3)
+        Starting camera-to-world rotations.
+    centres : array_like, shape (B, 3)
+        Starting camera centres, map units.
+    points : array_like, shape (N, 3)
+        Fixture positions, map units.
+    bearings : array_like, shape (B, N, 2)
+        Undistorted normalised image coordinates of each fixture in each pose.
+    gravity : array_like, shape (B, 3)
+        Measured gravity per pose, camera frame (any length).
+    up : array_like, shape (3,)
+        The map's up.
+    focal_px : float
+        Focal length (pixels per unit of normalised coordinates).
+    sigma_deg, pixel_sigma_px : float
+        Uncertainties of the gravity direction (degrees) and of the centres (pixels).
+    mask : array_like of bool, shape (B, N), optional
+        Which fixtures each pose uses (default all).
+    iterations : int
+        Gauss-Newton steps.
+
+    Returns
+    -------
+    rotations : ndarray, shape (B, 3, 3)
+    centres : ndarray, shape (B, 3)
+    """
+    from camvlp.geometry.pnp import rodrigues_batch
+
+    r0 = np.asarray(rotations, float).reshape(-1, 3, 3)
+    c = np.asarray(centres, float).reshape(-1, 3).copy()
+    x = np.asarray(points, float).reshape(-1, 3)
+    b_obs = np.asarray(bearings, float).reshape(r0.shape[0], x.shape[0], 2)
+    g = np.asarray(gravity, float).reshape(-1, 3)
+    g = g / np.linalg.norm(g, axis=1, keepdims=True)
+    down = -np.asarray(up, float) / np.linalg.norm(up)
+    w = np.ones(b_obs.shape[:2]) if mask is None else np.asarray(mask, float)
+    sigma = np.radians(sigma_deg)
+    nb = r0.shape[0]
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        """Residuals (7B, M) of the parameters (7, B, 6): each pose and its 6 nudges."""
+        rot = (rodrigues_batch(q[..., :3].reshape(-1, 3)).reshape(7, nb, 3, 3)) @ r0
+        pc = np.einsum("kbni,kbij->kbnj", x[None, None] - q[..., None, 3:], rot)
+        z = np.where(np.abs(pc[..., 2]) < 1e-12, 1e-12, pc[..., 2])
+        rp = focal_px * (pc[..., :2] / z[..., None] - b_obs) * w[..., None] / pixel_sigma_px
+        gw = np.einsum("kbij,bj->kbi", rot, g)
+        rg = np.stack(
+            [
+                gw[..., 1] * down[2] - gw[..., 2] * down[1],
+                gw[..., 2] * down[0] - gw[..., 0] * down[2],
+                gw[..., 0] * down[1] - gw[..., 1] * down[0],
+            ],
+            axis=-1,
+        )
+        return np.concatenate([rp.reshape(7, nb, -1), rg / sigma], axis=2)
+
+    p = np.concatenate([np.zeros((nb, 3)), c], axis=1)
+    step = np.array([1e-7] * 3 + [1e-7 * max(1.0, float(np.abs(x).max()))] * 3)
+    nudges = np.concatenate([np.zeros((1, 6)), np.diag(step)])[:, None, :]  # (7, 1, 6)
+    for _ in range(iterations):
+        f = residuals(p[None] + nudges)
+        jac = np.moveaxis((f[1:] - f[0]) / step[:, None, None], 0, -1)  # (B, M, 6)
+        jtj = np.einsum("bmi,bmj->bij", jac, jac)
+        jtf = np.einsum("bmi,bm->bi", jac, f[0])
+        damp = 1e-9 * np.trace(jtj, axis1=1, axis2=2)[:, None, None] * np.eye(6)
+        delta = np.linalg.solve(jtj + damp, jtf[..., None])[..., 0]
+        p = p - delta
+        if np.all(np.abs(delta) <= 1e-12 * (1.0 + np.abs(p))):
+            break
+    return rodrigues_batch(p[:, :3]) @ r0, p[:, 3:]
