@@ -67,13 +67,21 @@ def sample_pose(rng, camera, room, settings, k: int, height: float, tilt_max: fl
 
 
 def run_case(
-    camera, room, k: int, height: float, n: int, sigma: float, rng, sigma_given: float = 1.0
+    camera,
+    room,
+    k: int,
+    height: float,
+    n: int,
+    sigma: float,
+    rng,
+    sigma_given: float = 1.0,
+    centre_sigma: float = 1.0,
 ) -> dict:
     """Render and locate ``n`` photos with exactly ``k`` fixtures in view."""
     up = map_up(room.positions, up=room.up)
     errors, wrong_positions, wrong_ids, solvers = [], 0, 0, []
     reasons: list[str] = []
-    settings = camvlp.LocateSettings(gravity_sigma_deg=sigma_given)
+    settings = camvlp.LocateSettings(gravity_sigma_deg=sigma_given, centre_sigma_px=centre_sigma)
     for _ in range(n):
         render_settings = camvlp.RenderSettings(
             exposure_s=rng.uniform(0.1, 1.0) / 10_000.0, seed=int(rng.integers(1 << 30))
@@ -117,15 +125,28 @@ def renders(args) -> int:
     camera = camvlp.load_camera(ROOT / "examples/thesis_camera.yaml")
     room = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
     rng = np.random.default_rng(args.seed)
-    print(f"gravity noise {args.gravity_noise_deg} deg per axis, sigma given 1 deg")
+    print(
+        f"gravity noise {args.gravity_noise_deg} deg per axis; given sigmas: gravity "
+        f"{args.sigma_deg} deg, centres {args.centre_sigma_px} px"
+    )
     print(
         "fixtures | height | located | wrong IDs | positions from wrong IDs | "
         "mean / median / max error (mm)"
     )
     t0 = time.perf_counter()
-    for k in (2, 3):
+    for k in map(int, args.fixtures.split(",")):
         for height in (0.0, 1.0):
-            r = run_case(camera, room, k, height, args.n, args.gravity_noise_deg, rng)
+            r = run_case(
+                camera,
+                room,
+                k,
+                height,
+                args.n,
+                args.gravity_noise_deg,
+                rng,
+                args.sigma_deg,
+                args.centre_sigma_px,
+            )
             print(
                 f"{k} | {height:g} m | {r['located']} / {r['n']} | {r['wrong_ids']} | "
                 f"{r['wrong_positions']} | {r['mean_mm']:.2f} / {r['median_mm']:.2f} / "
@@ -229,6 +250,9 @@ def main() -> int:
     ap.add_argument("--n", type=int, default=20, help="photos per case (renders)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--gravity-noise-deg", type=float, default=0.5)
+    ap.add_argument("--fixtures", default="2,3", help="fixtures in view, e.g. 2,3 (renders)")
+    ap.add_argument("--sigma-deg", type=float, default=1.0, help="gravity sigma given")
+    ap.add_argument("--centre-sigma-px", type=float, default=1.0, help="centre sigma given")
     ap.add_argument("--sweep", action="store_true", help="the geometry sweep instead")
     ap.add_argument("--trials", type=int, default=300, help="poses per cell (sweep)")
     ap.add_argument("--noise-px", type=float, default=0.1, help="centre noise, px (sweep)")

@@ -188,6 +188,39 @@ def _noise_options(noise_px: float, survey_error_m: float, trials: int, seed: in
     return {"noise_px": noise_px, "survey_error_m": survey_error_m, "trials": trials, "seed": seed}
 
 
+def _gravity_options(gravity: bool, sigma_deg: float, min_fixtures: int | None) -> dict:
+    """The coverage study's gravity keyword arguments from --gravity, --gravity-sigma-deg and
+    --min-fixtures, or a usage error naming the option at fault."""
+    if min_fixtures is not None and not gravity and min_fixtures != 4:
+        fail(f"--min-fixtures {min_fixtures} needs --gravity (without it a fix needs 4)")
+    if min_fixtures is not None and min_fixtures not in (2, 3, 4):
+        fail(f"--min-fixtures must be 2, 3 or 4, got {min_fixtures}")
+    if not sigma_deg > 0:
+        fail(f"--gravity-sigma-deg must be a positive number, got {sigma_deg}")
+    return {"gravity": gravity, "gravity_sigma_deg": sigma_deg, "min_fixtures": min_fixtures}
+
+
+def _coverage_lines(s: dict, tilt_max: float, height: float, noise_px: float) -> list[str]:
+    """The coverage command's summary ``s`` as text lines."""
+    how = s["solver"]
+    four = ""
+    if s["gravity"]:
+        how = (
+            f"gravity (sigma {s['gravity_sigma_deg']:g} deg), at least {s['min_fixtures']} fixtures"
+        )
+        four = f" (four fixtures without gravity: {s['mean_fix_fraction_four_no_gravity']:.1%})"
+    return [
+        f"coverage: {s['floor_points']} floor points x {s['orientations']} orientations "
+        f"(tilt up to {tilt_max:g} deg), height {height:g} m, {how}",
+        f"a frame lasts {s['frame_rows']:.1f} rows; fixtures must span {s['min_rows']:.1f}",
+        f"fix possible: {s['mean_fix_fraction']:.1%} of poses; "
+        f"{s['floor_fraction_any_fix']:.1%} of the floor for some tilt, "
+        f"{s['floor_fraction_all_fix']:.1%} for every tilt{four}",
+        f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
+        f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
+    ]
+
+
 def _mm(v: float | None) -> str:
     return format_length(v, "mm")
 
@@ -518,8 +551,29 @@ def coverage(
     rounding: RoundOpt = True,
     out: OutOpt = None,
     as_json: JsonOpt = False,
+    gravity: Annotated[
+        bool,
+        typer.Option(
+            "--gravity",
+            help="The camera knows which way is down (accelerometer): two or three fixtures "
+            "can be enough (see --min-fixtures).",
+        ),
+    ] = False,
+    gravity_sigma_deg: Annotated[
+        float,
+        typer.Option(
+            "--gravity-sigma-deg", help="With --gravity: the accelerometer's error, deg per axis."
+        ),
+    ] = 1.0,
+    min_fixtures: Annotated[
+        int | None,
+        typer.Option(
+            "--min-fixtures", help="Fixtures a fix needs: 2, 3 or 4 with --gravity (default 2)."
+        ),
+    ] = None,
 ) -> None:
     """Where on the floor a fix is possible over a range of tilts, and its expected error."""
+    grav = _gravity_options(gravity, gravity_sigma_deg, min_fixtures)
     _check(
         solver,
         noise_px,
@@ -553,16 +607,7 @@ def coverage(
         solver=solver,
         rounding=rounding,
         **grid,
+        **grav,
     )
-    s = res.summary()
-    lines = [
-        f"coverage: {s['floor_points']} floor points x {s['orientations']} orientations "
-        f"(tilt up to {tilt_max:g} deg), height {height:g} m, {solver}",
-        f"a frame lasts {s['frame_rows']:.1f} rows; fixtures must span {s['min_rows']:.1f}",
-        f"fix possible: {s['mean_fix_fraction']:.1%} of poses; "
-        f"{s['floor_fraction_any_fix']:.1%} of the floor for some tilt, "
-        f"{s['floor_fraction_all_fix']:.1%} for every tilt",
-        f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
-        f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
-    ]
+    lines = _coverage_lines(res.summary(), tilt_max, height, noise_px)
     _finish(res, "coverage", study_plots.plot_coverage, out, as_json, lines)

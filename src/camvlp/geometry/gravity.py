@@ -118,15 +118,16 @@ def map_up(positions, *, up=None, normals=None) -> np.ndarray:
     -------
     ndarray, shape (3,)
         Without ``up``: the normal of the fixtures' plane on the side the lights face away
-        from (lights face down into the room, so up is opposite to their normals); fixtures
-        without normals are taken to hang above the map's origin (the floor), so up points
-        from the origin towards their plane.
+        from (lights face down into the room, so up is opposite to their normals; with
+        fewer than three fixtures, or not in one plane, the opposite of their mean normal);
+        fixtures without normals are taken to hang above the map's origin (the floor), so
+        up points from the origin towards their plane.
 
     Raises
     ------
     InputError
-        ``up`` is not a non-zero finite 3-vector; or without ``up``, the fixtures do not
-        span a plane, are not in one, or the side of the plane cannot be told.
+        ``up`` is not a non-zero finite 3-vector; or without ``up`` and normals, the
+        fixtures are not in one plane, or it passes through the origin.
     """
     if up is not None:
         u = np.asarray(up, dtype=float).reshape(-1)
@@ -135,29 +136,34 @@ def map_up(positions, *, up=None, normals=None) -> np.ndarray:
         return u / np.linalg.norm(u)
     p = np.asarray(positions, dtype=float).reshape(-1, 3)
     hint = "give the map an 'up' key (for example up: [0, 0, 1])"
-    if p.shape[0] < 3:
-        raise InputError(f"the map has fewer than three fixtures and no 'up': {hint}")
-    centre = p.mean(axis=0)
-    _, s, vt = np.linalg.svd(p - centre)
-    if s[1] <= 1e-6 * s[0]:
-        raise InputError(f"the map's fixtures are on one line and it has no 'up': {hint}")
-    if s[2] > 1e-3 * s[0]:
-        raise InputError(f"the map's fixtures are not in one plane and it has no 'up': {hint}")
-    n = vt[2]
+    facing = None  # the mean way the lights face, when the map says
     if normals is not None:
         nr = np.asarray(normals, dtype=float).reshape(-1, 3)
         known = nr[np.all(np.isfinite(nr), axis=1)]
-        if known.size:
-            side = float(np.sum(known @ n))
-            if abs(side) > 1e-6:
-                return -n * np.sign(side)
-    side = float(centre @ n)
-    if abs(side) <= 1e-6 * s[0]:
+        if known.size and np.linalg.norm(known.mean(axis=0)) > 0.5:
+            facing = known.mean(axis=0) / np.linalg.norm(known.mean(axis=0))
+    plane = None
+    if p.shape[0] >= 3:
+        centre = p.mean(axis=0)
+        _, s, vt = np.linalg.svd(p - centre)
+        if s[1] > 1e-6 * s[0] and s[2] <= 1e-3 * s[0]:
+            plane = vt[2]
+    if facing is not None:
+        if plane is None:
+            return -facing
+        return -plane * np.sign(float(plane @ facing)) if abs(plane @ facing) > 1e-6 else -facing
+    if plane is None:
+        raise InputError(
+            f"the map's fixtures do not span one plane and have no normals, so which way is "
+            f"up is not known: {hint}"
+        )
+    side = float(p.mean(axis=0) @ plane)
+    if abs(side) <= 1e-6 * float(np.ptp(p, axis=0).max()):
         raise InputError(
             f"the map's fixtures are in a plane through its origin and have no normals, so "
             f"which way is up is not known: {hint}"
         )
-    return n * np.sign(side)
+    return plane * np.sign(side)
 
 
 def tilt_rotation(gravity_camera, up_world) -> np.ndarray:

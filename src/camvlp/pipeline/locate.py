@@ -66,7 +66,11 @@ class LocateSettings:
         debug pictures.
     gravity_sigma_deg : float
         Uncertainty of a gravity direction given to :func:`locate`, degrees: weighs the
-        gravity residual against the reprojection residuals (one pixel each).
+        gravity residual against the reprojection residuals.
+    centre_sigma_px : float
+        With gravity: the uncertainty of a detected disc centre, pixels, which weighs the
+        reprojection residuals against the gravity residual.  1 px suits real photos; the
+        simulator's are good to a few hundredths of a pixel.
     """
 
     solver: str = "iterative"
@@ -78,14 +82,16 @@ class LocateSettings:
     correct_perspective: bool = True
     keep_stages: bool = False
     gravity_sigma_deg: float = 1.0
+    centre_sigma_px: float = 1.0
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
-        sigma = self.gravity_sigma_deg
-        if isinstance(sigma, bool) or not (
-            isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
-        ):
-            raise InputError(f"gravity_sigma_deg must be a positive number, got {sigma!r}")
+        for name in ("gravity_sigma_deg", "centre_sigma_px"):
+            sigma = getattr(self, name)
+            if isinstance(sigma, bool) or not (
+                isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
+            ):
+                raise InputError(f"{name} must be a positive number, got {sigma!r}")
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
 
 
@@ -481,6 +487,7 @@ def _solve(
                 up=gravity[1],
                 normals=normals,
                 sigma_deg=st.gravity_sigma_deg,
+                pixel_sigma_px=st.centre_sigma_px,
                 outlier_px=outlier_px,
             )
         return estimate_pose(
@@ -569,7 +576,8 @@ def locate(
         Tuning options (``keep_stages=True`` keeps the intermediate results).
     gravity : array_like, shape (3,), optional
         The direction of gravity in the camera's frame when the photo was taken (OpenCV axes:
-        x right, y down, z forward; any length), e.g. from the phone's accelerometer.  With
+        x right, y down, z forward, of the camera itself, so of a mirrored photo once flipped
+        back; any length), e.g. from the phone's accelerometer.  With
         it, two or three identified fixtures are enough (``result.solver`` says how the pose
         was solved); the map's ``up`` says which way is up in its frame.
 
@@ -592,9 +600,7 @@ def locate(
     img, mirrored = _prepare(image, camera, st)
     down = None
     if gravity is not None:
-        g = check_gravity(gravity)
-        if mirrored:  # the flipped image's x axis is the camera's -x
-            g = g * np.array([-1.0, 1.0, 1.0])
+        g = check_gravity(gravity)  # the camera's own frame: that of the photo unmirrored
         normals = np.array(
             [f.normal if f.normal is not None else [np.nan] * 3 for f in fixture_map.fixtures]
         )

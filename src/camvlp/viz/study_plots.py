@@ -167,24 +167,39 @@ def plot_monte_carlo(study: MonteCarloStudy, path: str | Path) -> None:
     fig.savefig(path)
 
 
-def draw_coverage(ax_fix, ax_error, study: CoverageStudy) -> None:
-    """Two maps: fraction of orientations with a fix, and the mean error where there is one."""
+def _draw_fix_fraction(ax, study: CoverageStudy, fraction: np.ndarray, what: str, vmax) -> None:
+    """One map of the fraction of orientations with a fix; ``what`` heads its title."""
     draw_heat_map(
-        ax_fix,
+        ax,
         study.u_m,
         study.v_m,
-        study.fraction,
+        fraction,
         "Fraction of orientations with a fix",
         study.plane,
         cmap="magma",
         vmin=0.0,
-        vmax=float(study.fraction.max()) if study.fix.any() else 1.0,
+        vmax=vmax,
     )
     t = np.ptp(study.euler_deg[:, 0]) / 2
-    ax_fix.set_title(
-        f"Fix possible: ≥ 4 fixtures in view and decodable\n"
-        f"tilts up to ±{t:g}° about x and y, camera height {study.height_m:g} m"
+    ax.set_title(
+        f"Fix possible: {what}\ntilts up to ±{t:g}° about x and y, camera height "
+        f"{study.height_m:g} m\nmean {fraction.mean():.0%}"
     )
+
+
+def draw_coverage(ax_fix, ax_error, study: CoverageStudy, ax_four=None) -> None:
+    """Two maps: fraction of orientations with a fix, and the mean error where there is one.
+
+    With gravity, ``ax_four`` (when given) gets a third: where four fixtures without gravity
+    give a fix, on the same colour scale as ``ax_fix``.
+    """
+    four = study.gravity and ax_four is not None
+    fractions = [study.fraction, study.fraction_four] if four else [study.fraction]
+    vmax = max(float(f.max()) for f in fractions) if study.fix.any() else 1.0
+    what = f"≥ {study.min_fixtures} fixtures in view and decodable"
+    _draw_fix_fraction(ax_fix, study, study.fraction, what + (" + gravity" * study.gravity), vmax)
+    if four:
+        _draw_fix_fraction(ax_four, study, study.fraction_four, "≥ 4 fixtures, no gravity", vmax)
     draw_heat_map(
         ax_error,
         study.u_m,
@@ -193,14 +208,20 @@ def draw_coverage(ax_fix, ax_error, study: CoverageStudy) -> None:
         "Mean position error (mm)",
         study.plane,
     )
-    ax_error.set_title(
-        f"Mean position error where a fix is possible\n"
-        f"σ = {study.noise_px:g} px detection noise, {study.solver}"
-    )
+    noise = f"σ = {study.noise_px:g} px detection noise"
+    if study.gravity:
+        noise += f", gravity σ = {study.gravity_sigma_deg:g}° per axis"
+    ax_error.set_title(f"Mean position error where a fix is possible\n{noise}, {study.solver}")
 
 
 def plot_coverage(study: CoverageStudy, path: str | Path) -> None:
-    """Write :func:`draw_coverage` as a PNG, the two maps side by side."""
-    fig = new_figure(12.0, 5.0)
-    draw_coverage(*fig.subplots(1, 2), study)
+    """Write :func:`draw_coverage` as a PNG, the maps side by side (with gravity: the
+    four-fixture map without gravity first, then the one with gravity, then the error)."""
+    if not study.gravity:
+        fig = new_figure(12.0, 5.0)
+        draw_coverage(*fig.subplots(1, 2), study)
+    else:
+        fig = new_figure(18.0, 5.0)
+        ax_four, ax_fix, ax_error = fig.subplots(1, 3)
+        draw_coverage(ax_fix, ax_error, study, ax_four=ax_four)
     fig.savefig(path)

@@ -18,6 +18,7 @@ __all__ = [
     "fixture_index",
     "map_m",
     "nonneg",
+    "observed_pixels",
     "poses",
     "position_errors",
     "rotations",
@@ -129,10 +130,14 @@ def study_inputs(
     survey_error_m: float = 0.0,
     trials: int = 1,
     seed: int = 0,
+    min_fixtures: int = 4,
 ) -> StudyInputs:
-    """Check a study's common arguments (ValueError naming the one at fault) and bundle them."""
+    """Check a study's common arguments (ValueError naming the one at fault) and bundle them.
+
+    ``min_fixtures`` is the fewest fixtures the map may have (see :func:`map_m`).
+    """
     check_study_solver(solver)
-    pts = map_m(fixture_map)
+    pts = map_m(fixture_map, min_fixtures)
     noise_px = nonneg(noise_px, "noise_px")
     survey_error_m = nonneg(survey_error_m, "survey_error_m")
     noisy = noise_px > 0 or survey_error_m > 0
@@ -147,12 +152,13 @@ def round_pixels(uv: np.ndarray) -> np.ndarray:
     return np.floor(uv + 0.5)
 
 
-def map_m(fixture_map: FixtureMap) -> np.ndarray:
-    """The map's fixture centres in metres, shape (N, 3); ValueError with fewer than four."""
+def map_m(fixture_map: FixtureMap, least: int = 4) -> np.ndarray:
+    """The map's fixture centres in metres, shape (N, 3); ValueError with fewer than ``least``
+    (four, or two or three when the camera also knows gravity)."""
     pts = fixture_map.positions * fixture_map.unit_m
-    if pts.shape[0] < 4:
+    if pts.shape[0] < least:
         raise ValueError(
-            f"the map has {pts.shape[0]} fixtures; a position needs at least 4 "
+            f"the map has {pts.shape[0]} fixtures; a position needs at least {least} "
             f"({fixture_map.source or 'map'})"
         )
     return pts
@@ -195,6 +201,21 @@ def poses(positions_m, euler_deg) -> tuple[np.ndarray, np.ndarray]:
     return c, e
 
 
+def observed_pixels(
+    uv: np.ndarray, inputs: StudyInputs, image_offset: np.ndarray | None = None
+) -> np.ndarray:
+    """True image points (B, N, 2) as a study's solver sees them, pixels: rounded (when
+    ``inputs.rounding``), moved by ``image_offset`` (B, N, 2) and given Gaussian noise of
+    ``inputs.noise_px`` drawn from ``inputs.rng``."""
+    if inputs.rounding:
+        uv = round_pixels(uv)
+    if image_offset is not None:
+        uv = uv + image_offset
+    if inputs.noise_px > 0:
+        uv = uv + inputs.rng.normal(0.0, inputs.noise_px, uv.shape)
+    return uv
+
+
 def _solver_inputs(
     uv: np.ndarray,
     fixtures_m: np.ndarray,
@@ -205,12 +226,8 @@ def _solver_inputs(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The image points (B, N, 2) and world points the solver is given for one chunk."""
     b, n = uv.shape[:2]
-    if inputs.rounding:
-        uv = round_pixels(uv)
-    if image_offset is not None:
-        uv = uv + image_offset[sl]
-    if inputs.noise_px > 0:
-        uv = uv + inputs.rng.normal(0.0, inputs.noise_px, (b, n, 2))
+    offset = None if image_offset is None else image_offset[sl]
+    uv = observed_pixels(uv, inputs, offset)
     obj = fixtures_m
     if world_offset is not None or inputs.survey_error_m > 0:
         obj = np.broadcast_to(fixtures_m, (b, n, 3)).copy()

@@ -13,11 +13,13 @@ from camvlp.analysis.study.common import (
     StudyInputs,
     mean_over_last_axis,
     nonneg,
+    observed_pixels,
     position_errors,
     rotations,
     study_inputs,
 )
 from camvlp.geometry.disc import rim_points
+from camvlp.geometry.gravity import refine_gravity_batch
 from camvlp.geometry.pnp import project_batch
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
@@ -34,7 +36,8 @@ class CoverageStudy:
 
     A fix needs at least four fixtures, not all on one line, each facing the camera, with
     its whole disc inside the image and spanning at least ``min_rows`` rows along the
-    readout axis.
+    readout axis; with gravity, at least ``min_fixtures`` (2, 3 or 4), not all on one line
+    along gravity.
 
     Attributes
     ----------
@@ -62,6 +65,15 @@ class CoverageStudy:
     noise_px : float
     rounding : bool
     seed : int
+    gravity : bool
+        Whether the camera knows the direction of gravity.
+    gravity_sigma_deg : float
+        Its uncertainty (the noise drawn, per axis, and the weight of the gravity residual),
+        degrees; NaN without gravity.
+    min_fixtures : int
+        Fixtures a fix needs.
+    fix_four : ndarray of bool, shape (NV, NU, O), or None
+        Where four fixtures without gravity give a fix (None: the same as ``fix``).
     """
 
     plane: str
@@ -79,11 +91,20 @@ class CoverageStudy:
     noise_px: float
     rounding: bool
     seed: int
+    gravity: bool = False
+    gravity_sigma_deg: float = float("nan")
+    min_fixtures: int = 4
+    fix_four: np.ndarray | None = None
 
     @property
     def fraction(self) -> np.ndarray:
         """Fraction of orientations with a fix at each floor point, shape (NV, NU)."""
         return self.fix.mean(axis=-1)
+
+    @property
+    def fraction_four(self) -> np.ndarray:
+        """The same for four fixtures without gravity, shape (NV, NU)."""
+        return (self.fix if self.fix_four is None else self.fix_four).mean(axis=-1)
 
     @property
     def error_map_m(self) -> np.ndarray:
@@ -111,6 +132,10 @@ class CoverageStudy:
                 "floor_fraction_any_fix": float((frac > 0).mean()),
                 "floor_fraction_all_fix": float((frac == 1).mean()),
                 "fixes": int(self.fix.sum()),
+                "gravity": self.gravity,
+                "gravity_sigma_deg": self.gravity_sigma_deg if self.gravity else None,
+                "min_fixtures": self.min_fixtures,
+                "mean_fix_fraction_four_no_gravity": float(self.fraction_four.mean()),
                 **{k: v for k, v in stats.items() if k not in ("poses", "failures")},
                 "solves": stats["poses"],
                 "failures": stats["failures"],
@@ -163,6 +188,9 @@ def coverage_study(
     rounding: bool = True,
     n_rim: int = 16,
     progress: Progress | None = None,
+    gravity: bool = False,
+    gravity_sigma_deg: float = 1.0,
+    min_fixtures: int | None = None,
 ) -> CoverageStudy:
     """Map of the floor where a fix is possible, over a range of tilts, and its error.
 
@@ -205,13 +233,32 @@ def coverage_study(
         As for :func:`~camvlp.analysis.study.rounding.rounding_study`.
     n_rim : int
         Points per rim (8 or more).
+    gravity : bool
+        The camera knows the direction of gravity (a phone's accelerometer): a fix needs
+        ``min_fixtures`` fixtures, not all on a line along the map's up (``FixtureMap.up``,
+        else away from the floor), and its error comes from the gravity solver's cost
+        (:func:`~camvlp.geometry.gravity.refine_gravity_batch`: reprojection residuals of one
+        pixel each and a gravity residual weighted by ``gravity_sigma_deg``), minimised from
+        the true pose, with gravity drawn with a Gaussian error of ``gravity_sigma_deg`` per
+        axis.
+    gravity_sigma_deg : float
+        The accelerometer's uncertainty, degrees.
+    min_fixtures : int, optional
+        Fixtures a fix needs: 2, 3 or 4 with gravity (default 2), 4 without.
 
     Returns
     -------
     CoverageStudy
     """
+    least = _min_fixtures(gravity, gravity_sigma_deg, min_fixtures)
     inp = study_inputs(
-        fixture_map, solver=solver, rounding=rounding, noise_px=noise_px, trials=trials, seed=seed
+        fixture_map,
+        solver=solver,
+        rounding=rounding,
+        noise_px=noise_px,
+        trials=trials,
+        seed=seed,
+        min_fixtures=least,
     )
     rt = _row_time(camera, row_time_s, chip_rate_hz, min_frames, n_rim)
     pts = inp.fixtures_m
@@ -221,8 +268,19 @@ def coverage_study(
     normals, rims = _fixture_discs(fixture_map, plane, default_diameter_m, int(n_rim))
     frame_rows = fixture_map.frame.n_chips / (chip_rate_hz * rt)
     eul, rots = _orientations(base_euler_deg, tilt_max_deg, tilt_step_deg)
-    usable, fix, errors = _sweep(
-        camera, inp, pos.reshape(-1, 3), rots, normals, rims, min_frames * frame_rows, progress
+    grav = None
+    if gravity:
+        up = _floor_up(pts, plane) if fixture_map.up is None else fixture_map.up
+        grav = _Gravity(up, float(gravity_sigma_deg), least)
+    usable, fix, fix_four, errors = _sweep(
+        camera,
+        inp,
+        pos.reshape(-1, 3),
+        rots,
+        (normals, rims),
+        min_frames * frame_rows,
+        grav,
+        progress,
     )
     shape = (v.size, u.size, eul.shape[0])
     return CoverageStudy(
@@ -237,11 +295,41 @@ def coverage_study(
         errors.reshape(*shape, inp.trials),
         float(frame_rows),
         float(min_frames * frame_rows),
-        solver,
+        "gravity" if gravity else solver,
         inp.noise_px,
         inp.rounding,
         int(seed),
+        bool(gravity),
+        float(gravity_sigma_deg) if gravity else float("nan"),
+        least,
+        fix_four.reshape(shape),
     )
+
+
+@dataclass(frozen=True)
+class _Gravity:
+    """What a camera that knows gravity changes in the sweep.
+
+    ``up`` (3,) is the map's up (unit), ``sigma_deg`` the accelerometer's error per axis
+    (degrees), ``min_fixtures`` the fixtures a fix needs.
+    """
+
+    up: np.ndarray
+    sigma_deg: float
+    min_fixtures: int
+
+
+def _min_fixtures(gravity: bool, sigma_deg: float, min_fixtures: int | None) -> int:
+    """Fixtures a fix needs (default 2 with gravity, 4 without), after checking the
+    gravity arguments (ValueError naming the one at fault)."""
+    least = (2 if gravity else 4) if min_fixtures is None else min_fixtures
+    if least not in ((2, 3, 4) if gravity else (4,)):
+        raise ValueError(
+            f"min_fixtures must be 2, 3 or 4 with gravity and 4 without, got {min_fixtures!r}"
+        )
+    if gravity and not (np.isfinite(sigma_deg) and sigma_deg > 0):
+        raise ValueError(f"gravity_sigma_deg must be positive, got {sigma_deg!r}")
+    return int(least)
 
 
 def _sweep(
@@ -249,36 +337,51 @@ def _sweep(
     inputs: StudyInputs,
     centres: np.ndarray,
     rots: np.ndarray,
-    normals: np.ndarray,
-    rims: np.ndarray,
+    discs: tuple[np.ndarray, np.ndarray],
     min_rows: float,
+    gravity: _Gravity | None,
     progress: Progress | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every camera centre (G, 3) at every orientation (O, 3, 3): what it sees, and its error.
+
+    ``discs`` are the fixtures' normals (N, 3) and rim points (N, K, 3), metres; with
+    ``gravity`` the camera knows which way is down.
 
     Returns
     -------
     usable : ndarray of int, shape (G, O)
         Fixtures facing the camera, wholly in view and spanning ``min_rows`` rows.
     fix : ndarray of bool, shape (G, O)
-        At least four usable fixtures, not all on a line.
+        At least four usable fixtures, not all on a line (with gravity: at least
+        ``gravity.min_fixtures``, not all on a line along up).
+    fix_four : ndarray of bool, shape (G, O)
+        At least four usable fixtures, not all on a line (a fix without gravity).
     errors : ndarray, shape (G, O, trials)
         Position error where there is a fix, metres; NaN elsewhere.
     """
     pts = inputs.fixtures_m
+    normals, rims = discs
     g, o = centres.shape[0], rots.shape[0]
     usable = np.zeros((g, o), dtype=np.int64)
     fix = np.zeros((g, o), dtype=bool)
+    fix_four = np.zeros((g, o), dtype=bool)
     errors = np.full((g, o, inputs.trials), np.nan)
     facing = np.einsum("ni,gni->gn", normals, centres[:, None, :] - pts[None, :, :]) > 0
+    if gravity is not None:  # lights on one line along up look like one point from above
+        flat = pts - np.outer(pts @ gravity.up, gravity.up)
     for j in range(o):
         ok = facing & _decodable_in_view(camera, rots[j], centres, rims, min_rows)
         usable[:, j] = ok.sum(1)
-        fix[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
-        errors[:, j] = _fix_errors(camera, inputs, rots[j], centres, ok, fix[:, j])
+        fix_four[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
+        if gravity is None:
+            fix[:, j] = fix_four[:, j]
+        else:
+            spread = _not_collinear(flat, ok, point=True)
+            fix[:, j] = (usable[:, j] >= gravity.min_fixtures) & spread
+        errors[:, j] = _fix_errors(camera, inputs, rots[j], centres, ok, fix[:, j], gravity)
         if progress is not None:
             progress(j + 1, o)
-    return usable, fix, errors
+    return usable, fix, fix_four, errors
 
 
 def _row_time(
@@ -311,9 +414,7 @@ def _fixture_discs(
     ``default_diameter_m``, and ValueError when there is none.
     """
     pts = fixture_map.positions * fixture_map.unit_m
-    _, _, vert = plane_axes(plane)
-    down = np.zeros(3)
-    down[vert] = -up_sign(pts, vert)
+    down = -_floor_up(pts, plane)
     diam = []
     for f in fixture_map.fixtures:
         d = f.diameter * fixture_map.unit_m if f.diameter is not None else default_diameter_m
@@ -325,6 +426,15 @@ def _fixture_discs(
         diam.append(d)
     normals = np.array([f.normal if f.normal is not None else down for f in fixture_map.fixtures])
     return normals, rim_points(pts, np.asarray(diam), normals, n_rim)
+
+
+def _floor_up(points_m: np.ndarray, plane: str) -> np.ndarray:
+    """Unit vector (3,) along the vertical axis of ``plane``, from the floor towards the
+    fixtures ``points_m`` (N, 3)."""
+    _, _, vert = plane_axes(plane)
+    up = np.zeros(3)
+    up[vert] = up_sign(points_m, vert)
+    return up
 
 
 def _orientations(
@@ -376,11 +486,12 @@ def _fix_errors(
     centres: np.ndarray,
     usable: np.ndarray,
     fix: np.ndarray,
+    gravity: _Gravity | None = None,
 ) -> np.ndarray:
     """Position errors (G, trials), metres, where there is a fix; NaN elsewhere.
 
     The positions that share the same set of usable fixtures (``usable``, (G, N)) are
-    solved together with those fixtures only.
+    solved together with those fixtures only; with ``gravity``, by the gravity solver.
     """
     trials = inputs.trials
     out = np.full((centres.shape[0], trials), np.nan)
@@ -392,17 +503,58 @@ def _fix_errors(
         members = idx[inverse.reshape(-1) == q]
         cm = np.repeat(centres[members], trials, axis=0)
         rr = np.broadcast_to(rot, (cm.shape[0], 3, 3))
-        err = position_errors(camera, inputs, rr, cm, fixtures_m=inputs.fixtures_m[pattern])
+        sub = inputs.fixtures_m[pattern]
+        if gravity is None:
+            err = position_errors(camera, inputs, rr, cm, fixtures_m=sub)
+        else:
+            err = _gravity_errors(camera, inputs, sub, rr, cm, gravity)
         out[members] = err.reshape(-1, trials)
     return out
 
 
-def _not_collinear(points: np.ndarray, mask: np.ndarray, tol_m: float = 1e-3) -> np.ndarray:
-    """True where the masked points (B, N) of ``points`` (N, 3) do not all lie on one line."""
+def _gravity_errors(
+    camera: Camera,
+    inputs: StudyInputs,
+    fixtures_m: np.ndarray,
+    rots: np.ndarray,
+    centres: np.ndarray,
+    gravity: _Gravity,
+) -> np.ndarray:
+    """Position errors (B,), metres, of the gravity solver for poses ``rots`` (B, 3, 3),
+    ``centres`` (B, 3) seeing ``fixtures_m`` (N, 3), with gravity measured with a Gaussian
+    error of ``gravity.sigma_deg`` about each of two axes across it."""
+    uv = project_batch(camera, rots, centres, fixtures_m, distort=camera.dist_or_none is not None)
+    uv = observed_pixels(uv, inputs)
+    bearings = camera.undistort_pixels(uv.reshape(-1, 2)).reshape(uv.shape)
+    down_cam = np.einsum("bij,i->bj", rots, -gravity.up)
+    helper = np.where(np.abs(down_cam[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]])
+    a1 = np.cross(down_cam, helper)
+    a1 /= np.linalg.norm(a1, axis=1, keepdims=True)
+    a2 = np.cross(down_cam, a1)
+    t = np.radians(gravity.sigma_deg) * inputs.rng.normal(size=(rots.shape[0], 2))
+    measured = down_cam + t[:, :1] * a1 + t[:, 1:] * a2
+    _, c_est = refine_gravity_batch(
+        rots,
+        centres,
+        fixtures_m,
+        bearings,
+        measured,
+        gravity.up,
+        focal_px=camera.focal_px,
+        sigma_deg=gravity.sigma_deg,
+    )
+    return np.linalg.norm(c_est - centres, axis=1)
+
+
+def _not_collinear(
+    points: np.ndarray, mask: np.ndarray, tol_m: float = 1e-3, *, point: bool = False
+) -> np.ndarray:
+    """True where the masked points (B, N) of ``points`` (N, 3) do not all lie on one line
+    (with ``point``: are not all at one point)."""
     w = mask.astype(float)
     cnt = w.sum(1).clip(1)
     mean = (w @ points) / cnt[:, None]
     d = points[None, :, :] - mean[:, None, :]
     scatter = np.einsum("bn,bni,bnj->bij", w, d, d) / cnt[:, None, None]
     ev = np.linalg.eigvalsh(scatter)  # ascending
-    return ev[:, 1] > tol_m**2
+    return ev[:, 2 if point else 1] > tol_m**2
