@@ -49,8 +49,19 @@ def noisy_gravity(pose: camvlp.Pose, up: np.ndarray, sigma_deg: float, rng) -> n
     return turn(g, angle, rng)
 
 
+def _outside(camera, truth) -> bool:
+    """The fixture's disc is wholly outside the image (or behind the camera)."""
+    if not truth.in_front:
+        return True
+    u, v = truth.pixel
+    du = max(0.0, -0.5 - u, u - (camera.width - 0.5))
+    dv = max(0.0, -0.5 - v, v - (camera.height - 0.5))
+    return float(np.hypot(du, dv)) > 0.6 * truth.rows_spanned + 2.0
+
+
 def sample_pose(rng, camera, room, settings, k: int, height: float, tilt_max: float = 20.0):
-    """A random pose from which exactly ``k`` fixtures are whole in the image and decodable."""
+    """A random pose from which exactly ``k`` fixtures are whole in the image and decodable,
+    and the others wholly outside it."""
     for _ in range(100_000):
         pos = [rng.uniform(-1.0, 1.0), -height, rng.uniform(-1.0, 1.0)]
         euler = [
@@ -62,7 +73,8 @@ def sample_pose(rng, camera, room, settings, k: int, height: float, tilt_max: fl
         truths = fixture_truths(camera, room, pose, settings)
         inside = [t for t in truths if t.fully_inside]
         if len(inside) == k and all(t.frames_spanned >= 1.2 for t in inside):
-            return pose
+            if all(_outside(camera, t) for t in truths if not t.fully_inside):
+                return pose
     raise RuntimeError(f"no pose with exactly {k} fixtures in view")
 
 
