@@ -242,3 +242,21 @@ def test_thesis_room_two_and_three_fixtures(thesis_camera_path, thesis_room_path
     assert error < far * np.radians(0.5) * 1.5  # no more than the tilt error explains
     if k == 3:
         assert error < 5e-3
+
+
+def test_evaluate_reads_the_sidecars(two_and_three, small_camera, tmp_path: Path) -> None:
+    from camvlp.analysis.evaluate import evaluate_survey, read_survey, write_results_csv
+
+    _, room, pose, photo, _ = two_and_three[2]
+    for name, with_sidecar in (("a.png", True), ("b.png", False)):
+        (tmp_path / name).write_bytes(photo.read_bytes())
+        if with_sidecar:
+            (tmp_path / "a.json").write_text(json.dumps({"gravity": true_gravity(pose).tolist()}))
+    x, y, z = pose.position
+    (tmp_path / "survey.csv").write_text(f"photo,x,y,z\na.png,{x},{y},{z}\nb.png,{x},{y},{z}\n")
+    ev = evaluate_survey(read_survey(tmp_path / "survey.csv"), small_camera, room, jobs=1)
+    a, b = ev.results
+    assert a.located and a.solver == "gravity-2" and a.error < 2e-3
+    assert not b.located and "at least 4" in b.reason
+    write_results_csv(ev, tmp_path / "results.csv")
+    assert "gravity-2" in (tmp_path / "results.csv").read_text()
