@@ -149,7 +149,6 @@ def test_cli_gravity_and_sidecar(two_and_three, small_files, capsys) -> None:
             ("{not json", "not valid JSON"),
             ('{"gravity": [0, 0, 0]}', "zero length"),
             ('{"gravity": [1, 2]}', "three numbers"),
-            ('{"g": [1, 2, 3]}', '"gravity"'),
         ):
             sidecar.write_text(text)
             code, out, err = run(capsys, "locate", photo, "--camera", cam, "--map", room)
@@ -202,6 +201,10 @@ def test_sidecar_names(tmp_path: Path) -> None:
     assert s.gravity.tolist() == [0, 0, -9.8] and s.gravity_sigma_deg == 0.5
     (tmp_path / "p.json").write_text('{"gravity": [0, 1, -9.8]}')
     assert load_sidecar(photo).gravity.tolist() == [0, 1, -9.8]  # PHOTO.json first
+    # a JSON without gravity (the simulator's truth) is not a sidecar
+    (tmp_path / "p.json").write_text('{"pose": {"position": [0, 0, 0]}}')
+    (tmp_path / "p.jpg.json").unlink()
+    assert load_sidecar(photo) is None
 
 
 # ------------------------------------------------- the thesis' room, full size (benchmark's)

@@ -47,13 +47,14 @@ def sidecar_path(photo: str | Path) -> Path | None:
 
 
 def load_sidecar(photo: str | Path) -> PhotoSidecar | None:
-    """Read a photo's sidecar; None when it has none.
+    """Read a photo's sidecar; None when it has none, or when the JSON file beside the photo
+    has no ``gravity`` key (such as the truth ``camvlp render`` writes there).
 
     Raises
     ------
     InputError
-        The sidecar is not a JSON object with ``gravity`` as three finite numbers, not all
-        zero, or its ``gravity_sigma_deg`` is not a positive number (naming the file).
+        The file is not JSON, its ``gravity`` is not three finite numbers, not all zero, or
+        its ``gravity_sigma_deg`` is not a positive number (naming the file).
     """
     path = sidecar_path(photo)
     if path is None:
@@ -69,7 +70,7 @@ def load_sidecar(photo: str | Path) -> PhotoSidecar | None:
             f"the photo's sidecar is not valid JSON: {exc.msg} (line {exc.lineno})", path
         ) from None
     if not isinstance(data, dict) or "gravity" not in data:
-        raise InputError('the photo\'s sidecar needs a key "gravity": [gx, gy, gz]', path)
+        return None  # another file of the same name (the simulator's truth): no gravity
     g = data["gravity"]
     if not (
         isinstance(g, list)
