@@ -277,3 +277,15 @@ def test_gravity_far_from_the_photo_is_refused() -> None:
     assert not res and "degrees from gravity" in res.reason
     ok = solve_pose_gravity(uv, PTS, CAMERA, _gravity(pose, 8.0, rng), up=UP, sigma_deg=2.0)
     assert ok and abs(ok.tilt_disagreement_deg - 8.0) < 1e-6
+
+
+def test_conventions_worked_example() -> None:
+    # docs/conventions.md: theta = (90, 0, 0) has g = (0, 0, -9.81); (100, 0, 0) has
+    # g = 9.81 (0, -sin 10, -cos 10)
+    for euler, g in (
+        ((90, 0, 0), [0, 0, -9.81]),
+        ((100, 0, 0), 9.81 * np.array([0, -np.sin(np.radians(10)), -np.cos(np.radians(10))])),
+    ):
+        r = camvlp.euler_to_matrix(euler)
+        assert tilt_error_deg(r, g, UP) < 1e-9
+        assert tilt_error_deg(r, -np.asarray(g), UP) > 179.9
