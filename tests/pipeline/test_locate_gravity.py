@@ -263,3 +263,12 @@ def test_evaluate_reads_the_sidecars(two_and_three, small_camera, tmp_path: Path
     assert not b.located and "at least 4" in b.reason
     write_results_csv(ev, tmp_path / "results.csv")
     assert "gravity-2" in (tmp_path / "results.csv").read_text()
+
+
+def test_one_fixture_with_gravity_is_not_enough(small_camera) -> None:
+    room = make_small_room(ids=(5,), xz=SMALL_ROOM_XZ[:1])
+    pose = Pose.from_euler([0.5, 0.0, 0.4], (90.0, 0.0, 0.0))
+    r = render(small_camera, room, pose, small_settings(seed=3))
+    res = locate(r.image, small_camera, room, gravity=true_gravity(pose))
+    assert not res and res.solver == "gravity"
+    assert "at least 2 are needed with gravity" in res.reason

@@ -186,7 +186,8 @@ class LocateResult:
     solver : str
         How the pose was solved: ``"pnp"`` (four or more fixtures, no gravity), or with a
         gravity direction ``"gravity-2"``, ``"gravity-3"`` or ``"pnp+gravity"`` (see
-        :data:`camvlp.geometry.gravity.SOLVER_NAMES`).
+        :data:`camvlp.geometry.gravity.SOLVER_NAMES`); ``"gravity"`` when gravity was given
+        but too few fixtures were identified to try.
     tilt_disagreement_deg : float
         With gravity and four or more fixtures: the angle between the down of the pose the
         pixels alone give and the measured gravity, degrees (NaN otherwise).
@@ -650,7 +651,9 @@ def locate(
         stages=LocateStages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
         if st.keep_stages
         else None,
-        solver="pnp" if not isinstance(est, GravityPose) else est.solver,
+        solver=est.solver
+        if isinstance(est, GravityPose)
+        else ("pnp" if down is None else "gravity"),
         tilt_disagreement_deg=est.tilt_disagreement_deg
         if isinstance(est, GravityPose) and pose is not None
         else float("nan"),
