@@ -462,7 +462,7 @@ def _solve(
     """Stage 5: the pose from the usable fixtures, then again with perspective-corrected
     centres; (estimate or None when too few fixtures, why it failed or "").  With
     ``gravity`` (its unit direction in the camera frame, the map's up), two fixtures are
-    enough (``geometry/gravity.py``)."""
+    enough (:mod:`camvlp.geometry.gravity`)."""
     usable = found.usable
     needed = 4 if gravity is None else 2
     if len(usable) < needed:
