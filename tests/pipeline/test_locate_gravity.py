@@ -17,8 +17,7 @@ from scipy.spatial.transform import Rotation
 
 import camvlp
 from camvlp.cli import main
-from camvlp.io import load_map, save_map
-from camvlp.io.sidecar import load_sidecar
+from camvlp.io import load_map, load_sidecar, save_map
 from camvlp.model.camera import Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate

@@ -210,12 +210,13 @@ def test_locate_returns_the_cli_json_plus_fix_id(client, photo_png, tmp_path, ca
     assert r.status_code == 200, r.text
     got = r.json()
     np.testing.assert_allclose(got["position"], PHOTO_POSITION, atol=2e-3)
+    assert got["solver"] == "pnp+gravity"  # the locator was given the gravity
     (tmp_path / "cam.json").write_text(json.dumps(CAMERA_JSON))
     (tmp_path / "map.json").write_text(json.dumps(MAP_JSON))
     (tmp_path / "photo.png").write_bytes(photo_png)
     code = main(
         ["locate", str(tmp_path / "photo.png"), "--camera", str(tmp_path / "cam.json"),
-         "--map", str(tmp_path / "map.json"), "--json"]
+         "--map", str(tmp_path / "map.json"), "--gravity", "0,0,-9.8", "--json"]
     )  # fmt: skip
     assert code == 0
     cli = json.loads(capsys.readouterr().out)

@@ -96,6 +96,17 @@ def test_plan_of_a_z_up_room_is_x_right_y_up(with_normals):
     assert (view.vertical, view.up, view.axes) == (2, 1, (0, 1))
 
 
+def test_the_maps_up_decides_the_plan():
+    # two lights without normals spread only along z: without up, x looks like the vertical
+    pair = [(0.8, -2.7, 0.6), (0.8, -2.7, -0.6)]
+    assert plan_view(_map(pair)).vertical == 0
+    view = plan_view(FixtureMap(_map(pair).fixtures, up=[0, -1, 0]))
+    assert (view.vertical, view.up, view.axes) == (1, -1, (0, 2))
+    # up wins over the lights' normals, which here face sideways
+    view = plan_view(FixtureMap(_map(pair, (1, 0, 0)).fixtures, up=[0, 0, 2]))
+    assert (view.vertical, view.up, view.axes) == (2, 1, (0, 1))
+
+
 def test_the_plan_is_a_view_from_above():
     """Right x up-on-the-plan = up, for every vertical axis and sign."""
     for vertical in range(3):

@@ -31,8 +31,7 @@ import numpy as np
 
 from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import json_number, summary_stats
-from camvlp.io import InputError, load_image
-from camvlp.io.sidecar import load_sidecar
+from camvlp.io import InputError, load_image, load_sidecar
 from camvlp.io.survey_csv import ANGLE_COLUMNS, AXES, REQUIRED_COLUMNS, Survey, read_survey
 from camvlp.io.writers import write_json, write_results_csv
 from camvlp.model.camera import Camera, euler_to_matrix

@@ -10,8 +10,7 @@ from typing import Annotated
 import cv2
 import typer
 
-from camvlp.io import InputError, load_camera, load_image, load_map
-from camvlp.io.sidecar import load_sidecar
+from camvlp.io import InputError, load_camera, load_image, load_map, load_sidecar
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
 

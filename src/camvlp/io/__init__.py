@@ -1,4 +1,5 @@
-"""File formats: camera and map files, photographs, survey tables and result writers."""
+"""File formats: camera and map files, photographs, their gravity sidecars, survey tables and
+result writers."""
 
 from camvlp.errors import InputError
 from camvlp.io.files import (
@@ -10,14 +11,17 @@ from camvlp.io.files import (
     save_map,
 )
 from camvlp.io.images import decode_image, load_image
+from camvlp.io.sidecar import PhotoSidecar, load_sidecar
 
 __all__ = [
     "InputError",
+    "PhotoSidecar",
     "camera_from_dict",
     "decode_image",
     "load_camera",
     "load_image",
     "load_map",
+    "load_sidecar",
     "map_from_dict",
     "save_camera",
     "save_map",

@@ -187,15 +187,17 @@ def _locate_job(
     settings: LocateSettings,
     want_picture: bool,
     picture_max_px: int,
+    gravity: list[float] | None = None,
 ) -> tuple[dict[str, Any], bytes | None]:
-    """Decode, locate and (optionally) annotate one photo; runs in the locate pool."""
+    """Decode, locate (with ``gravity``, camera frame, when given) and (optionally) annotate
+    one photo; runs in the locate pool."""
     try:
         image = decode_image(raw, "photo")
     except InputError as exc:
         raise _LocateRefused(400, str(exc)) from None
     try:
-        result = locate(image, camera, fixture_map, settings)
-    except (InputError, ValueError) as exc:  # wrong size for the camera, bad readout
+        result = locate(image, camera, fixture_map, settings, gravity=gravity)
+    except (InputError, ValueError) as exc:  # wrong size, bad readout, gravity facing the floor
         raise _LocateRefused(422, f"{exc} (photo)") from None
     picture = None
     if want_picture:
@@ -365,8 +367,9 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
         gravity: Annotated[
             str | None,
             Form(
-                description="gx,gy,gz: the phone's gravity in the camera frame; kept with the "
-                "fix (the locator does not use it)."
+                description="gx,gy,gz: the phone's gravity in the camera frame (OpenCV axes, "
+                "any length); the locator uses it (two or three fixtures are then enough) and "
+                "it is kept with the fix."
             ),
         ] = None,
         annotate: Annotated[
@@ -419,7 +422,7 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
         gate.busy += 1
         try:
             result, picture = await asyncio.get_running_loop().run_in_executor(
-                pool, _locate_job, raw, cam, fmap, settings, annotate, cfg.picture_max_px
+                pool, _locate_job, raw, cam, fmap, settings, annotate, cfg.picture_max_px, grav
             )
         except _LocateRefused as exc:
             raise HTTPException(exc.status, exc.detail) from None

@@ -82,15 +82,18 @@ class PlanView:
 def plan_view(fixture_map: FixtureMap) -> PlanView:
     """How to look at a map from above.
 
-    Up is against the fixtures' mean ``normal`` when they have one (ceiling lights face down
-    into the room); otherwise the vertical axis is the one along which the fixtures spread
-    least (they hang on one ceiling) and up points from the floor (vertical coordinate 0)
-    towards them.
+    Up is the map's ``up`` when it has one (its largest axis), else against the fixtures'
+    mean ``normal`` when they have one (ceiling lights face down into the room); otherwise the
+    vertical axis is the one along which the fixtures spread least (they hang on one ceiling)
+    and up points from the floor (vertical coordinate 0) towards them.
     """
     positions = np.array([f.position for f in fixture_map.fixtures], dtype=float)
     normals = [f.normal for f in fixture_map.fixtures if f.normal is not None]
     mean_normal = np.mean(normals, axis=0) if normals else np.zeros(3)
-    if np.linalg.norm(mean_normal) > 1e-6:
+    if fixture_map.up is not None:
+        vertical = int(np.argmax(np.abs(fixture_map.up)))
+        up = 1 if fixture_map.up[vertical] > 0 else -1
+    elif np.linalg.norm(mean_normal) > 1e-6:
         vertical = int(np.argmax(np.abs(mean_normal)))
         up = -1 if mean_normal[vertical] > 0 else 1
     else:

@@ -12,8 +12,8 @@ centre is from the true one.
 * :func:`monte_carlo_study`: Gaussian noise on every fixture's image point and/or world
   point, many trials per pose (mean, median, 95th percentile).
 * :func:`coverage_study`: where on the floor a fix is possible (at least four fixtures
-  wholly in the image and spanning enough rows to decode), over a range of tilts, and the
-  expected error there.
+  wholly in the image and spanning enough rows to decode; two or three when the camera
+  knows gravity), over a range of tilts, and the expected error there.
 
 Units: the study works in metres whatever the map's unit (converted with
 :attr:`FixtureMap.unit_m`); errors are in metres; image quantities in pixels.  The floor is
