@@ -4,22 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from study_helpers import cam, room  # noqa: F401  (fixtures)
 
 from camvlp.analysis.study import coverage_study
-from camvlp.io import load_camera, load_map
 from camvlp.model.fixtures import Fixture, FixtureMap
 
 KW = dict(step_m=0.5, tilt_max_deg=15, tilt_step_deg=7.5, seed=2)
-
-
-@pytest.fixture(scope="module")
-def cam(thesis_camera_path):
-    return load_camera(thesis_camera_path)
-
-
-@pytest.fixture(scope="module")
-def room(thesis_room_path):
-    return load_map(thesis_room_path)
 
 
 @pytest.fixture(scope="module")

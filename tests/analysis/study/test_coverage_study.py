@@ -10,23 +10,12 @@ import dataclasses
 
 import numpy as np
 import pytest
+from study_helpers import cam, room  # noqa: F401  (fixtures)
 
 from camvlp.analysis.study import (
     coverage_study,
 )
-from camvlp.io import load_camera, load_map
 from camvlp.model.fixtures import Fixture, FixtureMap
-
-
-@pytest.fixture(scope="module")
-def cam(thesis_camera_path):
-    return load_camera(thesis_camera_path)
-
-
-@pytest.fixture(scope="module")
-def room(thesis_room_path):
-    return load_map(thesis_room_path)
-
 
 # ---------------------------------------------------------------------------- coverage
 
@@ -87,8 +76,6 @@ def test_coverage_needs_diameters(cam):
     with pytest.raises(ValueError, match="fixture 1 has no diameter"):
         coverage_study(cam, bare, **kw)
     assert coverage_study(cam, bare, default_diameter_m=0.15, **kw).fix.all()
-
-
 
 
 @pytest.mark.parametrize("axis", ["rows", "columns"])

@@ -8,23 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from study_helpers import cam, room  # noqa: F401  (fixtures)
 
 from camvlp.analysis.study import (
     forced_error_study,
 )
-from camvlp.io import load_camera, load_map
 
 FIG_4_4_EULERS = [(80, 0, 0), (85, 0, 0), (90, 0, 0), (95, 0, 0)]
-
-
-@pytest.fixture(scope="module")
-def cam(thesis_camera_path):
-    return load_camera(thesis_camera_path)
-
-
-@pytest.fixture(scope="module")
-def room(thesis_room_path):
-    return load_map(thesis_room_path)
 
 
 # ------------------------------------------------------------------------ forced errors

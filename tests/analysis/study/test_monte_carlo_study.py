@@ -6,23 +6,11 @@ reasoning, not from this code's output.
 
 from __future__ import annotations
 
-import pytest
+from study_helpers import cam, room  # noqa: F401  (fixtures)
 
 from camvlp.analysis.study import (
     monte_carlo_study,
 )
-from camvlp.io import load_camera, load_map
-
-
-@pytest.fixture(scope="module")
-def cam(thesis_camera_path):
-    return load_camera(thesis_camera_path)
-
-
-@pytest.fixture(scope="module")
-def room(thesis_room_path):
-    return load_map(thesis_room_path)
-
 
 # ------------------------------------------------------------------------- Monte Carlo
 

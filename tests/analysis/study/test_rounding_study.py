@@ -8,22 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from study_helpers import cam, room  # noqa: F401  (fixtures)
 
 from camvlp.analysis.study import (
     rounding_study,
 )
-from camvlp.io import load_camera, load_map
 from camvlp.model.fixtures import Fixture, FixtureMap
-
-
-@pytest.fixture(scope="module")
-def cam(thesis_camera_path):
-    return load_camera(thesis_camera_path)
-
-
-@pytest.fixture(scope="module")
-def room(thesis_room_path):
-    return load_map(thesis_room_path)
 
 
 def _scaled_map(fmap: FixtureMap, units: str, factor: float) -> FixtureMap:
@@ -100,7 +90,6 @@ def test_solvers_agree_where_they_should(cam, room):
     it = rounding_study(cam, room, euler_deg=(70, 20, 0), step_m=0.25).mean_error_m
     sq = rounding_study(cam, room, euler_deg=(70, 20, 0), step_m=0.25, solver="sqpnp")
     assert sq.mean_error_m == pytest.approx(it, rel=0.1)
-
 
 
 def test_rounding_study_runs_the_locators_own_pose_path(cam, room):
