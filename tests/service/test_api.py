@@ -319,7 +319,7 @@ def test_bad_photos_get_4xx_and_the_service_goes_on(tmp_path, photo_png):
 
 
 def test_a_full_locate_queue_is_503(tmp_path, photo_png, monkeypatch):
-    import camvlp.service.app as service_app
+    import camvlp.service.routes_api as service_app
 
     release = threading.Event()
     real_job = service_app._locate_job
