@@ -13,6 +13,7 @@ from . import locate as _locate  # noqa: F401  (registers commands)
 from . import render as _render  # noqa: F401  (registers commands)
 from . import serve as _serve  # noqa: F401  (registers commands)
 from . import study as _study  # noqa: F401  (registers commands)
+from . import track as _track  # noqa: F401  (registers commands)
 from ._app import EXIT_BAD_INPUT, app
 
 __all__ = ["app", "main"]

@@ -25,18 +25,23 @@ Solvers (:data:`SOLVERS`):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
+from scipy.optimize import least_squares
 
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera, Pose, euler_to_matrix
 
 __all__ = [
     "IPPE_JITTER_PX",
     "LOCATE_SOLVER",
     "SOLVERS",
+    "PriorSolve",
     "check_solver",
     "pnp_candidates",
     "project_batch",
+    "refine_pose",
     "rodrigues_batch",
     "solve_pnp",
     "solve_pnp_batch",
@@ -398,3 +403,117 @@ def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.
     u = k[0, 0] * x + k[0, 1] * y + k[0, 2]
     v = k[1, 1] * y + k[1, 2]
     return np.stack([u, v], axis=-1)
+
+
+@dataclass(frozen=True)
+class PriorSolve:
+    """A pose fitted to a few points and a prior (:func:`refine_pose`).
+
+    Attributes
+    ----------
+    pose : Pose
+        The fitted pose.
+    residuals_px : ndarray, shape (N,)
+        Each point's reprojection error with it, pixels.
+    covariance : ndarray, shape (6, 6)
+        Covariance of ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees) from the
+        fit's Jacobian, points and prior together.
+    """
+
+    pose: Pose
+    residuals_px: np.ndarray
+    covariance: np.ndarray
+
+    @property
+    def reprojection_rms_px(self) -> float:
+        """RMS of :attr:`residuals_px`, pixels."""
+        return float(np.sqrt(np.mean(self.residuals_px**2)))
+
+
+def refine_pose(
+    object_points,
+    image_points,
+    camera: Camera,
+    prior_position,
+    prior_euler_deg,
+    *,
+    sigma_position=0.05,
+    sigma_euler_deg=1.0,
+    sigma_px: float = 1.0,
+) -> PriorSolve | None:
+    """The pose that best fits a few points (one or more) and a Gaussian prior on the pose.
+
+    With fewer than four points (or points on a line) PnP alone has no unique answer; a
+    prior (a track's prediction) fills in what the points leave open.  Least squares
+    (Levenberg-Marquardt, from the prior) over the camera centre and the thesis' angles of
+    ``[reprojection / sigma_px, (C - C0) / sigma_position, (theta - theta0) / sigma_euler]``.
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3)
+        World points, map units, N >= 1.
+    image_points : array_like, shape (N, 2)
+        Their pixels in the (distorted) image.
+    camera : Camera
+        Intrinsics and distortion.
+    prior_position : array_like, shape (3,)
+        The prior camera centre, map units.
+    prior_euler_deg : array_like, shape (3,)
+        The prior's thesis angles, degrees.
+    sigma_position : float or array_like, shape (3,)
+        The prior's standard deviation per axis, map units.
+    sigma_euler_deg : float or array_like, shape (3,)
+        The prior's standard deviation per angle, degrees.
+    sigma_px : float
+        Standard deviation of an image point, pixels.
+
+    Returns
+    -------
+    PriorSolve or None
+        None when the fit does not converge to a finite pose with the points in front.
+    """
+    obj = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+    img = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
+    if obj.shape[0] != img.shape[0] or obj.shape[0] < 1:
+        raise ValueError("object_points and image_points need the same number (>= 1) of points")
+    c0 = np.asarray(prior_position, dtype=np.float64).reshape(3)
+    e0 = np.asarray(prior_euler_deg, dtype=np.float64).reshape(3)
+    sp = np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,))
+    se = np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,))
+    if not (np.all(sp > 0) and np.all(se > 0) and sigma_px > 0):
+        raise ValueError("sigma_position, sigma_euler_deg and sigma_px must be positive")
+    k, dist = camera.matrix, camera.dist_or_none
+    o = np.ascontiguousarray(obj).reshape(-1, 1, 3)
+
+    def project(x: np.ndarray) -> np.ndarray:
+        r_wc = euler_to_matrix(x[3:])
+        r_cw = r_wc.T
+        rvec, _ = cv2.Rodrigues(r_cw)
+        uv, _ = cv2.projectPoints(o, rvec, -r_cw @ x[:3], k, dist)
+        return uv.reshape(-1, 2)
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.concatenate(
+            [((project(x) - img) / sigma_px).ravel(), (x[:3] - c0) / sp, (x[3:] - e0) / se]
+        )
+
+    x0 = np.concatenate([c0, e0])
+    try:
+        fit = least_squares(residuals, x0, method="lm", x_scale=np.concatenate([sp, se]))
+    except (ValueError, np.linalg.LinAlgError, cv2.error):
+        return None
+    x = fit.x
+    if not np.all(np.isfinite(x)):
+        return None
+    try:
+        pose = Pose.from_euler(x[:3], x[3:])
+    except ValueError:
+        return None
+    if np.any(pose.to_camera(obj)[:, 2] <= 0):
+        return None
+    res = np.linalg.norm(project(x) - img, axis=1)
+    try:
+        cov = np.linalg.inv(fit.jac.T @ fit.jac)
+    except np.linalg.LinAlgError:
+        cov = np.full((6, 6), np.nan)
+    return PriorSolve(pose, res, cov)

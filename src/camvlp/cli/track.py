@@ -1,0 +1,257 @@
+"""``camvlp track``: positions along a video; ``camvlp render-video``: simulated videos."""
+
+from __future__ import annotations
+
+import json
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from camvlp.analysis.track import run_track, summarize
+from camvlp.io import load_camera, load_map
+from camvlp.io.video import open_frames
+from camvlp.pipeline.locate import LocateSettings
+from camvlp.pipeline.track import Tracker, TrackSettings
+from camvlp.sim.render import RenderSettings
+from camvlp.sim.video import VIDEO_SUFFIXES, load_trajectory, render_video
+
+from ._app import (
+    EXIT_NOT_LOCATED,
+    OutlierOption,
+    SolverOption,
+    app,
+    check_positive,
+    check_solver,
+    fail,
+    handle_errors,
+    parse_readout,
+)
+
+
+@contextmanager
+def _progress(total: int | None, what: str):
+    """A rich progress bar on stderr when it is a terminal; yields ``advance(done)``."""
+    if not sys.stderr.isatty():
+        yield lambda done: None
+        return
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+
+    with Progress(
+        TextColumn(what),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    ) as bar:
+        task = bar.add_task(what, total=total)
+        yield lambda done: bar.update(task, completed=done)
+
+
+@app.command("track")
+@handle_errors
+def track_command(
+    source: Annotated[
+        Path, typer.Argument(help="A video file (mp4, mov, mkv ...) or a folder of images.")
+    ],
+    camera_path: Annotated[Path, typer.Option("--camera", "-c", help="Camera file (YAML/JSON).")],
+    map_path: Annotated[
+        Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
+    ],
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+    fps: Annotated[
+        float | None,
+        typer.Option(
+            "--fps",
+            help="Frames per second: the times of a folder without timestamps.csv (and of a "
+            "video, instead of its own timestamps).",
+        ),
+    ] = None,
+    start: Annotated[float, typer.Option("--start", help="Skip the frames before S s.")] = 0.0,
+    frames: Annotated[
+        int | None, typer.Option("--frames", help="Process at most N frames.")
+    ] = None,
+    solver: SolverOption = "iterative",
+    readout: Annotated[
+        str | None,
+        typer.Option(
+            help="Sensor readout: rows, columns, rows-reversed or columns-reversed (default: "
+            "the camera file's, else the axis found in the first striped frame, forward)."
+        ),
+    ] = None,
+    outlier_px: OutlierOption = None,
+    rolling_shutter: Annotated[
+        bool,
+        typer.Option(
+            "--rolling-shutter/--no-rolling-shutter",
+            help="Correct each fixture for the camera's motion while the rows are read.",
+        ),
+    ] = True,
+) -> None:
+    """Track the camera along a video: DIR/trajectory.csv, fixtures.csv, summary.json and
+    trajectory.png.
+
+    Exit code 0 when at least one frame was located, 1 when none was, 2 on bad input.
+    """
+    check_solver(solver)
+    check_positive(outlier_px, "--outlier-px")
+    check_positive(fps, "--fps")
+    given_readout = parse_readout(readout)
+    camera = load_camera(camera_path)
+    fixture_map = load_map(map_path)
+    frames_src = open_frames(source, fps=fps, start_s=start, max_frames=frames, threads=0)
+    settings = TrackSettings(
+        locate=LocateSettings(solver=solver, readout=given_readout, outlier_px=outlier_px),
+        rolling_shutter=rolling_shutter,
+    )
+    tracker = Tracker(camera, fixture_map, settings)
+    total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
+    with _progress(total, "tracking") as advance:
+        run = run_track(frames_src, tracker, out, progress=advance)
+    summary = summarize(
+        run,
+        truth_path=frames_src.truth_path,
+        fixtures_truth_path=frames_src.fixtures_truth_path,
+    )
+    summary["input"] = str(source)
+    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
+    _plot(out, fixture_map, run, frames_src.truth_path)
+    for w in run.warnings:
+        print(f"warning: {w} ({source})", file=sys.stderr)
+    if as_json:
+        print(json.dumps(summary))
+    else:
+        _print_human(summary, fixture_map.units, out)
+    located = summary["fix"] + summary["tracked"]
+    if not located:
+        print(f"error: no frame could be located ({source})", file=sys.stderr)
+        raise typer.Exit(EXIT_NOT_LOCATED)
+
+
+def _plot(out: Path, fixture_map, run, truth_path: Path | None) -> None:
+    from camvlp.io.video import read_truth
+    from camvlp.viz.trajectory import plot_trajectory
+
+    nan3 = np.full(3, np.nan)
+    pos = np.array([f.position if f.position is not None else nan3 for f in run.frames])
+    raw = np.array([f.raw_position if f.raw_position is not None else nan3 for f in run.frames])
+    truth = None
+    if truth_path is not None:
+        t = read_truth(truth_path)
+        truth = np.array([t[n][:3] if n in t else nan3 for n in run.names])
+    plot_trajectory(
+        out / "trajectory.png",
+        fixture_map,
+        pos.reshape(-1, 3),
+        [f.status for f in run.frames],
+        raw_positions=raw.reshape(-1, 3),
+        truth=truth,
+    )
+
+
+def _print_human(summary: dict, units: str, out: Path) -> None:
+    n = summary["frames"]
+    print(
+        f"frames        {n}: {summary['fix']} fix, {summary['tracked']} tracked, "
+        f"{summary['predicted']} predicted, {summary['lost']} lost "
+        f"({100 * summary['fix_or_tracked_rate']:.1f} % fix or tracked)"
+    )
+    if summary.get("frames_per_second"):
+        print(
+            f"speed         {summary['frames_per_second']:.1f} frames/s "
+            f"({100 * summary['reading_share']:.0f} % reading the frames)"
+        )
+    err = summary.get("errors")
+    if err and err.get("position_rmse") is not None:
+        raw = err.get("raw_position_rmse")
+        print(
+            f"error         position RMSE {1e3 * err['position_rmse']:.1f} m{units} filtered, "
+            + (f"{1e3 * raw:.1f} m{units} raw" if raw is not None else "no raw solve")
+        )
+    if "wrong_ids" in summary:
+        print(f"IDs           {summary['wrong_ids']} wrong of {summary['ids_checked']} given")
+    print(f"written       {out}/trajectory.csv, fixtures.csv, summary.json, trajectory.png")
+
+
+@app.command("render-video")
+@handle_errors
+def render_video_command(
+    camera_path: Annotated[Path, typer.Option("--camera", help="Camera file (YAML/JSON).")],
+    map_path: Annotated[Path, typer.Option("--map", help="Map file of the fixtures.")],
+    trajectory_path: Annotated[
+        Path,
+        typer.Option(
+            "--trajectory", help="CSV with t,x,y,z,theta_x,theta_y,theta_z (s, map units, degrees)."
+        ),
+    ],
+    out: Annotated[
+        Path,
+        typer.Option("--out", help="A video (.mp4, .mov, .mkv: H.264) or a folder of PNG frames."),
+    ],
+    fps: Annotated[float, typer.Option("--fps", help="Frames per second.")] = 30.0,
+    chip_rate: Annotated[float, typer.Option("--chip-rate", help="Chips per second.")] = 10000.0,
+    row_time: Annotated[
+        float | None,
+        typer.Option("--row-time", help="Seconds between sensor rows (default: camera file)."),
+    ] = None,
+    exposure: Annotated[
+        float | None, typer.Option("--exposure", help="Row exposure, s (default: half a chip).")
+    ] = None,
+    crf: Annotated[
+        int, typer.Option("--crf", help="H.264 quality: 0 lossless ... 51 (default 10).")
+    ] = 10,
+    frames: Annotated[int | None, typer.Option("--frames", help="At most N frames.")] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the LED phases and noise.")] = 0,
+) -> None:
+    """Render a rolling-shutter video of a camera moving along a trajectory, each sensor row
+    seen from the pose at its own time, with the true trajectory beside it."""
+    check_positive(fps, "--fps")
+    check_positive(chip_rate, "--chip-rate")
+    check_positive(row_time, "--row-time")
+    check_positive(exposure, "--exposure")
+    if not 0 <= crf <= 51:
+        fail(f"--crf must be from 0 to 51, got {crf}")
+    if frames is not None and frames < 1:
+        fail(f"--frames must be at least 1, got {frames}")
+    if seed < 0:
+        fail(f"--seed must be a non-negative integer, got {seed}")
+    if out.suffix and out.suffix.lower() not in VIDEO_SUFFIXES:
+        fail(f"--out must be a .mp4, .mov or .mkv video or a folder ({out})")
+    camera = load_camera(camera_path)
+    fixture_map = load_map(map_path)
+    trajectory = load_trajectory(trajectory_path)
+    try:
+        settings = RenderSettings(
+            chip_rate_hz=chip_rate, row_time_s=row_time, exposure_s=exposure, seed=seed
+        )
+    except ValueError as exc:
+        fail(str(exc))
+    if any(f.diameter is None for f in fixture_map.fixtures):
+        fail(f"every fixture needs a diameter to be rendered ({map_path})")
+    n_total = int(trajectory.duration_s * fps + 1e-9) + 1
+    total = n_total if frames is None else min(frames, n_total)
+    with _progress(total, "rendering") as advance:
+        n = render_video(
+            camera,
+            fixture_map,
+            trajectory,
+            out,
+            fps=fps,
+            settings=settings,
+            crf=crf,
+            max_frames=frames,
+            progress=lambda done, _total: advance(done),
+        )
+    print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")

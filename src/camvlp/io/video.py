@@ -1,0 +1,292 @@
+"""Reading frames from a video file or a folder of images, and the truth written beside them.
+
+:func:`open_frames` opens either:
+
+* a video file (mp4, mov, mkv ... anything FFmpeg reads, through PyAV): frame times from the
+  stream's timestamps (or ``index / fps`` when ``fps`` is given);
+* a folder of images, taken in name order: times from ``timestamps.csv`` in the folder
+  (columns ``frame,t``, ``frame`` the image's file name), else ``index / fps``.  Files that
+  are not images are skipped with a warning.
+
+A frame that cannot be read comes out with ``image`` None and an ``error``; a video that
+breaks off ends early with a warning.  Nothing raises once the source is open.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from camvlp.errors import InputError
+from camvlp.io.images import load_image
+
+__all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_frames", "read_truth"]
+
+#: Image file suffixes taken from a folder (lower case).
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
+
+#: Files of a frame folder that are ours, not frames (no warning for them).
+_OWN_FILES = ("timestamps.csv", "truth.csv", "fixtures.csv")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of a video or folder.
+
+    Attributes
+    ----------
+    index : int
+        Position in the source, from 0.
+    name : str
+        The frame's name: its number in a video, its file name in a folder.
+    t : float
+        Its time, s.
+    image : ndarray or None
+        BGR (H, W, 3) uint8 (or what the image file holds); None when it could not be read.
+    error : str
+        Why it could not be read ("" when it could).
+    """
+
+    index: int
+    name: str
+    t: float
+    image: np.ndarray | None
+    error: str = ""
+
+
+@dataclass
+class FrameSource:
+    """An opened video or folder; iterate it for :class:`Frame` objects, in order.
+
+    Attributes
+    ----------
+    path : Path
+        The video or folder.
+    kind : str
+        ``"video"`` or ``"folder"``.
+    total : int or None
+        Frames expected (None when the video does not say).
+    warnings : list of str
+        What was skipped, and a video that ended early.
+    truth_path, fixtures_truth_path : Path or None
+        The truth files beside the input when they exist (see :mod:`camvlp.sim.video`).
+    """
+
+    path: Path
+    kind: str
+    total: int | None
+    fps: float | None
+    start_s: float
+    max_frames: int | None
+    threads: int
+    warnings: list[str] = field(default_factory=list)
+    truth_path: Path | None = None
+    fixtures_truth_path: Path | None = None
+    _files: list[Path] = field(default_factory=list, repr=False)
+    _times: dict[str, float] = field(default_factory=dict, repr=False)
+
+    def __iter__(self) -> Iterator[Frame]:
+        frames = self._video() if self.kind == "video" else self._folder()
+        n = 0
+        for frame in frames:
+            if frame.t < self.start_s - 1e-9:
+                continue
+            if self.max_frames is not None and n >= self.max_frames:
+                return
+            n += 1
+            yield frame
+
+    def _folder(self) -> Iterator[Frame]:
+        for i, p in enumerate(self._files):
+            t = self._times.get(p.name)
+            if t is None:
+                t = i / self.fps if self.fps else math.nan
+            try:
+                image = load_image(p)
+            except InputError as exc:
+                yield Frame(i, p.name, t, None, exc.what)
+                continue
+            yield Frame(i, p.name, t, image)
+
+    def _video(self) -> Iterator[Frame]:
+        import av
+
+        try:
+            container = av.open(str(self.path))
+        except (OSError, av.FFmpegError) as exc:  # checked in open_frames; raced away
+            self.warnings.append(f"cannot read the video any more: {exc}")
+            return
+        try:
+            stream = container.streams.video[0]
+            stream.thread_type = "AUTO" if self.threads != 1 else "SLICE"
+            stream.codec_context.thread_count = max(int(self.threads), 0)
+            i = 0
+            try:
+                for frame in container.decode(stream):
+                    t = frame.time if (self.fps is None and frame.time is not None) else None
+                    if t is None:
+                        rate = self.fps or (float(stream.average_rate or 0) or None)
+                        t = i / rate if rate else math.nan
+                    try:
+                        image = frame.to_ndarray(format="bgr24")
+                    except (av.FFmpegError, ValueError) as exc:
+                        yield Frame(i, str(i), float(t), None, f"cannot convert the frame: {exc}")
+                    else:
+                        yield Frame(i, str(i), float(t), image)
+                    i += 1
+            except (av.FFmpegError, OSError, EOFError) as exc:
+                self.warnings.append(f"the video breaks off after {i} frames: {exc}")
+        finally:
+            container.close()
+
+
+def _read_timestamps(path: Path) -> dict[str, float]:
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the timestamps: {exc.__class__.__name__}", path) from None
+    if rows and not {"frame", "t"} <= set(rows[0]):
+        raise InputError("timestamps.csv must have the columns frame,t", path)
+    out: dict[str, float] = {}
+    for r in rows:
+        try:
+            t = float(r["t"])
+        except (TypeError, ValueError):
+            raise InputError(f"a time that is not a number: {r['t']!r}", path) from None
+        if not math.isfinite(t):
+            raise InputError(f"a time that is not finite: {r['t']!r}", path)
+        out[str(r["frame"]).strip()] = t
+    return out
+
+
+def open_frames(
+    path: str | Path,
+    *,
+    fps: float | None = None,
+    start_s: float = 0.0,
+    max_frames: int | None = None,
+    threads: int = 1,
+) -> FrameSource:
+    """Open a video file or a folder of images for reading frame by frame.
+
+    Parameters
+    ----------
+    path : str or Path
+        A video file, or a folder of images (name order).
+    fps : float, optional
+        Frames per second: the frame times when a folder has no ``timestamps.csv`` (then
+        required), and for a video instead of its timestamps.
+    start_s : float
+        Skip the frames before this time, s.
+    max_frames : int, optional
+        Read at most this many frames (after ``start_s``).
+    threads : int
+        Decoder threads for a video (1: one core; 0: FFmpeg's choice).
+
+    Returns
+    -------
+    FrameSource
+
+    Raises
+    ------
+    InputError
+        A missing path, a file that is not a video, a folder without images, a folder
+        without times (no ``timestamps.csv`` and no ``fps``), a bad ``timestamps.csv``.
+    """
+    p = Path(path)
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise InputError(f"--fps must be a positive number, got {fps}")
+    if max_frames is not None and max_frames < 1:
+        raise InputError(f"--frames must be at least 1, got {max_frames}")
+    if not math.isfinite(start_s) or start_s < 0:
+        raise InputError(f"--start must be a time of 0 s or later, got {start_s}")
+    if not p.exists():
+        raise InputError("no such video or folder", p)
+    if p.is_dir():
+        return _open_folder(p, fps, start_s, max_frames)
+    import av
+
+    try:
+        with av.open(str(p)) as container:
+            if not container.streams.video:
+                raise InputError("the file has no video stream", p)
+            stream = container.streams.video[0]
+            total = int(stream.frames) or None
+    except (OSError, av.FFmpegError, UnicodeDecodeError):
+        raise InputError("not a video that can be read", p) from None
+    truth = p.with_name(p.stem + "_truth.csv")
+    fixtures = p.with_name(p.stem + "_fixtures.csv")
+    return FrameSource(
+        p,
+        "video",
+        total,
+        fps,
+        start_s,
+        max_frames,
+        threads,
+        truth_path=truth if truth.is_file() else None,
+        fixtures_truth_path=fixtures if fixtures.is_file() else None,
+    )
+
+
+def _open_folder(p: Path, fps: float | None, start_s: float, max_frames: int | None) -> FrameSource:
+    files = sorted(f for f in p.iterdir() if f.is_file() and not f.name.startswith("."))
+    images = [f for f in files if f.suffix.lower() in IMAGE_SUFFIXES]
+    others = [f.name for f in files if f not in images and f.name not in _OWN_FILES]
+    if not images:
+        raise InputError("the folder has no images", p)
+    stamps = p / "timestamps.csv"
+    times = _read_timestamps(stamps) if stamps.is_file() else {}
+    missing = [f.name for f in images if f.name not in times]
+    if missing and fps is None:
+        what = "no timestamps.csv" if not times else f"no time for {missing[0]} in timestamps.csv"
+        raise InputError(f"{what}: give --fps", p)
+    warnings = []
+    if others:
+        shown = ", ".join(others[:3]) + (" ..." if len(others) > 3 else "")
+        warnings.append(f"skipped {len(others)} file(s) that are not images: {shown}")
+    truth, fixtures = p / "truth.csv", p / "fixtures.csv"
+    return FrameSource(
+        p,
+        "folder",
+        len(images),
+        fps,
+        start_s,
+        max_frames,
+        1,
+        warnings,
+        truth if truth.is_file() else None,
+        fixtures if fixtures.is_file() else None,
+        images,
+        times,
+    )
+
+
+def read_truth(path: str | Path) -> dict[str, np.ndarray]:
+    """A truth CSV (``frame,t,x,y,z,theta_x,theta_y,theta_z``): frame name -> the 6 values
+    ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees).
+
+    Raises
+    ------
+    InputError
+        Unreadable, missing columns or values that are not numbers.
+    """
+    p = Path(path)
+    cols = ("x", "y", "z", "theta_x", "theta_y", "theta_z")
+    try:
+        with p.open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+        return {
+            str(r["frame"]).strip(): np.array([float(r[c]) for c in cols], dtype=float)
+            for r in rows
+        }
+    except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError):
+        raise InputError(
+            "cannot read the truth (frame,t,x,y,z,theta_x,theta_y,theta_z)", p
+        ) from None

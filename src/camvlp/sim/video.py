@@ -1,0 +1,456 @@
+"""Rolling-shutter videos of a moving camera, with the true trajectory beside them.
+
+A video frame is read one sensor row after another, and the camera moves meanwhile: each
+sensor row sees the room from the pose the camera has at that row's own time.  This module
+renders frames that way (the pose interpolated along a trajectory for every row) and writes
+them as an H.264 video (PyAV, libx264) or as a folder of PNG frames with ``timestamps.csv``.
+
+Time convention: a frame's time ``t`` is the middle of the exposure of its middle sensor row;
+sensor row ``k`` of ``N`` is exposed over
+``[t + (k - (N - 1) / 2) * row_time - exposure / 2, ... + exposure]`` and seen from the pose
+at the centre of that window.  The LEDs run on the same absolute clock across frames (each
+with its own random phase, the same for the whole video), and each frame gets its own noise.
+
+Files written beside a video ``DIR/name.mp4`` (or inside a frame folder ``DIR/``):
+
+* ``name_truth.csv`` (``truth.csv``): ``frame,t,x,y,z,theta_x,theta_y,theta_z``, the pose at
+  each frame's time (map units, the thesis' angles in degrees);
+* ``name_fixtures.csv`` (``fixtures.csv``): ``frame,id,u,v,fully_inside,frames_spanned``, what
+  each frame shows of each fixture at the frame's time (for checking IDs).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import math
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvlp.errors import InputError
+from camvlp.model.camera import Camera, Pose, euler_to_matrix
+from camvlp.model.fixtures import FixtureMap
+from camvlp.sim import render as _render
+from camvlp.sim.render import FixtureTruth, RenderSettings
+
+__all__ = [
+    "TRAJECTORY_COLUMNS",
+    "Trajectory",
+    "VideoFrame",
+    "load_trajectory",
+    "render_frame",
+    "render_video",
+    "truth_paths",
+]
+
+#: Columns of a trajectory CSV.
+TRAJECTORY_COLUMNS = ("t", "x", "y", "z", "theta_x", "theta_y", "theta_z")
+
+#: Video suffixes :func:`render_video` writes (anything else is a frame folder).
+VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A camera's path: poses at increasing times, interpolated linearly in between.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Times, s, strictly increasing.
+    position : ndarray, shape (N, 3)
+        Camera centres, map units.
+    euler_deg : ndarray, shape (N, 3)
+        The thesis' angles ``(theta_x, theta_y, theta_z)``, degrees (unwrapped, so that
+        interpolation never goes the long way round).
+    """
+
+    t: np.ndarray
+    position: np.ndarray
+    euler_deg: np.ndarray
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float).reshape(-1)
+        p = np.asarray(self.position, dtype=float).reshape(-1, 3)
+        e = np.asarray(self.euler_deg, dtype=float).reshape(-1, 3)
+        if t.size < 2 or p.shape[0] != t.size or e.shape[0] != t.size:
+            raise ValueError("a trajectory needs at least two poses, one per time")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p)) and np.all(np.isfinite(e))):
+            raise ValueError("a trajectory's times and poses must be finite numbers")
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("a trajectory's times must be strictly increasing")
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "position", p)
+        object.__setattr__(self, "euler_deg", np.rad2deg(np.unwrap(np.deg2rad(e), axis=0)))
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first pose to the last, s."""
+        return float(self.t[-1] - self.t[0])
+
+    def sample(self, times) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (M, 3) and angles (M, 3, degrees) at ``times`` (M,), s (clamped at ends)."""
+        tt = np.asarray(times, dtype=float).reshape(-1)
+        pos = np.stack([np.interp(tt, self.t, self.position[:, i]) for i in range(3)], axis=1)
+        eul = np.stack([np.interp(tt, self.t, self.euler_deg[:, i]) for i in range(3)], axis=1)
+        return pos, eul
+
+    def pose(self, time: float) -> Pose:
+        """The pose at one time, s."""
+        pos, eul = self.sample([time])
+        return Pose.from_euler(pos[0], eul[0])
+
+
+def load_trajectory(path: str | Path) -> Trajectory:
+    """Read a trajectory CSV with the columns ``t,x,y,z,theta_x,theta_y,theta_z``.
+
+    Raises
+    ------
+    InputError
+        Unreadable file, missing columns, non-numbers, fewer than two rows or times that do
+        not increase (one line naming the file).
+    """
+    p = Path(path)
+    try:
+        with p.open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read the trajectory: {exc.__class__.__name__}", p) from None
+    if not rows:
+        raise InputError("the trajectory has no rows", p)
+    missing = [c for c in TRAJECTORY_COLUMNS if c not in rows[0]]
+    if missing:
+        raise InputError(f"the trajectory lacks the column(s) {', '.join(missing)}", p)
+    try:
+        data = np.array([[float(r[c]) for c in TRAJECTORY_COLUMNS] for r in rows])
+    except (TypeError, ValueError):
+        raise InputError("the trajectory has a value that is not a number", p) from None
+    try:
+        return Trajectory(data[:, 0], data[:, 1:4], data[:, 4:7])
+    except ValueError as exc:
+        raise InputError(str(exc), p) from None
+
+
+def save_trajectory(trajectory: Trajectory, path: str | Path) -> None:
+    """Write a trajectory CSV (``t,x,y,z,theta_x,theta_y,theta_z``)."""
+    data = np.column_stack([trajectory.t, trajectory.position, trajectory.euler_deg])
+    with Path(path).open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(TRAJECTORY_COLUMNS)
+        w.writerows([[f"{v:.6f}" for v in row] for row in data])
+
+
+@dataclass(frozen=True)
+class VideoFrame:
+    """One rendered video frame and its truth.
+
+    Attributes
+    ----------
+    image : ndarray of uint8, shape (H, W, 3)
+        The frame, BGR.
+    t : float
+        The frame's time (its middle sensor row's mid-exposure), s.
+    pose : Pose
+        The camera's pose at ``t``.
+    fixtures : tuple of FixtureTruth
+        What the frame shows of each fixture, seen from ``pose``.
+    """
+
+    image: np.ndarray
+    t: float
+    pose: Pose
+    fixtures: tuple[FixtureTruth, ...]
+
+
+def _row_poses(
+    trajectory: Trajectory, times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:  # (M, 3, 3) world_from_camera, (M, 3) centres
+    pos, eul = trajectory.sample(times)
+    rot = np.stack([euler_to_matrix(e) for e in eul])
+    return rot, pos
+
+
+def _moving_coverage(
+    camera: Camera,
+    rot: np.ndarray,
+    pos: np.ndarray,
+    sensor_row: np.ndarray,
+    centre: np.ndarray,
+    normal: np.ndarray,
+    radius: float,
+    box,
+) -> np.ndarray:
+    """Anti-aliased disc coverage over a pixel box, each pixel seen from its row's pose.
+
+    ``rot`` (M, 3, 3) and ``pos`` (M, 3) are the poses of the box's sensor rows, and
+    ``sensor_row`` (bh, bw) indexes them per pixel.  Returns float32 (bh, bw).
+    """
+    u0, u1, v0, v1 = box
+    uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
+    xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
+    rays_c = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
+    idx = sensor_row.ravel()
+    rays = np.einsum("nij,nj->ni", rot[idx], rays_c)
+    origin = pos[idx]
+    denom = rays @ normal
+    offset = (centre - origin) @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = offset / denom
+    valid = np.isfinite(t) & (t > 0)
+    hit = origin + np.where(valid, t, 0.0)[:, None] * rays
+    rho = np.linalg.norm(hit - centre, axis=1)
+    far = 1e3 * radius + 1e3 * float(np.abs(pos - centre).max())
+    rho = np.where(valid, rho, far).reshape(uu.shape)
+    if rho.shape[0] > 1 and rho.shape[1] > 1:
+        gv, gu = np.gradient(rho)
+        scale = np.hypot(gu, gv)
+    else:
+        scale = np.full(rho.shape, radius)
+    scale = np.maximum(scale, 1e-12 * radius)
+    cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
+    cov[~valid.reshape(uu.shape)] = 0.0
+    return cov.astype(np.float32)
+
+
+def render_frame(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    trajectory: Trajectory,
+    t: float,
+    settings: RenderSettings | None = None,
+    *,
+    noise_seed: int = 0,
+) -> VideoFrame:
+    """Render one rolling-shutter frame of a moving camera.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics, distortion, image size and row time.
+    fixture_map : FixtureMap
+        The fixtures (each with a diameter).
+    trajectory : Trajectory
+        The camera's path; every sensor row sees the pose at its own mid-exposure time.
+    t : float
+        The frame's time (its middle sensor row's mid-exposure), s.
+    settings : RenderSettings, optional
+        LED and sensor settings as for :func:`camvlp.render`; ``seed`` sets the LEDs' phases
+        (the same for every frame of a video).
+    noise_seed : int
+        Seed of this frame's noise (give each frame its own).
+
+    Returns
+    -------
+    VideoFrame
+    """
+    s = (settings or RenderSettings()).resolved(camera)
+    for f in fixture_map.fixtures:
+        if f.diameter is None:
+            raise ValueError(f"fixture {f.id} has no diameter (needed to render it)")
+    w, h = camera.width, camera.height
+    n_rows = h if s.readout.by_rows else w
+    half = 0.5 * (n_rows - 1) * s.row_time_s
+    mid = trajectory.pose(t)
+    truths, normals, _ = _render._truths(camera, fixture_map, mid, s)
+    colours = _render._colours(s, len(fixture_map.fixtures))
+    field = _render._field_radius(camera)
+    ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
+    margin = math.ceil(4.0 * s.blur_px) + 2
+    patches = []
+    for f, n, truth, colour in zip(fixture_map.fixtures, normals, truths, colours, strict=True):
+        if not truth.in_front or n @ (mid.position - f.position) <= 0:
+            continue
+        rim = _render._rim_points(f, n)
+        rims = [_render._project_within_field(camera, p, rim, field)[0] for p in ends]
+        if not all(np.all(np.isfinite(r)) for r in rims):
+            continue
+        box = _render._box(np.concatenate(rims), w, h, margin + 2)
+        if box is None:
+            continue
+        u0, u1, v0, v1 = box
+        k = np.arange(v0, v1) if s.readout.by_rows else np.arange(u0, u1)
+        sensor = (n_rows - 1 - k) if s.readout.reversed else k
+        row_t = t + (sensor - 0.5 * (n_rows - 1)) * s.row_time_s  # mid-exposure of each row
+        rot, pos = _row_poses(trajectory, row_t)
+        grid = np.broadcast_to(
+            (np.arange(k.size)[:, None] if s.readout.by_rows else np.arange(k.size)[None, :]),
+            (v1 - v0, u1 - u0),
+        )
+        cov = _moving_coverage(camera, rot, pos, grid, f.position, n, 0.5 * f.diameter, box)
+        if s.blur_px > 0:
+            cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
+        chips, chip_s = _render._waveform(fixture_map, f, s.chip_rate_hz)
+        start = row_t - 0.5 * s.exposure_s + truth.phase_s
+        on = _render._on_fraction(chips, chip_s, start, s.exposure_s).astype(np.float32)
+        lit = cov * (on[:, None] if s.readout.by_rows else on[None, :]) * np.float32(s.brightness)
+        patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
+    image = _render._expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
+    if camera.mirrored:
+        image = np.ascontiguousarray(image[:, ::-1])
+    return VideoFrame(image=image, t=float(t), pose=mid, fixtures=truths)
+
+
+def frame_times(trajectory: Trajectory, fps: float) -> np.ndarray:
+    """The times of a video's frames at ``fps`` along a trajectory, starting at its start, s."""
+    if not (fps > 0 and math.isfinite(fps)):
+        raise ValueError(f"fps must be a positive number, got {fps!r}")
+    n = math.floor(trajectory.duration_s * fps + 1e-9) + 1
+    return trajectory.t[0] + np.arange(n) / fps
+
+
+def truth_paths(out: str | Path) -> tuple[Path, Path]:
+    """Where the truth of a video (``x.mp4``) or frame folder is written: (poses, fixtures)."""
+    p = Path(out)
+    if p.suffix.lower() in VIDEO_SUFFIXES:
+        return p.with_name(p.stem + "_truth.csv"), p.with_name(p.stem + "_fixtures.csv")
+    return p / "truth.csv", p / "fixtures.csv"
+
+
+def iter_frames(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    trajectory: Trajectory,
+    fps: float,
+    settings: RenderSettings | None = None,
+) -> Iterator[VideoFrame]:
+    """Render the frames of a video at ``fps`` along ``trajectory``, one after another."""
+    base = int((settings or RenderSettings()).seed)
+    for i, t in enumerate(frame_times(trajectory, fps)):
+        yield render_frame(
+            camera, fixture_map, trajectory, float(t), settings, noise_seed=base * 100003 + i + 1
+        )
+
+
+def render_video(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    trajectory: Trajectory,
+    out: str | Path,
+    *,
+    fps: float = 30.0,
+    settings: RenderSettings | None = None,
+    crf: int = 10,
+    max_frames: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> int:
+    """Render a video along a trajectory and write it with its truth.
+
+    Parameters
+    ----------
+    camera, fixture_map, trajectory
+        The scene and the camera's path.
+    out : str or Path
+        ``*.mp4`` / ``*.mov`` / ``*.mkv``: an H.264 video (PyAV's libx264, constant quality
+        ``crf``, 4:2:0); anything else: a folder of ``frame_000000.png`` ... with
+        ``timestamps.csv`` (``frame,t``).  The truth goes beside it (:func:`truth_paths`).
+    fps : float
+        Frames per second; frame ``i`` is at ``trajectory.t[0] + i / fps`` (its middle row).
+        Its ``t`` in the files is ``i / fps`` (the video's own clock).
+    settings : RenderSettings, optional
+        LED and sensor settings (row time: the settings', else the camera's).
+    crf : int
+        x264's constant rate factor (0 lossless ... 51; 10 keeps the stripes).
+    max_frames : int, optional
+        Stop after this many frames.
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each frame.
+
+    Returns
+    -------
+    int
+        Frames written.
+    """
+    out = Path(out)
+    times = frame_times(trajectory, fps)
+    if max_frames is not None:
+        times = times[: max(int(max_frames), 0)]
+    total = len(times)
+    is_video = out.suffix.lower() in VIDEO_SUFFIXES
+    if is_video:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+    truth_path, fixtures_path = truth_paths(out)
+    writer = _VideoWriter(out, camera.width, camera.height, fps, crf) if is_video else None
+    stamps = None if is_video else (out / "timestamps.csv").open("w", newline="")
+    with truth_path.open("w", newline="") as tf, fixtures_path.open("w", newline="") as ff:
+        tw, fw = csv.writer(tf), csv.writer(ff)
+        tw.writerow(("frame", *TRAJECTORY_COLUMNS))
+        fw.writerow(("frame", "id", "u", "v", "fully_inside", "frames_spanned"))
+        sw = None
+        if stamps is not None:
+            sw = csv.writer(stamps)
+            sw.writerow(("frame", "t"))
+        try:
+            frames = iter_frames(camera, fixture_map, trajectory, fps, settings)
+            for i, (frame, t) in enumerate(zip(frames, times, strict=False)):
+                t_video = float(t - times[0])
+                name = f"frame_{i:06d}.png"
+                if writer is not None:
+                    writer.write(frame.image)
+                else:
+                    if not cv2.imwrite(str(out / name), frame.image):
+                        raise InputError("cannot write a frame", out / name)
+                    sw.writerow((name, f"{t_video:.6f}"))
+                pos, eul = frame.pose.position, frame.pose.euler_deg
+                tw.writerow(
+                    (
+                        name if writer is None else i,
+                        f"{t_video:.6f}",
+                        *(f"{v:.6f}" for v in pos),
+                        *(f"{v:.5f}" for v in eul),
+                    )
+                )
+                for ft in frame.fixtures:
+                    fw.writerow(
+                        (
+                            name if writer is None else i,
+                            ft.id,
+                            f"{ft.pixel[0]:.3f}",
+                            f"{ft.pixel[1]:.3f}",
+                            int(ft.fully_inside),
+                            f"{ft.frames_spanned:.3f}",
+                        )
+                    )
+                if progress is not None:
+                    progress(i + 1, total)
+        finally:
+            if writer is not None:
+                writer.close()
+            if stamps is not None:
+                stamps.close()
+    return total
+
+
+class _VideoWriter:
+    """H.264 through PyAV (libx264 ships in PyAV's wheels)."""
+
+    def __init__(self, path: Path, width: int, height: int, fps: float, crf: int) -> None:
+        from fractions import Fraction
+
+        import av
+
+        self._av = av
+        try:
+            self.container = av.open(str(path), mode="w")
+        except (OSError, av.FFmpegError) as exc:
+            raise InputError(f"cannot write the video: {exc}", path) from None
+        rate = Fraction(fps).limit_denominator(1001)
+        self.stream = self.container.add_stream("libx264", rate=rate)
+        self.stream.width, self.stream.height = width, height
+        self.stream.pix_fmt = "yuv420p"
+        self.stream.options = {"crf": str(int(crf)), "preset": "veryfast"}
+
+    def write(self, image: np.ndarray) -> None:
+        frame = self._av.VideoFrame.from_ndarray(np.ascontiguousarray(image), format="bgr24")
+        for packet in self.stream.encode(frame):
+            self.container.mux(packet)
+
+    def close(self) -> None:
+        for packet in self.stream.encode():
+            self.container.mux(packet)
+        self.container.close()

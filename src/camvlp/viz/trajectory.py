@@ -1,0 +1,124 @@
+"""The tracked path over the room's plan, with the fixtures drawn."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from camvlp.model.fixtures import FixtureMap
+
+__all__ = ["plan_axes", "plot_trajectory"]
+
+_STATUS_COLOURS = {"fix": "#1a9850", "tracked": "#f46d43", "predicted": "#4575b4"}
+
+
+def plan_axes(fixture_map: FixtureMap) -> tuple[int, int, int]:
+    """``(a, b, vertical)``: the two map axes of the room's plan and the vertical one.
+
+    The vertical axis is the one the fixtures' normals point along (else the one along
+    which their positions spread least: a ceiling is flat).
+    """
+    normals = [f.normal for f in fixture_map.fixtures if f.normal is not None]
+    if normals:
+        vertical = int(np.argmax(np.abs(np.mean(np.abs(np.array(normals)), axis=0))))
+    else:
+        vertical = int(np.argmin(np.ptp(fixture_map.positions, axis=0)))
+    a, b = (i for i in range(3) if i != vertical)
+    return a, b, vertical
+
+
+def plot_trajectory(
+    path: str | Path,
+    fixture_map: FixtureMap,
+    positions: np.ndarray,
+    statuses: list[str],
+    *,
+    raw_positions: np.ndarray | None = None,
+    truth: np.ndarray | None = None,
+    title: str = "",
+) -> Path:
+    """Draw the tracked path over the plan of the room and write it as a PNG.
+
+    Parameters
+    ----------
+    path : str or Path
+        The picture to write (.png).
+    fixture_map : FixtureMap
+        The room: each fixture drawn as a disc of its diameter with its ID.
+    positions : ndarray, shape (N, 3)
+        Filtered camera centres per frame, map units (NaN rows where lost).
+    statuses : list of str
+        Each frame's status (colours the path).
+    raw_positions : ndarray, shape (N, 3), optional
+        The frames' own solves (small dots).
+    truth : ndarray, shape (N, 3), optional
+        The true path (grey line).
+    title : str
+        The figure's title.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Circle
+
+    a, b, _ = plan_axes(fixture_map)
+    units = fixture_map.units
+    pos = np.asarray(positions, dtype=float).reshape(-1, 3)
+    fig = Figure(figsize=(7.5, 6.0), dpi=120)
+    ax = fig.add_subplot(1, 1, 1)
+    for f in fixture_map.fixtures:
+        r = 0.5 * (f.diameter or 0.1)
+        ax.add_patch(Circle((f.position[a], f.position[b]), r, color="#fdbf11", ec="k", lw=0.6))
+        ax.annotate(
+            str(f.id),
+            (f.position[a], f.position[b]),
+            xytext=(0, 9),
+            textcoords="offset points",
+            ha="center",
+            fontsize=8,
+        )
+    if truth is not None:
+        tr = np.asarray(truth, dtype=float).reshape(-1, 3)
+        ax.plot(tr[:, a], tr[:, b], "-", color="0.55", lw=2.5, alpha=0.6, zorder=1)
+    if raw_positions is not None:
+        rp = np.asarray(raw_positions, dtype=float).reshape(-1, 3)
+        ax.plot(rp[:, a], rp[:, b], ".", color="k", ms=1.5, zorder=3)
+    st = np.asarray(statuses)
+    ax.plot(pos[:, a], pos[:, b], "-", color="0.2", lw=0.6, zorder=2)
+    for s, colour in _STATUS_COLOURS.items():
+        m = st == s
+        if np.any(m):
+            ax.plot(pos[m, a], pos[m, b], "o", ms=2.5, color=colour, zorder=4)
+    handles = [
+        Line2D([], [], marker="o", ls="", color=c, label=f"{s} ({int((st == s).sum())})")
+        for s, c in _STATUS_COLOURS.items()
+    ]
+    handles.append(Line2D([], [], color="0.55", lw=2.5, alpha=0.6, label="truth"))
+    if raw_positions is not None:
+        handles.append(Line2D([], [], marker=".", ls="", color="k", label="raw solve"))
+    lost = int((st == "lost").sum())
+    if lost:
+        handles.append(Line2D([], [], ls="", label=f"lost ({lost})"))
+    ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
+    names = "xyz"
+    ax.set_xlabel(f"{names[a]} ({units})")
+    ax.set_ylabel(f"{names[b]} ({units})")
+    ax.set_aspect("equal")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    pts = np.concatenate(
+        [fixture_map.positions[:, [a, b]], pos[np.all(np.isfinite(pos), axis=1)][:, [a, b]]]
+    )
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.1 * float(np.max(hi - lo)) + 0.2
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    ax.set_title(title or "Tracked path over the room's plan", fontsize=10)
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out)
+    return out
