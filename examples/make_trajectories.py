@@ -3,7 +3,7 @@
 * ``robot.csv`` (``examples/thesis_room.yaml``): a robot crossing the thesis' room under its
   lights at 0.5 m/s, its camera 10 cm above the floor looking straight up, from x = -0.6 m
   (all four fixtures in view) to x = 1.9 m (two: the other two leave the picture), with a
-  gentle S in z and a vibration of 0.1 degrees.
+  gentle S in z and a wobble of 0.05 degrees (1 to 4 Hz).
 * ``walk.csv`` (``examples/corridor_room.yaml``): a person walking along the corridor at
   1.2 m/s with a phone 1.1 m above the floor, screen down and camera up (the long side of the
   picture along the walk), from z = -1.5 to 1.5 m; the hand shakes by a few degrees (sums of
@@ -38,8 +38,8 @@ def robot(rate_hz: float = 200.0) -> None:
     z = 0.08 * np.sin(2 * np.pi * t / 5.0)
     pos = np.column_stack([x, np.full_like(t, -0.1), z])
     heading = np.degrees(np.arctan2(np.gradient(z, t), speed))
-    freqs = np.array([[3.1], [5.3], [7.9]])
-    wobble = 0.1 * np.sin(2 * np.pi * (freqs * t[None, :] + rng.uniform(0, 1, (3, 1))))
+    freqs = np.array([[1.1], [2.3], [3.7]])
+    wobble = 0.05 * np.sin(2 * np.pi * (freqs * t[None, :] + rng.uniform(0, 1, (3, 1))))
     eul = np.column_stack([90 + wobble[0], wobble[1], heading + wobble[2]])
     _write(HERE / "robot.csv", t, pos, eul)
 

@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from camvlp.model.camera import Camera, Pose, euler_to_matrix
+from camvlp.model.camera import Camera, Pose
 
 __all__ = [
     "IPPE_JITTER_PX",
@@ -405,6 +405,55 @@ def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.
     return np.stack([u, v], axis=-1)
 
 
+def _euler_matrices(euler_deg: np.ndarray) -> np.ndarray:
+    """``Rx Ry Rz`` for many sets of the thesis' angles: (N, 3) degrees -> (N, 3, 3)."""
+    a = np.deg2rad(np.asarray(euler_deg, dtype=np.float64).reshape(-1, 3))
+    c, s = np.cos(a), np.sin(a)
+    n = a.shape[0]
+    one, zero = np.ones(n), np.zeros(n)
+    rx = np.stack([one, zero, zero, zero, c[:, 0], -s[:, 0], zero, s[:, 0], c[:, 0]], 1)
+    ry = np.stack([c[:, 1], zero, s[:, 1], zero, one, zero, -s[:, 1], zero, c[:, 1]], 1)
+    rz = np.stack([c[:, 2], -s[:, 2], zero, s[:, 2], c[:, 2], zero, zero, zero, one], 1)
+    return rx.reshape(n, 3, 3) @ ry.reshape(n, 3, 3) @ rz.reshape(n, 3, 3)
+
+
+def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:
+    """Project points, each seen from the pose the camera has at its own time.
+
+    The pose at time ``dt`` is ``values + dt * rates`` in (camera centre, thesis angles):
+    a camera moving at constant velocity, as a rolling shutter sees it row by row.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics and distortion (up to 12 coefficients).
+    values : array_like, shape (6,)
+        ``(x, y, z, theta_x, theta_y, theta_z)`` at ``dt = 0``, map units and degrees.
+    rates : array_like, shape (6,)
+        Their rates, per s.
+    points : array_like, shape (N, 3)
+        World points, map units.
+    dt_s : array_like, shape (N,)
+        Each point's time, s.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Pixels; NaN for points behind the camera.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    dt = np.asarray(dt_s, dtype=np.float64).reshape(-1, 1)
+    pose = np.asarray(values, dtype=np.float64)[None, :] + dt * np.asarray(rates, dtype=float)
+    r = _euler_matrices(pose[:, 3:])
+    xc = np.einsum("nji,nj->ni", r, p - pose[:, :3])
+    z = np.where(xc[:, 2] > 0, xc[:, 2], np.nan)
+    x, y = xc[:, 0] / z, xc[:, 1] / z
+    if camera.distortion.size and np.any(camera.distortion):
+        x, y = _distort(x, y, camera.distortion)
+    k = camera.matrix
+    return np.stack([k[0, 0] * x + k[0, 1] * y + k[0, 2], k[1, 1] * y + k[1, 2]], axis=1)
+
+
 @dataclass(frozen=True)
 class PriorSolve:
     """A pose fitted to a few points and a prior (:func:`refine_pose`).
@@ -412,17 +461,23 @@ class PriorSolve:
     Attributes
     ----------
     pose : Pose
-        The fitted pose.
+        The fitted pose (at ``dt = 0``).
+    values : ndarray, shape (6,)
+        The same as ``(x, y, z, theta_x, theta_y, theta_z)``, map units and degrees.
+    rates : ndarray, shape (6,)
+        Their fitted rates per s (the prior's when no times were given).
     residuals_px : ndarray, shape (N,)
         Each point's reprojection error with it, pixels.
-    covariance : ndarray, shape (6, 6)
-        Covariance of ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees) from the
-        fit's Jacobian, points and prior together.
+    jacobian_px : ndarray, shape (2N, 6) or (2N, 12)
+        Derivative of the points' pixels (u0, v0, u1, ...) with respect to the values (and
+        the rates, when times were given) at the fit.
     """
 
     pose: Pose
+    values: np.ndarray
+    rates: np.ndarray
     residuals_px: np.ndarray
-    covariance: np.ndarray
+    jacobian_px: np.ndarray
 
     @property
     def reprojection_rms_px(self) -> float:
@@ -440,6 +495,10 @@ def refine_pose(
     sigma_position=0.05,
     sigma_euler_deg=1.0,
     sigma_px: float = 1.0,
+    dt_s=None,
+    prior_rates=None,
+    sigma_rates=None,
+    prior_covariance=None,
 ) -> PriorSolve | None:
     """The pose that best fits a few points (one or more) and a Gaussian prior on the pose.
 
@@ -447,6 +506,8 @@ def refine_pose(
     prior (a track's prediction) fills in what the points leave open.  Least squares
     (Levenberg-Marquardt, from the prior) over the camera centre and the thesis' angles of
     ``[reprojection / sigma_px, (C - C0) / sigma_position, (theta - theta0) / sigma_euler]``.
+    With ``dt_s`` (each point's time, a rolling shutter's rows), the camera moves at constant
+    rates (:func:`project_moving`) and the rates are fitted too, with their own prior.
 
     Parameters
     ----------
@@ -466,6 +527,14 @@ def refine_pose(
         The prior's standard deviation per angle, degrees.
     sigma_px : float
         Standard deviation of an image point, pixels.
+    dt_s : array_like, shape (N,), optional
+        Each point's time relative to the pose's, s.
+    prior_rates, sigma_rates : array_like, shape (6,), optional
+        The rates' prior (map units and degrees per s) and its standard deviation; needed
+        with ``dt_s``.
+    prior_covariance : array_like, shape (6, 6) or (12, 12), optional
+        The prior's full covariance (values, then rates with ``dt_s``), used instead of the
+        standard deviations (which then only scale the steps).
 
     Returns
     -------
@@ -474,46 +543,67 @@ def refine_pose(
     """
     obj = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
     img = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
-    if obj.shape[0] != img.shape[0] or obj.shape[0] < 1:
+    n = obj.shape[0]
+    if img.shape[0] != n or n < 1:
         raise ValueError("object_points and image_points need the same number (>= 1) of points")
-    c0 = np.asarray(prior_position, dtype=np.float64).reshape(3)
-    e0 = np.asarray(prior_euler_deg, dtype=np.float64).reshape(3)
-    sp = np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,))
-    se = np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,))
-    if not (np.all(sp > 0) and np.all(se > 0) and sigma_px > 0):
-        raise ValueError("sigma_position, sigma_euler_deg and sigma_px must be positive")
-    k, dist = camera.matrix, camera.dist_or_none
-    o = np.ascontiguousarray(obj).reshape(-1, 1, 3)
+    x0 = np.concatenate(
+        [
+            np.asarray(prior_position, dtype=float).reshape(3),
+            np.asarray(prior_euler_deg, dtype=float).reshape(3),
+        ]
+    )
+    sig = np.concatenate(
+        [
+            np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,)),
+            np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,)),
+        ]
+    )
+    moving = dt_s is not None
+    dt = np.zeros(n) if not moving else np.asarray(dt_s, dtype=np.float64).reshape(n)
+    if moving:
+        if prior_rates is None or sigma_rates is None:
+            raise ValueError("dt_s needs prior_rates and sigma_rates")
+        r0 = np.asarray(prior_rates, dtype=np.float64).reshape(6)
+        x0 = np.concatenate([x0, r0])
+        sig = np.concatenate([sig, np.broadcast_to(np.asarray(sigma_rates, dtype=float), (6,))])
+    else:
+        r0 = np.zeros(6) if prior_rates is None else np.asarray(prior_rates, dtype=float)
+    if not (np.all(sig > 0) and np.all(np.isfinite(sig)) and sigma_px > 0):
+        raise ValueError("the prior's standard deviations and sigma_px must be positive")
 
     def project(x: np.ndarray) -> np.ndarray:
-        r_wc = euler_to_matrix(x[3:])
-        r_cw = r_wc.T
-        rvec, _ = cv2.Rodrigues(r_cw)
-        uv, _ = cv2.projectPoints(o, rvec, -r_cw @ x[:3], k, dist)
-        return uv.reshape(-1, 2)
+        return project_moving(camera, x[:6], x[6:] if moving else r0, obj, dt)
+
+    whiten = np.diag(1.0 / sig)
+    if prior_covariance is not None:
+        cov = np.asarray(prior_covariance, dtype=np.float64)
+        if cov.shape != (x0.size, x0.size) or not np.all(np.isfinite(cov)):
+            raise ValueError(f"prior_covariance must be a finite {x0.size} x {x0.size} matrix")
+        try:  # residual L^T (x - x0) with L L^T = cov^-1
+            whiten = np.linalg.cholesky(np.linalg.inv(cov)).T
+        except np.linalg.LinAlgError:
+            raise ValueError("prior_covariance must be positive definite") from None
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.concatenate(
-            [((project(x) - img) / sigma_px).ravel(), (x[:3] - c0) / sp, (x[3:] - e0) / se]
-        )
+        return np.concatenate([((project(x) - img) / sigma_px).ravel(), whiten @ (x - x0)])
 
-    x0 = np.concatenate([c0, e0])
+    if not np.all(np.isfinite(residuals(x0))):
+        return None
     try:
-        fit = least_squares(residuals, x0, method="lm", x_scale=np.concatenate([sp, se]))
-    except (ValueError, np.linalg.LinAlgError, cv2.error):
+        fit = least_squares(residuals, x0, method="lm", x_scale=sig)
+    except (ValueError, np.linalg.LinAlgError):
         return None
     x = fit.x
     if not np.all(np.isfinite(x)):
         return None
     try:
-        pose = Pose.from_euler(x[:3], x[3:])
+        pose = Pose.from_euler(x[:3], x[3:6])
     except ValueError:
         return None
     if np.any(pose.to_camera(obj)[:, 2] <= 0):
         return None
     res = np.linalg.norm(project(x) - img, axis=1)
-    try:
-        cov = np.linalg.inv(fit.jac.T @ fit.jac)
-    except np.linalg.LinAlgError:
-        cov = np.full((6, 6), np.nan)
-    return PriorSolve(pose, res, cov)
+    if not np.all(np.isfinite(res)):
+        return None
+    jac = fit.jac[: 2 * n] * sigma_px
+    return PriorSolve(pose, x[:6].copy(), x[6:].copy() if moving else r0, res, jac)

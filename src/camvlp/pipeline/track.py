@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from camvlp.geometry.pnp import refine_pose
+from camvlp.geometry.disc import perspective_offset
+from camvlp.geometry.pnp import PriorSolve, project_moving, refine_pose
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
@@ -85,9 +86,13 @@ class TrackSettings:
     angular_accel_sigma_deg : float
         Process noise of the angles: degrees per s^2.
     fix_sigma : float
-        Measurement noise of a fix's position, map units.
+        Uncertainty of the first fix's position (the filter's start), map units.
     fix_sigma_deg : float
-        Measurement noise of a fix's angles, degrees.
+        Uncertainty of the first fix's angles, degrees.
+    pixel_sigma : float
+        Uncertainty of a fixture's centre in the image, pixels: every later fix or tracked
+        pose enters the filter as its fixtures' pixels (an iterated extended Kalman update,
+        so that what two or three fixtures leave open keeps the track's prediction).
     rolling_shutter : bool
         Correct each fixture's pixel for the camera's motion between its row and the frame's
         middle row (needs the camera's ``row_time_s``).
@@ -100,10 +105,11 @@ class TrackSettings:
     ambiguity: float = 2.0
     min_tracked: int = 2
     max_gap_s: float = 0.5
-    accel_sigma: float = 4.0
-    angular_accel_sigma_deg: float = 400.0
+    accel_sigma: float = 3.0
+    angular_accel_sigma_deg: float = 250.0
     fix_sigma: float = 0.002
     fix_sigma_deg: float = 0.05
+    pixel_sigma: float = 0.5
     rolling_shutter: bool = True
     carry_chip_length: bool = True
 
@@ -115,6 +121,7 @@ class TrackSettings:
             "angular_accel_sigma_deg",
             "fix_sigma",
             "fix_sigma_deg",
+            "pixel_sigma",
         ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -128,10 +135,11 @@ class TrackSettings:
 
 
 class ConstantVelocityFilter:
-    """Kalman filter with a constant-velocity model, independently per coordinate.
+    """Kalman filter with a constant-velocity model on D coordinates.
 
-    State per coordinate: value and rate; the process noise is white acceleration of spectral
-    density ``q`` per coordinate (units^2 / s^3).  Shapes: ``x`` (D, 2), ``P`` (D, 2, 2).
+    State: the D values, then their D rates (units per s); ``x`` (2D,), ``P`` (2D, 2D).  The
+    process noise is a random acceleration, constant over each step, of standard deviation
+    ``accel_sigma`` per coordinate (units / s^2; the discrete white-noise acceleration model).
 
     Parameters
     ----------
@@ -141,51 +149,82 @@ class ConstantVelocityFilter:
         Its standard deviation.
     rate_sigma : array_like, shape (D,)
         Standard deviation of the unknown initial rate (units per s).
-    q : array_like, shape (D,)
-        Process-noise spectral density per coordinate.
+    accel_sigma : array_like, shape (D,)
+        Standard deviation of the acceleration per coordinate, units per s^2.
     """
 
-    def __init__(self, value, value_sigma, rate_sigma, q) -> None:
+    def __init__(self, value, value_sigma, rate_sigma, accel_sigma) -> None:
         v = np.asarray(value, dtype=float).reshape(-1)
         d = v.size
-        self.x = np.stack([v, np.zeros(d)], axis=1)
-        self.P = np.zeros((d, 2, 2))
-        self.P[:, 0, 0] = np.broadcast_to(np.asarray(value_sigma, dtype=float) ** 2, (d,))
-        self.P[:, 1, 1] = np.broadcast_to(np.asarray(rate_sigma, dtype=float) ** 2, (d,))
-        self.q = np.broadcast_to(np.asarray(q, dtype=float), (d,)).copy()
+        self.d = d
+        self.x = np.concatenate([v, np.zeros(d)])
+        var = np.concatenate(
+            [
+                np.broadcast_to(np.asarray(value_sigma, dtype=float) ** 2, (d,)),
+                np.broadcast_to(np.asarray(rate_sigma, dtype=float) ** 2, (d,)),
+            ]
+        )
+        self.P = np.diag(var)
+        self.q = np.broadcast_to(np.asarray(accel_sigma, dtype=float) ** 2, (d,)).copy()
 
     @property
     def value(self) -> np.ndarray:
         """Current values, shape (D,)."""
-        return self.x[:, 0].copy()
+        return self.x[: self.d].copy()
 
     @property
     def rate(self) -> np.ndarray:
         """Current rates (units per s), shape (D,)."""
-        return self.x[:, 1].copy()
+        return self.x[self.d :].copy()
 
     @property
     def sigma(self) -> np.ndarray:
         """Standard deviation of each value, shape (D,)."""
-        return np.sqrt(self.P[:, 0, 0])
+        return np.sqrt(np.diag(self.P)[: self.d])
+
+    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
+        """The state (2D,) and covariance (2D, 2D) ``dt`` seconds on, without moving."""
+        dt = max(float(dt), 0.0)
+        eye = np.eye(self.d)
+        f = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
+        q = np.diag(self.q)
+        qm = np.block([[q * dt**4 / 4, q * dt**3 / 2], [q * dt**3 / 2, q * dt**2]])
+        return f @ self.x, f @ self.P @ f.T + qm
 
     def predict(self, dt: float) -> None:
         """Move the state ``dt`` seconds on (``dt`` >= 0)."""
-        dt = max(float(dt), 0.0)
-        f = np.array([[1.0, dt], [0.0, 1.0]])
-        qm = np.array([[dt**3 / 3, dt**2 / 2], [dt**2 / 2, dt]])
-        self.x = self.x @ f.T
-        self.P = f[None] @ self.P @ f.T[None] + self.q[:, None, None] * qm[None]
+        self.x, self.P = self.predicted(dt)
 
     def update(self, z, sigma) -> None:
         """Fuse a measurement of the values, ``z`` (D,), with standard deviations (D,)."""
         z = np.asarray(z, dtype=float).reshape(-1)
-        r = np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape)
-        s = self.P[:, 0, 0] + r
-        k = self.P[:, :, 0] / s[:, None]  # (D, 2)
-        innovation = z - self.x[:, 0]
-        self.x = self.x + k * innovation[:, None]
-        self.P = self.P - k[:, :, None] * self.P[:, None, 0, :]
+        h = np.hstack([np.eye(self.d), np.zeros((self.d, self.d))])
+        r = np.diag(np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape))
+        self._fuse(z - self.x[: self.d], h, r)
+
+    def update_linearized(self, residual, jacobian, state_ref, sigma: float) -> None:
+        """Fuse a nonlinear measurement, linearised at ``state_ref``.
+
+        ``residual`` (M,) is the measurement minus its model at ``state_ref``, ``jacobian``
+        the model's derivative there with respect to the values (M, D) or the whole state
+        (M, 2D), ``state_ref`` (D,) or (2D,) accordingly, ``sigma`` the measurement's standard
+        deviation (an iterated extended Kalman filter step).  Directions the measurement does
+        not see keep their prior.
+        """
+        jac = np.asarray(jacobian, dtype=float)
+        ref = np.asarray(state_ref, dtype=float)
+        if jac.shape[1] == self.d:
+            jac = np.hstack([jac, np.zeros_like(jac)])
+            ref = np.concatenate([ref, self.x[self.d :]])
+        innovation = np.asarray(residual, dtype=float) - jac @ (self.x - ref)
+        self._fuse(innovation, jac, np.eye(jac.shape[0]) * sigma**2)
+
+    def _fuse(self, innovation: np.ndarray, h: np.ndarray, r: np.ndarray) -> None:
+        s = h @ self.P @ h.T + r
+        k = np.linalg.solve(s, h @ self.P).T
+        self.x = self.x + k @ innovation
+        ikh = np.eye(self.x.size) - k @ h
+        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form: stays symmetric
 
 
 @dataclass(frozen=True)
@@ -303,20 +342,21 @@ class Tracker:
         self._ids = np.array([f.id for f in fixture_map.fixtures])
         self._positions = fixture_map.positions
         self._index = 0
+        self._dt_pred = 0.0
 
     # ---------------------------------------------------------------------------------------
     # Prediction
 
     def _predicted_state(self, t: float):
-        """Predicted (position, euler, velocity, euler rate, sigmas) at ``t``, or None."""
+        """Predicted (values (6,), rates (6,), sigmas (6,)) at ``t``, or None without a track."""
         if self.filter is None or self._t_last is None:
             return None
-        dt = t - self._t_last
-        x = self.filter.x[:, 0] + dt * self.filter.x[:, 1]
-        return x, self.filter.x[:, 1].copy()
+        self._dt_pred = t - self._t_last
+        x, p = self.filter.predicted(self._dt_pred)
+        return x[:6], x[6:], np.sqrt(np.diag(p)[:6])
 
     def _pose_at(self, state, dt: float) -> Pose:
-        x, rate = state
+        x, rate, _ = state
         y = x + dt * rate
         return Pose.from_euler(y[:3], y[3:])
 
@@ -388,7 +428,9 @@ class Tracker:
                 continue
             if fid in predicted:
                 d = dist[k, pred_ids.index(fid)]
-                if d > gate:
+                # a cut disc's centre is off by up to its radius
+                slack = 0.5 * float(np.max(blobs[k].axes_px)) if blobs[k].touches_border else 0
+                if d > gate + slack:
                     reasons[k] = (
                         f"decoded ID {fid}, but the track puts that fixture {d:.0f} px away"
                     )
@@ -491,12 +533,16 @@ class Tracker:
         state = self._predicted_state(t)
         fresh = from_pose and state is not None
 
-        pixels = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
-        if fresh and self.settings.rolling_shutter and len(usable):
-            pixels = pixels - self._rs_shift(state, usable, ids, pixels, img.shape[:2])
+        measured = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
+        rs = self.settings.rolling_shutter and self.camera.row_time_s is not None
+        dts = self._row_offset_s(measured, img.shape[:2]) if rs else np.zeros(len(usable))
+        pixels = measured
+        if fresh and rs and len(usable):  # a first guess for PnP: moved to the frame's time
+            pixels = measured - self._rs_shift(state, usable, ids, measured, img.shape[:2])
+        obj = np.array([self.map.get(ids[k]).position for k in usable]).reshape(-1, 3)
 
         status, reason = "lost", ""
-        raw_pose, rms, used_ids = None, math.nan, ()
+        solved = None
         used_mask = np.zeros(len(usable), bool)
         if len(usable) >= 4:
             moved = [
@@ -507,24 +553,36 @@ class Tracker:
             )
             est, why = _solve(self.camera, self.map, moved, sub, st, self._outlier_px)
             if est is not None and est.pose is not None:
-                raw_pose, rms, used_mask = est.pose, float(est.reprojection_rms_px), est.used
+                used_mask = np.asarray(est.used, bool)
+                solved = self._refine(est.pose, state, obj, measured, dts, used_mask, fix=True)
                 status = "fix"
             else:
                 reason = why
-        if raw_pose is None and fresh and len(usable) >= self.settings.min_tracked:
-            solved = self._tracked_solve(state, usable, ids, pixels)
-            if solved is not None:
-                raw_pose, rms, used_mask = solved
+        if (
+            solved is None
+            and status != "fix"
+            and fresh
+            and len(usable) >= self.settings.min_tracked
+        ):
+            used_mask = np.ones(len(usable), bool)
+            solved = self._refine(None, state, obj, measured, dts, used_mask, fix=False)
+            if solved is not None and np.max(solved.residuals_px) <= self._outlier_px:
                 status = "tracked"
             else:
+                solved, used_mask = None, np.zeros(len(usable), bool)
                 reason = reason or "the fixtures do not fit the track"
-        elif raw_pose is None and not reason:
+        elif solved is None and not reason:
             reason = f"{len(usable)} identified fixture{'s' if len(usable) != 1 else ''}" + (
                 ", no track to help" if not fresh else ""
             )
-        if raw_pose is not None:
+        if status == "fix" and solved is None:
+            status, used_mask = "lost", np.zeros(len(usable), bool)
+            reason = "the rolling-shutter refinement failed"
+        raw_pose, rms, used_ids = None, math.nan, ()
+        if solved is not None:
+            raw_pose, rms = solved.pose, solved.reprojection_rms_px
             used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
-            self._measure(raw_pose, t, status)
+            self._measure(solved, t, obj[used_mask], measured[used_mask], dts[used_mask])
             reason = ""
         elif self.filter is not None and self._t_measured is not None:
             if t - self._t_measured <= self.settings.max_gap_s:
@@ -587,23 +645,60 @@ class Tracker:
             )
         return np.nan_to_num(shift)
 
-    def _tracked_solve(self, state, usable, ids, pixels):
-        x, _ = state
-        sig = self.filter.sigma if self.filter is not None else np.full(6, 1.0)
-        obj = np.array([self.map.get(ids[k]).position for k in usable])
-        solved = refine_pose(
+    def _refine(self, start: Pose | None, state, obj, pixels, dts, used, *, fix: bool):
+        """The frame's pose (and rates) from its fixtures' pixels at their rows' times.
+
+        A fix starts from its PnP pose with a loose prior; a tracked pose from the track's
+        prediction with its uncertainty.  The rates' prior is the track's (or still, loosely).
+        """
+        st = self.settings
+        if state is not None:
+            x, rate, sig = state
+            rate_sig = np.maximum(self._rate_sigma(), 1e-6)
+        else:
+            x, rate, sig = None, np.zeros(6), None
+            rate_sig = np.array([1.0] * 3 + [30.0] * 3)
+        cov = None
+        if fix:
+            values = np.concatenate([start.position, self._near(start.euler_deg)])
+            sigma = np.array([0.5] * 3 + [20.0] * 3)
+        else:
+            values, sigma = x, np.maximum(sig, np.array([1e-5] * 3 + [1e-4] * 3))
+            cov = self.filter.predicted(self._dt_pred)[1]
+        obj, pixels, dts = obj[used], pixels[used], dts[used]
+        pixels = pixels - self._perspective(values, obj)
+        return refine_pose(
             obj,
             pixels,
             self.camera,
-            x[:3],
-            x[3:],
-            sigma_position=np.maximum(sig[:3], 1e-4),
-            sigma_euler_deg=np.maximum(sig[3:], 1e-3),
-            sigma_px=0.5,
+            values[:3],
+            values[3:],
+            sigma_position=sigma[:3],
+            sigma_euler_deg=sigma[3:],
+            sigma_px=st.pixel_sigma,
+            dt_s=dts,
+            prior_rates=rate,
+            sigma_rates=rate_sig,
+            prior_covariance=cov,
         )
-        if solved is None or np.max(solved.residuals_px) > self._outlier_px:
-            return None
-        return solved.pose, solved.reprojection_rms_px, np.ones(len(usable), bool)
+
+    def _rate_sigma(self) -> np.ndarray:
+        """Standard deviation of the predicted rates (6,)."""
+        _, p = self.filter.predicted(self._dt_pred)
+        return np.sqrt(np.diag(p)[6:])
+
+    def _perspective(self, values: np.ndarray, obj: np.ndarray) -> np.ndarray:
+        """Offsets (N, 2) of each disc's ellipse centre from its projected centre, pixels."""
+        out = np.zeros((obj.shape[0], 2))
+        if not self.settings.locate.correct_perspective:
+            return out
+        pose = Pose.from_euler(values[:3], values[3:])
+        for j, p in enumerate(obj):
+            k = int(np.argmin(np.linalg.norm(self._positions - p, axis=1)))
+            f = self.map.fixtures[k]
+            if f.diameter and f.normal is not None:
+                out[j] = perspective_offset(self.camera, pose, f.position, f.diameter, f.normal)
+        return out
 
     def _near(self, euler: np.ndarray) -> np.ndarray:
         """Angles unwrapped to within 180 degrees of the track's."""
@@ -612,25 +707,28 @@ class Tracker:
         ref = self.filter.value[3:]
         return ref + (euler - ref + 180.0) % 360.0 - 180.0
 
-    def _measure(self, pose: Pose, t: float, status: str) -> None:
+    def _measure(self, solved: PriorSolve, t: float, obj, pixels, dts) -> None:
+        """Fuse a frame's solve: its fixtures' pixels, linearised at its pose and rates."""
         s = self.settings
-        z = np.concatenate([pose.position, self._near(pose.euler_deg)])
-        if status == "fix":
-            sigma = np.array([s.fix_sigma] * 3 + [s.fix_sigma_deg] * 3)
-        else:
-            sigma = np.array([2 * s.fix_sigma] * 3 + [2 * s.fix_sigma_deg] * 3)
+        values = np.concatenate([solved.values[:3], self._near(solved.values[3:])])
         if self.filter is None:
-            if status != "fix":
-                return
             self.filter = ConstantVelocityFilter(
-                z,
-                sigma,
+                values,
+                np.array([s.fix_sigma] * 3 + [s.fix_sigma_deg] * 3),
                 np.array([2.0] * 3 + [90.0] * 3),
-                np.array([s.accel_sigma**2] * 3 + [s.angular_accel_sigma_deg**2] * 3),
+                np.array([s.accel_sigma] * 3 + [s.angular_accel_sigma_deg] * 3),
             )
         else:
             self.filter.predict(t - self._t_last)
-            self.filter.update(z, sigma)
+            ref = np.concatenate([values, solved.rates])
+            pixels = pixels - self._perspective(values, obj)
+            model = project_moving(self.camera, values, solved.rates, obj, dts)
+            residual = (pixels - model).ravel()
+            jac = solved.jacobian_px
+            if jac.shape[1] == 6:
+                jac = np.hstack([jac, np.zeros_like(jac)])
+            if np.all(np.isfinite(residual)) and np.all(np.isfinite(jac)):
+                self.filter.update_linearized(residual, jac, ref, s.pixel_sigma)
         self._t_last = t
         self._t_measured = t
 
