@@ -27,6 +27,7 @@ Frame time convention: a frame's ``t`` is its middle sensor row's time (see
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import math
 import time
@@ -93,6 +94,11 @@ class TrackSettings:
         Uncertainty of a fixture's centre in the image, pixels: every later fix or tracked
         pose enters the filter as its fixtures' pixels (an iterated extended Kalman update,
         so that what two or three fixtures leave open keeps the track's prediction).
+    tilt_window : int
+        Fixes whose tilts (theta_x, theta_y) give a tracked pose its tilt prior: their mean,
+        with their spread (at least ``min_tilt_sigma_deg``) as its uncertainty.
+    min_tilt_sigma_deg : float
+        Smallest uncertainty of that tilt prior, degrees.
     rolling_shutter : bool
         Correct each fixture's pixel for the camera's motion between its row and the frame's
         middle row (needs the camera's ``row_time_s``).
@@ -110,6 +116,8 @@ class TrackSettings:
     fix_sigma: float = 0.002
     fix_sigma_deg: float = 0.05
     pixel_sigma: float = 0.5
+    tilt_window: int = 90
+    min_tilt_sigma_deg: float = 0.02
     rolling_shutter: bool = True
     carry_chip_length: bool = True
 
@@ -201,6 +209,15 @@ class ConstantVelocityFilter:
         h = np.hstack([np.eye(self.d), np.zeros((self.d, self.d))])
         r = np.diag(np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape))
         self._fuse(z - self.x[: self.d], h, r)
+
+    def update_some(self, indices, z, sigma) -> None:
+        """Fuse a measurement of some of the values (``indices``), ``z`` and ``sigma`` alike."""
+        idx = np.asarray(indices, dtype=int).reshape(-1)
+        h = np.zeros((idx.size, self.x.size))
+        h[np.arange(idx.size), idx] = 1.0
+        z = np.asarray(z, dtype=float).reshape(-1)
+        r = np.diag(np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape))
+        self._fuse(z - self.x[idx], h, r)
 
     def update_linearized(self, residual, jacobian, state_ref, sigma: float) -> None:
         """Fuse a nonlinear measurement, linearised at ``state_ref``.
@@ -343,6 +360,7 @@ class Tracker:
         self._positions = fixture_map.positions
         self._index = 0
         self._dt_pred = 0.0
+        self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -582,7 +600,9 @@ class Tracker:
         if solved is not None:
             raw_pose, rms = solved.pose, solved.reprojection_rms_px
             used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
-            self._measure(solved, t, obj[used_mask], measured[used_mask], dts[used_mask])
+            self._measure(
+                solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
+            )
             reason = ""
         elif self.filter is not None and self._t_measured is not None:
             if t - self._t_measured <= self.settings.max_gap_s:
@@ -653,18 +673,19 @@ class Tracker:
         """
         st = self.settings
         if state is not None:
-            x, rate, sig = state
+            rate = state[1]
             rate_sig = np.maximum(self._rate_sigma(), 1e-6)
         else:
-            x, rate, sig = None, np.zeros(6), None
+            rate = np.zeros(6)
             rate_sig = np.array([1.0] * 3 + [30.0] * 3)
         cov = None
         if fix:
             values = np.concatenate([start.position, self._near(start.euler_deg)])
             sigma = np.array([0.5] * 3 + [20.0] * 3)
         else:
-            values, sigma = x, np.maximum(sig, np.array([1e-5] * 3 + [1e-4] * 3))
-            cov = self.filter.predicted(self._dt_pred)[1]
+            ahead = self._ahead()
+            values, rate, cov = ahead.x[:6], ahead.x[6:], ahead.P
+            sigma = np.maximum(np.sqrt(np.diag(cov)[:6]), np.array([1e-5] * 3 + [1e-4] * 3))
         obj, pixels, dts = obj[used], pixels[used], dts[used]
         pixels = pixels - self._perspective(values, obj)
         return refine_pose(
@@ -681,6 +702,24 @@ class Tracker:
             sigma_rates=rate_sig,
             prior_covariance=cov,
         )
+
+    def _ahead(self) -> ConstantVelocityFilter:
+        """A copy of the filter moved to the frame's time, with the usual tilt fused in."""
+        ahead = copy.deepcopy(self.filter)
+        ahead.predict(self._dt_pred)
+        self._fuse_tilt(ahead)
+        return ahead
+
+    def _fuse_tilt(self, flt: ConstantVelocityFilter) -> None:
+        """Fuse the tilt (theta_x, theta_y) the recent fixes showed, with their spread: with
+        two or three fixtures, what they leave open (a shift along the line through two of
+        them against a tilt) is then held by how steadily the camera is carried."""
+        if len(self._tilts) < 5:
+            return
+        tilts = np.array(self._tilts)
+        mean = tilts.mean(axis=0)
+        spread = np.maximum(tilts.std(axis=0), self.settings.min_tilt_sigma_deg)
+        flt.update_some([3, 4], mean, spread)
 
     def _rate_sigma(self) -> np.ndarray:
         """Standard deviation of the predicted rates (6,)."""
@@ -707,10 +746,13 @@ class Tracker:
         ref = self.filter.value[3:]
         return ref + (euler - ref + 180.0) % 360.0 - 180.0
 
-    def _measure(self, solved: PriorSolve, t: float, obj, pixels, dts) -> None:
+    def _measure(self, solved: PriorSolve, t: float, obj, pixels, dts, *, fix: bool) -> None:
         """Fuse a frame's solve: its fixtures' pixels, linearised at its pose and rates."""
         s = self.settings
         values = np.concatenate([solved.values[:3], self._near(solved.values[3:])])
+        if fix:
+            self._tilts.append(values[3:5].copy())
+            del self._tilts[: -s.tilt_window]
         if self.filter is None:
             self.filter = ConstantVelocityFilter(
                 values,
@@ -720,6 +762,8 @@ class Tracker:
             )
         else:
             self.filter.predict(t - self._t_last)
+            if not fix:
+                self._fuse_tilt(self.filter)
             ref = np.concatenate([values, solved.rates])
             pixels = pixels - self._perspective(values, obj)
             model = project_moving(self.camera, values, solved.rates, obj, dts)
