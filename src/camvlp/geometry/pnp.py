@@ -29,7 +29,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
 
 from camvlp.model.camera import Camera, Pose
 
@@ -427,9 +426,10 @@ def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:
     ----------
     camera : Camera
         Intrinsics and distortion (up to 12 coefficients).
-    values : array_like, shape (6,)
-        ``(x, y, z, theta_x, theta_y, theta_z)`` at ``dt = 0``, map units and degrees.
-    rates : array_like, shape (6,)
+    values : array_like, shape (6,) or (B, 6)
+        ``(x, y, z, theta_x, theta_y, theta_z)`` at ``dt = 0``, map units and degrees; or B
+        such poses at once.
+    rates : array_like, shape (6,) or (B, 6)
         Their rates, per s.
     points : array_like, shape (N, 3)
         World points, map units.
@@ -438,20 +438,27 @@ def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:
 
     Returns
     -------
-    ndarray, shape (N, 2)
+    ndarray, shape (N, 2) or (B, N, 2)
         Pixels; NaN for points behind the camera.
     """
+    v = np.asarray(values, dtype=np.float64)
+    single = v.ndim == 1
+    v = v.reshape(-1, 6)
+    r = np.broadcast_to(np.asarray(rates, dtype=np.float64).reshape(-1, 6), v.shape)
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    dt = np.asarray(dt_s, dtype=np.float64).reshape(-1, 1)
-    pose = np.asarray(values, dtype=np.float64)[None, :] + dt * np.asarray(rates, dtype=float)
-    r = _euler_matrices(pose[:, 3:])
-    xc = np.einsum("nji,nj->ni", r, p - pose[:, :3])
-    z = np.where(xc[:, 2] > 0, xc[:, 2], np.nan)
-    x, y = xc[:, 0] / z, xc[:, 1] / z
+    dt = np.asarray(dt_s, dtype=np.float64).reshape(1, -1, 1)
+    pose = v[:, None, :] + dt * r[:, None, :]  # (B, N, 6)
+    b, n = pose.shape[:2]
+    rot = _euler_matrices(pose[..., 3:].reshape(-1, 3)).reshape(b, n, 3, 3)
+    xc = np.einsum("bnji,bnj->bni", rot, p[None] - pose[..., :3])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(xc[..., 2] > 0, xc[..., 2], np.nan)
+        x, y = xc[..., 0] / z, xc[..., 1] / z
     if camera.distortion.size and np.any(camera.distortion):
         x, y = _distort(x, y, camera.distortion)
     k = camera.matrix
-    return np.stack([k[0, 0] * x + k[0, 1] * y + k[0, 2], k[1, 1] * y + k[1, 2]], axis=1)
+    uv = np.stack([k[0, 0] * x + k[0, 1] * y + k[0, 2], k[1, 1] * y + k[1, 2]], axis=-1)
+    return uv[0] if single else uv
 
 
 @dataclass(frozen=True)
@@ -571,9 +578,6 @@ def refine_pose(
     if not (np.all(sig > 0) and np.all(np.isfinite(sig)) and sigma_px > 0):
         raise ValueError("the prior's standard deviations and sigma_px must be positive")
 
-    def project(x: np.ndarray) -> np.ndarray:
-        return project_moving(camera, x[:6], x[6:] if moving else r0, obj, dt)
-
     whiten = np.diag(1.0 / sig)
     if prior_covariance is not None:
         cov = np.asarray(prior_covariance, dtype=np.float64)
@@ -583,27 +587,63 @@ def refine_pose(
             whiten = np.linalg.cholesky(np.linalg.inv(cov)).T
         except np.linalg.LinAlgError:
             raise ValueError("prior_covariance must be positive definite") from None
+    steps = 1e-6 * np.maximum(np.abs(x0), 1.0)
 
-    def residuals(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([((project(x) - img) / sigma_px).ravel(), whiten @ (x - x0)])
+    def pixel_terms(x: np.ndarray, with_jacobian: bool):
+        """Whitened pixel residuals (2N,) and, optionally, their Jacobian (2N, P)."""
+        xs = x[None, :]
+        if with_jacobian:
+            xs = np.vstack([x, x + np.diag(steps)])
+        rates = xs[:, 6:] if moving else np.broadcast_to(r0, (xs.shape[0], 6))
+        uv = project_moving(camera, xs[:, :6], rates, obj, dt).reshape(xs.shape[0], -1)
+        res = (uv[0] - img.ravel()) / sigma_px
+        if not with_jacobian:
+            return res, None
+        return res, ((uv[1:] - uv[0]) / steps[:, None]).T / sigma_px
 
-    if not np.all(np.isfinite(residuals(x0))):
+    def cost(x: np.ndarray) -> float:
+        res, _ = pixel_terms(x, False)
+        return float(res @ res + np.sum((whiten @ (x - x0)) ** 2))
+
+    # Levenberg-Marquardt from the prior; the prior's terms are linear
+    x = x0.copy()
+    current = cost(x)
+    if not np.isfinite(current):
         return None
-    try:
-        fit = least_squares(residuals, x0, method="lm", x_scale=sig)
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    x = fit.x
-    if not np.all(np.isfinite(x)):
-        return None
+    damping = 1e-3
+    for _ in range(30):
+        res, jac = pixel_terms(x, True)
+        if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
+            return None
+        prior = whiten @ (x - x0)
+        h = jac.T @ jac + whiten.T @ whiten
+        g = jac.T @ res + whiten.T @ prior
+        improved = False
+        while damping < 1e10:
+            try:
+                step = np.linalg.solve(h + damping * np.diag(np.diag(h)), -g)
+            except np.linalg.LinAlgError:
+                return None
+            trial = x + step
+            new = cost(trial)
+            if np.isfinite(new) and new <= current:
+                x, damping, improved = trial, max(damping / 10, 1e-9), True
+                break
+            damping *= 10
+        if not improved or abs(current - new) <= 1e-8 * max(current, 1e-12):
+            break
+        current = new
+        if np.all(np.abs(step) <= 1e-4 * np.maximum(sig, 1e-12)):
+            break
     try:
         pose = Pose.from_euler(x[:3], x[3:6])
     except ValueError:
         return None
     if np.any(pose.to_camera(obj)[:, 2] <= 0):
         return None
-    res = np.linalg.norm(project(x) - img, axis=1)
-    if not np.all(np.isfinite(res)):
+    res_w, jac = pixel_terms(x, True)
+    res = np.hypot(*(res_w.reshape(-1, 2) * sigma_px).T)
+    if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
         return None
-    jac = fit.jac[: 2 * n] * sigma_px
+    jac = jac * sigma_px
     return PriorSolve(pose, x[:6].copy(), x[6:].copy() if moving else r0, res, jac)

@@ -361,6 +361,7 @@ class Tracker:
         self._index = 0
         self._dt_pred = 0.0
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
+        self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -403,16 +404,12 @@ class Tracker:
         )
         out: dict[int, np.ndarray] = {}
         if fresh:
-            pose = self._pose_at(state, 0.0)
-            uv = self.camera.project(pose, self._positions)
+            values, rates = state[0], state[1]
+            zero = np.zeros(len(self._positions))
+            uv = project_moving(self.camera, values, rates, self._positions, zero)
             if self.settings.rolling_shutter:  # where the rows that see them are read
                 dts = self._row_offset_s(np.nan_to_num(uv), shape)
-                uv = np.array(
-                    [
-                        self.camera.project(self._pose_at(state, dt), p[None])[0]
-                        for dt, p in zip(dts, self._positions, strict=True)
-                    ]
-                )
+                uv = project_moving(self.camera, values, rates, self._positions, dts)
             for fid, p in zip(self._ids, uv, strict=True):
                 if np.all(np.isfinite(p)):
                     out[int(fid)] = p
@@ -554,15 +551,23 @@ class Tracker:
         measured = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
         rs = self.settings.rolling_shutter and self.camera.row_time_s is not None
         dts = self._row_offset_s(measured, img.shape[:2]) if rs else np.zeros(len(usable))
+        obj = np.array([self.map.get(ids[k]).position for k in usable]).reshape(-1, 3)
         pixels = measured
         if fresh and rs and len(usable):  # a first guess for PnP: moved to the frame's time
-            pixels = measured - self._rs_shift(state, usable, ids, measured, img.shape[:2])
-        obj = np.array([self.map.get(ids[k]).position for k in usable]).reshape(-1, 3)
+            pixels = measured - self._rs_shift(state, obj, measured, img.shape[:2])
 
         status, reason = "lost", ""
         solved = None
         used_mask = np.zeros(len(usable), bool)
-        if len(usable) >= 4:
+        if len(usable) >= 4 and fresh:  # from the track's prediction: no PnP search needed
+            used_mask = np.ones(len(usable), bool)
+            start = self._pose_at(state, 0.0)
+            solved = self._refine(start, state, obj, measured, dts, used_mask, fix=True)
+            if solved is not None and np.max(solved.residuals_px) <= self._outlier_px:
+                status = "fix"
+            else:
+                solved, used_mask = None, np.zeros(len(usable), bool)
+        if len(usable) >= 4 and solved is None:
             moved = [
                 dataclasses.replace(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)
             ]
@@ -652,18 +657,12 @@ class Tracker:
 
     # ---------------------------------------------------------------------------------------
 
-    def _rs_shift(self, state, usable, ids, pixels, shape) -> np.ndarray:
+    def _rs_shift(self, state, obj, pixels, shape) -> np.ndarray:
         """Pixel motion of each fixture between its row's time and the frame's time."""
         dts = self._row_offset_s(pixels, shape)
-        base = self._pose_at(state, 0.0)
-        shift = np.zeros_like(pixels)
-        for j, k in enumerate(usable):
-            x = self.map.get(ids[k]).position[None]
-            shift[j] = (
-                self.camera.project(self._pose_at(state, dts[j]), x)[0]
-                - (self.camera.project(base, x)[0])
-            )
-        return np.nan_to_num(shift)
+        values, rates = state[0], state[1]
+        moved = project_moving(self.camera, values, rates, obj, dts)
+        return np.nan_to_num(moved - project_moving(self.camera, values, rates, obj, 0 * dts))
 
     def _refine(self, start: Pose | None, state, obj, pixels, dts, used, *, fix: bool):
         """The frame's pose (and rates) from its fixtures' pixels at their rows' times.
@@ -727,16 +726,31 @@ class Tracker:
         return np.sqrt(np.diag(p)[6:])
 
     def _perspective(self, values: np.ndarray, obj: np.ndarray) -> np.ndarray:
-        """Offsets (N, 2) of each disc's ellipse centre from its projected centre, pixels."""
+        """Offsets (N, 2) of each disc's ellipse centre from its projected centre, pixels.
+
+        Kept per fixture while the camera moves less than 5 % of its distance and turns
+        less than half a degree (the offset changes slowly and is a fraction of a pixel).
+        """
         out = np.zeros((obj.shape[0], 2))
         if not self.settings.locate.correct_perspective:
             return out
-        pose = Pose.from_euler(values[:3], values[3:])
+        pose = None
         for j, p in enumerate(obj):
             k = int(np.argmin(np.linalg.norm(self._positions - p, axis=1)))
             f = self.map.fixtures[k]
-            if f.diameter and f.normal is not None:
-                out[j] = perspective_offset(self.camera, pose, f.position, f.diameter, f.normal)
+            if not (f.diameter and f.normal is not None):
+                continue
+            cached = self._offset_cache.get(k)
+            if cached is not None:
+                at, offset = cached
+                near = np.linalg.norm(at[:3] - values[:3]) <= 0.05 * np.linalg.norm(p - at[:3])
+                if near and np.max(np.abs(at[3:] - values[3:])) <= 0.5:
+                    out[j] = offset
+                    continue
+            if pose is None:
+                pose = Pose.from_euler(values[:3], values[3:])
+            out[j] = perspective_offset(self.camera, pose, f.position, f.diameter, f.normal)
+            self._offset_cache[k] = (values.copy(), out[j].copy())
         return out
 
     def _near(self, euler: np.ndarray) -> np.ndarray:
