@@ -158,6 +158,7 @@ def _plot(out: Path, fixture_map, run, truth_path: Path | None) -> None:
         [f.status for f in run.frames],
         raw_positions=raw.reshape(-1, 3),
         truth=truth,
+        times=np.array([f.t for f in run.frames]),
     )
 
 

@@ -36,6 +36,7 @@ def plot_trajectory(
     *,
     raw_positions: np.ndarray | None = None,
     truth: np.ndarray | None = None,
+    times: np.ndarray | None = None,
     title: str = "",
 ) -> Path:
     """Draw the tracked path over the plan of the room and write it as a PNG.
@@ -53,7 +54,10 @@ def plot_trajectory(
     raw_positions : ndarray, shape (N, 3), optional
         The frames' own solves (small dots).
     truth : ndarray, shape (N, 3), optional
-        The true path (grey line).
+        The true path (grey line); with ``times``, a second panel shows the position error
+        over time.
+    times : ndarray, shape (N,), optional
+        Each frame's time, s.
     title : str
         The figure's title.
 
@@ -69,15 +73,20 @@ def plot_trajectory(
     a, b, _ = plan_axes(fixture_map)
     units = fixture_map.units
     pos = np.asarray(positions, dtype=float).reshape(-1, 3)
-    fig = Figure(figsize=(7.5, 6.0), dpi=120)
-    ax = fig.add_subplot(1, 1, 1)
+    with_error = truth is not None and times is not None
+    fig = Figure(figsize=(8.5, 8.0 if with_error else 6.0), dpi=120)
+    if with_error:
+        grid = fig.add_gridspec(2, 1, height_ratios=[3, 1.2])
+        ax = fig.add_subplot(grid[0])
+    else:
+        ax = fig.add_subplot(1, 1, 1)
     for f in fixture_map.fixtures:
         r = 0.5 * (f.diameter or 0.1)
         ax.add_patch(Circle((f.position[a], f.position[b]), r, color="#fdbf11", ec="k", lw=0.6))
         ax.annotate(
             str(f.id),
             (f.position[a], f.position[b]),
-            xytext=(0, 9),
+            xytext=(0, 12),
             textcoords="offset points",
             ha="center",
             fontsize=8,
@@ -104,7 +113,7 @@ def plot_trajectory(
     lost = int((st == "lost").sum())
     if lost:
         handles.append(Line2D([], [], ls="", label=f"lost ({lost})"))
-    ax.legend(handles=handles, loc="best", fontsize=8, framealpha=0.85)
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8)
     names = "xyz"
     ax.set_xlabel(f"{names[a]} ({units})")
     ax.set_ylabel(f"{names[b]} ({units})")
@@ -118,6 +127,19 @@ def plot_trajectory(
     ax.set_xlim(lo[0] - pad, hi[0] + pad)
     ax.set_ylim(lo[1] - pad, hi[1] + pad)
     ax.set_title(title or "Tracked path over the room's plan", fontsize=10)
+    if with_error:
+        ex = fig.add_subplot(grid[1])
+        tt = np.asarray(times, dtype=float).reshape(-1)
+        err = 1e3 * np.linalg.norm(pos - np.asarray(truth, dtype=float).reshape(-1, 3), axis=1)
+        ex.plot(tt, err, "-", color="0.3", lw=0.8)
+        for s, colour in _STATUS_COLOURS.items():
+            m = st == s
+            if np.any(m):
+                ex.plot(tt[m], err[m], "o", ms=2.5, color=colour)
+        ex.set_xlabel("t (s)")
+        ex.set_ylabel(f"position error (m{units})")
+        ex.set_ylim(bottom=0)
+        ex.grid(True, lw=0.3, alpha=0.5)
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out)

@@ -1,0 +1,153 @@
+"""Tests of the tracker: a small moving-camera video, IDs carried and never swapped, the
+filter, bad frames."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camvlp.errors import InputError
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.track import ConstantVelocityFilter, Tracker
+from camvlp.sim.render import RenderSettings
+from camvlp.sim.video import Trajectory, iter_frames
+
+FPS = 15.0
+
+
+def small_scene():
+    """640 x 360 camera (f = 483 px, 2.5 rows per 10 kHz chip) 1.2 m under four 0.25 m discs;
+    it moves along x at 0.5 m/s, and the discs at x = -0.35 leave the picture at frame 6."""
+    cam = Camera.from_focal(640, 360, 483.0, row_time_s=40e-6)
+    xz = ((0.35, 0.25), (0.35, -0.25), (-0.35, -0.25), (-0.35, 0.25))
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
+        )
+    )
+    traj = Trajectory(
+        np.array([0.0, 1.0]),
+        np.array([[0.1, -1.5, 0.0], [0.6, -1.5, 0.02]]),
+        np.array([[90.0, 0.0, 0.0], [90.2, -0.1, 1.0]]),
+    )
+    return cam, room, traj
+
+
+@pytest.fixture(scope="module")
+def video():
+    cam, room, traj = small_scene()
+    frames = list(iter_frames(cam, room, traj, FPS, RenderSettings(seed=2)))[:12]
+    return cam, room, frames
+
+
+def nearest_true_id(frame, pixel) -> int:
+    """The ID of the fixture whose true image is nearest to ``pixel``."""
+    d = [np.linalg.norm(np.nan_to_num(t.pixel, nan=1e9) - pixel) for t in frame.fixtures]
+    return frame.fixtures[int(np.argmin(d))].id
+
+
+def test_tracker_follows_the_camera(video):
+    cam, room, frames = video
+    tracker = Tracker(cam, room)
+    results = [tracker.update(f.image, f.t) for f in frames]
+    statuses = [r.status for r in results]
+    assert statuses[:4] == ["fix"] * 4
+    assert "tracked" in statuses  # after two discs left the picture
+    assert set(statuses) <= {"fix", "tracked"}
+    err = np.array([np.linalg.norm(r.position - f.pose.position) for r, f in zip(results, frames)])
+    assert np.sqrt(np.mean(err**2)) < 0.005, err
+    for r, f in zip(results, frames, strict=True):
+        for b in r.fixtures:
+            if b.id is not None:
+                assert b.id == nearest_true_id(f, b.pixel)
+        if r.status == "tracked":
+            assert set(r.fixtures_used) == {5, 6}
+
+
+def smear(image: np.ndarray, centre, radius: int) -> np.ndarray:
+    """Replace the disc around ``centre`` by a steady light (no stripes to decode)."""
+    out = image.copy()
+    cv2.circle(out, tuple(int(round(c)) for c in centre), radius, (180, 180, 180), -1)
+    return out
+
+
+def test_undecodable_fixture_keeps_its_id(video):
+    cam, room, frames = video
+    tracker = Tracker(cam, room)
+    for f in frames[:4]:
+        assert tracker.update(f.image, f.t).status == "fix"
+    f = frames[4]
+    target = next(t for t in f.fixtures if t.id == 9)
+    r = tracker.update(smear(f.image, target.pixel, 50), f.t)
+    carried = [b for b in r.fixtures if b.source == "carried"]
+    assert [b.id for b in carried] == [9]
+    assert r.status == "fix" and 9 in r.fixtures_used
+
+
+def test_swapped_stripes_do_not_swap_ids(video):
+    cam, room, frames = video
+    tracker = Tracker(cam, room)
+    for f in frames[:4]:
+        tracker.update(f.image, f.t)
+    f = frames[4]
+    a, b = (next(t for t in f.fixtures if t.id == i).pixel for i in (5, 10))
+    img = f.image.copy()
+    r = 55
+    pa = f.image[int(a[1]) - r : int(a[1]) + r, int(a[0]) - r : int(a[0]) + r].copy()
+    pb = f.image[int(b[1]) - r : int(b[1]) + r, int(b[0]) - r : int(b[0]) + r].copy()
+    img[int(a[1]) - r : int(a[1]) + r, int(a[0]) - r : int(a[0]) + r] = pb
+    img[int(b[1]) - r : int(b[1]) + r, int(b[0]) - r : int(b[0]) + r] = pa
+    result = tracker.update(img, f.t)
+    # the stripes say 10 where 5 is and 5 where 10 is: both decodes are refused, and the
+    # track's IDs are carried instead
+    swapped = [x for x in result.fixtures if min(np.linalg.norm(x.pixel - p) for p in (a, b)) < 5]
+    assert sorted((x.id, x.source) for x in swapped) == [(5, "carried"), (10, "carried")]
+    for x in result.fixtures:
+        if x.id is not None:
+            assert x.id == nearest_true_id(f, x.pixel)
+
+
+def test_dark_frames_are_predicted_then_lost(video):
+    cam, room, frames = video
+    tracker = Tracker(cam, room)
+    for f in frames[:4]:
+        tracker.update(f.image, f.t)
+    dark = np.zeros_like(frames[0].image)
+    t = frames[3].t
+    statuses = [tracker.update(dark, t + k / FPS).status for k in range(1, 11)]
+    assert statuses[0] == "predicted"
+    assert statuses[-1] == "lost"  # more than max_gap_s (0.5 s) without a measurement
+    r = tracker.update(dark, t + 11 / FPS)
+    assert r.position is None
+
+
+def test_frame_of_another_size_is_an_input_error(video):
+    cam, room, _ = video
+    with pytest.raises(InputError, match="camera file says 640 x 360"):
+        Tracker(cam, room).update(np.zeros((100, 120, 3), np.uint8), 0.0)
+
+
+def test_constant_velocity_filter_learns_the_velocity():
+    rng = np.random.default_rng(4)
+    flt = ConstantVelocityFilter([0.0, 1.0], [0.01, 0.01], [2.0, 2.0], [0.5, 0.5])
+    dt = 1 / 30
+    for k in range(1, 60):
+        flt.predict(dt)
+        truth = np.array([0.8 * k * dt, 1.0 - 0.3 * k * dt])
+        flt.update(truth + rng.normal(0, 0.002, 2), [0.002, 0.002])
+    assert np.allclose(flt.rate, [0.8, -0.3], atol=0.05)
+    assert np.allclose(flt.value, truth, atol=0.003)
+    x, p = flt.predicted(0.5)  # half a second on: the prediction carries the velocity
+    assert np.allclose(x[:2], truth + 0.5 * np.array([0.8, -0.3]), atol=0.03)
+    assert np.all(np.diag(p)[:2] > np.diag(flt.P)[:2])
+
+
+def test_filter_keeps_unseen_directions():
+    flt = ConstantVelocityFilter([1.0, 2.0], [0.1, 0.1], [1.0, 1.0], [1.0, 1.0])
+    # a measurement of the first value only, through a nonlinear model linearised at [1.5, 7]
+    flt.update_linearized([0.5], [[1.0, 0.0]], [1.0, 2.0], 0.01)
+    assert flt.value[0] == pytest.approx(1.5, abs=0.01)
+    assert flt.value[1] == pytest.approx(2.0)
