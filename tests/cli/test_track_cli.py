@@ -1,0 +1,134 @@
+"""Tests of ``camvlp track`` and ``camvlp render-video``: files, summary, one-line errors."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from camvlp.cli import app
+from camvlp.io import save_camera, save_map
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import Fixture, FixtureMap
+from conftest import one_error_line
+
+runner = CliRunner()
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    """A 640 x 360 camera 1.2 m under four 0.25 m discs, a trajectory file and a rendered
+    folder of five frames (with its truth)."""
+    d = tmp_path_factory.mktemp("track")
+    save_camera(Camera.from_focal(640, 360, 483.0, row_time_s=40e-6), d / "cam.yaml")
+    xz = ((0.35, 0.25), (0.35, -0.25), (-0.35, -0.25), (-0.35, 0.25))
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
+        )
+    )
+    save_map(room, d / "room.yaml")
+    (d / "traj.csv").write_text(
+        "t,x,y,z,theta_x,theta_y,theta_z\n0,0.0,-1.5,0,90,0,0\n0.27,0.1,-1.5,0,90,0,0\n"
+    )
+    result = runner.invoke(
+        app,
+        [
+            "render-video",
+            "--camera",
+            str(d / "cam.yaml"),
+            "--map",
+            str(d / "room.yaml"),
+            "--trajectory",
+            str(d / "traj.csv"),
+            "--out",
+            str(d / "frames"),
+            "--fps",
+            "15",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    return d
+
+
+def track(scene, source, out, *extra):
+    return runner.invoke(
+        app,
+        [
+            "track",
+            str(source),
+            "--camera",
+            str(scene / "cam.yaml"),
+            "--map",
+            str(scene / "room.yaml"),
+            "--out",
+            str(out),
+            *extra,
+        ],
+    )
+
+
+def test_track_writes_trajectory_summary_and_picture(scene, tmp_path):
+    result = track(scene, scene / "frames", tmp_path / "out", "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout.strip().splitlines()[-1])
+    assert summary["frames"] == 5 and summary["fix"] == 5
+    assert summary["errors"]["position_rmse"] < 0.003
+    assert summary["wrong_ids"] == 0
+    rows = list(csv.DictReader((tmp_path / "out" / "trajectory.csv").open()))
+    assert [r["status"] for r in rows] == ["fix"] * 5
+    assert {"x_raw", "fixtures_used", "reprojection_rms_px"} <= set(rows[0])
+    assert cv2.imread(str(tmp_path / "out" / "trajectory.png")) is not None
+
+
+def test_bad_frames_become_lost_rows(scene, tmp_path):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    names = sorted(p.name for p in (scene / "frames").glob("*.png"))
+    for n in names[:3]:
+        (folder / n).write_bytes((scene / "frames" / n).read_bytes())
+    cv2.imwrite(str(folder / "frame_000003.png"), np.zeros((100, 100, 3), np.uint8))
+    (folder / "readme.txt").write_text("hello")
+    result = track(scene, folder, tmp_path / "out", "--fps", "15")
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader((tmp_path / "out" / "trajectory.csv").open()))
+    assert [r["status"] for r in rows] == ["fix", "fix", "fix", "lost"]
+    assert "camera file says" in rows[3]["reason"]
+    assert "warning: skipped 1 file(s) that are not images: readme.txt" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--fps", "0"], "--fps must be a positive number"),
+        ([], "no such video or folder"),
+    ],
+)
+def test_bad_input_is_one_line(scene, tmp_path, args, message):
+    result = track(scene, tmp_path / "nothing.mp4", tmp_path / "out", *args)
+    assert result.exit_code == 2
+    assert message in one_error_line(result)
+
+
+def test_render_video_refuses_a_bad_suffix(scene, tmp_path):
+    result = runner.invoke(
+        app,
+        [
+            "render-video",
+            "--camera",
+            str(scene / "cam.yaml"),
+            "--map",
+            str(scene / "room.yaml"),
+            "--trajectory",
+            str(scene / "traj.csv"),
+            "--out",
+            str(tmp_path / "v.avi"),
+        ],
+    )
+    assert result.exit_code == 2
+    assert "--out must be" in one_error_line(result)

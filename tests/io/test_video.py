@@ -1,0 +1,99 @@
+"""Tests of reading frames: folders in name order with their times, videos, bad input."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camvlp.errors import InputError
+from camvlp.io.video import open_frames
+
+
+def write_folder(path, n=3, size=(64, 48)):
+    path.mkdir()
+    for i in range(n):
+        img = np.full((size[1], size[0], 3), 10 * i, np.uint8)
+        cv2.imwrite(str(path / f"f{i:02d}.png"), img)
+    return path
+
+
+def test_folder_in_name_order_with_timestamps_and_skipped_files(tmp_path):
+    d = write_folder(tmp_path / "frames")
+    (d / "notes.txt").write_text("not a frame")
+    (d / "timestamps.csv").write_text("frame,t\nf00.png,0.5\nf01.png,0.55\nf02.png,0.61\n")
+    src = open_frames(d)
+    frames = list(src)
+    assert [f.name for f in frames] == ["f00.png", "f01.png", "f02.png"]
+    assert [f.t for f in frames] == pytest.approx([0.5, 0.55, 0.61])
+    assert [int(f.image[0, 0, 0]) for f in frames] == [0, 10, 20]
+    assert any("notes.txt" in w for w in src.warnings)
+
+
+def test_folder_start_and_frames(tmp_path):
+    d = write_folder(tmp_path / "frames", n=5)
+    frames = list(open_frames(d, fps=10, start_s=0.15, max_frames=2))
+    assert [f.name for f in frames] == ["f02.png", "f03.png"]
+
+
+def test_folder_without_times_needs_fps(tmp_path):
+    d = write_folder(tmp_path / "frames")
+    with pytest.raises(InputError, match="give --fps"):
+        open_frames(d)
+    assert [f.t for f in open_frames(d, fps=20)] == pytest.approx([0, 0.05, 0.1])
+
+
+def test_unreadable_image_is_a_frame_with_an_error(tmp_path):
+    d = write_folder(tmp_path / "frames")
+    (d / "f01.png").write_bytes(b"\x89PNG broken")
+    frames = list(open_frames(d, fps=10))
+    assert frames[1].image is None and frames[1].error
+    assert frames[0].image is not None and frames[2].image is not None
+
+
+@pytest.mark.parametrize(
+    ("make", "message"),
+    [
+        (lambda p: p / "missing.mp4", "no such video or folder"),
+        (lambda p: (p / "x.mp4").write_bytes(b"not a video") and p / "x.mp4", "not a video"),
+        (lambda p: (p / "empty").mkdir() or p / "empty", "no images"),
+    ],
+)
+def test_bad_sources(tmp_path, make, message):
+    with pytest.raises(InputError, match=message):
+        open_frames(make(tmp_path))
+
+
+@pytest.fixture
+def small_video(tmp_path):
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
+    from camvlp.sim.video import Trajectory, render_video
+
+    def make(name: str):
+        cam = Camera.from_focal(160, 120, 120.0, row_time_s=1e-4)
+        traj = Trajectory(np.array([0.0, 1.0]), np.zeros((2, 3)), np.tile([90.0, 0, 0], (2, 1)))
+        render_video(cam, FixtureMap(()), traj, tmp_path / name, fps=10)
+        return tmp_path / name
+
+    return make
+
+
+def test_truncated_mkv_keeps_the_frames_before_the_cut(small_video, tmp_path):
+    video = small_video("v.mkv")
+    full = list(open_frames(video))
+    assert len(full) == 11
+    cut = tmp_path / "cut.mkv"
+    data = video.read_bytes()
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    frames = list(open_frames(cut))  # never raises
+    assert 0 < len(frames) < len(full)
+    assert all(f.image is not None for f in frames)
+
+
+def test_truncated_mp4_is_refused_in_one_line(small_video, tmp_path):
+    video = small_video("v.mp4")
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(video.read_bytes()[:-200])  # its index is at the end
+    with pytest.raises(InputError, match="not a video that can be read"):
+        open_frames(cut)

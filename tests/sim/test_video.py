@@ -1,0 +1,101 @@
+"""Tests of the video simulator: trajectories, rows seen at their own time, files written."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from camvlp.errors import InputError
+from camvlp.io.video import open_frames
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.sim.render import RenderSettings
+from camvlp.sim.video import Trajectory, load_trajectory, render_frame, render_video
+
+CAM = Camera.from_focal(320, 240, 250.0, row_time_s=100e-6)
+ROOM = FixtureMap(
+    tuple(
+        Fixture(i, np.array([x, -2.7, z]), 0.3, np.array([0.0, 1.0, 0.0]))
+        for i, (x, z) in zip((5, 6, 9, 10), ((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6)))
+    )
+)
+#: Steady discs: an exposure of one whole 18-chip frame sees every LED half on in every row.
+STEADY = RenderSettings(exposure_s=18e-4, read_noise=0.0, full_well_e=0.0, blur_px=0.0)
+
+
+def centroids(image: np.ndarray) -> list[np.ndarray]:
+    import cv2
+
+    gray = image.max(axis=2)
+    n, labels = cv2.connectedComponents((gray > 60).astype(np.uint8))
+    out = []
+    for k in range(1, n):
+        v, u = np.nonzero(labels == k)
+        w = gray[v, u].astype(float)
+        out.append(np.array([np.average(u, weights=w), np.average(v, weights=w)]))
+    return out
+
+
+def test_each_row_sees_the_pose_at_its_own_time():
+    # 5 m/s along x; the 240 rows take 24 ms: the discs are seen about 6 ms before and after
+    # the frame's middle row, 3 cm away from its pose (2.5 px)
+    traj = Trajectory(
+        np.array([0.0, 1.0]),
+        np.array([[-2.5, 0.0, 0.0], [2.5, 0.0, 0.0]]),
+        np.tile([90.0, 0.0, 0.0], (2, 1)),
+    )
+    frame = render_frame(CAM, ROOM, traj, 0.5, STEADY)
+    found = centroids(frame.image)
+    assert len(found) == 4
+    for c in found:
+        dt = (c[1] - 0.5 * (CAM.height - 1)) * CAM.row_time_s
+        moved = CAM.project(traj.pose(0.5 + dt), ROOM.positions)
+        at_mid = CAM.project(frame.pose, ROOM.positions)
+        k = int(np.argmin(np.linalg.norm(at_mid - c, axis=1)))
+        assert np.linalg.norm(moved[k] - c) < 0.15  # where the rows saw it
+        assert np.linalg.norm(at_mid[k] - c) > 2.0  # not where the middle row would
+
+
+def test_still_camera_matches_the_photo_renderer():
+    from camvlp.sim.render import render
+
+    pose = Pose.from_euler([0.1, 0.0, -0.05], [90.0, 1.0, 20.0])
+    traj = Trajectory(
+        np.array([0.0, 1.0]), np.tile(pose.position, (2, 1)), np.tile(pose.euler_deg, (2, 1))
+    )
+    moving = render_frame(CAM, ROOM, traj, 0.5, STEADY).image.astype(int)
+    still = render(CAM, ROOM, pose, STEADY).image.astype(int)
+    assert np.abs(moving - still).max() <= 1
+
+
+def test_trajectory_file_errors(tmp_path):
+    bad = tmp_path / "t.csv"
+    bad.write_text("t,x,y,z,theta_x,theta_y\n0,0,0,0,90,0\n")
+    with pytest.raises(InputError, match="lacks the column"):
+        load_trajectory(bad)
+    bad.write_text("t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,90,0,0\n0,1,0,0,90,0,0\n")
+    with pytest.raises(InputError, match="strictly increasing"):
+        load_trajectory(bad)
+    bad.write_text("t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,90,0,0\n1,a,0,0,90,0,0\n")
+    with pytest.raises(InputError, match="not a number"):
+        load_trajectory(bad)
+
+
+@pytest.mark.parametrize("out_name", ["frames", "video.mp4"])
+def test_render_video_writes_frames_and_truth(tmp_path, out_name):
+    traj = Trajectory(
+        np.array([0.0, 0.2]),
+        np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]),
+        np.tile([90.0, 0.0, 0.0], (2, 1)),
+    )
+    out = tmp_path / out_name
+    n = render_video(CAM, ROOM, traj, out, fps=10, settings=RenderSettings(seed=1))
+    assert n == 3
+    truth = tmp_path / ("video_truth.csv" if out.suffix else "frames/truth.csv")
+    rows = list(csv.DictReader(truth.open()))
+    assert [float(r["x"]) for r in rows] == pytest.approx([0.0, 0.05, 0.1])
+    frames = list(open_frames(out, fps=10))
+    assert len(frames) == 3 and all(f.image.shape == (240, 320, 3) for f in frames)
+    assert [f.t for f in frames] == pytest.approx([0.0, 0.1, 0.2])
