@@ -57,7 +57,9 @@ def test_tracker_follows_the_camera(video):
     assert statuses[:4] == ["fix"] * 4
     assert "tracked" in statuses  # after two discs left the picture
     assert set(statuses) <= {"fix", "tracked"}
-    err = np.array([np.linalg.norm(r.position - f.pose.position) for r, f in zip(results, frames)])
+    err = np.array(
+        [np.linalg.norm(r.position - f.pose.position) for r, f in zip(results, frames, strict=True)]
+    )
     assert np.sqrt(np.mean(err**2)) < 0.005, err
     for r, f in zip(results, frames, strict=True):
         for b in r.fixtures:
@@ -70,7 +72,7 @@ def test_tracker_follows_the_camera(video):
 def smear(image: np.ndarray, centre, radius: int) -> np.ndarray:
     """Replace the disc around ``centre`` by a steady light (no stripes to decode)."""
     out = image.copy()
-    cv2.circle(out, tuple(int(round(c)) for c in centre), radius, (180, 180, 180), -1)
+    cv2.circle(out, tuple(round(c) for c in centre), radius, (180, 180, 180), -1)
     return out
 
 

@@ -18,7 +18,9 @@ CAM = Camera.from_focal(320, 240, 250.0, row_time_s=100e-6)
 ROOM = FixtureMap(
     tuple(
         Fixture(i, np.array([x, -2.7, z]), 0.3, np.array([0.0, 1.0, 0.0]))
-        for i, (x, z) in zip((5, 6, 9, 10), ((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6)))
+        for i, (x, z) in zip(
+            (5, 6, 9, 10), ((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6)), strict=True
+        )
     )
 )
 #: Steady discs: an exposure of one whole 18-chip frame sees every LED half on in every row.
