@@ -10,7 +10,7 @@ import pytest
 from camvlp.errors import InputError
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.track import ConstantVelocityFilter, Tracker
+from camvlp.pipeline.track import ConstantVelocityFilter, Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
 from camvlp.sim.video import Trajectory, iter_frames
 
@@ -78,7 +78,7 @@ def smear(image: np.ndarray, centre, radius: int) -> np.ndarray:
 
 def test_undecodable_fixture_keeps_its_id(video):
     cam, room, frames = video
-    tracker = Tracker(cam, room)
+    tracker = Tracker(cam, room, TrackSettings(verify_every=1))  # decode every blob
     for f in frames[:4]:
         assert tracker.update(f.image, f.t).status == "fix"
     f = frames[4]
@@ -91,7 +91,7 @@ def test_undecodable_fixture_keeps_its_id(video):
 
 def test_swapped_stripes_do_not_swap_ids(video):
     cam, room, frames = video
-    tracker = Tracker(cam, room)
+    tracker = Tracker(cam, room, TrackSettings(verify_every=1))  # decode every blob
     for f in frames[:4]:
         tracker.update(f.image, f.t)
     f = frames[4]
@@ -110,6 +110,19 @@ def test_swapped_stripes_do_not_swap_ids(video):
     for x in result.fixtures:
         if x.id is not None:
             assert x.id == nearest_true_id(f, x.pixel)
+
+
+def test_known_fixtures_are_decoded_now_and_then(video):
+    cam, room, frames = video
+    tracker = Tracker(cam, room, TrackSettings(verify_every=4))
+    sources = [
+        [(b.id, b.source) for b in tracker.update(f.image, f.t).fixtures] for f in frames[:9]
+    ]
+    assert all(src == "decoded" for _, src in sources[0])
+    assert any(src == "carried" for frame in sources[1:] for _, src in frame)
+    for fid in (5, 6):  # each in view throughout: decoded at least once every 4 frames
+        decoded_at = [k for k, frame in enumerate(sources) if (fid, "decoded") in frame]
+        assert max(np.diff([0, *decoded_at, len(sources) - 1])) <= 4
 
 
 def test_dark_frames_are_predicted_then_lost(video):

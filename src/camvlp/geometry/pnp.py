@@ -630,10 +630,10 @@ def refine_pose(
                 x, damping, improved = trial, max(damping / 10, 1e-9), True
                 break
             damping *= 10
-        if not improved or abs(current - new) <= 1e-8 * max(current, 1e-12):
+        if not improved or abs(current - new) <= 1e-6 * max(current, 1e-12):
             break
         current = new
-        if np.all(np.abs(step) <= 1e-4 * np.maximum(sig, 1e-12)):
+        if np.all(np.abs(step) <= 1e-3 * np.maximum(sig, 1e-12)):
             break
     try:
         pose = Pose.from_euler(x[:3], x[3:6])

@@ -40,7 +40,7 @@ from camvlp.geometry.pnp import PriorSolve, project_moving, refine_pose
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import decode_profile
+from camvlp.pipeline.decode import StripeDecode, decode_profile
 from camvlp.pipeline.locate import (
     LocateSettings,
     _decode,
@@ -60,6 +60,10 @@ __all__ = [
     "TrackedFixture",
     "Tracker",
 ]
+
+_NOT_DECODED = StripeDecode(
+    None, "not decoded: its ID comes from the track", -1, 0.0, math.nan, math.nan, "", 0.0
+)
 
 #: Per-frame statuses, best first.
 STATUSES = ("fix", "tracked", "predicted", "lost")
@@ -106,6 +110,10 @@ class TrackSettings:
         middle row (needs the camera's ``row_time_s``).
     carry_chip_length : bool
         Pass the chip length measured in earlier frames to the decoder.
+    verify_every : int
+        A blob that the track's pose identifies without doubt (the only prediction within the
+        gate) is not decoded again while its fixture's stripes were decoded in the last
+        ``verify_every`` frames (1: decode every blob in every frame).
     """
 
     locate: LocateSettings = field(default_factory=LocateSettings)
@@ -123,6 +131,7 @@ class TrackSettings:
     min_tilt_sigma_deg: float = 0.02
     rolling_shutter: bool = True
     carry_chip_length: bool = True
+    verify_every: int = 10
 
     def __post_init__(self) -> None:
         for name in (
@@ -366,6 +375,7 @@ class Tracker:
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
         self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._fixes = 0  # fixes since the track started
+        self._verified: dict[int, int] = {}  # frame of each fixture's last decode
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -496,22 +506,51 @@ class Tracker:
 
     # ---------------------------------------------------------------------------------------
 
-    def _decode(self, img, blobs, readout):
-        gray_rois, extents, profiles = _profiles(img, blobs, readout)
+    def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
+        """Blobs whose ID the track already knows: each the only prediction (from the pose)
+        within the gate, for a fixture whose stripes were decoded in the last
+        ``verify_every`` frames.  Their stripes need not be decoded again."""
+        n_verify = self.settings.verify_every
+        if not from_pose or n_verify <= 1 or self.map.mode == "frequency" or not predicted:
+            return set()
+        pred_ids = list(predicted)
+        pred_px = np.array([predicted[i] for i in pred_ids])
+        known = set()
+        for k, b in enumerate(blobs):
+            if b.touches_border:
+                continue
+            d = np.linalg.norm(pred_px - b.pixel, axis=1)
+            order = np.argsort(d)
+            j = int(order[0])
+            if d[j] > self._gate:
+                continue
+            if order.size > 1 and d[order[1]] < self.settings.ambiguity * max(d[j], 1.0):
+                continue
+            last = self._verified.get(pred_ids[j])
+            if last is not None and self._index - last < n_verify:
+                known.add(k)
+        return known
+
+    def _decode(self, img, blobs, readout, skip: set[int]):
+        todo = [k for k in range(len(blobs)) if k not in skip]
+        sub = [blobs[k] for k in todo]
+        gray_rois, extents, profiles = _profiles(img, sub, readout)
         if (
             self.settings.carry_chip_length
             and self.map.mode != "frequency"
             and len(self._chip_rows) >= 3
         ):
             rpc = float(np.median(self._chip_rows[-50:]))
-            decodes = [decode_profile(p, self.map.frame, rows_per_chip=rpc) for p in profiles]
+            done = [decode_profile(p, self.map.frame, rows_per_chip=rpc) for p in profiles]
         else:
-            decodes, _, _ = _decode(
-                blobs, gray_rois, extents, profiles, readout, self.camera, self.map
-            )
-        for d in decodes:
+            done, _, _ = _decode(sub, gray_rois, extents, profiles, readout, self.camera, self.map)
+        for d in done:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
+        del self._chip_rows[:-50]
+        decodes = [_NOT_DECODED] * len(blobs)
+        for k, d in zip(todo, done, strict=True):
+            decodes[k] = d
         return decodes
 
     def update(self, image: np.ndarray, t: float) -> TrackFrame:
@@ -542,12 +581,15 @@ class Tracker:
         blobs = list(detection.blobs)
         if self.readout is None and any(b.stripe_contrast > 2.0 for b in blobs):
             self.readout = readout  # the readout of the first striped frame, from now on
-        decodes = self._decode(img, blobs, readout)
+        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        decodes = self._decode(img, blobs, readout, self._known(blobs, predicted, from_pose))
         found = _identify(blobs, decodes, self.map)
         t1 = time.perf_counter()
 
-        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
         ids, sources, reasons = self._associate(blobs, found, predicted, from_pose)
+        for k, src in enumerate(sources):
+            if src == "decoded":
+                self._verified[ids[k]] = index
         usable = [k for k in range(len(blobs)) if ids[k] is not None and not reasons[k]]
         state = self._predicted_state(t)
         fresh = from_pose and state is not None

@@ -1,0 +1,197 @@
+"""Tracking along simulated videos: accuracy, IDs, the rolling shutter's cost, and speed.
+
+Renders (once, into ``--cache``) the two example videos with ``camvlp render-video``'s
+function: the robot crossing the thesis' room (``examples/trajectories/robot.csv``,
+``examples/thesis_room.yaml``) and the walk along the corridor
+(``examples/trajectories/walk.csv``, ``examples/corridor_room.yaml``), both with
+``examples/video_camera.yaml`` (1920 x 1080, 30 us rows: 3.33 rows per 10 kHz chip), 30 frames
+per second, H.264 at x264's crf 10 (``--crf``; 10 keeps the sensor noise: about 48 Mbit/s,
+where a phone records 1080p at 10 to 20).  Then for each video it prints:
+
+* the tracker's statuses, its position RMSE (filtered and raw) against the truth, wrong IDs,
+  and how many frames an entering fixture took to be used;
+* the same without the rolling-shutter model (what a moving camera's rows cost);
+* ``camvlp.locate`` on every frame alone (no track): frames located, and the share of the
+  fixtures fully in the picture whose stripes decode;
+* speed on one core (OpenCV, FFmpeg and BLAS on one thread): frames per second of CPU time,
+  reading (H.264 decoding and conversion to BGR) included, and the share of reading; the
+  best of ``--runs`` runs (the machine may be shared: CPU time, not wall time, is counted).
+
+Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+import camvlp  # noqa: E402
+from camvlp.analysis.track import run_track, summarize  # noqa: E402
+from camvlp.io.video import open_frames, read_truth  # noqa: E402
+from camvlp.pipeline.track import Tracker, TrackSettings  # noqa: E402
+from camvlp.sim.render import RenderSettings  # noqa: E402
+from camvlp.sim.video import load_trajectory, render_video  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+EX = ROOT / "examples"
+VIDEOS = {"robot": "thesis_room.yaml", "walk": "corridor_room.yaml"}
+
+
+def _video(name: str, cache: Path, crf: int) -> Path:
+    path = cache / f"{name}.mp4"
+    if not path.exists() or not (cache / f"{name}_truth.csv").exists():
+        cache.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        n = render_video(
+            camvlp.load_camera(EX / "video_camera.yaml"),
+            camvlp.load_map(EX / VIDEOS[name]),
+            load_trajectory(EX / "trajectories" / f"{name}.csv"),
+            path,
+            fps=30.0,
+            settings=RenderSettings(seed=1),
+            crf=crf,
+        )
+        print(f"rendered {path}: {n} frames in {time.perf_counter() - t0:.0f} s")
+    return path
+
+
+def _track(video: Path, room, camera, out: Path, rolling_shutter: bool) -> dict:
+    src = open_frames(video, threads=1)
+    run = run_track(src, Tracker(camera, room, TrackSettings(rolling_shutter=rolling_shutter)), out)
+    s = summarize(run, truth_path=src.truth_path, fixtures_truth_path=src.fixtures_truth_path)
+    sources = [b.source for f in run.frames for b in f.fixtures if b.id is not None]
+    s["decoded_ids"] = sources.count("decoded")
+    s["carried_ids"] = sources.count("carried")
+    return s
+
+
+def _locate_alone(video: Path, room, camera) -> dict:
+    """Each frame located alone: frames located, and decodes of fully visible fixtures."""
+    truth: dict[str, list[tuple[int, np.ndarray]]] = {}
+    with (video.parent / f"{video.stem}_fixtures.csv").open() as fh:
+        for r in csv.DictReader(fh):
+            if r["fully_inside"] == "1":
+                truth.setdefault(r["frame"], []).append(
+                    (int(r["id"]), np.array([float(r["u"]), float(r["v"])]))
+                )
+    poses = read_truth(video.parent / f"{video.stem}_truth.csv")
+    located = visible = decoded = wrong = 0
+    errors = []
+    settings = camvlp.LocateSettings(readout="rows")
+    for frame in open_frames(video, threads=1):
+        res = camvlp.locate(frame.image, camera, room, settings)
+        inside = truth.get(frame.name, [])
+        visible += len(inside)
+        for fid, px in inside:
+            near = [f for f in res.fixtures if np.linalg.norm(f.pixel - px) < 20]
+            if near and near[0].id is not None and not near[0].reason.startswith("ID "):
+                decoded += near[0].id == fid
+                wrong += near[0].id != fid
+        if res:
+            located += 1
+            errors.append(np.linalg.norm(res.position - poses[frame.name][:3]))
+    return {
+        "located": located,
+        "visible": visible,
+        "decoded": decoded,
+        "wrong": wrong,
+        "rmse": float(np.sqrt(np.mean(np.square(errors)))) if errors else None,
+    }
+
+
+def _speed(video: Path, room, camera, runs: int) -> dict:
+    """Best of ``runs``: CPU seconds reading all frames, and reading + tracking them."""
+    read_cpu, total_cpu, wall = [], [], []
+    n = 0
+    for _ in range(runs):
+        c0 = time.process_time()
+        frames = list(open_frames(video, threads=1))
+        read_cpu.append(time.process_time() - c0)
+        n = len(frames)
+        del frames
+        tracker = Tracker(camera, room)
+        c0, w0 = time.process_time(), time.perf_counter()
+        for frame in open_frames(video, threads=1):
+            tracker.update(frame.image, frame.t)
+        total_cpu.append(time.process_time() - c0)
+        wall.append(time.perf_counter() - w0)
+    read, total = min(read_cpu), min(total_cpu)
+    return {
+        "frames": n,
+        "fps_cpu": n / total,
+        "read_ms": 1e3 * read / n,
+        "track_ms": 1e3 * (total - read) / n,
+        "reading_share": read / total,
+        "fps_wall": n / min(wall),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--cache", type=Path, default=ROOT / "out" / "bench_track")
+    ap.add_argument("--crf", type=int, default=10, help="x264 quality of the videos rendered.")
+    ap.add_argument("--json", type=Path, default=None, help="Also write the figures here.")
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    camera = camvlp.load_camera(EX / "video_camera.yaml")
+    results = {}
+    for name, room_file in VIDEOS.items():
+        video = _video(name, args.cache, args.crf)
+        room = camvlp.load_map(EX / room_file)
+        rs = _track(video, room, camera, args.cache / f"track_{name}", True)
+        plain = _track(video, room, camera, args.cache / f"track_{name}_no_rs", False)
+        alone = _locate_alone(video, room, camera)
+        speed = _speed(video, room, camera, args.runs)
+        results[name] = {"track": rs, "no_rolling_shutter": plain, "locate": alone, "speed": speed}
+        e, p = rs["errors"], plain["errors"]
+        n = rs["frames"]
+        print(f"\n== {name}: {n} frames")
+        print(
+            f"tracker       {rs['fix']} fix, {rs['tracked']} tracked, {rs['predicted']} "
+            f"predicted, {rs['lost']} lost: {100 * rs['fix_or_tracked_rate']:.1f} % fix or tracked"
+        )
+        print(
+            f"position RMSE {1e3 * e['position_rmse']:.2f} mm filtered, "
+            f"{1e3 * e['raw_position_rmse']:.2f} mm raw, max {1e3 * e['position_max']:.2f} mm; "
+            f"angles {e['angle_rmse_deg']:.3f} deg RMS"
+        )
+        print(
+            f"IDs           {rs['wrong_ids']} wrong of {rs['ids_checked']}; "
+            f"{rs['decoded_ids']} decoded, {rs['carried_ids']} carried by the track; "
+            f"entering fixtures used after {rs['pickup_frames']} frames"
+        )
+        print(
+            f"no rolling-shutter model: position RMSE {1e3 * p['position_rmse']:.2f} mm "
+            f"filtered, {1e3 * p['raw_position_rmse']:.2f} mm raw"
+        )
+        rmse = "-" if alone["rmse"] is None else f"{1e3 * alone['rmse']:.2f} mm"
+        print(
+            f"locate alone  {alone['located']} / {n} frames located (RMSE {rmse}); "
+            f"{alone['decoded']} / {alone['visible']} visible fixtures decoded "
+            f"({100 * alone['decoded'] / max(alone['visible'], 1):.0f} %), "
+            f"{alone['wrong']} wrong"
+        )
+        print(
+            f"speed         {speed['fps_cpu']:.1f} frames/s of CPU time on one core "
+            f"(reading {speed['read_ms']:.1f} ms, tracking {speed['track_ms']:.1f} ms a frame: "
+            f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} "
+            "frames/s"
+        )
+    if args.json is not None:
+        args.json.write_text(json.dumps(results, indent=2, default=float) + "\n")
+
+
+if __name__ == "__main__":
+    main()
