@@ -168,7 +168,8 @@ def main() -> None:
             f"angles {e['angle_rmse_deg']:.3f} deg RMS"
         )
         print(
-            f"IDs           {rs['wrong_ids']} wrong of {rs['ids_checked']}; "
+            f"IDs           {rs['wrong_ids']} wrong of {rs['ids_checked']}, "
+            f"{rs['used_not_fully_inside']} used while not wholly in the picture; "
             f"{rs['decoded_ids']} decoded, {rs['carried_ids']} carried by the track; "
             f"entering fixtures used after {rs['pickup_frames']} frames"
         )

@@ -212,8 +212,9 @@ def summarize(
     ``position_rmse`` (filtered, over frames with a position), ``raw_position_rmse`` (the
     frames' own solves), ``position_max``, ``angle_rmse_deg`` (map units, degrees), per status;
     with the fixtures' truth, ``wrong_ids`` (blobs given an ID whose nearest true fixture
-    has another) and ``pickup_frames`` (per fixture entering the picture: frames from when
-    its whole disc is inside to its first use).
+    has another), ``used_not_fully_inside`` (fixtures a pose used while their disc was not
+    wholly in the picture: cut or gone) and ``pickup_frames`` (per fixture entering the
+    picture: frames from when its whole disc is inside to its first use).
     """
     frames = run.frames
     n = len(frames)
@@ -275,12 +276,15 @@ def _errors(run: TrackRun, truth: dict[str, np.ndarray]) -> dict:
 def _id_checks(run: TrackRun, ft: dict[str, list[tuple[int, float, float, bool]]]) -> dict:
     wrong = 0
     checked = 0
+    used_outside = 0
     used_by_frame: list[set[int]] = []
     for name, f in zip(run.names, run.frames, strict=True):
-        used_by_frame.append({b.id for b in f.fixtures if b.used and b.id is not None})
+        used = {b.id for b in f.fixtures if b.used and b.id is not None}
+        used_by_frame.append(used)
         truths = ft.get(name, [])
         if not truths:
             continue
+        used_outside += len(used - {t[0] for t in truths if t[3]})
         tid = np.array([t[0] for t in truths])
         tpx = np.array([[t[1], t[2]] for t in truths])
         for b in f.fixtures:
@@ -307,6 +311,7 @@ def _id_checks(run: TrackRun, ft: dict[str, list[tuple[int, float, float, bool]]
     return {
         "ids_checked": checked,
         "wrong_ids": wrong,
+        "used_not_fully_inside": used_outside,
         "pickup_frames": pickups,
         "entered_not_picked_up": never,
     }

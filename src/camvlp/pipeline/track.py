@@ -777,8 +777,8 @@ class Tracker:
     def _perspective(self, values: np.ndarray, obj: np.ndarray) -> np.ndarray:
         """Offsets (N, 2) of each disc's ellipse centre from its projected centre, pixels.
 
-        Kept per fixture while the camera moves less than 5 % of its distance and turns
-        less than half a degree (the offset changes slowly and is a fraction of a pixel).
+        Kept per fixture while the camera moves less than 10 % of its distance and turns
+        less than a degree (the offset changes slowly and is a fraction of a pixel).
         """
         out = np.zeros((obj.shape[0], 2))
         if not self.settings.locate.correct_perspective:
@@ -792,8 +792,8 @@ class Tracker:
             cached = self._offset_cache.get(k)
             if cached is not None:
                 at, offset = cached
-                near = np.linalg.norm(at[:3] - values[:3]) <= 0.05 * np.linalg.norm(p - at[:3])
-                if near and np.max(np.abs(at[3:] - values[3:])) <= 0.5:
+                near = np.linalg.norm(at[:3] - values[:3]) <= 0.1 * np.linalg.norm(p - at[:3])
+                if near and np.max(np.abs(at[3:] - values[3:])) <= 1.0:
                     out[j] = offset
                     continue
             if pose is None:
