@@ -16,7 +16,8 @@ Files written beside a video ``DIR/name.mp4`` (or inside a frame folder ``DIR/``
 * ``name_truth.csv`` (``truth.csv``): ``frame,t,x,y,z,theta_x,theta_y,theta_z``, the pose at
   each frame's time (map units, the thesis' angles in degrees);
 * ``name_fixtures.csv`` (``fixtures.csv``): ``frame,id,u,v,fully_inside,frames_spanned``, what
-  each frame shows of each fixture at the frame's time (for checking IDs).
+  each frame shows of each fixture, seen from the pose at the time of the row through its
+  centre (for checking IDs).
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ __all__ = [
     "load_trajectory",
     "render_frame",
     "render_video",
+    "row_truths",
     "truth_paths",
 ]
 
@@ -157,7 +159,8 @@ class VideoFrame:
     pose : Pose
         The camera's pose at ``t``.
     fixtures : tuple of FixtureTruth
-        What the frame shows of each fixture, seen from ``pose``.
+        What the frame shows of each fixture, each seen from the pose at the time of the
+        sensor row through its centre (:func:`row_truths`).
     """
 
     image: np.ndarray
@@ -214,6 +217,31 @@ def _moving_coverage(
     cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
     cov[~valid.reshape(uu.shape)] = 0.0
     return cov.astype(np.float32)
+
+
+def row_truths(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    trajectory: Trajectory,
+    t: float,
+    settings: RenderSettings | None = None,
+) -> tuple[FixtureTruth, ...]:
+    """What a frame at ``t`` shows of each fixture, each seen from the pose at the time of
+    the sensor row through its centre (where the rolling shutter saw it), in map order."""
+    s = (settings or RenderSettings()).resolved(camera)
+    n_rows = camera.height if s.readout.by_rows else camera.width
+    mid = _render._truths(camera, fixture_map, trajectory.pose(t), s)[0]
+    out = []
+    for j, truth in enumerate(mid):
+        for _ in range(2):  # the row through the centre, then the centre seen from that row
+            k = truth.pixel[s.readout.pixel_index]
+            if not np.isfinite(k):
+                break
+            k = (n_rows - 1 - k) if s.readout.reversed else k
+            row_t = t + (k - 0.5 * (n_rows - 1)) * s.row_time_s
+            truth = _render._truths(camera, fixture_map, trajectory.pose(row_t), s)[0][j]
+        out.append(truth)
+    return tuple(out)
 
 
 def render_frame(
@@ -291,7 +319,12 @@ def render_frame(
     image = _render._expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])
-    return VideoFrame(image=image, t=float(t), pose=mid, fixtures=truths)
+    return VideoFrame(
+        image=image,
+        t=float(t),
+        pose=mid,
+        fixtures=row_truths(camera, fixture_map, trajectory, t, s),
+    )
 
 
 def frame_times(trajectory: Trajectory, fps: float) -> np.ndarray:
