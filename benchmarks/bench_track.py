@@ -137,6 +137,24 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
     }
 
 
+def _reference_cpu_ms(runs: int = 15) -> float:
+    """CPU time of ``camvlp.locate`` on ``bench_locate.py``'s 1080p photo (median, ms): the
+    same call the README times on an idle machine, to tell how loaded this one is."""
+    from camvlp.model.camera import Camera
+    from camvlp.sim.render import render
+
+    room = camvlp.load_map(EX / "thesis_room.yaml")
+    hd = Camera.from_focal(1920, 1080, 1200.0, row_time_s=30e-6)
+    pose = camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0])
+    image = render(hd, room, pose, RenderSettings(seed=2)).image
+    times = []
+    for _ in range(runs):
+        c0 = time.process_time()
+        camvlp.locate(image, hd, room)
+        times.append(time.process_time() - c0)
+    return 1e3 * float(np.median(times))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=3)
@@ -190,6 +208,12 @@ def main() -> None:
             f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} "
             "frames/s"
         )
+    ref = _reference_cpu_ms()
+    results["reference_locate_1080p_cpu_ms"] = ref
+    print(
+        f"\nreference: camvlp.locate on bench_locate.py's 1080p photo takes {ref:.1f} ms of CPU "
+        "time here (bench_locate.py, idle machine: 10.4 ms)"
+    )
     if args.json is not None:
         args.json.write_text(json.dumps(results, indent=2, default=float) + "\n")
 
