@@ -84,8 +84,6 @@ class TrackSettings:
         A blob keeps an ID only when every other prediction is this many times farther.
     min_tracked : int
         Fewest identified fixtures for a ``tracked`` pose (with the track's prior).
-    fixes_before_tracked : int
-        Fixes a track needs (to know its velocity) before it may give ``tracked`` poses.
     max_gap_s : float
         Longest prediction without a measurement before the track is ``lost``, s.
     accel_sigma : float
@@ -120,7 +118,6 @@ class TrackSettings:
     gate_px: float | None = None
     ambiguity: float = 2.0
     min_tracked: int = 2
-    fixes_before_tracked: int = 3
     max_gap_s: float = 0.5
     accel_sigma: float = 3.0
     angular_accel_sigma_deg: float = 250.0
@@ -374,7 +371,6 @@ class Tracker:
         self._dt_pred = 0.0
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
         self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._fixes = 0  # fixes since the track started
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
 
     # ---------------------------------------------------------------------------------------
@@ -641,7 +637,7 @@ class Tracker:
                 solved, used_mask = None, np.zeros(len(usable), bool)
                 reason = reason or "the fixtures do not fit the track"
         elif solved is None and not reason:
-            help_ = ", no track to help" if not fresh else ", the track has too few fixes yet"
+            help_ = ", no track to help" if not fresh else ""
             reason = f"{len(usable)} identified fixture{'s' if len(usable) != 1 else ''}" + (
                 help_ if len(usable) >= self.settings.min_tracked else ""
             )
@@ -655,7 +651,6 @@ class Tracker:
             self._measure(
                 solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
             )
-            self._fixes += status == "fix"
             reason = ""
         elif self.filter is not None and self._t_measured is not None:
             if t - self._t_measured <= self.settings.max_gap_s:
@@ -664,7 +659,6 @@ class Tracker:
                 status = "predicted"
             else:
                 self.filter, self._t_last, self._t_measured = None, None, None
-                self._fixes = 0
                 status, reason = "lost", f"no measurement for {self.settings.max_gap_s} s"
         self._remember(blobs, ids, reasons, t)
         t2 = time.perf_counter()
