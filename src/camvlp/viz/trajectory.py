@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
+from camvlp.viz.figure import new_figure
 
 __all__ = ["plan_axes", "plot_trajectory"]
 
@@ -66,7 +67,6 @@ def plot_trajectory(
     Path
         ``path``.
     """
-    from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from matplotlib.patches import Circle
 
@@ -74,7 +74,7 @@ def plot_trajectory(
     units = fixture_map.units
     pos = np.asarray(positions, dtype=float).reshape(-1, 3)
     with_error = truth is not None and times is not None
-    fig = Figure(figsize=(8.5, 8.0 if with_error else 6.0), dpi=120)
+    fig = new_figure(8.5, 8.0 if with_error else 6.0, layout=None)
     if with_error:
         grid = fig.add_gridspec(2, 1, height_ratios=[3, 1.2])
         ax = fig.add_subplot(grid[0])
