@@ -14,8 +14,10 @@ where a phone records 1080p at 10 to 20).  Then for each video it prints:
 * ``camvlp.locate`` on every frame alone (no track): frames located, and the share of the
   fixtures fully in the picture whose stripes decode;
 * speed on one core (OpenCV, FFmpeg and BLAS on one thread): frames per second of CPU time,
-  reading (H.264 decoding and conversion to BGR) included, and the share of reading; the
-  best of ``--runs`` runs (the machine may be shared: CPU time, not wall time, is counted).
+  reading (H.264 decoding; the frames' luma plane, as ``camvlp track`` reads them) included,
+  and the share of reading; the best of ``--runs`` runs (the machine may be shared: CPU time,
+  not wall time, is counted), and ``camvlp.locate``'s time on ``bench_locate.py``'s 1080p
+  photo as a reference of the machine's load.
 
 Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``.
 """
@@ -67,7 +69,7 @@ def _video(name: str, cache: Path, crf: int) -> Path:
 
 
 def _track(video: Path, room, camera, out: Path, rolling_shutter: bool) -> dict:
-    src = open_frames(video, threads=1)
+    src = open_frames(video, threads=1, gray=True)
     run = run_track(src, Tracker(camera, room, TrackSettings(rolling_shutter=rolling_shutter)), out)
     s = summarize(run, truth_path=src.truth_path, fixtures_truth_path=src.fixtures_truth_path)
     sources = [b.source for f in run.frames for b in f.fixtures if b.id is not None]
@@ -89,7 +91,7 @@ def _locate_alone(video: Path, room, camera) -> dict:
     located = visible = decoded = wrong = 0
     errors = []
     settings = camvlp.LocateSettings(readout="rows")
-    for frame in open_frames(video, threads=1):
+    for frame in open_frames(video, threads=1, gray=True):
         res = camvlp.locate(frame.image, camera, room, settings)
         inside = truth.get(frame.name, [])
         visible += len(inside)
@@ -116,13 +118,13 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
     n = 0
     for _ in range(runs):
         c0 = time.process_time()
-        frames = list(open_frames(video, threads=1))
+        frames = list(open_frames(video, threads=1, gray=True))
         read_cpu.append(time.process_time() - c0)
         n = len(frames)
         del frames
         tracker = Tracker(camera, room)
         c0, w0 = time.process_time(), time.perf_counter()
-        for frame in open_frames(video, threads=1):
+        for frame in open_frames(video, threads=1, gray=True):
             tracker.update(frame.image, frame.t)
         total_cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)

@@ -111,7 +111,9 @@ def track_command(
     given_readout = parse_readout(readout)
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
-    frames_src = open_frames(source, fps=fps, start_s=start, max_frames=frames, threads=0)
+    frames_src = open_frames(
+        source, fps=fps, start_s=start, max_frames=frames, threads=0, gray=True
+    )
     settings = TrackSettings(
         locate=LocateSettings(solver=solver, readout=given_readout, outlier_px=outlier_px),
         rolling_shutter=rolling_shutter,

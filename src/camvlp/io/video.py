@@ -85,6 +85,7 @@ class FrameSource:
     max_frames: int | None
     threads: int
     warnings: list[str] = field(default_factory=list)
+    gray: bool = False
     truth_path: Path | None = None
     fixtures_truth_path: Path | None = None
     _files: list[Path] = field(default_factory=list, repr=False)
@@ -133,7 +134,7 @@ class FrameSource:
                         rate = self.fps or (float(stream.average_rate or 0) or None)
                         t = i / rate if rate else math.nan
                     try:
-                        image = frame.to_ndarray(format="bgr24")
+                        image = _luma(frame) if self.gray else frame.to_ndarray(format="bgr24")
                     except (av.FFmpegError, ValueError) as exc:
                         yield Frame(i, str(i), float(t), None, f"cannot convert the frame: {exc}")
                     else:
@@ -143,6 +144,16 @@ class FrameSource:
                 self.warnings.append(f"the video breaks off after {i} frames: {exc}")
         finally:
             container.close()
+
+
+def _luma(frame) -> np.ndarray:
+    """A decoded video frame's brightness (H, W) uint8: its luma plane, without a colour
+    conversion (8-bit YUV formats); other formats through FFmpeg's gray conversion."""
+    if frame.format.name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
+        plane = frame.planes[0]
+        rows = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
+        return rows[:, : plane.width].copy()
+    return frame.to_ndarray(format="gray")
 
 
 def _read_timestamps(path: Path) -> dict[str, float]:
@@ -172,6 +183,7 @@ def open_frames(
     start_s: float = 0.0,
     max_frames: int | None = None,
     threads: int = 1,
+    gray: bool = False,
 ) -> FrameSource:
     """Open a video file or a folder of images for reading frame by frame.
 
@@ -188,6 +200,9 @@ def open_frames(
         Read at most this many frames (after ``start_s``).
     threads : int
         Decoder threads for a video (1: one core; 0: FFmpeg's choice).
+    gray : bool
+        Give a video's frames as their luma plane (H, W) instead of BGR (H, W, 3): no colour
+        conversion, which is what locating needs (folders are read as their files are).
 
     Returns
     -------
@@ -232,6 +247,7 @@ def open_frames(
         threads,
         truth_path=truth if truth.is_file() else None,
         fixtures_truth_path=fixtures if fixtures.is_file() else None,
+        gray=gray,
     )
 
 
