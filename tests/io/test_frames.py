@@ -97,3 +97,18 @@ def test_truncated_mp4_is_refused_in_one_line(small_video, tmp_path):
     cut.write_bytes(video.read_bytes()[:-200])  # its index is at the end
     with pytest.raises(InputError, match="not a video that can be read"):
         open_frames(cut)
+
+
+def test_video_frames_as_luma(tmp_path):
+    from camvlp.sim.video import _VideoWriter
+
+    ramp = np.tile(np.linspace(0, 255, 64, dtype=np.uint8), (48, 1))
+    writer = _VideoWriter(tmp_path / "ramp.mkv", 64, 48, 10.0, 0)
+    for _ in range(2):
+        writer.write(np.dstack([ramp] * 3))
+    writer.close()
+    bgr = [f.image for f in open_frames(tmp_path / "ramp.mkv")]
+    luma = [f.image for f in open_frames(tmp_path / "ramp.mkv", gray=True)]
+    assert luma[0].shape == (48, 64) and bgr[0].shape == (48, 64, 3)
+    # video luma is 16..235 for black..white
+    assert np.abs(luma[0].astype(float) - (16 + ramp.astype(float) * 219 / 255)).max() <= 2

@@ -73,6 +73,8 @@ class FrameSource:
         Frames expected (None when the video does not say).
     warnings : list of str
         What was skipped, and a video that ended early.
+    gray : bool
+        A video's frames come as their luma plane (H, W).
     truth_path, fixtures_truth_path : Path or None
         The truth files beside the input when they exist (see :mod:`camvlp.sim.video`).
     """
@@ -85,11 +87,11 @@ class FrameSource:
     max_frames: int | None
     threads: int
     warnings: list[str] = field(default_factory=list)
-    gray: bool = False
     truth_path: Path | None = None
     fixtures_truth_path: Path | None = None
     _files: list[Path] = field(default_factory=list, repr=False)
     _times: dict[str, float] = field(default_factory=dict, repr=False)
+    gray: bool = False
 
     def __iter__(self) -> Iterator[Frame]:
         frames = self._video() if self.kind == "video" else self._folder()
