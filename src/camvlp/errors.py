@@ -11,13 +11,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["InputError"]
+__all__ = ["InputError", "one_line"]
+
+
+def one_line(text: str) -> str:
+    """``text`` with every unprintable character (newline, tab, escape ...) written as its
+    backslash escape, so a message or a file name can never split or colour a line."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 class InputError(ValueError):
     """Bad input: a missing, unreadable or malformed file.  ``str(err)`` is one line."""
 
     def __init__(self, what: str, source: str | Path | None = None):
-        self.what = what
-        self.source = str(source) if source is not None else None
-        super().__init__(f"{what} ({self.source})" if self.source else what)
+        self.what = one_line(str(what))
+        self.source = one_line(str(source)) if source is not None else None
+        super().__init__(f"{self.what} ({self.source})" if self.source else self.what)

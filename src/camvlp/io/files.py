@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+import re
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from camvlp.errors import InputError
+from camvlp.io.limits import limit, read_regular_file
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.linecode import FrameFormat
@@ -31,16 +32,78 @@ __all__ = [
 ]
 
 
+#: Largest magnitude of any number in a camera or map file (a coordinate, a focal length...).
+MAX_MAGNITUDE = 1e9
+#: Longest run of digits accepted in a camera or map file (int64 has 19).
+MAX_DIGITS = 30
+#: Largest image_width or image_height of a camera file, pixels.
+MAX_SIDE_PX = 1_000_000
+
+
 def _read_text(path: str | Path, kind: str) -> str:
     p = Path(path)
-    if not p.exists():
-        raise InputError(f"{kind} file not found", p)
-    if p.is_dir():
-        raise InputError(f"{kind} file is a directory", p)
+    data = read_regular_file(p, f"{kind} file", limit("CAMVLP_MAX_FILE_BYTES"))
     try:
-        return p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read {kind} file: {exc.__class__.__name__}", p) from None
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{kind} file is not UTF-8 text (byte {exc.start})", p) from None
+
+
+def _line_of(text: str, index: int) -> int:
+    return text.count("\n", 0, index) + 1
+
+
+def _check_text(text: str, path: Path, kind: str, as_json: bool) -> None:
+    """Refuse, before parsing, what a parser would spend unbounded time, memory or stack on:
+    numbers of too many digits, nesting deeper than CAMVLP_MAX_DEPTH, YAML anchors and aliases.
+    """
+    long_number = re.search(rf"\d{{{MAX_DIGITS + 1},}}", text)
+    if long_number:
+        raise InputError(
+            f"{kind} file has a number of {long_number.end() - long_number.start()} digits at "
+            f"line {_line_of(text, long_number.start())} (at most {MAX_DIGITS})",
+            path,
+        )
+    max_depth = limit("CAMVLP_MAX_DEPTH")
+    if as_json:
+        bare = np.frombuffer(_JSON_STRING.sub("", text).encode("utf-8"), dtype=np.uint8)
+        step = np.isin(bare, _OPENERS).astype(np.int32) - np.isin(bare, _CLOSERS)
+        depth = int(np.cumsum(step).max()) if step.size else 0
+        if depth > max_depth:
+            raise InputError(f"{kind} file is nested {depth} deep (at most {max_depth})", path)
+        return
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                mark = event.start_mark
+                raise InputError(
+                    f"{kind} file uses a YAML anchor or alias at line {mark.line + 1} "
+                    "(not accepted: write the values out)",
+                    path,
+                )
+            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+                depth += 1
+                if depth > max_depth:
+                    raise InputError(
+                        f"{kind} file is nested more than {max_depth} deep at line "
+                        f"{event.start_mark.line + 1}",
+                        path,
+                    )
+            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+                depth -= 1
+    except yaml.YAMLError as exc:
+        raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
+
+
+_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_OPENERS = np.frombuffer(b"[{", dtype=np.uint8)
+_CLOSERS = np.frombuffer(b"]}", dtype=np.uint8)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else exc.__class__.__name__
 
 
 def _parse_mapping(text: str, path: Path, kind: str) -> dict:
@@ -48,14 +111,12 @@ def _parse_mapping(text: str, path: Path, kind: str) -> dict:
     if text.lstrip().startswith("%YAML"):
         lines = text.lstrip().splitlines()[1:]
         text = "\n".join(lines).replace("!!opencv-matrix", "").replace("!!opencv-nd-matrix", "")
+    as_json = path.suffix.lower() == ".json"
+    _check_text(text, path, kind, as_json)
     try:
-        if path.suffix.lower() == ".json":
-            data = json.loads(text)
-        else:
-            data = yaml.safe_load(text)
-    except (json.JSONDecodeError, yaml.YAMLError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else exc.__class__.__name__
-        raise InputError(f"malformed {kind} file: {first}", path) from None
+        data = json.loads(text) if as_json else yaml.safe_load(text)
+    except (json.JSONDecodeError, yaml.YAMLError, ValueError, RecursionError) as exc:
+        raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
     if not isinstance(data, dict):
         raise InputError(f"malformed {kind} file: expected a mapping of keys", path)
     return data
@@ -67,10 +128,12 @@ def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: str | Pat
         value = value["data"]
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{key} must be numbers", path) from None
     if arr.dtype == object or not np.all(np.isfinite(arr)):
         raise InputError(f"{key} must be finite numbers", path)
+    if arr.size and float(np.abs(arr).max()) > MAX_MAGNITUDE:
+        raise InputError(f"{key} has a number beyond +-{MAX_MAGNITUDE:g}", path)
     if shape is not None:
         if arr.size != int(np.prod(shape)):
             raise InputError(f"{key} must have {int(np.prod(shape))} numbers, got {arr.size}", path)
@@ -78,14 +141,42 @@ def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: str | Pat
     return arr
 
 
-def _number(value: Any, key: str, path: str | Path, *, positive: bool = False) -> float:
+def _number(
+    value: Any, key: str, path: Path, *, positive: bool = False, most: float = MAX_MAGNITUDE
+) -> float:
+    """``value`` as a float: a finite number of magnitude at most ``most`` (positive if asked)."""
+    kind = "positive number" if positive else "number"
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InputError(f"{key} must be a number, got {value!r}", path)
-    v = float(value)
+        raise InputError(f"{key} must be a {kind}, got {_short(value)}", path)
+    try:
+        v = float(value)
+    except OverflowError:
+        v = math.inf
     if not math.isfinite(v) or (positive and v <= 0):
-        kind = "positive number" if positive else "number"
-        raise InputError(f"{key} must be a {kind}, got {value!r}", path)
+        raise InputError(f"{key} must be a finite {kind}, got {_short(value)}", path)
+    if abs(v) > most:
+        raise InputError(f"{key} must be at most {most:g}, got {_short(value)}", path)
     return v
+
+
+def _integer(value: Any, key: str, path: Path, *, most: int) -> int:
+    """``value`` as a positive integer of at most ``most`` (5184.0 passes; 5184.5 does not)."""
+    if isinstance(value, float) and value.is_integer():
+        value = int(value)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise InputError(f"{key} must be a positive integer, got {_short(value)}", path)
+    if value > most:
+        raise InputError(f"{key} must be at most {most:,}, got {_short(value)}", path)
+    return value
+
+
+def _short(value: Any) -> str:
+    """A value for an error message: its repr, cut to 40 characters."""
+    try:
+        text = repr(value)
+    except ValueError:  # an int too long to print
+        text = f"an integer of {value.bit_length()} bits"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def load_camera(path: str | Path) -> Camera:
@@ -122,12 +213,19 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
     if not isinstance(data, Mapping):
         raise InputError("malformed camera: expected a mapping of keys", p)
     try:
-        width = int(_number(data.get("image_width"), "image_width", p, positive=True))
-        height = int(_number(data.get("image_height"), "image_height", p, positive=True))
+        width = _integer(data.get("image_width"), "image_width", p, most=MAX_SIDE_PX)
+        height = _integer(data.get("image_height"), "image_height", p, most=MAX_SIDE_PX)
     except InputError:
         if "image_width" not in data or "image_height" not in data:
             raise InputError("camera file needs image_width and image_height", p) from None
         raise
+    max_pixels = limit("CAMVLP_MAX_PIXELS")
+    if width * height > max_pixels:
+        raise InputError(
+            f"camera is {width} x {height} = {width * height:,} pixels, over the limit of "
+            f"{max_pixels:,} (set CAMVLP_MAX_PIXELS)",
+            p,
+        )
     if "camera_matrix" in data:
         k = _matrix(data["camera_matrix"], (3, 3), "camera_matrix", p)
     elif "focal_length_px" in data:
@@ -150,7 +248,7 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
     )
     row_time = data.get("row_time_s")
     if row_time is not None:
-        row_time = _number(row_time, "row_time_s", p, positive=True)
+        row_time = _number(row_time, "row_time_s", p, positive=True, most=1.0)
     mirrored = data.get("mirrored", False)
     if not isinstance(mirrored, bool):
         raise InputError(f"mirrored must be true or false, got {mirrored!r}", p)
@@ -257,7 +355,7 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
             raise InputError(f"{where} must be a mapping", p)
         fid = entry.get("id", index if mode == "frequency" else None)
         if isinstance(fid, bool) or not isinstance(fid, int):
-            raise InputError(f"{where} needs an integer id, got {fid!r}", p)
+            raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
         where = f"fixture {fid}"
         if fid in seen:
             raise InputError(f"duplicate ID in {where}", p)
@@ -270,12 +368,9 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
         pos = entry.get("position")
         if pos is None:
             raise InputError(f"{where} has no position", p)
-        if not (
-            isinstance(pos, list)
-            and len(pos) == 3
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in pos)
-        ):
-            raise InputError(f"{where}: position must be three numbers, got {pos!r}", p)
+        if not (isinstance(pos, list) and len(pos) == 3):
+            raise InputError(f"{where}: position must be three numbers, got {_short(pos)}", p)
+        pos = [_number(v, f"{where}: position", p) for v in pos]
         kwargs: dict[str, Any] = {}
         for key in ("diameter", "frequency_hz"):
             if entry.get(key) is not None:

@@ -1,67 +1,293 @@
-"""Reading photographs: upright as their EXIF says, refusing what is not a whole image."""
+"""Reading photographs: one gate for image files and image arrays.
+
+A photo file is read only when it is a regular file within the size limit, its header (PNG,
+JPEG, TIFF, BMP or WebP) names a size within the pixel limit, and its decoder reports no damage;
+then it is turned upright as its EXIF says and converted to the working type.  An image array
+given to the library passes the same checks on its shape, type and size.  The limits are in
+:mod:`camvlp.io.limits`.
+"""
 
 from __future__ import annotations
 
+import os
+import struct
+import tempfile
+import threading
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.limits import limit, read_regular_file
 
-__all__ = ["decode_image", "load_image"]
+__all__ = ["as_image", "image_header", "load_image"]
 
+#: Decoder messages that mean the pixels are not the whole picture (libjpeg, libpng, libtiff).
+_DAMAGE = ("corrupt", "premature end", "error", "invalid", "bad ", "truncated", "crc")
 
-def load_image(path: str | Path) -> np.ndarray:
-    """Read a photograph, upright as its EXIF says: 8- or 16-bit, BGR (H, W, 3) or gray (H, W).
-
-    Raises
-    ------
-    InputError
-        Missing file, not an image, or a truncated/corrupt image.
-    """
-    p = Path(path)
-    if not p.exists():
-        raise InputError("photo not found", p)
-    if p.is_dir():
-        raise InputError("photo is a directory", p)
-    return decode_image(np.fromfile(str(p), dtype=np.uint8), p)
+_STDERR_LOCK = threading.Lock()
 
 
-def decode_image(raw: bytes | np.ndarray, source: str | Path = "photo") -> np.ndarray:
-    """Decode an encoded photograph (JPEG, PNG, TIFF ... bytes) as :func:`load_image` does.
+def load_image(path: str | Path, *, max_pixels: int | None = None) -> np.ndarray:
+    """Read a photograph, upright as its EXIF says.
 
     Parameters
     ----------
-    raw : bytes or ndarray of uint8, shape (N,)
-        The encoded file's bytes.
-    source : str or Path
-        Names the photo in error messages.
+    path : str or Path
+        A PNG, JPEG, TIFF, BMP or WebP file.
+    max_pixels : int, optional
+        Largest width x height accepted (default: ``CAMVLP_MAX_PIXELS``, else 200 million).
 
     Returns
     -------
-    ndarray, shape (H, W, 3) BGR or (H, W) gray, uint8 or uint16
-        Upright as the EXIF orientation says.
+    ndarray, shape (H, W, 3) BGR or (H, W) gray
+        ``uint8`` or ``uint16``; other pixel types (signed, 32-bit, float) converted as
+        :func:`as_image` says.
 
     Raises
     ------
     InputError
-        Empty, not an image, or a truncated/corrupt image.
+        Missing, not a regular file, too large, an unknown format, a header over the pixel
+        limit, or a truncated or corrupt image.
     """
-    p = source
-    raw = np.frombuffer(raw, dtype=np.uint8) if isinstance(raw, (bytes, bytearray)) else raw
-    if raw.size == 0:
+    p = Path(path)
+    data = read_regular_file(p, "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
+    if not data:
         raise InputError("photo is empty", p)
-    if _truncated_jpeg(raw):
+    try:
+        fmt, width, height = image_header(data)
+    except InputError as exc:
+        raise InputError(exc.what, p) from None
+    _check_pixels(width, height, max_pixels, p)
+    raw = np.frombuffer(data, dtype=np.uint8)
+    if fmt == "jpeg" and _truncated_jpeg(raw):
         raise InputError("photo is a truncated JPEG", p)
     # Not IMREAD_UNCHANGED: the other modes apply the EXIF orientation, so the array is the
     # picture as viewers show it (phones often store landscape pixels with a "rotate" tag).
-    img = cv2.imdecode(raw, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
-    if img is not None and img.ndim == 3 and img.shape[2] == 4:
-        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    img, messages = _decode_quietly(raw)
+    damage = [m for m in messages if any(word in m.lower() for word in _DAMAGE)]
+    if damage:
+        raise InputError(f"corrupt {fmt.upper()} refused: {damage[0]}", p)
     if img is None:
-        raise InputError("not an image, or a corrupt one", p)
-    return img
+        raise InputError(f"not a readable {fmt.upper()} image, or a corrupt one", p)
+    try:
+        return as_image(img, max_pixels=max_pixels)
+    except InputError as exc:
+        raise InputError(exc.what, p) from None
+
+
+def as_image(image: object, *, max_pixels: int | None = None, name: str = "image") -> np.ndarray:
+    """The gate for an image array: shape, type and size checked, converted to the working type.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W), (H, W, 1), (H, W, 2), (H, W, 3) or (H, W, 4)
+        Gray, gray + alpha, BGR or BGRA pixels of any real type: bool, (u)int8 to (u)int64,
+        float16 to float64.
+    max_pixels : int, optional
+        Largest H x W accepted (default: ``CAMVLP_MAX_PIXELS``, else 200 million).
+    name : str
+        The argument's name, for the error message.
+
+    Returns
+    -------
+    ndarray, shape (H, W) or (H, W, 3)
+        ``uint8`` and ``uint16`` pass unchanged; ``bool`` becomes ``uint8`` (True -> 255);
+        other integers lose their negative values (-> 0) and become ``uint8`` when their
+        maximum fits in 8 bits, ``uint16`` when it fits in 16, else ``uint16`` scaled by
+        65535 / their maximum; floats become ``uint16``, scaled by 65535 when within [0, 1],
+        else by 65535 / their maximum.  Alpha is dropped.
+
+    Raises
+    ------
+    InputError
+        Not an array of numbers, the wrong shape, empty, over the pixel limit, or a float
+        image with NaN or infinite pixels.
+    """
+    if image is None:
+        raise InputError(f"{name} is None, not an image array")
+    if isinstance(image, (str, bytes, Path)):
+        raise InputError(f"{name} must be an image array, got a {type(image).__name__}")
+    try:
+        img = np.asarray(image)
+    except (ValueError, TypeError) as exc:  # a ragged nested list
+        raise InputError(f"{name} is not an array of numbers: {_first_line(exc)}") from None
+    kind = img.dtype.kind
+    if kind not in "biuf":
+        raise InputError(f"{name} must hold real numbers, got dtype {img.dtype}")
+    if img.ndim == 3 and img.shape[2] in (1, 2):
+        img = img[:, :, 0]
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = img[:, :, :3]
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] != 3):
+        raise InputError(f"{name} must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
+    h, w = img.shape[:2]
+    if h == 0 or w == 0:
+        raise InputError(f"{name} is empty (shape {img.shape})")
+    _check_pixels(w, h, max_pixels, None)
+    if kind == "b":
+        return np.ascontiguousarray(img, dtype=np.uint8) * np.uint8(255)
+    if img.dtype == np.uint8 or img.dtype == np.uint16:
+        return np.ascontiguousarray(img)
+    if kind in "iu":  # other integers: values kept where they fit, else scaled by the maximum
+        pos = np.clip(img, 0, None)
+        hi = int(pos.max())
+        if hi <= 0xFF:
+            return pos.astype(np.uint8)
+        if hi <= 0xFFFF:
+            return pos.astype(np.uint16)
+        return np.rint(pos * (65535.0 / hi)).astype(np.uint16)
+    f = img.astype(np.float32) if img.dtype == np.float16 else img
+    finite = np.isfinite(f)
+    if not finite.all():
+        raise InputError(f"{name} has {int(f.size - finite.sum())} NaN or infinite pixels")
+    hi = float(f.max())
+    scale = 65535.0 if hi <= 1.0 else 65535.0 / hi
+    return np.rint(np.clip(f * scale, 0, 65535)).astype(np.uint16)
+
+
+def image_header(data: bytes) -> tuple[str, int, int]:
+    """The format and size a file's header announces, read without decoding any pixel.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's bytes (only the first kilobytes are read, except for a JPEG, whose marker
+        segments are walked to its frame header).
+
+    Returns
+    -------
+    (format, width, height) : (str, int, int)
+        ``format`` is "png", "jpeg", "tiff", "bmp" or "webp"; width and height in pixels.
+
+    Raises
+    ------
+    InputError
+        An unknown format, or a header that is cut short or malformed.
+    """
+    try:
+        if data.startswith(b"\x89PNG\r\n\x1a\n"):
+            if data[12:16] != b"IHDR":
+                raise InputError("malformed PNG header: no IHDR chunk first")
+            w, h = struct.unpack(">II", data[16:24])
+            return "png", w, h
+        if data.startswith(b"\xff\xd8"):
+            return ("jpeg", *_jpeg_size(data))
+        if data[:4] in (b"II*\x00", b"MM\x00*"):
+            return ("tiff", *_tiff_size(data))
+        if data.startswith(b"BM"):
+            w, h = struct.unpack("<ii", data[18:26])
+            return "bmp", abs(w), abs(h)
+        if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+            return ("webp", *_webp_size(data))
+    except (struct.error, ValueError, IndexError):
+        raise InputError("image header is cut short or malformed") from None
+    if data[:4] in (b"II+\x00", b"MM\x00+"):
+        raise InputError("BigTIFF photos are not supported; save as TIFF, PNG or JPEG")
+    raise InputError("not an image camvlp reads (PNG, JPEG, TIFF, BMP or WebP)")
+
+
+def _jpeg_size(b: bytes) -> tuple[int, int]:
+    """Width and height from a JPEG's first frame header (SOF0 to SOF15, not DHT/JPG/DAC)."""
+    i = 2
+    n = len(b)
+    while i + 3 < n:
+        if b[i] != 0xFF:
+            break
+        marker = b[i + 1]
+        if marker == 0xFF:  # fill byte
+            i += 1
+            continue
+        if 0xD0 <= marker <= 0xD9 or marker == 0x01:
+            i += 2
+            continue
+        length = (b[i + 2] << 8) | b[i + 3]
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            h, w = struct.unpack(">HH", b[i + 5 : i + 9])
+            return w, h
+        if marker == 0xDA or length < 2:
+            break
+        i += 2 + length
+    raise InputError("malformed JPEG: no frame header before the image data")
+
+
+def _tiff_size(b: bytes) -> tuple[int, int]:
+    """Width and height from a TIFF's first image file directory (tags 256 and 257)."""
+    e = "<" if b[:2] == b"II" else ">"
+    (offset,) = struct.unpack(e + "I", b[4:8])
+    (count,) = struct.unpack(e + "H", b[offset : offset + 2])
+    entries = np.frombuffer(
+        b,
+        dtype=np.dtype([("tag", e + "u2"), ("type", e + "u2"), ("n", e + "u4"), ("v", "V4")]),
+        count=count,
+        offset=offset + 2,
+    )
+    size = {}
+    for tag in (256, 257):
+        hit = entries[entries["tag"] == tag]
+        if hit.size:
+            raw = hit[0]["v"].tobytes()
+            size[tag] = (
+                struct.unpack(e + "H", raw[:2])[0]
+                if hit[0]["type"] == 3
+                else (struct.unpack(e + "I", raw)[0])
+            )
+    if len(size) < 2:
+        raise InputError("malformed TIFF: no image width or height")
+    return size[256], size[257]
+
+
+def _webp_size(b: bytes) -> tuple[int, int]:
+    """Width and height of a WebP's VP8, VP8L or VP8X (extended) chunk."""
+    chunk = b[12:16]
+    if chunk == b"VP8X":
+        w = int.from_bytes(b[24:27], "little") + 1
+        h = int.from_bytes(b[27:30], "little") + 1
+        return w, h
+    if chunk == b"VP8L":
+        bits = int.from_bytes(b[21:25], "little")
+        return (bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1
+    if chunk == b"VP8 ":
+        w, h = struct.unpack("<HH", b[26:30])
+        return w & 0x3FFF, h & 0x3FFF
+    raise InputError("malformed WebP: unknown first chunk")
+
+
+def _check_pixels(width: int, height: int, max_pixels: int | None, source: Path | None) -> None:
+    cap = limit("CAMVLP_MAX_PIXELS", max_pixels)
+    if width <= 0 or height <= 0:
+        raise InputError(f"image header says {width} x {height} pixels", source)
+    if width * height > cap:
+        raise InputError(
+            f"image is {width} x {height} = {width * height:,} pixels, over the limit of "
+            f"{cap:,} (set CAMVLP_MAX_PIXELS)",
+            source,
+        )
+
+
+def _decode_quietly(raw: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
+    """``cv2.imdecode`` with the C libraries' stderr messages captured instead of printed."""
+    with _STDERR_LOCK, tempfile.TemporaryFile() as capture:
+        saved = os.dup(2)
+        try:
+            os.dup2(capture.fileno(), 2)
+            try:
+                img = cv2.imdecode(raw, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+            except cv2.error as exc:
+                img = None
+                capture.write(("error: " + _first_line(exc)).encode())
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        capture.seek(0)
+        text = capture.read(65536).decode("utf-8", "replace")
+    return img, [line.strip() for line in text.splitlines() if line.strip()]
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[-1] if text else exc.__class__.__name__
 
 
 def _truncated_jpeg(raw: np.ndarray) -> bool:
