@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import sys
 
 import typer
@@ -39,6 +40,12 @@ def main(argv: list[str] | None = None) -> int:
         print("error: interrupted", file=sys.stderr)
         code = 130
     code = code if isinstance(code, int) else 0
+    try:  # stdout to a full device or a closed pipe: one line, not a traceback at exit
+        sys.stdout.flush()
+    except OSError as exc:
+        sys.stdout = open(os.devnull, "w")
+        print(f"error: cannot write the output: {exc.strerror or exc}", file=sys.stderr)
+        code = EXIT_BAD_INPUT
     if argv is None:
         sys.exit(code)
     return code

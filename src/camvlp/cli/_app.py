@@ -4,12 +4,15 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 from collections.abc import Callable
 from functools import wraps
-from typing import Annotated, NoReturn, TypeVar
+from typing import Annotated, Any, NoReturn, TypeVar
 
+import numpy as np
 import typer
 
+from camvlp.errors import one_line
 from camvlp.geometry import pnp
 from camvlp.io import InputError
 from camvlp.model.readout import Readout
@@ -26,28 +29,75 @@ app = typer.Typer(
 #: Exit codes (docs/cli.md): located / not located / bad input or usage.
 EXIT_OK, EXIT_NOT_LOCATED, EXIT_BAD_INPUT = 0, 1, 2
 
+#: Largest magnitude of a number option (a float, or an item of a comma-separated list).
+MAX_OPTION_MAGNITUDE = 1e9
+#: Largest magnitude of an integer option.
+MAX_OPTION_INTEGER = 2**53
+
 F = TypeVar("F", bound=Callable)
 
 
 def fail(what: str, code: int = EXIT_BAD_INPUT) -> NoReturn:
-    """Print ``error: <what>`` on stderr and exit with ``code``."""
-    print(f"error: {what}", file=sys.stderr)
+    """Print ``error: <what>`` on stderr (one line: newlines and other control characters
+    escaped) and exit with ``code``."""
+    print(f"error: {one_line(str(what))}", file=sys.stderr)
     raise typer.Exit(code)
 
 
 def handle_errors(func: F) -> F:
-    """Turn bad input anywhere below a command into one line on stderr and exit code 2."""
+    """Turn bad input anywhere below a command into one line on stderr and exit code 2.
+
+    The library's ValueError (InputError and the checks of its arguments), a number too large
+    to compute with, a nesting too deep, memory exhausted and a file that cannot be read or
+    written all end as ``error: <what>``.  Library warnings (NumPy's RuntimeWarning on a
+    degenerate value ...) are silenced: the command's checks report what matters, once.
+    """
 
     @wraps(func)
     def wrapper(*args, **kwargs):
+        check_numbers(kwargs)
         try:
-            return func(*args, **kwargs)
-        except InputError as exc:
-            fail(str(exc))
+            with warnings.catch_warnings(), np.errstate(all="ignore"):
+                warnings.simplefilter("ignore")
+                return func(*args, **kwargs)
+        except (InputError, ValueError) as exc:
+            fail(_first_line(exc))
+        except (OverflowError, ZeroDivisionError) as exc:
+            fail(f"a number out of range: {_first_line(exc)}")
+        except RecursionError:
+            fail("input nested too deeply")
+        except MemoryError:
+            fail("out of memory; use a smaller input or option value")
+        except OSError as exc:
+            reason = exc.strerror or exc.__class__.__name__
+            where = f" ({exc.filename})" if exc.filename else ""
+            fail(f"cannot read or write: {reason}{where}")
         except KeyboardInterrupt:
             fail("interrupted", 130)
 
     return wrapper  # type: ignore[return-value]
+
+
+def check_numbers(options: dict[str, Any]) -> None:
+    """Fail (exit 2) when a number option is NaN, infinite or of magnitude over
+    ``MAX_OPTION_MAGNITUDE`` (floats) or ``MAX_OPTION_INTEGER`` (integers), naming it."""
+    for name, value in options.items():
+        option = "--" + name.replace("_", "-")
+        if isinstance(value, float) and not (
+            math.isfinite(value) and abs(value) <= MAX_OPTION_MAGNITUDE
+        ):
+            fail(
+                f"{option} must be a finite number of magnitude at most "
+                f"{MAX_OPTION_MAGNITUDE:g}, got {value}"
+            )
+        if isinstance(value, int) and not isinstance(value, bool):
+            if abs(value) > MAX_OPTION_INTEGER:
+                fail(f"{option} must be at most {MAX_OPTION_INTEGER:,}, got {_cut(str(value))}")
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else exc.__class__.__name__
 
 
 def parse_floats(text: str, n: int, name: str) -> list[float]:
@@ -57,8 +107,33 @@ def parse_floats(text: str, n: int, name: str) -> list[float]:
     except ValueError:
         values = []
     if len(values) != n:
-        fail(f"{name} must be {n} comma-separated numbers, got {text!r}")
+        fail(f"{name} must be {n} comma-separated numbers, got {_cut(text)!r}")
+    if not all(math.isfinite(v) and abs(v) <= MAX_OPTION_MAGNITUDE for v in values):
+        fail(
+            f"{name} must be finite numbers of magnitude at most {MAX_OPTION_MAGNITUDE:g}, "
+            f"got {_cut(text)!r}"
+        )
     return values
+
+
+def _cut(text: str, most: int = 60) -> str:
+    return text if len(text) <= most else text[: most - 3] + "..."
+
+
+def cap_jobs(jobs: int | None, option: str = "--jobs") -> int | None:
+    """``jobs`` capped at the machine's cores (a note on stderr when it was higher); None passes.
+
+    Fails (exit 2) when ``jobs`` is below 1.
+    """
+    if jobs is None:
+        return None
+    if jobs < 1:
+        fail(f"{option} must be at least 1, got {jobs}")
+    cores = os.cpu_count() or 1
+    if jobs > cores:
+        print(f"note: {option} {jobs} capped at {cores}, the number of cores", file=sys.stderr)
+        return cores
+    return jobs
 
 
 @app.callback()

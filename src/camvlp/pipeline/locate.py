@@ -23,6 +23,7 @@ from camvlp.geometry.gravity import (
     solve_pose_gravity,
 )
 from camvlp.geometry.pnp import check_solver
+from camvlp.io.images import as_image
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
@@ -291,8 +292,19 @@ class LocateStages:
     decodes: tuple[StripeDecode, ...]
 
 
+def _check_arguments(camera: object, fixture_map: object, settings: object) -> None:
+    for name, value, kind in (
+        ("camera", camera, Camera),
+        ("fixture_map", fixture_map, FixtureMap),
+        ("settings", settings, (LocateSettings, type(None))),
+    ):
+        if not isinstance(value, kind):
+            wanted = "LocateSettings or None" if name == "settings" else kind.__name__
+            raise InputError(f"{name} must be a {wanted}, got {type(value).__name__}")
+
+
 def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
-    img = np.asarray(image)
+    img = as_image(image)
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
         raise InputError(f"image must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
     h, w = img.shape[:2]
@@ -595,6 +607,7 @@ def locate(
         is of zero length, or leaves the map's lights out of the camera's view (a camera
         looking along gravity, at the floor, cannot see lights that face down).
     """
+    _check_arguments(camera, fixture_map, settings)
     st = settings or LocateSettings()
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
