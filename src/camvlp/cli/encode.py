@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from camvlp.io import load_map
+from camvlp.io.atomic import strict_json
 from camvlp.model.linecode import FrameFormat, chip_schedule
 
 from ._app import app, fail, handle_errors
@@ -39,7 +39,7 @@ def encode(
     chip_str = "".join(map(str, chips))
     if as_json:
         print(
-            json.dumps(
+            strict_json(
                 {
                     "id": fixture_id,
                     "bits": bits,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -22,7 +21,6 @@ from ._app import (
     app,
     check_positive,
     check_solver,
-    fail,
     handle_errors,
     parse_gravity,
     parse_readout,
@@ -79,9 +77,10 @@ def locate_command(
     check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
     g = parse_gravity(gravity)
     given_readout = parse_readout(readout)
-    for out in (annotate_path,):
-        if out is not None and out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
-            fail(f"--annotate must end in .png or .jpg ({out})")
+    if annotate_path is not None:
+        check_output_file(annotate_path, "--annotate", (".png", ".jpg", ".jpeg"))
+    if debug_dir is not None:
+        check_output_dir(debug_dir, "--debug-dir")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     image = load_image(photo)
@@ -102,15 +101,20 @@ def locate_command(
         result = locate(image, camera, fixture_map, settings, gravity=g)
     except InputError as exc:
         raise InputError(exc.what, photo) from None
-    if annotate_path is not None:
-        if not cv2.imwrite(str(annotate_path), annotate(image, result, camera, fixture_map)):
-            fail(f"cannot write the annotated photo ({annotate_path})")
-    if debug_dir is not None:
-        write_debug_pictures(
-            debug_dir, image[:, ::-1] if result.mirrored else image, result, result.stages
-        )
+    with StagedOutputs() as outputs:  # the annotated photo and the debug pictures: all or none
+        if annotate_path is not None:
+            staged = outputs.file(annotate_path)
+            if not cv2.imwrite(str(staged), annotate(image, result, camera, fixture_map)):
+                raise InputError("cannot write the annotated photo", annotate_path)
+        if debug_dir is not None:
+            write_debug_pictures(
+                outputs.folder(debug_dir),
+                image[:, ::-1] if result.mirrored else image,
+                result,
+                result.stages,
+            )
     if as_json:
-        print(json.dumps(result.to_dict()))
+        print(strict_json(result.to_dict()))
     else:
         _print_human(result, fixture_map.units, photo)
     if not result:  # stdout keeps its JSON; the one error line goes to stderr either way

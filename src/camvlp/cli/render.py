@@ -16,6 +16,9 @@ from camvlp.sim.render import RenderSettings, distinct_colours, render
 
 from ._app import app, fail, handle_errors, parse_floats, parse_readout
 
+#: Largest --blur sigma, pixels: past it no stripe is left and the blur's cost grows as sigma.
+MAX_BLUR_PX = 100.0
+
 
 @app.command("render")
 @handle_errors
@@ -88,6 +91,10 @@ def render_command(
     """Render a photograph of the map's fixtures from a camera pose, with its truth JSON."""
     if out.suffix.lower() not in IMAGE_SUFFIXES:
         fail(f"--out must end in {', '.join(IMAGE_SUFFIXES)} ({out})")
+    check_output_file(out, "--out")
+    check_output_file(out.with_suffix(".json"), "--out's truth file")
+    if _number(blur, "--blur") > MAX_BLUR_PX:
+        fail(f"--blur must be at most {MAX_BLUR_PX:g} px (no stripe survives more), got {blur}")
     jpeg_quality = _integer(quality, "--quality")
     if not 1 <= jpeg_quality <= 100:
         fail(f"--quality must be from 1 to 100, got {quality}")
