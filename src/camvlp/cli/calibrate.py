@@ -13,6 +13,7 @@ import typer
 
 from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
 from camvlp.io import InputError, load_camera, load_image, save_camera
+from camvlp.io.atomic import check_output_file
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
 
@@ -42,10 +43,17 @@ def _expand(paths: list[Path]) -> list[Path]:
     return out
 
 
+#: Most inner corners a --board side may have.
+MAX_BOARD = 100
+
+
 def _parse_board(text: str) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX*,]\s*(\d+)\s*", text)
-    if not m or int(m.group(1)) < 2 or int(m.group(2)) < 2:
-        fail(f"--board must be COLSxROWS inner corners, at least 2x2, e.g. 9x6; got {text!r}")
+    m = re.fullmatch(r"\s*(\d{1,4})\s*[xX*,]\s*(\d{1,4})\s*", text)
+    if not m or not all(2 <= int(m.group(k)) <= MAX_BOARD for k in (1, 2)):
+        fail(
+            f"--board must be COLSxROWS inner corners, from 2x2 to {MAX_BOARD}x{MAX_BOARD}, "
+            f"e.g. 9x6; got {text[:40]!r}"
+        )
     return int(m.group(1)), int(m.group(2))
 
 
@@ -109,6 +117,7 @@ def calibrate(
         fail(f"--row-time must be a positive number of seconds, got {row_time}")
     if out.suffix.lower() not in (".yaml", ".yml", ".json"):
         fail(f"--out must end in .yaml, .yml or .json ({out})")
+    check_output_file(out, "--out")
     paths = _expand(list(images))
     result = _calibrate_with_progress(paths, cols_rows, square, row_time, fix_aspect, zero_tangent)
     if not result:
@@ -250,6 +259,8 @@ def calibrate_rows(
         fail("--out needs --camera (the camera file to copy)")
     if out is not None and out.suffix.lower() not in (".yaml", ".yml", ".json"):
         fail(f"--out must end in .yaml, .yml or .json ({out})")
+    if out is not None:
+        check_output_file(out, "--out")
     camera = load_camera(camera_path) if camera_path is not None else None
     image = load_image(photo)
     h, w = image.shape[:2]

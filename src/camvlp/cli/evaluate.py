@@ -17,6 +17,7 @@ from camvlp.analysis.evaluate import (
 )
 from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
+from camvlp.io.atomic import check_output_dir
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
 
@@ -25,6 +26,7 @@ from ._app import (
     OutlierOption,
     SolverOption,
     app,
+    cap_jobs,
     check_positive,
     check_solver,
     fail,
@@ -81,8 +83,7 @@ def evaluate_command(
         fail(f"--jobs must be at least 1, got {jobs}")
     if magnify is not None and not magnify > 0:
         fail(f"--magnify must be a positive number, got {magnify}")
-    if out.exists() and not out.is_dir():
-        fail(f"--out must be a folder, not a file ({out})")
+    check_output_dir(out, "--out")
     survey = read_survey(survey_path)
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)

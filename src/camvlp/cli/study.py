@@ -113,6 +113,23 @@ def _check(
             fail(f"--{name.replace('_', '-')} must be positive, got {value}")
 
 
+#: Most pose solves one study may ask for (each keeps about 0.5 KB until the end: ~1 GB).
+MAX_SOLVES = 2_000_000
+
+
+def _budget(count: float, hint: str) -> None:
+    """Fail (exit 2) before a study that would solve more than MAX_SOLVES poses."""
+    if count > MAX_SOLVES:
+        fail(
+            f"this study would solve {count:,.0f} poses, over the budget of {MAX_SOLVES:,} "
+            f"(about 1 GB of memory); {hint}"
+        )
+
+
+def _grid_points(u_range: list, v_range: list, step: float) -> float:
+    return ((u_range[1] - u_range[0]) / step + 1) * ((v_range[1] - v_range[0]) / step + 1)
+
+
 def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]:
     return (
         load_camera(_default_file(camera, "thesis_camera.yaml")),

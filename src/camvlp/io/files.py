@@ -17,6 +17,7 @@ import numpy as np
 import yaml
 
 from camvlp.errors import InputError
+from camvlp.io.atomic import StagedOutputs, strict_json, write_text_atomic
 from camvlp.io.limits import limit, read_regular_file
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -283,14 +284,16 @@ def save_camera(camera: Camera, path: str | Path, *, extra: dict | None = None) 
         out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fields.items()}
         if camera.mirrored:
             out["mirrored"] = True
-        p.write_text(json.dumps(out, indent=2) + "\n")
+        write_text_atomic(p, strict_json(out, indent=2) + "\n")
         return
-    fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_WRITE)
-    for key, value in fields.items():
-        fs.write(key, value)
-    fs.release()
-    if camera.mirrored:  # FileStorage writes ints; say it as YAML's true for our loader
-        p.write_text(p.read_text().replace("mirrored: 1", "mirrored: true"))
+    with StagedOutputs() as staged:  # whole or not at all
+        tmp = staged.file(p)
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+        for key, value in fields.items():
+            fs.write(key, value)
+        fs.release()
+        if camera.mirrored:  # FileStorage writes ints; say it as YAML's true for our loader
+            tmp.write_text(tmp.read_text().replace("mirrored: 1", "mirrored: true"))
 
 
 def load_map(path: str | Path) -> FixtureMap:
@@ -418,6 +421,6 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
     data["fixtures"] = entries
     p = Path(path)
     if p.suffix.lower() == ".json":
-        p.write_text(json.dumps(data, indent=2) + "\n")
+        write_text_atomic(p, strict_json(data, indent=2) + "\n")
     else:
-        p.write_text(yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
+        write_text_atomic(p, yaml.safe_dump(data, sort_keys=False, default_flow_style=None))
