@@ -129,7 +129,10 @@ def cap_jobs(jobs: int | None, option: str = "--jobs") -> int | None:
         return None
     if jobs < 1:
         fail(f"{option} must be at least 1, got {jobs}")
-    cores = os.cpu_count() or 1
+    try:
+        cores = max(1, len(os.sched_getaffinity(0)))  # the cores this process may run on
+    except AttributeError:  # not on Linux
+        cores = max(1, os.cpu_count() or 1)
     if jobs > cores:
         print(f"note: {option} {jobs} capped at {cores}, the number of cores", file=sys.stderr)
         return cores

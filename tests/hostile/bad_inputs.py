@@ -1,0 +1,551 @@
+"""Bad inputs, made small: files an attacker or a careless user could hand to camvlp.
+
+Every bomb here is a few hundred bytes to a few kilobytes: a PNG or JPEG header announcing
+100000 x 100000 pixels, JSON and YAML nested 100,000 deep, a YAML "billion laughs", integers of
+400 and 5000 digits, named pipes, a sparse file over the size limit.  :func:`cases` lists every
+command-line case with the exit code it must give; ``benchmarks/hostile_retry.py`` runs them all
+and the tests in this folder run them (or a fast subset) under memory and time limits.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import struct
+import subprocess
+import sys
+import threading
+import time
+import zlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+#: Small camera (64 x 48 px) and four-fixture map used by the cases.
+SMALL_CAMERA = """image_width: 64
+image_height: 48
+focal_length_px: 50
+"""
+SMALL_MAP = """units: m
+fixtures:
+  - {id: 5, position: [0.5, 0.5, 2.7], diameter: 0.15}
+  - {id: 6, position: [0.5, -0.5, 2.7], diameter: 0.15}
+  - {id: 9, position: [-0.5, -0.5, 2.7], diameter: 0.15}
+  - {id: 10, position: [-0.5, 0.5, 2.7], diameter: 0.15}
+"""
+
+
+# -------------------------------------------------------------------------- single files
+
+
+def png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose IHDR announces ``width`` x ``height`` gray pixels, with a few bytes of data."""
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    idat = zlib.compress(b"\x00" * 4096)
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data))
+
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+
+
+def small_jpeg(seed: int = 0, shape: tuple[int, int] = (48, 64)) -> bytes:
+    """A small colour JPEG of seeded noise."""
+    rng = np.random.default_rng(seed)
+    img = (rng.random((*shape, 3)) * 255).astype(np.uint8)
+    ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    assert ok
+    return buf.tobytes()
+
+
+def jpeg_header_only(width: int, height: int) -> bytes:
+    """A small JPEG whose frame header (SOF0) is rewritten to announce ``width`` x ``height``."""
+    b = bytearray(small_jpeg())
+    i = 2
+    while b[i + 1] != 0xC0:
+        i += 2 + ((b[i + 2] << 8) | b[i + 3])
+    b[i + 5 : i + 9] = struct.pack(">HH", height, width)
+    return bytes(b)
+
+
+def corrupt_jpeg() -> bytes:
+    """A whole JPEG (it ends with FF D9) whose entropy-coded data is damaged in the middle."""
+    b = bytearray(small_jpeg(shape=(240, 320)))
+    mid = len(b) // 2
+    b[mid : mid + 40] = bytes(x ^ 0x55 for x in b[mid : mid + 40])
+    return bytes(b)
+
+
+def png_bad_crc() -> bytes:
+    """A small PNG whose image-data chunk has a wrong checksum."""
+    ok, buf = cv2.imencode(".png", np.full((48, 64), 128, np.uint8))
+    assert ok
+    b = bytearray(buf.tobytes())
+    i = b.index(b"IDAT")
+    n = struct.unpack(">I", b[i - 4 : i])[0]
+    b[i + 4 + n] ^= 0xFF  # first byte of the CRC
+    return bytes(b)
+
+
+def tiff_of(dtype: str, shape: tuple[int, int] = (48, 64)) -> bytes:
+    """A TIFF of seeded noise in ``dtype`` (int8, int16, int32, float32, float64 ...)."""
+    rng = np.random.default_rng(1)
+    img = (rng.random(shape) * 100).astype(dtype)
+    ok, buf = cv2.imencode(".tiff", img)
+    assert ok
+    return buf.tobytes()
+
+
+def deep_json(depth: int = 100_000) -> str:
+    """A camera file's JSON with a list nested ``depth`` deep."""
+    return '{"image_width": 64, "image_height": 48, "x": ' + "[" * depth + "]" * depth + "}"
+
+
+def deep_yaml(depth: int = 100_000) -> str:
+    """A camera file's YAML with a flow list nested ``depth`` deep."""
+    return "image_width: 64\nimage_height: 48\nx: " + "[" * depth + "]" * depth + "\n"
+
+
+def billion_laughs() -> str:
+    """A YAML map whose aliases expand to 10^9 items."""
+    lines = ['a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol","lol"]']
+    for k in range(1, 9):
+        prev, cur = chr(ord("a") + k - 1), chr(ord("a") + k)
+        lines.append(f"{cur}: &{cur} [{','.join(['*' + prev] * 10)}]")
+    lines.append("fixtures: *i")
+    return "\n".join(lines) + "\n"
+
+
+# -------------------------------------------------------------------------- the cases
+
+
+@dataclass
+class Case:
+    """One command line and what it must give.
+
+    ``argv`` are camvlp's arguments; ``code`` the exit code it must give (2: bad input, 1: not
+    located, 0: done); ``left_behind`` the paths that must not exist afterwards; ``stdout``
+    the file the command's stdout is sent to (None: a pipe).
+    """
+
+    name: str
+    kind: str
+    argv: list[str]
+    code: int = 2
+    left_behind: list[Path] = field(default_factory=list)
+    stdout: str | None = None
+    json_stdout: bool = False
+
+
+def make_files(root: Path) -> dict[str, Path]:
+    """Write every bad (and a few good) input file into ``root``; their paths by name."""
+    root.mkdir(parents=True, exist_ok=True)
+    f: dict[str, Path] = {}
+
+    def put(name: str, data: bytes | str) -> Path:
+        p = root / name
+        p.write_bytes(data.encode() if isinstance(data, str) else data)
+        f[name] = p
+        return p
+
+    put("camera.yaml", SMALL_CAMERA)
+    put("map.yaml", SMALL_MAP)
+    put("photo.jpg", small_jpeg())
+    put("bomb_100000.png", png_header_only(100_000, 100_000))
+    put("bomb_32000.png", png_header_only(32_000, 32_000))
+    put("bomb_30000.jpg", jpeg_header_only(30_000, 30_000))
+    put("corrupt.jpg", corrupt_jpeg())
+    put("truncated.jpg", small_jpeg()[:-300])
+    put("bad_crc.png", png_bad_crc())
+    put("not_an_image.jpg", "this is text, not a photo\n")
+    for dtype in ("float64", "float32", "int32", "int16", "int8"):
+        put(f"photo_{dtype}.tiff", tiff_of(dtype))
+    put("deep.json", deep_json())
+    put("deep.yaml", deep_yaml())
+    put("laughs_map.yaml", billion_laughs())
+    put("digits400.yaml", SMALL_CAMERA.replace("64", "9" * 400, 1))
+    put("digits5000.json", '{"image_width": ' + "9" * 5000 + ', "image_height": 48}')
+    put("width_fraction.yaml", SMALL_CAMERA.replace("64", "64.5", 1))
+    put("huge_camera.yaml", "image_width: 1000000\nimage_height: 1000000\nfocal_length_px: 50\n")
+    put("nan_map.yaml", SMALL_MAP.replace("[0.5, 0.5, 2.7]", "[.nan, 0.5, 2.7]"))
+    put("idbits12_map.yaml", SMALL_MAP.replace("units: m", "units: m\nframe: {id_bits: 12}"))
+    put("survey.csv", "photo,x,y,z\nphoto.jpg,0,0,0\nphoto.jpg,1,0,0\n")
+    big = root / "big_map.yaml"
+    with open(big, "wb") as fh:  # sparse: 20 MB on paper, nothing on disk
+        fh.truncate(20 * 1024 * 1024)
+    f["big_map.yaml"] = big
+    fifo = root / "pipe"
+    if not fifo.exists():
+        os.mkfifo(fifo)
+    f["pipe"] = fifo
+    existing = root / "existing_file"
+    existing.write_text("x")
+    f["existing_file"] = existing
+    (root / "truth_dir_out.json").mkdir(exist_ok=True)  # blocks render's truth file
+    return f
+
+
+def cases(root: Path) -> list[Case]:
+    """Every command-line case, with its files written into ``root``."""
+    f = make_files(root)
+    cam, fmap, photo = str(f["camera.yaml"]), str(f["map.yaml"]), str(f["photo.jpg"])
+    thesis_cam = str(Path(__file__).resolve().parents[2] / "examples" / "thesis_camera.yaml")
+    loc = ["-c", cam, "-m", fmap]
+    out = root / "out"
+    out.mkdir(exist_ok=True)
+    c: list[Case] = []
+
+    def add(name: str, kind: str, argv: list[str], code: int = 2, **kw) -> None:
+        c.append(Case(name, kind, [str(a) for a in argv], code, **kw))
+
+    # images: bombs, depths, damage, special files
+    for name in ("bomb_100000.png", "bomb_32000.png", "bomb_30000.jpg"):
+        add(f"locate {name}", "memory: image bomb", ["locate", f[name], *loc])
+    for dtype in ("float64", "float32", "int32", "int16", "int8"):
+        add(
+            f"locate photo_{dtype}.tiff",
+            "traceback: pixel type",
+            ["locate", f[f"photo_{dtype}.tiff"], *loc],
+            code=1,
+        )
+    add("locate corrupt.jpg", "stderr: corrupt JPEG", ["locate", f["corrupt.jpg"], *loc])
+    add("locate truncated.jpg", "stderr: truncated JPEG", ["locate", f["truncated.jpg"], *loc])
+    add("locate bad_crc.png", "stderr: libpng error", ["locate", f["bad_crc.png"], *loc])
+    add("locate not_an_image.jpg", "bad input", ["locate", f["not_an_image.jpg"], *loc])
+    add("locate FIFO photo", "hang: named pipe", ["locate", f["pipe"], *loc])
+    add("locate FIFO camera", "hang: named pipe", ["locate", photo, "-c", f["pipe"], "-m", fmap])
+    add("locate FIFO map", "hang: named pipe", ["locate", photo, "-c", cam, "-m", f["pipe"]])
+    add("locate /dev/zero", "hang: device", ["locate", "/dev/zero", *loc])
+    add("locate a folder", "bad input", ["locate", root, *loc])
+    add(
+        "locate newline name",
+        "stderr: newline in a name",
+        ["locate", root / "no\nsuch.jpg", *loc],
+    )
+    # camera and map files
+    for name in ("deep.json", "deep.yaml", "digits400.yaml", "digits5000.json"):
+        add(
+            f"locate -c {name}",
+            "traceback: camera file",
+            ["locate", photo, "-c", f[name], "-m", fmap],
+        )
+    add(
+        "locate -c width_fraction.yaml",
+        "wrong answer: fractional width",
+        ["locate", photo, "-c", f["width_fraction.yaml"], "-m", fmap],
+    )
+    add(
+        "locate -m laughs_map.yaml",
+        "memory: billion laughs",
+        ["locate", photo, "-c", cam, "-m", f["laughs_map.yaml"]],
+    )
+    add(
+        "locate -m nan_map.yaml", "bad input", ["locate", photo, "-c", cam, "-m", f["nan_map.yaml"]]
+    )
+    add(
+        "locate -m idbits12_map.yaml",
+        "memory: ambiguity check",
+        ["locate", photo, "-c", cam, "-m", f["idbits12_map.yaml"]],
+    )
+    add(
+        "locate -m big_map.yaml (20 MB)",
+        "memory: file size",
+        ["locate", photo, "-c", cam, "-m", f["big_map.yaml"]],
+    )
+    add(
+        "render huge camera",
+        "memory: render size",
+        [
+            "render",
+            "--camera",
+            f["huge_camera.yaml"],
+            "--map",
+            fmap,
+            "--position",
+            "0,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            out / "huge.png",
+        ],
+        left_behind=[out / "huge.png", out / "huge.json"],
+    )
+    # option values
+    add("encode --chip-rate nan", "traceback: NaN option", ["encode", "5", "--chip-rate", "nan"])
+    add("encode --chip-rate inf", "wrong answer: inf option", ["encode", "5", "--chip-rate", "inf"])
+    add(
+        "calibrate-rows --frequency inf",
+        "traceback: inf option",
+        ["calibrate-rows", photo, "--frequency", "inf"],
+    )
+    add(
+        "calibrate-rows --frequency 1e308",
+        "traceback: huge option",
+        ["calibrate-rows", photo, "--frequency", "1e308"],
+    )
+    add(
+        "study world-error --range=-1e308,1e308",
+        "traceback: huge option",
+        ["study", "world-error", "--range=-1e308,1e308"],
+    )
+    add(
+        "study image-error --trials 1e9",
+        "memory: Monte Carlo trials",
+        ["study", "image-error", "--noise-px", "1", "--trials", "1000000000"],
+    )
+    add(
+        "calibrate --board 100000x100000",
+        "memory: board size",
+        [
+            "calibrate",
+            photo,
+            "--board",
+            "100000x100000",
+            "--square",
+            "0.02",
+            "--out",
+            out / "cal.yaml",
+        ],
+        left_behind=[out / "cal.yaml"],
+    )
+    add(
+        "evaluate --jobs 1000",
+        "memory: worker processes",
+        ["evaluate", f["survey.csv"], *loc, "--jobs", "1000", "--out", out / "ev"],
+        code=0,
+    )
+    add(
+        "render --blur 1e6",
+        "crash: blur",
+        [
+            "render",
+            "--camera",
+            thesis_cam,
+            "--map",
+            fmap,
+            "--position",
+            "0,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            out / "b1.png",
+            "--blur",
+            "1e6",
+        ],
+        left_behind=[out / "b1.png", out / "b1.json"],
+    )
+    add(
+        "render --blur 1000",
+        "hang: blur",
+        [
+            "render",
+            "--camera",
+            thesis_cam,
+            "--map",
+            fmap,
+            "--position",
+            "0,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            out / "b2.png",
+            "--blur",
+            "1000",
+        ],
+        left_behind=[out / "b2.png", out / "b2.json"],
+    )
+    add(
+        "render --position=1e308,0,0",
+        "wrong answer: NaN truth",
+        [
+            "render",
+            "--camera",
+            cam,
+            "--map",
+            fmap,
+            "--position=1e308,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            out / "p.png",
+        ],
+        left_behind=[out / "p.png", out / "p.json"],
+    )
+    add(
+        "evaluate FIFO survey",
+        "hang: named pipe",
+        ["evaluate", f["pipe"], *loc, "--out", out / "ev2"],
+    )
+    add(
+        "calibrate FIFO board folder",
+        "hang: named pipe",
+        ["calibrate", f["pipe"], "--board", "9x6", "--square", "0.02", "--out", out / "c2.yaml"],
+        code=1,  # calibrate reports unreadable photos as photos without the board
+        left_behind=[out / "c2.yaml"],
+    )
+    # outputs
+    add(
+        "locate --debug-dir existing file",
+        "traceback: output",
+        ["locate", photo, *loc, "--debug-dir", f["existing_file"]],
+    )
+    add(
+        "locate --annotate A --debug-dir BAD",
+        "half-written output",
+        ["locate", photo, *loc, "--annotate", out / "a.png", "--debug-dir", f["existing_file"]],
+        left_behind=[out / "a.png"],
+    )
+    add(
+        "calibrate --out missing folder",
+        "traceback: output",
+        [
+            "calibrate",
+            photo,
+            "--board",
+            "9x6",
+            "--square",
+            "0.02",
+            "--out",
+            root / "missing" / "cal.yaml",
+        ],
+    )
+    add(
+        "render truth file blocked",
+        "half-written output",
+        [
+            "render",
+            "--camera",
+            cam,
+            "--map",
+            fmap,
+            "--position",
+            "0,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            root / "truth_dir_out.png",
+        ],
+        left_behind=[root / "truth_dir_out.png"],
+    )
+    add("encode > /dev/full", "traceback: full device", ["encode", "5"], stdout="/dev/full")
+    add(
+        "locate --json (not located)",
+        "wrong answer: JSON with NaN",
+        ["locate", photo, *loc, "--json"],
+        code=1,
+        json_stdout=True,
+    )
+    return c
+
+
+# -------------------------------------------------------------------------- running a case
+
+
+@dataclass
+class Outcome:
+    """What a case did: exit code, stderr lines, peak resident memory (MB), wall time (s)."""
+
+    code: int
+    stderr: list[str]
+    stdout: str
+    peak_mb: float
+    seconds: float
+    timed_out: bool
+
+
+def run_case(
+    case: Case,
+    *,
+    timeout_s: float = 10.0,
+    memory_bytes: int = 1 << 30,
+    env: dict[str, str] | None = None,
+) -> Outcome:
+    """Run ``camvlp`` with the case's arguments in a child process limited to ``memory_bytes``
+    of address space, killed after ``timeout_s`` seconds."""
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    child_env = dict(os.environ if env is None else env)
+    child_env["PYTHONPATH"] = src + os.pathsep + child_env.get("PYTHONPATH", "")
+    child_env.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (memory_bytes, memory_bytes))
+
+    stdout = open(case.stdout, "w") if case.stdout else subprocess.PIPE
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "camvlp", *case.argv],
+        stdin=subprocess.DEVNULL,
+        stdout=stdout,
+        stderr=subprocess.PIPE,
+        env=child_env,
+        preexec_fn=limit,
+    )
+    killed = threading.Event()
+
+    def kill() -> None:
+        killed.set()
+        proc.kill()
+
+    timer = threading.Timer(timeout_s, kill)
+    timer.start()
+    out_chunks: list[bytes] = []
+    reader = None
+    if proc.stdout is not None:
+        reader = threading.Thread(target=lambda: out_chunks.append(proc.stdout.read()))
+        reader.start()
+    err = proc.stderr.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - t0
+    timer.cancel()
+    if reader is not None:
+        reader.join()
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if case.stdout:
+        stdout.close()
+    return Outcome(
+        code=proc.returncode,
+        stderr=err.decode("utf-8", "replace").splitlines(),
+        stdout=b"".join(out_chunks).decode("utf-8", "replace"),
+        peak_mb=usage.ru_maxrss / 1024.0,
+        seconds=seconds,
+        timed_out=killed.is_set(),
+    )
+
+
+def problems(case: Case, outcome: Outcome) -> list[str]:
+    """Every way ``outcome`` breaks the promise for ``case`` (empty when it keeps it)."""
+    found = []
+    if outcome.timed_out:
+        found.append("timed out")
+    if outcome.code != case.code:
+        found.append(f"exit {outcome.code}, expected {case.code}")
+    errors = [ln for ln in outcome.stderr if ln.startswith("error: ")]
+    others = [ln for ln in outcome.stderr if not ln.startswith(("error: ", "note: "))]
+    if case.code != 0 and len(errors) != 1:
+        found.append(f"{len(errors)} error lines")
+    if others:
+        found.append(f"extra stderr: {others[0][:80]!r}")
+    if outcome.peak_mb > 1024:
+        found.append(f"peak {outcome.peak_mb:.0f} MB")
+    for p in case.left_behind:
+        if Path(p).exists():
+            found.append(f"left behind {Path(p).name}")
+    if case.json_stdout:
+        try:
+            import json
+
+            json.loads(outcome.stdout, parse_constant=_refuse_constant)
+        except ValueError as exc:
+            found.append(f"stdout not strict JSON: {exc}")
+    return found
+
+
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"{name} in JSON")
+
+
+#: Arguments of the cases' command lines, for callers that want them as a function.
+CaseFactory = Callable[[Path], list[Case]]
