@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import json
 import re
 import sys
 from pathlib import Path
@@ -13,7 +12,7 @@ import typer
 
 from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
 from camvlp.io import InputError, load_camera, load_image, save_camera
-from camvlp.io.atomic import check_output_file
+from camvlp.io.atomic import check_output_file, strict_json
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
 
@@ -167,7 +166,7 @@ def _report_failure(result: CalibrationResult, as_json: bool) -> NoReturn:
             print(f"rejected  {name}: {reason}")
     else:
         print(
-            json.dumps(
+            strict_json(
                 {
                     "ok": False,
                     "message": result.reason,
@@ -279,7 +278,7 @@ def calibrate_rows(
         save_camera(dataclasses.replace(camera, row_time_s=est.row_time_s), out)
     if as_json:
         print(
-            json.dumps(
+            strict_json(
                 {
                     "photo": str(photo),
                     "frequency_hz": frequency,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
@@ -17,7 +16,7 @@ from camvlp.analysis.evaluate import (
 )
 from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
-from camvlp.io.atomic import check_output_dir
+from camvlp.io.atomic import check_output_dir, strict_json
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
 
@@ -100,7 +99,7 @@ def evaluate_command(
         fail(str(exc))
     summary = evaluation.summary()
     if as_json:
-        print(json.dumps(summary))
+        print(strict_json(summary))
     else:
         _print_human(evaluation, summary, paths)
 

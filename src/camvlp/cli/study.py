@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -194,7 +193,7 @@ def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list
         summary = write_outputs(out, name, study, plot)  # InputError: one line, exit 2
         print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
     if as_json:
-        print(json.dumps(summary))
+        print(strict_json(summary))
     else:
         for line in lines:
             print(line)
