@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "hostile"))
 
-from bad_inputs import cases, problems, run_case
+from bad_inputs import api_cases, cases, problems, run_case
 
 
 def main() -> int:
@@ -47,7 +47,35 @@ def main() -> int:
         f"it; peak {max(o.peak_mb for _, o, _ in rows):.0f} MB, slowest "
         f"{max(o.seconds for _, o, _ in rows):.2f} s"
     )
-    return 1 if broken else 0
+    api_broken = _api(Path(tempfile.mkdtemp(prefix="camvlp-hostile-api-")))
+    return 1 if broken or api_broken else 0
+
+
+def _api(root: Path) -> int:
+    """Run each bad API call in this process; print what it raised, peak memory and time."""
+    import time
+    import tracemalloc
+
+    import camvlp
+
+    print("\nPython API")
+    broken = 0
+    for name, call in api_cases(root):
+        tracemalloc.start()
+        t0 = time.perf_counter()
+        try:
+            call()
+            what = "returned"
+        except camvlp.InputError as exc:
+            what = f"InputError: {str(exc)[:90]}"
+        except Exception as exc:  # the point of the benchmark: report anything else
+            what = f"BROKEN {type(exc).__name__}: {str(exc)[:80]}"
+            broken += 1
+        seconds = time.perf_counter() - t0
+        _, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        print(f"{name:34s} peak {peak / 2**20:6.1f} MB  {seconds:5.2f} s  {what}", flush=True)
+    return broken
 
 
 if __name__ == "__main__":

@@ -170,6 +170,7 @@ def make_files(root: Path) -> dict[str, Path]:
     put("digits5000.json", '{"image_width": ' + "9" * 5000 + ', "image_height": 48}')
     put("width_fraction.yaml", SMALL_CAMERA.replace("64", "64.5", 1))
     put("huge_camera.yaml", "image_width: 1000000\nimage_height: 1000000\nfocal_length_px: 50\n")
+    put("camera_196mp.yaml", "image_width: 14000\nimage_height: 14000\nfocal_length_px: 1e4\n")
     put("nan_map.yaml", SMALL_MAP.replace("[0.5, 0.5, 2.7]", "[.nan, 0.5, 2.7]"))
     put("idbits12_map.yaml", SMALL_MAP.replace("units: m", "units: m\nframe: {id_bits: 12}"))
     put("survey.csv", "photo,x,y,z\nphoto.jpg,0,0,0\nphoto.jpg,1,0,0\n")
@@ -272,6 +273,24 @@ def cases(root: Path) -> list[Case]:
             out / "huge.png",
         ],
         left_behind=[out / "huge.png", out / "huge.json"],
+    )
+    add(
+        "render 196 MP camera",
+        "memory: render size",
+        [
+            "render",
+            "--camera",
+            f["camera_196mp.yaml"],
+            "--map",
+            fmap,
+            "--position",
+            "0,0,0",
+            "--euler",
+            "0,0,0",
+            "--out",
+            out / "big.png",
+        ],
+        left_behind=[out / "big.png", out / "big.json"],
     )
     # option values
     add("encode --chip-rate nan", "traceback: NaN option", ["encode", "5", "--chip-rate", "nan"])
@@ -549,3 +568,45 @@ def _refuse_constant(name: str) -> float:
 
 #: Arguments of the cases' command lines, for callers that want them as a function.
 CaseFactory = Callable[[Path], list[Case]]
+
+
+# -------------------------------------------------------------------------- the Python API
+
+
+def api_cases(root: Path) -> list[tuple[str, Callable[[], object]]]:
+    """Calls of the Python API with bad input (files from :func:`make_files` in ``root``)."""
+    import camvlp
+
+    f = make_files(root)
+    camera = camvlp.load_camera(f["camera.yaml"])
+    fmap = camvlp.load_map(f["map.yaml"])
+    rng = np.random.default_rng(2)
+    base = rng.random((48, 64))
+    arrays = {
+        dtype: (base * 100).astype(dtype)
+        for dtype in ("float64", "float16", "int8", "int64", "uint32", "bool", "complex128")
+    }
+    arrays["object"] = base.astype(object)
+    arrays["float64 NaN"] = np.where(base > 0.5, np.nan, base)
+    calls: list[tuple[str, Callable[[], object]]] = [
+        (f"locate({name} array)", lambda a=a: camvlp.locate(a, camera, fmap))
+        for name, a in arrays.items()
+    ]
+    calls += [
+        (
+            "locate(nested list)",
+            lambda: camvlp.locate((base * 255).astype(int).tolist(), camera, fmap),
+        ),
+        ("locate(ragged list)", lambda: camvlp.locate([[1, 2], [3]], camera, fmap)),
+        ("locate(None)", lambda: camvlp.locate(None, camera, fmap)),
+        ("locate(camera=None)", lambda: camvlp.locate(arrays["int8"], None, fmap)),
+        ("locate(fixture_map=None)", lambda: camvlp.locate(arrays["int8"], camera, None)),
+        ("locate((48, 64, 5) array)", lambda: camvlp.locate(np.zeros((48, 64, 5)), camera, fmap)),
+    ]
+    for name in ("bomb_100000.png", "bomb_30000.jpg", "corrupt.jpg", "pipe"):
+        calls.append((f"load_image({name})", lambda p=f[name]: camvlp.load_image(p)))
+    for name in ("deep.json", "deep.yaml", "digits400.yaml", "digits5000.json", "pipe"):
+        calls.append((f"load_camera({name})", lambda p=f[name]: camvlp.load_camera(p)))
+    for name in ("laughs_map.yaml", "nan_map.yaml", "big_map.yaml", "idbits12_map.yaml"):
+        calls.append((f"load_map({name})", lambda p=f[name]: camvlp.load_map(p)))
+    return calls

@@ -105,6 +105,12 @@ def render_command(
     xyz = parse_floats(position, 3, "--position")
     angles = parse_floats(euler, 3, "--euler")
     camera = load_camera(camera_path)
+    most = limit("CAMVLP_MAX_RENDER_PIXELS")
+    if camera.width * camera.height > most:  # the photo and its encoding: ~5.5 bytes a pixel
+        fail(
+            f"a render of {camera.width} x {camera.height} pixels is over the limit of {most:,} "
+            f"(set CAMVLP_MAX_RENDER_PIXELS) ({camera_path})"
+        )
     fixture_map = load_map(map_path)
     try:
         settings = RenderSettings(

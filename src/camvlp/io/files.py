@@ -66,12 +66,14 @@ def _check_text(text: str, path: Path, kind: str, as_json: bool) -> None:
             path,
         )
     max_depth = limit("CAMVLP_MAX_DEPTH")
+    # brackets outside quoted strings: JSON's nesting, and YAML's flow nesting (a YAML scanner
+    # would look far ahead through 100,000 open brackets before its first event)
+    bare = np.frombuffer(_STRING.sub("", text).encode("utf-8"), dtype=np.uint8)
+    step = np.isin(bare, _OPENERS).astype(np.int32) - np.isin(bare, _CLOSERS)
+    depth = int(np.cumsum(step).max()) if step.size else 0
+    if depth > max_depth:
+        raise InputError(f"{kind} file is nested {depth} deep (at most {max_depth})", path)
     if as_json:
-        bare = np.frombuffer(_JSON_STRING.sub("", text).encode("utf-8"), dtype=np.uint8)
-        step = np.isin(bare, _OPENERS).astype(np.int32) - np.isin(bare, _CLOSERS)
-        depth = int(np.cumsum(step).max()) if step.size else 0
-        if depth > max_depth:
-            raise InputError(f"{kind} file is nested {depth} deep (at most {max_depth})", path)
         return
     depth = 0
     try:
@@ -97,7 +99,7 @@ def _check_text(text: str, path: Path, kind: str, as_json: bool) -> None:
         raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
 
 
-_JSON_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+_STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"' + r"|'(?:[^'\n]|'')*'")
 _OPENERS = np.frombuffer(b"[{", dtype=np.uint8)
 _CLOSERS = np.frombuffer(b"]}", dtype=np.uint8)
 

@@ -3,14 +3,15 @@
 Each limit has a default a little above anything a real input needs and an environment
 variable to change it (read at each call, so a process can change it while running):
 
-=========================  ==============================================  ===============
-Environment variable       What it bounds                                  Default
-=========================  ==============================================  ===============
-``CAMVLP_MAX_PIXELS``      Pixels of a photo or a camera (width x height)  200,000,000
-``CAMVLP_MAX_IMAGE_BYTES`` Size of a photo file                            536,870,912
-``CAMVLP_MAX_FILE_BYTES``  Size of a camera, map or survey file            16,777,216
-``CAMVLP_MAX_DEPTH``       Nesting of a camera or map file (lists, keys)   32
-=========================  ==============================================  ===============
+============================  ==============================================  ===========
+Environment variable          What it bounds                                  Default
+============================  ==============================================  ===========
+``CAMVLP_MAX_PIXELS``         Pixels of a photo or a camera (width x height)  200,000,000
+``CAMVLP_MAX_RENDER_PIXELS``  Pixels of a rendered photo (``camvlp render``)  100,000,000
+``CAMVLP_MAX_IMAGE_BYTES``    Size of a photo file, bytes                     536,870,912
+``CAMVLP_MAX_FILE_BYTES``     Size of a camera, map or survey file, bytes     16,777,216
+``CAMVLP_MAX_DEPTH``          Nesting of a camera or map file (lists, keys)   32
+============================  ==============================================  ===========
 
 Input files must be regular files: a named pipe, a device or a folder is refused before it is
 read, and files are opened non-blocking so that a pipe can never hang the reader.
@@ -33,6 +34,7 @@ __all__ = [
 #: Default of each limit, by environment variable.
 DEFAULTS: dict[str, int] = {
     "CAMVLP_MAX_PIXELS": 200_000_000,
+    "CAMVLP_MAX_RENDER_PIXELS": 100_000_000,
     "CAMVLP_MAX_IMAGE_BYTES": 512 * 1024 * 1024,
     "CAMVLP_MAX_FILE_BYTES": 16 * 1024 * 1024,
     "CAMVLP_MAX_DEPTH": 32,
