@@ -174,6 +174,9 @@ def make_files(root: Path) -> dict[str, Path]:
     put("nan_map.yaml", SMALL_MAP.replace("[0.5, 0.5, 2.7]", "[.nan, 0.5, 2.7]"))
     put("idbits12_map.yaml", SMALL_MAP.replace("units: m", "units: m\nframe: {id_bits: 12}"))
     put("survey.csv", "photo,x,y,z\nphoto.jpg,0,0,0\nphoto.jpg,1,0,0\n")
+    put("survey1.csv", "photo,x,y,z\nphoto.jpg,0,0,0\n")
+    for folder in ("study_blocked", "evaluate_blocked"):  # summary.json cannot be written
+        (root / folder / "summary.json").mkdir(parents=True, exist_ok=True)
     big = root / "big_map.yaml"
     with open(big, "wb") as fh:  # sparse: 20 MB on paper, nothing on disk
         fh.truncate(20 * 1024 * 1024)
@@ -448,6 +451,18 @@ def cases(root: Path) -> list[Case]:
             root / "truth_dir_out.png",
         ],
         left_behind=[root / "truth_dir_out.png"],
+    )
+    add(
+        "study --out: summary.json blocked",
+        "half-written output",
+        ["study", "rounding", "--step", "0.5", "--out", root / "study_blocked"],
+        left_behind=[root / "study_blocked" / n for n in ("rounding.csv", "rounding.png")],
+    )
+    add(
+        "evaluate --out: summary.json blocked",
+        "half-written output",
+        ["evaluate", f["survey1.csv"], *loc, "--out", root / "evaluate_blocked"],
+        left_behind=[root / "evaluate_blocked" / n for n in ("results.csv", "error_map.png")],
     )
     add("encode > /dev/full", "traceback: full device", ["encode", "5"], stdout="/dev/full")
     add(

@@ -16,7 +16,7 @@ from camvlp.analysis.evaluate import (
 )
 from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
-from camvlp.io.atomic import check_output_dir, strict_json
+from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
 
@@ -93,10 +93,13 @@ def evaluate_command(
         gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
     )
     evaluation = _run(survey, camera, fixture_map, settings, n_jobs)
-    try:
-        paths = write_evaluation(evaluation, out, fixture_map=fixture_map, magnify=magnify)
-    except ValueError as exc:
-        fail(str(exc))
+    with StagedOutputs() as outputs:  # every result file or none
+        staged = outputs.folder(out)
+        try:
+            written = write_evaluation(evaluation, staged, fixture_map=fixture_map, magnify=magnify)
+        except ValueError as exc:
+            fail(str(exc).replace(str(staged), str(out)))
+    paths = {k: None if p is None else out / Path(p).name for k, p in written.items()}
     summary = evaluation.summary()
     if as_json:
         print(strict_json(summary))

@@ -190,7 +190,8 @@ class StagedOutputs:
             for p in placed:
                 p.unlink(missing_ok=True)
             self.discard()
-            raise InputError(f"cannot write output: {_reason(exc)}", exc.filename) from None
+            where = exc.filename2 or exc.filename  # the destination, not the temporary name
+            raise InputError(f"cannot write output: {_reason(exc)}", where) from None
         self.discard()
 
     def discard(self) -> None:
