@@ -99,6 +99,21 @@ def tiff_of(dtype: str, shape: tuple[int, int] = (48, 64)) -> bytes:
     return buf.tobytes()
 
 
+def tiff_header_only(width: int, height: int, dtype: str = "float64") -> bytes:
+    """A small gray TIFF of ``dtype`` whose first directory is rewritten to announce
+    ``width`` x ``height`` pixels (LONG values)."""
+    b = bytearray(tiff_of(dtype, (8, 8)))
+    e = "<" if b[:2] == b"II" else ">"
+    (offset,) = struct.unpack(e + "I", b[4:8])
+    (count,) = struct.unpack(e + "H", b[offset : offset + 2])
+    for k in range(count):
+        at = offset + 2 + 12 * k
+        tag = struct.unpack(e + "H", b[at : at + 2])[0]
+        if tag in (256, 257):
+            b[at + 2 : at + 12] = struct.pack(e + "HII", 4, 1, width if tag == 256 else height)
+    return bytes(b)
+
+
 def deep_json(depth: int = 100_000) -> str:
     """A camera file's JSON with a list nested ``depth`` deep."""
     return '{"image_width": 64, "image_height": 48, "x": ' + "[" * depth + "]" * depth + "}"
@@ -158,6 +173,7 @@ def make_files(root: Path) -> dict[str, Path]:
     put("bomb_32000.png", png_header_only(32_000, 32_000))
     put("bomb_30000.jpg", jpeg_header_only(30_000, 30_000))
     put("corrupt.jpg", corrupt_jpeg())
+    put("float64_180mp.tiff", tiff_header_only(15_000, 12_000))
     put("truncated.jpg", small_jpeg()[:-300])
     put("bad_crc.png", png_bad_crc())
     put("not_an_image.jpg", "this is text, not a photo\n")
@@ -208,6 +224,11 @@ def cases(root: Path) -> list[Case]:
     # images: bombs, depths, damage, special files
     for name in ("bomb_100000.png", "bomb_32000.png", "bomb_30000.jpg"):
         add(f"locate {name}", "memory: image bomb", ["locate", f[name], *loc])
+    add(
+        "locate float64_180mp.tiff",
+        "memory: image bomb",
+        ["locate", f["float64_180mp.tiff"], *loc],
+    )
     for dtype in ("float64", "float32", "int32", "int16", "int8"):
         add(
             f"locate photo_{dtype}.tiff",

@@ -13,6 +13,7 @@ import os
 import struct
 import tempfile
 import threading
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -21,7 +22,7 @@ import numpy as np
 from camvlp.errors import InputError
 from camvlp.io.limits import limit, read_regular_file
 
-__all__ = ["as_image", "image_header", "load_image"]
+__all__ = ["ImageHeader", "as_image", "decode_image", "image_header", "load_image"]
 
 #: Decoder messages that mean the pixels are not the whole picture (libjpeg, libpng, libtiff).
 _DAMAGE = ("corrupt", "premature end", "error", "invalid", "bad ", "truncated", "crc")
@@ -53,28 +54,54 @@ def load_image(path: str | Path, *, max_pixels: int | None = None) -> np.ndarray
     """
     p = Path(path)
     data = read_regular_file(p, "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
-    if not data:
-        raise InputError("photo is empty", p)
     try:
-        fmt, width, height = image_header(data)
+        return decode_image(data, max_pixels=max_pixels)
     except InputError as exc:
         raise InputError(exc.what, p) from None
-    _check_pixels(width, height, max_pixels, p)
+
+
+def decode_image(data: bytes, *, max_pixels: int | None = None) -> np.ndarray:
+    """Decode a photograph held in memory (an upload, say) through the same gate as
+    :func:`load_image`: header first, limits, damage refused, converted to the working type.
+
+    Parameters
+    ----------
+    data : bytes
+        The file's bytes (at most ``CAMVLP_MAX_IMAGE_BYTES``).
+    max_pixels : int, optional
+        Largest width x height accepted (default: ``CAMVLP_MAX_PIXELS``, else 200 million).
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3) BGR or (H, W) gray, uint8 or uint16
+
+    Raises
+    ------
+    InputError
+        Empty, too large, an unknown format, a header over the limits, or a truncated or
+        corrupt image; the message names no file (the caller adds it).
+    """
+    if not data:
+        raise InputError("photo is empty")
+    most = limit("CAMVLP_MAX_IMAGE_BYTES")
+    if len(data) > most:
+        raise InputError(f"photo is {len(data):,} bytes, over the limit of {most:,}")
+    header = image_header(data)
+    _check_pixels(header.width, header.height, max_pixels, None)
+    _check_decoded_bytes(header, max_pixels)
     raw = np.frombuffer(data, dtype=np.uint8)
-    if fmt == "jpeg" and _truncated_jpeg(raw):
-        raise InputError("photo is a truncated JPEG", p)
+    if header.format == "jpeg" and _truncated_jpeg(raw):
+        raise InputError("photo is a truncated JPEG")
     # Not IMREAD_UNCHANGED: the other modes apply the EXIF orientation, so the array is the
     # picture as viewers show it (phones often store landscape pixels with a "rotate" tag).
     img, messages = _decode_quietly(raw)
+    fmt = header.format.upper()
     damage = [m for m in messages if any(word in m.lower() for word in _DAMAGE)]
     if damage:
-        raise InputError(f"corrupt {fmt.upper()} refused: {damage[0]}", p)
+        raise InputError(f"corrupt {fmt} refused: {damage[0]}")
     if img is None:
-        raise InputError(f"not a readable {fmt.upper()} image, or a corrupt one", p)
-    try:
-        return as_image(img, max_pixels=max_pixels)
-    except InputError as exc:
-        raise InputError(exc.what, p) from None
+        raise InputError(f"not a readable {fmt} image, or a corrupt one")
+    return as_image(img, max_pixels=max_pixels)
 
 
 def as_image(image: object, *, max_pixels: int | None = None, name: str = "image") -> np.ndarray:
@@ -138,17 +165,44 @@ def as_image(image: object, *, max_pixels: int | None = None, name: str = "image
         if hi <= 0xFFFF:
             return pos.astype(np.uint16)
         return np.rint(pos * (65535.0 / hi)).astype(np.uint16)
-    f = img.astype(np.float32) if img.dtype == np.float16 else img
-    finite = np.isfinite(f)
-    if not finite.all():
-        raise InputError(f"{name} has {int(f.size - finite.sum())} NaN or infinite pixels")
-    hi = float(f.max())
+    bad = int(np.count_nonzero(~np.isfinite(img)))
+    if bad:
+        raise InputError(f"{name} has {bad} NaN or infinite pixels")
+    hi = float(img.max())
     scale = 65535.0 if hi <= 1.0 else 65535.0 / hi
-    return np.rint(np.clip(f * scale, 0, 65535)).astype(np.uint16)
+    src = img.astype(np.float32) if img.dtype == np.float16 else img  # float16 tops at 65504
+    with np.errstate(over="ignore", under="ignore"):  # huge negatives: -inf, clipped to 0
+        f = np.multiply(src, scale)  # in the image's own type: the positive values fit
+        np.clip(f, 0, 65535, out=f)  # in place from here on: one float copy at most
+    np.rint(f, out=f)
+    return f.astype(np.uint16)
 
 
-def image_header(data: bytes) -> tuple[str, int, int]:
-    """The format and size a file's header announces, read without decoding any pixel.
+@dataclass(frozen=True)
+class ImageHeader:
+    """What an image file's header announces.
+
+    Attributes
+    ----------
+    format : str
+        "png", "jpeg", "tiff", "bmp" or "webp".
+    width, height : int
+        Pixels.
+    channels : int
+        Samples per pixel (1 gray, 3 colour, 4 with alpha ...).
+    bytes_per_sample : int
+        1 for 8-bit (and fewer bits), 2 for 16-bit, 4 or 8 for 32- and 64-bit samples.
+    """
+
+    format: str
+    width: int
+    height: int
+    channels: int = 3
+    bytes_per_sample: int = 1
+
+
+def image_header(data: bytes) -> ImageHeader:
+    """The format, size and depth a file's header announces, read without decoding any pixel.
 
     Parameters
     ----------
@@ -158,8 +212,7 @@ def image_header(data: bytes) -> tuple[str, int, int]:
 
     Returns
     -------
-    (format, width, height) : (str, int, int)
-        ``format`` is "png", "jpeg", "tiff", "bmp" or "webp"; width and height in pixels.
+    ImageHeader
 
     Raises
     ------
@@ -170,17 +223,18 @@ def image_header(data: bytes) -> tuple[str, int, int]:
         if data.startswith(b"\x89PNG\r\n\x1a\n"):
             if data[12:16] != b"IHDR":
                 raise InputError("malformed PNG header: no IHDR chunk first")
-            w, h = struct.unpack(">II", data[16:24])
-            return "png", w, h
+            w, h, depth, colour = struct.unpack(">IIBB", data[16:26])
+            channels = {0: 1, 2: 3, 3: 3, 4: 2, 6: 4}.get(colour, 4)
+            return ImageHeader("png", w, h, channels, 2 if depth == 16 else 1)
         if data.startswith(b"\xff\xd8"):
-            return ("jpeg", *_jpeg_size(data))
+            return _jpeg_header(data)
         if data[:4] in (b"II*\x00", b"MM\x00*"):
-            return ("tiff", *_tiff_size(data))
+            return _tiff_header(data)
         if data.startswith(b"BM"):
             w, h = struct.unpack("<ii", data[18:26])
-            return "bmp", abs(w), abs(h)
+            return ImageHeader("bmp", abs(w), abs(h), 3)
         if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
-            return ("webp", *_webp_size(data))
+            return ImageHeader("webp", *_webp_size(data), 3)
     except (struct.error, ValueError, IndexError):
         raise InputError("image header is cut short or malformed") from None
     if data[:4] in (b"II+\x00", b"MM\x00+"):
@@ -188,8 +242,9 @@ def image_header(data: bytes) -> tuple[str, int, int]:
     raise InputError("not an image camvlp reads (PNG, JPEG, TIFF, BMP or WebP)")
 
 
-def _jpeg_size(b: bytes) -> tuple[int, int]:
-    """Width and height from a JPEG's first frame header (SOF0 to SOF15, not DHT/JPG/DAC)."""
+def _jpeg_header(b: bytes) -> ImageHeader:
+    """Size, components and precision from a JPEG's first frame header (SOF0 to SOF15, not
+    DHT, JPG or DAC)."""
     i = 2
     n = len(b)
     while i + 3 < n:
@@ -204,16 +259,16 @@ def _jpeg_size(b: bytes) -> tuple[int, int]:
             continue
         length = (b[i + 2] << 8) | b[i + 3]
         if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-            h, w = struct.unpack(">HH", b[i + 5 : i + 9])
-            return w, h
+            precision, h, w, components = struct.unpack(">BHHB", b[i + 4 : i + 10])
+            return ImageHeader("jpeg", w, h, components, 2 if precision > 8 else 1)
         if marker == 0xDA or length < 2:
             break
         i += 2 + length
     raise InputError("malformed JPEG: no frame header before the image data")
 
 
-def _tiff_size(b: bytes) -> tuple[int, int]:
-    """Width and height from a TIFF's first image file directory (tags 256 and 257)."""
+def _tiff_header(b: bytes) -> ImageHeader:
+    """Size and depth from a TIFF's first image file directory (tags 256, 257, 258, 277)."""
     e = "<" if b[:2] == b"II" else ">"
     (offset,) = struct.unpack(e + "I", b[4:8])
     (count,) = struct.unpack(e + "H", b[offset : offset + 2])
@@ -224,18 +279,21 @@ def _tiff_size(b: bytes) -> tuple[int, int]:
         offset=offset + 2,
     )
     size = {}
-    for tag in (256, 257):
+    for tag in (256, 257, 258, 277):  # width, height, bits per sample, samples per pixel
         hit = entries[entries["tag"] == tag]
         if hit.size:
             raw = hit[0]["v"].tobytes()
-            size[tag] = (
-                struct.unpack(e + "H", raw[:2])[0]
-                if hit[0]["type"] == 3
-                else (struct.unpack(e + "I", raw)[0])
-            )
-    if len(size) < 2:
+            if hit[0]["type"] != 3:  # LONG
+                size[tag] = struct.unpack(e + "I", raw)[0]
+            elif hit[0]["n"] <= 2:  # SHORT values that fit in the entry
+                size[tag] = struct.unpack(e + "H", raw[:2])[0]
+            else:  # SHORT values stored elsewhere (bits per sample of colour images)
+                (where,) = struct.unpack(e + "I", raw)
+                size[tag] = struct.unpack(e + "H", b[where : where + 2])[0]
+    if 256 not in size or 257 not in size:
         raise InputError("malformed TIFF: no image width or height")
-    return size[256], size[257]
+    bits = min(size.get(258, 8), 64)
+    return ImageHeader("tiff", size[256], size[257], size.get(277, 1), max(1, bits // 8))
 
 
 def _webp_size(b: bytes) -> tuple[int, int]:
@@ -263,6 +321,20 @@ def _check_pixels(width: int, height: int, max_pixels: int | None, source: Path 
             f"image is {width} x {height} = {width * height:,} pixels, over the limit of "
             f"{cap:,} (set CAMVLP_MAX_PIXELS)",
             source,
+        )
+
+
+def _check_decoded_bytes(header: ImageHeader, max_pixels: int | None) -> None:
+    """Refuse an image whose decoded samples would take more bytes than an 8-bit colour image
+    at the pixel limit (a 32-bit float TIFF at the limit would otherwise take 2.4 GB)."""
+    budget = 3 * limit("CAMVLP_MAX_PIXELS", max_pixels)
+    channels = min(header.channels, 3)  # decoded as gray or BGR: alpha is dropped
+    decoded = header.width * header.height * channels * header.bytes_per_sample
+    if decoded > budget:
+        raise InputError(
+            f"image is {header.width} x {header.height} x {channels} samples of "
+            f"{8 * header.bytes_per_sample} bits = {decoded:,} bytes decoded, over the limit of "
+            f"{budget:,} (3 x CAMVLP_MAX_PIXELS)"
         )
 
 
