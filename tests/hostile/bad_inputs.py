@@ -169,6 +169,7 @@ def make_files(root: Path) -> dict[str, Path]:
     put("camera.yaml", SMALL_CAMERA)
     put("map.yaml", SMALL_MAP)
     put("photo.jpg", small_jpeg())
+    put("new\nline.jpg", small_jpeg())
     put("bomb_100000.png", png_header_only(100_000, 100_000))
     put("bomb_32000.png", png_header_only(32_000, 32_000))
     put("bomb_30000.jpg", jpeg_header_only(30_000, 30_000))
@@ -249,6 +250,12 @@ def cases(root: Path) -> list[Case]:
         "locate newline name",
         "stderr: newline in a name",
         ["locate", root / "no\nsuch.jpg", *loc],
+    )
+    add(
+        "locate a photo named with a newline",
+        "stderr: newline in a name",
+        ["locate", f["new\nline.jpg"], *loc],
+        code=1,
     )
     # camera and map files
     for name in ("deep.json", "deep.yaml", "digits400.yaml", "digits5000.json"):

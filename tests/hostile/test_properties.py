@@ -26,7 +26,7 @@ from camvlp.io import load_camera, load_image, load_map
 #: Hypothesis settings shared by the tests: reproducible, modest, explicit deadline.
 FAST = settings(
     max_examples=60,
-    deadline=2000,
+    deadline=5000,
     derandomize=True,
     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
 )
@@ -272,7 +272,7 @@ def _assert_one_line(code: int, err: str) -> None:
 
 
 #: Fewer examples for whole command lines (each builds the CLI and may render).
-CLI = settings(FAST, max_examples=30)
+CLI = settings(FAST, max_examples=30, deadline=10_000)
 
 
 @CLI

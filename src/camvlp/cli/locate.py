@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -21,6 +20,7 @@ from ._app import (
     app,
     check_positive,
     check_solver,
+    fail,
     handle_errors,
     parse_gravity,
     parse_readout,
@@ -118,8 +118,7 @@ def locate_command(
     else:
         _print_human(result, fixture_map.units, photo)
     if not result:  # stdout keeps its JSON; the one error line goes to stderr either way
-        print(f"error: not located: {result.reason} ({photo})", file=sys.stderr)
-        raise typer.Exit(EXIT_NOT_LOCATED)
+        fail(f"not located: {result.reason} ({photo})", EXIT_NOT_LOCATED)
 
 
 def _tilt(result) -> str:
