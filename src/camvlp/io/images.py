@@ -235,6 +235,8 @@ def image_header(data: bytes) -> ImageHeader:
             return ImageHeader("bmp", abs(w), abs(h), 3)
         if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
             return ImageHeader("webp", *_webp_size(data), 3)
+    except InputError:
+        raise
     except (struct.error, ValueError, IndexError):
         raise InputError("image header is cut short or malformed") from None
     if data[:4] in (b"II+\x00", b"MM\x00+"):
