@@ -111,7 +111,7 @@ def test_a_malformed_camera_or_body_is_422_in_one_line(client):
     bad = {**CAMERA_JSON, "image_width": -5}
     r = client.post("/api/v1/sites", json={"name": "x", "map": MAP_JSON, "camera": bad})
     assert r.status_code == 422
-    assert detail(r) == "image_width must be a positive number, got -5 (camera)"
+    assert detail(r) == "image_width must be a positive integer, got -5 (camera)"
     r = client.post("/api/v1/sites", json={"map": MAP_JSON, "camera": CAMERA_JSON})
     assert r.status_code == 422 and detail(r) == "name: Field required"
     r = client.post(

@@ -72,4 +72,4 @@ def test_decode_image_is_load_image_on_bytes(tmp_path: Path):
     for raw, what in ((b"", "photo is empty"), (b"nope", "not an image, or a corrupt one")):
         with pytest.raises(InputError) as info:
             decode_image(raw, "upload")
-        assert str(info.value) == f"{what} (upload)"
+        assert str(info.value).startswith(what) and str(info.value).endswith(" (upload)")

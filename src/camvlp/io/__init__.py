@@ -2,7 +2,14 @@
 result writers."""
 
 from camvlp.errors import InputError
-from camvlp.io.files import load_camera, load_map, save_camera, save_map
+from camvlp.io.files import (
+    camera_from_dict,
+    load_camera,
+    load_map,
+    map_from_dict,
+    save_camera,
+    save_map,
+)
 from camvlp.io.images import decode_image, load_image
 from camvlp.io.sidecar import PhotoSidecar, load_sidecar
 

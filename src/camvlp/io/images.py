@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
 import tempfile
 import threading
 from dataclasses import dataclass
@@ -54,42 +55,52 @@ def load_image(path: str | Path, *, max_pixels: int | None = None) -> np.ndarray
     """
     p = Path(path)
     data = read_regular_file(p, "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
-    try:
-        return decode_image(data, max_pixels=max_pixels)
-    except InputError as exc:
-        raise InputError(exc.what, p) from None
+    return decode_image(data, p, max_pixels=max_pixels)
 
 
-def decode_image(data: bytes, *, max_pixels: int | None = None) -> np.ndarray:
-    """Decode a photograph held in memory (an upload, say) through the same gate as
+def decode_image(
+    raw: bytes | np.ndarray, source: str | Path = "photo", *, max_pixels: int | None = None
+) -> np.ndarray:
+    """Decode an encoded photograph held in memory (an upload, say) through the same gate as
     :func:`load_image`: header first, limits, damage refused, converted to the working type.
 
     Parameters
     ----------
-    data : bytes
-        The file's bytes (at most ``CAMVLP_MAX_IMAGE_BYTES``).
+    raw : bytes or ndarray of uint8, shape (N,)
+        The encoded file's bytes (at most ``CAMVLP_MAX_IMAGE_BYTES``).
+    source : str or Path
+        Names the photo in error messages.
     max_pixels : int, optional
         Largest width x height accepted (default: ``CAMVLP_MAX_PIXELS``, else 200 million).
 
     Returns
     -------
     ndarray, shape (H, W, 3) BGR or (H, W) gray, uint8 or uint16
+        Upright as the EXIF orientation says.
 
     Raises
     ------
     InputError
         Empty, too large, an unknown format, a header over the limits, or a truncated or
-        corrupt image; the message names no file (the caller adds it).
+        corrupt image; naming ``source``.
     """
-    if not data:
+    try:
+        return _decode(np.frombuffer(raw, dtype=np.uint8).reshape(-1), max_pixels)
+    except InputError as exc:
+        raise InputError(exc.what, source) from None
+    except (TypeError, ValueError) as exc:  # not bytes
+        raise InputError(f"photo must be bytes: {_first_line(exc)}", source) from None
+
+
+def _decode(raw: np.ndarray, max_pixels: int | None) -> np.ndarray:
+    if raw.size == 0:
         raise InputError("photo is empty")
     most = limit("CAMVLP_MAX_IMAGE_BYTES")
-    if len(data) > most:
-        raise InputError(f"photo is {len(data):,} bytes, over the limit of {most:,}")
-    header = image_header(data)
+    if raw.size > most:
+        raise InputError(f"photo is {raw.size:,} bytes, over the limit of {most:,}")
+    header = image_header(raw)
     _check_pixels(header.width, header.height, max_pixels, None)
     _check_decoded_bytes(header, max_pixels)
-    raw = np.frombuffer(data, dtype=np.uint8)
     if header.format == "jpeg" and _truncated_jpeg(raw):
         raise InputError("photo is a truncated JPEG")
     # Not IMREAD_UNCHANGED: the other modes apply the EXIF orientation, so the array is the
@@ -100,7 +111,7 @@ def decode_image(data: bytes, *, max_pixels: int | None = None) -> np.ndarray:
     if damage:
         raise InputError(f"corrupt {fmt} refused: {damage[0]}")
     if img is None:
-        raise InputError(f"not a readable {fmt} image, or a corrupt one")
+        raise InputError("not an image, or a corrupt one")
     return as_image(img, max_pixels=max_pixels)
 
 
@@ -201,14 +212,14 @@ class ImageHeader:
     bytes_per_sample: int = 1
 
 
-def image_header(data: bytes) -> ImageHeader:
+def image_header(data: bytes | np.ndarray) -> ImageHeader:
     """The format, size and depth a file's header announces, read without decoding any pixel.
 
     Parameters
     ----------
-    data : bytes
-        The file's bytes (only the first kilobytes are read, except for a JPEG, whose marker
-        segments are walked to its frame header).
+    data : bytes or ndarray of uint8, shape (N,)
+        The file's bytes (read in place: only the signature and the header's segments are
+        looked at; a JPEG's marker segments are walked to its frame header).
 
     Returns
     -------
@@ -219,29 +230,31 @@ def image_header(data: bytes) -> ImageHeader:
     InputError
         An unknown format, or a header that is cut short or malformed.
     """
+    data = memoryview(data).cast("B") if not isinstance(data, bytes) else data
+    head = bytes(data[:16])
     try:
-        if data.startswith(b"\x89PNG\r\n\x1a\n"):
-            if data[12:16] != b"IHDR":
+        if head.startswith(b"\x89PNG\r\n\x1a\n"):
+            if head[12:16] != b"IHDR":
                 raise InputError("malformed PNG header: no IHDR chunk first")
             w, h, depth, colour = struct.unpack(">IIBB", data[16:26])
             channels = {0: 1, 2: 3, 3: 3, 4: 2, 6: 4}.get(colour, 4)
             return ImageHeader("png", w, h, channels, 2 if depth == 16 else 1)
-        if data.startswith(b"\xff\xd8"):
+        if head.startswith(b"\xff\xd8"):
             return _jpeg_header(data)
-        if data[:4] in (b"II*\x00", b"MM\x00*"):
+        if head[:4] in (b"II*\x00", b"MM\x00*"):
             return _tiff_header(data)
-        if data.startswith(b"BM"):
+        if head.startswith(b"BM"):
             w, h = struct.unpack("<ii", data[18:26])
             return ImageHeader("bmp", abs(w), abs(h), 3)
-        if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+        if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
             return ImageHeader("webp", *_webp_size(data), 3)
     except InputError:
         raise
     except (struct.error, ValueError, IndexError):
         raise InputError("image header is cut short or malformed") from None
-    if data[:4] in (b"II+\x00", b"MM\x00+"):
+    if head[:4] in (b"II+\x00", b"MM\x00+"):
         raise InputError("BigTIFF photos are not supported; save as TIFF, PNG or JPEG")
-    raise InputError("not an image camvlp reads (PNG, JPEG, TIFF, BMP or WebP)")
+    raise InputError("not an image, or a corrupt one: camvlp reads PNG, JPEG, TIFF, BMP, WebP")
 
 
 def _jpeg_header(b: bytes) -> ImageHeader:
@@ -341,13 +354,26 @@ def _check_decoded_bytes(header: ImageHeader, max_pixels: int | None) -> None:
 
 
 def _decode_quietly(raw: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
-    """``cv2.imdecode`` with the C libraries' stderr messages captured instead of printed."""
+    """``cv2.imdecode``, with the C libraries' stderr messages captured instead of printed.
+
+    libjpeg and libpng report damage only on the process's stderr (file descriptor 2), so it
+    is redirected to a temporary file for the decode.  That is safe only while no other thread
+    can write there: with several threads (a server), the photo is decoded without the capture
+    and only a decode failure refuses it.
+    """
+    flags = cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH
+    if threading.active_count() > 1:
+        try:
+            return cv2.imdecode(raw, flags), []
+        except cv2.error as exc:
+            return None, ["error: " + _first_line(exc)]
     with _STDERR_LOCK, tempfile.TemporaryFile() as capture:
+        sys.stderr.flush()
         saved = os.dup(2)
         try:
             os.dup2(capture.fileno(), 2)
             try:
-                img = cv2.imdecode(raw, cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+                img = cv2.imdecode(raw, flags)
             except cv2.error as exc:
                 img = None
                 capture.write(("error: " + _first_line(exc)).encode())
