@@ -127,7 +127,7 @@ def calibrate(
         extra={"calibration_rms_px": result.rms_px, "calibration_photos": len(result.used)},
     )
     if as_json:
-        print(json.dumps(_calibration_json(result, out)))
+        print(strict_json(_calibration_json(result, out)))
     else:
         _print_calibration(result, out)
 

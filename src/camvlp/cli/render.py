@@ -9,6 +9,8 @@ from typing import Annotated
 import typer
 
 from camvlp.io import load_camera, load_map
+from camvlp.io.atomic import StagedOutputs, check_output_file
+from camvlp.io.limits import limit
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Pose
 from camvlp.model.readout import Readout
@@ -129,10 +131,13 @@ def render_command(
     except ValueError as exc:
         fail(_option_names(str(exc)))
     result = _render_or_fail(camera, fixture_map, pose, settings, map_path)
-    try:
-        json_path = save_render(result, out, jpeg_quality=jpeg_quality)
-    except ValueError as exc:
-        fail(str(exc))
+    with StagedOutputs() as outputs:  # the photo and its truth JSON: both or neither
+        staged = outputs.folder(out.parent)
+        try:
+            save_render(result, staged / out.name, jpeg_quality=jpeg_quality)
+        except ValueError as exc:
+            fail(str(exc).replace(str(staged / out.name), str(out)))
+    json_path = out.with_suffix(".json")
     _print_render(result, camera, out, json_path)
 
 

@@ -13,6 +13,7 @@ import typer
 from camvlp.analysis import study as st
 from camvlp.format import format_length
 from camvlp.io import load_camera, load_map
+from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.io.writers import write_outputs
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
@@ -112,23 +113,6 @@ def _check(
             fail(f"--{name.replace('_', '-')} must be positive, got {value}")
 
 
-#: Most pose solves one study may ask for (each keeps about 0.5 KB until the end: ~1 GB).
-MAX_SOLVES = 2_000_000
-
-
-def _budget(count: float, hint: str) -> None:
-    """Fail (exit 2) before a study that would solve more than MAX_SOLVES poses."""
-    if count > MAX_SOLVES:
-        fail(
-            f"this study would solve {count:,.0f} poses, over the budget of {MAX_SOLVES:,} "
-            f"(about 1 GB of memory); {hint}"
-        )
-
-
-def _grid_points(u_range: list, v_range: list, step: float) -> float:
-    return ((u_range[1] - u_range[0]) / step + 1) * ((v_range[1] - v_range[0]) / step + 1)
-
-
 def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]:
     return (
         load_camera(_default_file(camera, "thesis_camera.yaml")),
@@ -190,7 +174,9 @@ def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list
     """Write the files (with --out), then print the summary as JSON or as ``lines``."""
     summary = study.summary()
     if out is not None:
-        summary = write_outputs(out, name, study, plot)  # InputError: one line, exit 2
+        check_output_dir(out, "--out")
+        with StagedOutputs() as outputs:  # the CSV, the figure and the summary: all or none
+            summary = write_outputs(outputs.folder(out), name, study, plot)  # InputError: exit 2
         print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
     if as_json:
         print(strict_json(summary))
@@ -252,8 +238,26 @@ def _run(func, *args, **kwargs):
         fail(str(exc))
 
 
-def _study(func, label: str, total_hint: int, *args, **kwargs):
-    """Run a study function with a progress bar (long runs on a terminal) and :func:`_run`."""
+#: Most pose solves one study may ask for (each keeps about 0.5 KB until the end: ~1 GB).
+MAX_SOLVES = 2_000_000
+
+
+def _grid_points(grid: dict) -> float:
+    """Points of the floor grid that :func:`_grid_options` describes."""
+    (u0, u1), (v0, v1), step = grid["u_range_m"], grid["v_range_m"], grid["step_m"]
+    return ((u1 - u0) / step + 1) * ((v1 - v0) / step + 1)
+
+
+def _study(func, label: str, total_hint: float, *args, **kwargs):
+    """Run a study function with a progress bar (long runs on a terminal) and :func:`_run`;
+    fail (exit 2) first when it would solve more than MAX_SOLVES poses (``total_hint``)."""
+    if total_hint > MAX_SOLVES:
+        fail(
+            f"this study would solve {total_hint:,.0f} poses, over the budget of {MAX_SOLVES:,} "
+            "(about 1 GB of memory); lower --trials, raise --step or --tilt-step, narrow the "
+            "ranges or give fewer poses"
+        )
+    total_hint = int(total_hint)
     with _progress(total_hint, label) as progress:
         return _run(func, *args, progress=progress, **kwargs)
 
@@ -323,11 +327,11 @@ def rounding(
     grid = _grid_options(plane, x_range, y_range, z_range, step, height)
     cam, fmap = _inputs(camera, map_path)
     noise = _noise_options(noise_px, survey_error_m, trials, seed)
-    est = 21 * 21 * (trials if noise_px > 0 or survey_error_m > 0 else 1) / (step / 0.1) ** 2
+    est = _grid_points(grid) * (trials if noise_px > 0 or survey_error_m > 0 else 1)
     res = _study(
         st.rounding_study,
         "rounding study",
-        int(est),
+        est,
         cam,
         fmap,
         euler_deg=angles,
@@ -607,7 +611,7 @@ def coverage(
     res = _study(
         st.coverage_study,
         "coverage study",
-        int(441 * n_tilts * (0.1 / step) ** 2),
+        _grid_points(grid) * n_tilts * (trials if noise_px > 0 else 1),
         cam,
         fmap,
         base_euler_deg=base,

@@ -84,7 +84,7 @@ def write_json(path: str | Path, data: dict) -> Path:
     """Write ``data`` as indented JSON (NumPy values converted, NaN as null)."""
     p = Path(path)
     with _writing(p):
-        p.write_text(json.dumps(jsonable(data), indent=2) + "\n", encoding="utf-8")
+        p.write_text(json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n", encoding="utf-8")
     return p
 
 
@@ -241,7 +241,9 @@ def save_render(result, out_path, *, jpeg_quality: int = 95) -> Path:
     json_path = p.with_suffix(".json")
     try:
         p.write_bytes(buf.tobytes())
-        json_path.write_text(json.dumps(result.truth_dict(), indent=2) + "\n")
+        json_path.write_text(
+            json.dumps(jsonable(result.truth_dict()), indent=2, allow_nan=False) + "\n"
+        )
     except OSError as exc:
         what = exc.strerror or exc.__class__.__name__
         raise InputError(f"cannot write output: {what}", p) from None
