@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.limits import limit, read_regular_file
 
 __all__ = [
     "ANGLE_COLUMNS",
@@ -100,13 +101,10 @@ def read_survey(path: str | Path) -> Survey:
         line number).
     """
     p = Path(path)
-    if not p.exists():
-        raise InputError("survey file not found", p)
-    if p.is_dir():
-        raise InputError("survey file is a directory", p)
+    data = read_regular_file(p, "survey file", limit("CAMVLP_MAX_FILE_BYTES"))
     try:
-        text = p.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
         raise InputError(f"cannot read survey file: {exc.__class__.__name__}", p) from None
     lines = [
         (k, ln)
