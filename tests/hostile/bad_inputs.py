@@ -652,4 +652,27 @@ def api_cases(root: Path) -> list[tuple[str, Callable[[], object]]]:
         calls.append((f"load_camera({name})", lambda p=f[name]: camvlp.load_camera(p)))
     for name in ("laughs_map.yaml", "nan_map.yaml", "big_map.yaml", "idbits12_map.yaml"):
         calls.append((f"load_map({name})", lambda p=f[name]: camvlp.load_map(p)))
+    from camvlp.io import camera_from_dict, decode_image, map_from_dict
+
+    for name in ("bomb_100000.png", "float64_180mp.tiff", "corrupt.jpg", "not_an_image.jpg"):
+        calls.append(
+            (f"decode_image({name} bytes)", lambda p=f[name]: decode_image(p.read_bytes(), "up"))
+        )
+    calls += [
+        ("decode_image(a str)", lambda: decode_image("not bytes", "up")),
+        (
+            "camera_from_dict(400-digit width)",
+            lambda: camera_from_dict({"image_width": 10**400, "image_height": 48}),
+        ),
+        (
+            "camera_from_dict(width 5184.5)",
+            lambda: camera_from_dict(
+                {"image_width": 5184.5, "image_height": 3880, "focal_length_px": 3912}
+            ),
+        ),
+        (
+            "map_from_dict(NaN position)",
+            lambda: map_from_dict({"fixtures": [{"id": 1, "position": [float("nan"), 0, 0]}]}),
+        ),
+    ]
     return calls
