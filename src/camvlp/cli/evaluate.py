@@ -78,8 +78,7 @@ def evaluate_command(
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
-    if jobs is not None and jobs < 1:
-        fail(f"--jobs must be at least 1, got {jobs}")
+    jobs = cap_jobs(jobs)
     if magnify is not None and not magnify > 0:
         fail(f"--magnify must be a positive number, got {magnify}")
     check_output_dir(out, "--out")

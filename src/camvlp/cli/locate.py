@@ -9,6 +9,7 @@ import cv2
 import typer
 
 from camvlp.io import InputError, load_camera, load_image, load_map, load_sidecar
+from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
