@@ -163,7 +163,10 @@ def test_three_fixtures_are_not_located(capsys, small_files, three_fixture_files
 
 
 def test_ids_not_in_the_map_are_not_located(capsys, small_files, stranger_photo):
-    code, out, err = run(capsys, stranger_photo, small_files["camera"], small_files["map"])
+    # the readout given: with no light of the map in view, its direction cannot be told
+    code, out, err = run(
+        capsys, stranger_photo, small_files["camera"], small_files["map"], "--readout", "rows"
+    )
     assert code == 1
     one_error_line(err)
     no_position(out)
@@ -172,7 +175,7 @@ def test_ids_not_in_the_map_are_not_located(capsys, small_files, stranger_photo)
 
 def test_not_located_json_lists_the_fixtures(capsys, small_files, stranger_photo):
     code, out, err = run(capsys, stranger_photo, small_files["camera"], small_files["map"],
-                         "--json")
+                         "--json", "--readout", "rows")
     assert code == 1
     assert "Traceback" not in err
     assert len(out.strip().splitlines()) == 1
@@ -183,6 +186,13 @@ def test_not_located_json_lists_the_fixtures(capsys, small_files, stranger_photo
     for f in d["fixtures"]:
         assert not f["used"]
         assert "not in the map" in f["reason"]
+    # not told which way the sensor read, no light of the map to tell it: nothing is guessed
+    code, out, err = run(capsys, stranger_photo, small_files["camera"], small_files["map"],
+                         "--json")
+    assert code == 1
+    for f in json.loads(out)["fixtures"]:
+        assert not f["used"]
+        assert "not in the map" in f["reason"] or "direction undecided" in f["reason"]
 
 
 def test_three_fixtures_json(capsys, small_files, three_fixture_files):

@@ -63,3 +63,56 @@ def test_reading_the_wrong_way_never_gives_a_position_from_swapped_ids():
         assert np.linalg.norm(res.position - pose.position) < 3e-3
     else:
         assert res.position is None and res.error
+
+
+@pytest.mark.parametrize("readout", ["rows", "rows-reversed", "columns", "columns-reversed"])
+def test_unknown_direction_is_found_from_the_stripes(readout):
+    # odd IDs read backwards are no frame at all: the stripes say which way time ran
+    room = make_small_room(ids=(2, 6, 9, 5, 12))
+    camera = make_small_camera()  # no readout in the camera file
+    pose = Pose.from_euler([0.05, 0.0, -0.04], [LOOK_UP[0] + 1.0, -1.5, 20.0])
+    photo = render(camera, room, pose, small_settings(readout=readout, seed=7))
+    res = locate(photo.image, camera, room)
+    assert res, res.error
+    assert res.readout == readout
+    assert sorted(f.id for f in res.fixtures) == [2, 5, 6, 9, 12]
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
+
+
+def test_unknown_direction_with_only_reversal_pairs_is_never_a_swapped_position():
+    # every ID's backwards frame is another ID of the map: the stripes cannot tell the
+    # direction, only the pose can (here the layout is not symmetric under the swap)
+    room = make_small_room(ids=(0, 14, 2, 6, 12))
+    camera = make_small_camera()
+    for seed, readout in ((11, "rows"), (12, "rows-reversed")):
+        pose = Pose.from_euler([0.02, 0.0, 0.03], [LOOK_UP[0] - 1.0, 1.0, -30.0])
+        photo = render(camera, room, pose, small_settings(readout=readout, seed=seed))
+        res = locate(photo.image, camera, room)
+        if res:
+            assert res.readout == readout
+            assert np.linalg.norm(res.position - pose.position) < 3e-3
+            truth = {t.id: t.pixel for t in photo.fixtures}
+            for f in res.fixtures:
+                if f.used:
+                    assert np.hypot(*(truth[f.id] - f.pixel)) < 3
+        else:
+            assert "ambiguous" in res.error
+
+
+def test_swapped_pairs_in_the_map_are_read_the_way_that_fits_the_map():
+    # the same photo with a map whose pair IDs are swapped: read forwards the IDs put the
+    # camera behind the lights, read backwards they give the true pose; either way no pose
+    # comes from swapped fixtures
+    xz = ((0.6, 0.6), (-0.6, 0.6), (0.6, -0.6), (-0.6, -0.6))
+    room = make_small_room(ids=(0, 14, 2, 6), xz=xz)
+    swapped = make_small_room(ids=(14, 0, 6, 2), xz=xz)
+    camera = make_small_camera()
+    pose = Pose.from_euler([0.0, 0.0, 0.0], LOOK_UP)
+    photo = render(camera, room, pose, small_settings(readout="rows", seed=5))
+    for fmap, backwards in ((room, False), (swapped, True)):
+        res = locate(photo.image, camera, fmap)
+        if res:
+            assert res.readout.reversed == backwards
+            assert np.linalg.norm(res.position - pose.position) < 3e-3
+        else:
+            assert res.error

@@ -382,3 +382,46 @@ def test_fixture_without_diameter_cannot_be_rendered():
     fmap = FixtureMap((Fixture(5, np.array([0, -1.0, 0])),))
     with pytest.raises(ValueError, match="fixture 5 has no diameter"):
         render(small_camera(), fmap, Pose.from_euler([0, 0, 0], LOOK_UP))
+
+
+# -------------------------------------------------------------- off level, core, halo, soft
+
+
+def _up() -> Pose:
+    return Pose.from_euler([0.0, 0.0, 0.0], [90.0, 0.0, 0.0])
+
+
+def test_off_level_lifts_the_dark_stripes():
+    camera, fmap = small_camera(), one_fixture()
+    common = dict(exposure_s=2e-6, brightness=0.8, ambient=0.0)
+    _, dark = disc_column(render(camera, fmap, _up(), quiet(**common)), camera)
+    _, lifted = disc_column(render(camera, fmap, _up(), quiet(off_level=0.1, **common)), camera)
+    # off stripes: 0 -> 10 % of on; on stripes unchanged
+    assert dark.min() < 2 and lifted.min() == pytest.approx(0.1 * 0.8 * 255, abs=3)
+    assert lifted.max() == pytest.approx(dark.max(), abs=2)
+    with pytest.raises(ValueError, match="off_level"):
+        RenderSettings(off_level=1.5)
+
+
+def test_hot_core_halo_and_soft_stripes():
+    camera, fmap = small_camera(), one_fixture()
+    # a steady light (exposure of a whole frame) to see the shading alone
+    steady = dict(exposure_s=18 / CHIP_RATE, brightness=0.3, ambient=0.0)
+    flat = gray(render(camera, fmap, _up(), quiet(**steady)).image)
+    hot = gray(render(camera, fmap, _up(), quiet(core=2.0, halo=0.3, **steady)).image)
+    t = render(camera, fmap, _up(), quiet(**steady)).fixtures[0]
+    u, v = np.round(t.pixel).astype(int)
+    r = int(t.rows_spanned / 2)
+    assert hot[v, u] == pytest.approx(3.0 * flat[v, u], rel=0.05)  # centre: 1 + core
+    assert hot[v, u + int(0.9 * r)] < 1.5 * flat[v, u + int(0.9 * r)]  # near the rim: ~1
+    outside = (v, u + int(1.2 * r))
+    assert flat[outside] < 1 and hot[outside] > 0.1 * flat[v, u]  # the glow beyond the rim
+    # soft stripes: ramps between on and off instead of steps
+    sharp = dict(exposure_s=2e-6, brightness=0.8, ambient=0.0)
+    _, a = disc_column(render(camera, fmap, _up(), quiet(**sharp)), camera)
+    _, b = disc_column(render(camera, fmap, _up(), quiet(soft=0.8, **sharp)), camera)
+
+    def between(x: np.ndarray) -> float:
+        return float(np.mean((x > 0.1 * x.max()) & (x < 0.9 * x.max())))
+
+    assert between(a) < 0.1 and between(b) > 0.3

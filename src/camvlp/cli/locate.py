@@ -8,7 +8,14 @@ from typing import Annotated
 import cv2
 import typer
 
-from camvlp.io import InputError, load_camera, load_image, load_map, load_sidecar
+from camvlp.io import (
+    InputError,
+    exif_readout,
+    load_camera,
+    load_image,
+    load_map,
+    load_sidecar,
+)
 from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
@@ -48,7 +55,8 @@ def locate_command(
         str | None,
         typer.Option(
             help="Sensor readout: rows (top down), columns (left to right), rows-reversed or "
-            "columns-reversed (default: the camera file's, else the axis found, forward)."
+            "columns-reversed (default: the camera file's, else the photo's EXIF orientation, "
+            "else the axis and direction found from the stripes)."
         ),
     ] = None,
     mirrored: Annotated[
@@ -90,6 +98,9 @@ def locate_command(
         g = sidecar.gravity
         if gravity_sigma_deg is None:
             gravity_sigma_deg = sidecar.gravity_sigma_deg
+    if given_readout is None and camera.readout is None:
+        # a phone's orientation tag says how its sensor's rows lie in the upright photo
+        given_readout = exif_readout(photo)
     settings = LocateSettings(
         solver=solver,
         readout=given_readout,

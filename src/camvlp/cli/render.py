@@ -66,6 +66,28 @@ def render_command(
     ambient: Annotated[
         str, typer.Option("--ambient", metavar="X", help="Background, fraction of full scale.")
     ] = "0.03",
+    off_level: Annotated[
+        str,
+        typer.Option(
+            "--off-level", metavar="X", help="LED light when off, fraction of on (0 to 1)."
+        ),
+    ] = "0",
+    core: Annotated[
+        str,
+        typer.Option(
+            "--core", metavar="X", help="Hot core: centre 1 + X times as bright as the rim."
+        ),
+    ] = "0",
+    halo: Annotated[
+        str,
+        typer.Option("--halo", metavar="X", help="Glow around each lamp, fraction of its level."),
+    ] = "0",
+    soft: Annotated[
+        str,
+        typer.Option(
+            "--soft", metavar="X", help="Soft stripes: waveform smoothed over X periods (chips)."
+        ),
+    ] = "0",
     blur: Annotated[
         str, typer.Option("--blur", metavar="PX", help="Optical blur sigma, pixels.")
     ] = "0.8",
@@ -121,6 +143,10 @@ def render_command(
             exposure_s=None if exposure is None else _number(exposure, "--exposure"),
             brightness=_number(brightness, "--brightness"),
             ambient=_number(ambient, "--ambient"),
+            off_level=_number(off_level, "--off-level"),
+            core=_number(core, "--core"),
+            halo=_number(halo, "--halo"),
+            soft=_number(soft, "--soft"),
             blur_px=_number(blur, "--blur"),
             **_noise_settings(noise_scale),
             readout=given_readout or camera.readout or Readout.ROWS,
@@ -202,6 +228,10 @@ _OPTIONS = {
     "exposure_s": "--exposure",
     "brightness": "--brightness",
     "ambient": "--ambient",
+    "off_level": "--off-level",
+    "core": "--core",
+    "halo": "--halo",
+    "soft": "--soft",
     "blur_px": "--blur",
     "full_well_e": "--noise",
     "read_noise": "--noise",

@@ -10,7 +10,7 @@ from camvlp.io.files import (
     save_camera,
     save_map,
 )
-from camvlp.io.images import decode_image, load_image
+from camvlp.io.images import decode_image, exif_readout, load_image
 from camvlp.io.sidecar import PhotoSidecar, load_sidecar
 
 __all__ = [
@@ -18,6 +18,7 @@ __all__ = [
     "PhotoSidecar",
     "camera_from_dict",
     "decode_image",
+    "exif_readout",
     "load_camera",
     "load_image",
     "load_map",

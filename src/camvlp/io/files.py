@@ -350,6 +350,9 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
         )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
+    chip_rate = None
+    if frame_spec.get("chip_rate_hz") is not None:
+        chip_rate = _number(frame_spec["chip_rate_hz"], "frame chip_rate_hz", p, positive=True)
     entries = data.get("fixtures")
     if not isinstance(entries, list) or not entries:
         raise InputError("map needs a non-empty list 'fixtures'", p)
@@ -394,7 +397,13 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
             raise InputError("up must be a non-zero 3-vector (the map's up direction)", p)
     try:
         return FixtureMap(
-            tuple(fixtures), units=str(units), mode=mode, frame=frame, source=str(p), up=up
+            tuple(fixtures),
+            units=str(units),
+            mode=mode,
+            frame=frame,
+            source=str(p),
+            up=up,
+            chip_rate_hz=chip_rate,
         )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
@@ -408,6 +417,8 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
         frame.update(
             preamble=fm.frame.preamble, id_bits=fm.frame.id_bits, postamble=fm.frame.postamble
         )
+        if fm.chip_rate_hz is not None:
+            frame["chip_rate_hz"] = float(fm.chip_rate_hz)
     entries = []
     for f in fm.fixtures:
         e: dict[str, Any] = {"id": f.id, "position": [float(v) for v in f.position]}

@@ -22,13 +22,46 @@ import numpy as np
 
 from camvlp.errors import InputError
 from camvlp.io.limits import limit, read_regular_file
+from camvlp.model.readout import Readout
 
-__all__ = ["ImageHeader", "as_image", "decode_image", "image_header", "load_image"]
+__all__ = [
+    "ImageHeader",
+    "as_image",
+    "decode_image",
+    "exif_readout",
+    "image_header",
+    "load_image",
+]
 
 #: Decoder messages that mean the pixels are not the whole picture (libjpeg, libpng, libtiff).
 _DAMAGE = ("corrupt", "premature end", "error", "invalid", "bad ", "truncated", "crc")
 
 _STDERR_LOCK = threading.Lock()
+
+#: EXIF orientation -> readout of the upright photo, for a sensor that reads its own rows
+#: from the top down: the tag says how the stored (sensor) pixels are turned for display.
+_EXIF_READOUTS = {
+    1: Readout.ROWS,
+    3: Readout.ROWS_REVERSED,  # turned half a turn: time runs bottom up
+    6: Readout.COLUMNS_REVERSED,  # a quarter turn clockwise: the first row is the last column
+    8: Readout.COLUMNS,  # a quarter turn counter-clockwise: the first row is the first column
+}
+
+
+def exif_readout(path: str | Path) -> Readout | None:
+    """The readout of a photo loaded upright by :func:`load_image`, from its EXIF orientation.
+
+    Assumes a sensor that reads its native rows from the top down (the usual one); None when
+    the file has no orientation tag, a mirrored one, or cannot be read.
+    """
+    try:
+        from PIL import Image
+
+        with Image.open(path) as im:
+            tag = im.getexif().get(0x0112)
+    except Exception:  # no EXIF is not an error: the direction is found otherwise
+        return None
+    return _EXIF_READOUTS.get(int(tag)) if isinstance(tag, int) else None
 
 
 def load_image(path: str | Path, *, max_pixels: int | None = None) -> np.ndarray:

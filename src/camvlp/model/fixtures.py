@@ -76,6 +76,9 @@ class FixtureMap:
     up : ndarray, shape (3,), or None
         Unit vector pointing up in the map's frame (against gravity); None when not given.
         Used only with a measured gravity direction (``locate(..., gravity=...)``).
+    chip_rate_hz : float or None
+        Manchester chips per second every fixture sends, when known (with the camera's
+        ``row_time_s`` it gives the chip length in sensor rows); None otherwise.
     """
 
     fixtures: tuple[Fixture, ...]
@@ -84,6 +87,7 @@ class FixtureMap:
     frame: FrameFormat = FrameFormat()  # noqa: RUF009 (frozen, so sharing it is safe)
     source: str = ""
     up: np.ndarray | None = None
+    chip_rate_hz: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "fixtures", tuple(self.fixtures))
@@ -96,6 +100,13 @@ class FixtureMap:
             raise ValueError(f"units must be one of {', '.join(UNITS_TO_M)}, got {self.units!r}")
         if self.mode not in ("manchester", "frequency"):
             raise ValueError(f"mode must be 'manchester' or 'frequency', got {self.mode!r}")
+        if self.chip_rate_hz is not None and not (
+            isinstance(self.chip_rate_hz, (int, float))
+            and not isinstance(self.chip_rate_hz, bool)
+            and np.isfinite(self.chip_rate_hz)
+            and self.chip_rate_hz > 0
+        ):
+            raise ValueError(f"chip_rate_hz must be a positive number, got {self.chip_rate_hz!r}")
         ids = [f.id for f in self.fixtures]
         if len(set(ids)) != len(ids):
             dup = sorted({i for i in ids if ids.count(i) > 1})

@@ -7,6 +7,7 @@ identify them in the map, solve the pose, and report every fixture.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -30,6 +31,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profile, row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import assign_frequencies
+from camvlp.pipeline.model_decode import ModelDecode, PhotoDecode, decode_photo
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.stripes import estimate_stripe_period
 
@@ -109,7 +111,10 @@ class FixtureResult:
     used : bool
         Whether the pose uses it.
     margin : float
-        Decoding confidence in [0, 1] (see :class:`camvlp.decode.StripeDecode`).
+        Decoding confidence: for Manchester IDs the decimal log of the likelihood ratio of
+        the ID over the best other ID of the map (see
+        :class:`camvlp.pipeline.model_decode.ModelDecode`; IDs need 4 or more); for
+        frequencies, in [0, 1], how close the measured frequency is to the map's.
     reason : str
         Why it is not used ("" when used).
     hamming : int
@@ -182,6 +187,10 @@ class LocateResult:
         Its reprojection RMS, pixels.
     notes : tuple of str
         Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
+    rows_per_chip : float
+        The photo's chip length, sensor rows, fitted to all fixtures (NaN in frequency mode).
+    exposure_chips : float
+        The photo's exposure window, chips, fitted to all fixtures (NaN in frequency mode).
     stages : LocateStages or None
         Intermediate results, with ``LocateSettings(keep_stages=True)``.
     solver : str
@@ -209,6 +218,8 @@ class LocateResult:
     alternative_position: np.ndarray | None = None
     alternative_rms_px: float = float("nan")
     notes: tuple[str, ...] = field(default_factory=tuple)
+    rows_per_chip: float = float("nan")
+    exposure_chips: float = float("nan")
     stages: LocateStages | None = field(default=None, repr=False, compare=False)
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
@@ -258,6 +269,9 @@ class LocateResult:
             v = getattr(self, key)
             if np.isfinite(v):
                 d[key] = round(float(v), 4)
+        for key in ("rows_per_chip", "exposure_chips"):
+            v = getattr(self, key)
+            d[key] = None if not np.isfinite(v) else round(float(v), 4)
         if self.alternative_position is not None:
             d["alternative"] = {
                 "position": arr(self.alternative_position),
@@ -282,14 +296,14 @@ class LocateStages:
         Each blob's region of interest, gray.
     profiles : tuple of ndarray, each (n,)
         Each blob's row profile, in the order the sensor read it.
-    decodes : tuple of StripeDecode
-        Each blob's decode.
+    decodes : tuple of ModelDecode or StripeDecode
+        Each blob's decode (the model fit's in Manchester mode).
     """
 
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
     profiles: tuple[np.ndarray, ...]
-    decodes: tuple[StripeDecode, ...]
+    decodes: tuple[ModelDecode | StripeDecode, ...]
 
 
 def _check_arguments(camera: object, fixture_map: object, settings: object) -> None:
@@ -428,17 +442,81 @@ def _profiles(
     return gray_rois, extents, profiles
 
 
+def _rows_per_chip_seed(camera: Camera, fixture_map: FixtureMap, profiles) -> float | None:
+    """Chip length in rows to start from: the camera's row time and the map's chip rate when
+    both are known, else the run-length decoder's measurement when two fixtures agree."""
+    if camera.row_time_s and fixture_map.chip_rate_hz:
+        return 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
+    quick = [decode_profile(p, fixture_map.frame) for p in profiles]
+    t = np.array([d.rows_per_chip for d in quick if d and np.isfinite(d.rows_per_chip)])
+    if t.size >= 2:
+        med = float(np.median(t))
+        if np.sum(np.abs(t / med - 1) < 0.03) >= 2:
+            return med
+    return None
+
+
+@dataclass(frozen=True)
+class _Manchester:
+    """The Manchester decode of a photo (internal): per direction when it had to be chosen."""
+
+    photo: PhotoDecode
+    readout: Readout
+    other: PhotoDecode | None = None  # the decode under the other direction, when it was tried
+    note: str = ""
+
+
+def _decode_manchester(
+    profiles, readout: Readout, direction_known: bool, camera: Camera, fixture_map: FixtureMap
+) -> _Manchester:
+    """Model-based decode of every profile with photo-wide parameters (see ``model_decode``).
+
+    When the readout's direction is not known, the profiles are decoded both ways (first with
+    one way's parameters, refitted if that does not decide).  A reversed frame is no frame for
+    half the IDs: a direction is taken when it gives more clear IDs (of the map or not) and
+    fits the map's IDs better; otherwise both are kept for the pose to decide.
+    """
+    ids = fixture_map.ids
+    seed = _rows_per_chip_seed(camera, fixture_map, profiles)
+    fwd = decode_photo(profiles, fixture_map.frame, ids, rows_per_chip=seed)
+    if direction_known:
+        return _Manchester(fwd, readout)
+    backwards = [p[::-1] for p in profiles]
+    flipped = Readout.of(readout.axis, not readout.reversed)
+
+    def better(a: PhotoDecode, b: PhotoDecode) -> bool:
+        # read the wrong way, a fixture whose backwards frame is no frame (half the IDs)
+        # reads as no clear ID: the right way gives more clear IDs (of the map or not) and
+        # fits the map's IDs better
+        def clear(p: PhotoDecode) -> int:
+            return sum(d.id is not None or d.outside_id is not None for d in p.decodes)
+
+        return clear(a) > clear(b) and a.fit_cost < b.fit_cost
+
+    # the parameters do not depend on the direction: first try the other way with them
+    back = decode_photo(backwards, fixture_map.frame, ids, model=fwd.model)
+    if better(fwd, back):
+        return _Manchester(fwd, readout)
+    # refitted, from this way's chip length (it does not depend on the direction either)
+    t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
+    back = decode_photo(backwards, fixture_map.frame, ids, rows_per_chip=t_fwd)
+    if better(fwd, back):
+        return _Manchester(fwd, readout)
+    if better(back, fwd):
+        return _Manchester(back, flipped)
+    # the counts tie (every fixture seen has an ID whose backwards frame is another's): the
+    # pose decides
+    return _Manchester(fwd, readout, other=back)
+
+
 def _decode(
     blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, list[str]]:
-    """Stage 3: each blob's decode, measured frequencies (Hz, NaN in Manchester mode), notes."""
-    if fixture_map.mode == "frequency":
-        decodes, frequencies, note = _decode_frequencies(
-            blobs, gray_rois, extents, readout.axis, camera, fixture_map
-        )
-        return decodes, frequencies, [note] if note else []
-    decodes = [decode_profile(p, fixture_map.frame) for p in profiles]
-    return decodes, np.full(len(blobs), np.nan), []
+    """Stage 3 (frequency mode): each blob's decode, measured frequencies (Hz), notes."""
+    decodes, frequencies, note = _decode_frequencies(
+        blobs, gray_rois, extents, readout.axis, camera, fixture_map
+    )
+    return decodes, frequencies, [note] if note else []
 
 
 def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
@@ -447,6 +525,11 @@ def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
     ids: list[int | None] = []
     for b, dec in zip(blobs, decodes, strict=True):
         fid, reason = dec.id, dec.reason
+        outside = getattr(dec, "outside_id", None)
+        if fid is None and outside is not None:  # a light that sends an ID the map lacks
+            ids.append(outside)
+            reasons.append(f"ID {outside} is not in the map")
+            continue
         if fid is not None and fixture_map.get(fid) is None:
             reason, fid = f"ID {dec.id} is not in the map", None
         elif fid is not None and b.touches_border:
@@ -567,6 +650,33 @@ def _fixture_results(
     return tuple(results)
 
 
+def _same_answer(a: _Identified, b: _Identified) -> bool:
+    return [a.ids[k] for k in a.usable] == [b.ids[k] for k in b.usable] and a.usable == b.usable
+
+
+def _pick_direction(est1, est2, found1: _Identified, found2: _Identified) -> int:
+    """Which direction's pose to keep (1 or 2); 0 when both fit and cannot be told apart,
+    -1 when neither gives a pose."""
+    ok1, ok2 = bool(est1), bool(est2)
+    if _same_answer(found1, found2):
+        return 1
+    if ok1 != ok2:
+        return 1 if ok1 else 2
+    if not ok1:
+        return -1  # neither locates
+    n1, n2 = int(np.sum(est1.used)), int(np.sum(est2.used))
+    r1, r2 = est1.reprojection_rms_px, est2.reprojection_rms_px
+    if n1 > n2 and r1 <= r2:
+        return 1
+    if n2 > n1 and r2 <= r1:
+        return 2
+    if r1 * 5 < r2:
+        return 1
+    if r2 * 5 < r1:
+        return 2
+    return 0
+
+
 def locate(
     image: np.ndarray,
     camera: Camera,
@@ -621,16 +731,71 @@ def locate(
         up = map_up(fixture_map.positions, up=fixture_map.up, normals=normals)
         check_gravity_view(g, camera, up, normals)
         down = (g, up)
-    detection, readout = _detect(img, st.readout or camera.readout, st)
+    given = st.readout or camera.readout
+    detection, readout = _detect(img, given, st)
     blobs = detection.blobs
     t1 = time.perf_counter()
     gray_rois, extents, profiles = _profiles(img, blobs, readout)
-    decodes, frequencies, notes = _decode(
-        blobs, gray_rois, extents, profiles, readout, camera, fixture_map
-    )
+    photo: PhotoDecode | None = None
+    if fixture_map.mode == "frequency":
+        decodes, frequencies, notes = _decode(
+            blobs, gray_rois, extents, profiles, readout, camera, fixture_map
+        )
+    else:
+        man = _decode_manchester(profiles, readout, given is not None, camera, fixture_map)
+        photo, decodes, frequencies, notes = man.photo, list(man.photo.decodes), None, []
+        if man.readout != readout:  # read the other way: keep the profiles in sensor order
+            profiles = [p[::-1] for p in profiles]
+        readout = man.readout
     t2 = time.perf_counter()
     found = _identify(blobs, decodes, fixture_map)
     est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px, down)
+    if photo is not None and man.other is not None:
+        # the stripes fit both directions about equally (IDs whose reversed frames are
+        # other IDs'): the direction whose IDs give a pose decides, else the photo is refused
+        decodes2 = list(man.other.decodes)
+        found2 = _identify(blobs, decodes2, fixture_map)
+        est2, reason2 = _solve(camera, fixture_map, blobs, found2, st, outlier_px, down)
+        flipped = Readout.of(readout.axis, not readout.reversed)
+        pick = _pick_direction(est, est2, found, found2)
+        if pick == 2:
+            photo, decodes, found, est, reason, readout = (
+                man.other,
+                decodes2,
+                found2,
+                est2,
+                reason2,
+                flipped,
+            )
+            profiles = [p[::-1] for p in profiles]
+        elif pick in (0, -1):
+            # undecided: no ID that depends on the direction is reported, and no pose
+            def shown(d):
+                return d.id if d.id is not None else getattr(d, "outside_id", None)
+
+            withheld = [
+                dataclasses.replace(
+                    d1,
+                    id=None,
+                    outside_id=None,
+                    reason=f"readout direction undecided: ID {shown(d1)} read one way, "
+                    f"{shown(d2)} the other",
+                )
+                if shown(d1) != shown(d2)
+                else d1
+                for d1, d2 in zip(decodes, decodes2, strict=True)
+            ]
+            decodes = withheld
+            found = _identify(blobs, decodes, fixture_map)
+            est = None
+            reason = (
+                "readout direction ambiguous: read either way, the stripes give IDs of the map "
+                "that fit a pose; give the camera's readout (e.g. rows or rows-reversed)"
+                if pick == 0
+                else f"{reason} (and the readout direction is undecided)"
+            )
+    if frequencies is None:
+        frequencies = np.full(len(blobs), np.nan)
     t3 = time.perf_counter()
 
     width = img.shape[1]
@@ -656,6 +821,8 @@ def locate(
         reason=reason,
         readout=readout,
         mirrored=mirrored,
+        rows_per_chip=float("nan") if photo is None else photo.model.rows_per_chip,
+        exposure_chips=float("nan") if photo is None else photo.model.exposure_chips,
         alternative_position=None
         if est is None or est.alternative is None
         else est.alternative.position,

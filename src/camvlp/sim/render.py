@@ -84,6 +84,18 @@ class RenderSettings:
         (above 1 saturates).
     ambient : float
         Background level, fraction of full scale.
+    off_level : float
+        Light an LED still gives when "off", fraction of its on level (0 to 1; real drivers
+        often leave a few per cent).
+    core : float
+        A hot core: the disc's centre is ``1 + core`` times as bright as its rim (a Gaussian
+        bump of sigma 0.4 radius; 0 for a uniform disc).
+    halo : float
+        A glow around the disc (light scattered near the lamp), blinking with it: its level
+        just outside the rim, as a fraction of the disc's, decaying over half a radius.
+    soft : float
+        Softer stripes: the LED's waveform smoothed over this fraction of its period
+        (frequency mode) or of a chip (Manchester), like a slow driver (0 for sharp edges).
     blur_px : float
         Sigma of the Gaussian optical blur, pixels (0 for none).
     full_well_e : float
@@ -105,6 +117,10 @@ class RenderSettings:
     exposure_s: float | None = None
     brightness: float = 4.0
     ambient: float = 0.03
+    off_level: float = 0.0
+    core: float = 0.0
+    halo: float = 0.0
+    soft: float = 0.0
     blur_px: float = 0.8
     full_well_e: float = 8000.0
     read_noise: float = 0.004
@@ -120,12 +136,25 @@ class RenderSettings:
                 raise ValueError(f"row_time_s must be below 1 s, got {self.row_time_s}")
         if self.exposure_s is not None:
             _positive(self.exposure_s, "exposure_s")
-        for name in ("brightness", "ambient", "blur_px", "full_well_e", "read_noise"):
+        for name in (
+            "brightness",
+            "ambient",
+            "core",
+            "halo",
+            "soft",
+            "blur_px",
+            "full_well_e",
+            "read_noise",
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and value >= 0):
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
             if not math.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value!r}")
+        if isinstance(self.off_level, bool) or not (
+            isinstance(self.off_level, (int, float)) and 0 <= self.off_level <= 1
+        ):
+            raise ValueError(f"off_level must be a number from 0 to 1, got {self.off_level!r}")
         object.__setattr__(self, "readout", Readout.parse(self.readout))
         if (
             isinstance(self.seed, bool)
@@ -515,8 +544,9 @@ def _box(rim_px: np.ndarray, width: int, height: int, margin: int):
 
 def _coverage(
     camera: Camera, pose: Pose, centre: np.ndarray, normal: np.ndarray, radius: float, box
-) -> np.ndarray:
-    """Anti-aliased disc coverage over a pixel box, float32 shape (v1 - v0, u1 - u0)."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Anti-aliased disc coverage over a pixel box, float32 shape (v1 - v0, u1 - u0), and
+    each pixel's distance from the centre on the disc's plane in radii (same shape)."""
     u0, u1, v0, v1 = box
     uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
     xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
@@ -540,7 +570,7 @@ def _coverage(
     scale = np.maximum(scale, 1e-12 * radius)
     cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
     cov[~valid.reshape(uu.shape)] = 0.0
-    return cov.astype(np.float32)
+    return cov.astype(np.float32), (rho / radius).astype(np.float32)
 
 
 def _colours(settings: RenderSettings, n: int) -> np.ndarray:
@@ -604,10 +634,18 @@ def render(
     ):
         if not truth.in_front or n @ (pose.position - f.position) <= 0:
             continue  # behind the camera, or seen from the fixture's back
-        box = _box(rim_px, w, h, margin)
+        extra = 0
+        if s.halo > 0 and np.all(np.isfinite(rim_px)):  # room for the glow
+            extra = math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
+        box = _box(rim_px, w, h, margin + extra)
         if box is None:
             continue
-        cov = _coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
+        cov, rho = _coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
+        if s.core > 0:  # brighter towards the centre
+            cov = cov * (1.0 + np.float32(s.core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
+        if s.halo > 0:  # a glow outside the rim
+            glow = np.float32(s.halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
+            cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
         if s.blur_px > 0:
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         u0, u1, v0, v1 = box
@@ -616,7 +654,12 @@ def render(
         k = np.arange(v0, v1) if by_rows else np.arange(u0, u1)
         if s.readout.reversed:  # sensor row 0 is the last image row (column)
             k = (h if by_rows else w) - 1 - k
-        on = _on_fraction(chips, chip_s, k * s.row_time_s + truth.phase_s, s.exposure_s)
+        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
+        on = _on_fraction(  # a soft waveform: integrated over a longer, centred window
+            chips, chip_s, k * s.row_time_s + truth.phase_s - 0.5 * smooth, s.exposure_s + smooth
+        )
+        if s.off_level > 0:  # an LED that is not fully off
+            on = s.off_level + (1.0 - s.off_level) * on
         on = on.astype(np.float32)
         lit = cov * (on[:, None] if by_rows else on[None, :]) * np.float32(s.brightness)
         patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))

@@ -140,7 +140,10 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         ):
             ax = axes[k, 0]
             ax.plot(prof, ".-", lw=0.8, ms=2, color="0.2")
-            if prof.size >= 8:
+            fitted = getattr(dec, "fitted", None)
+            if fitted is not None:  # the model fit of the best ID
+                ax.plot(fitted, lw=1.0, color="tab:orange", label="model of the best ID")
+            elif prof.size >= 8:
                 runs = find_runs(prof, stripe_threshold(prof))
                 ax.axhline(runs.threshold, color="tab:orange", lw=0.8, label="threshold")
                 for e in runs.edges:
@@ -148,7 +151,11 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
             title = f"fixture {k} at ({fr.pixel[0]:.0f}, {fr.pixel[1]:.0f}): "
             title += f"ID {dec.id}" if dec.id is not None else f"no ID ({dec.reason})"
             if np.isfinite(dec.rows_per_chip):
-                title += f", {dec.rows_per_chip:.2f} rows/chip, bleed {dec.bleed_rows:.2f} rows"
+                title += f", {dec.rows_per_chip:.2f} rows/chip"
+            if np.isfinite(dec.bleed_rows):
+                title += f", bleed {dec.bleed_rows:.2f} rows"
+            if fitted is not None:
+                title += f", margin {dec.margin:.1f}"
             ax.set_title(title, fontsize=9, loc="left")
             ax.text(
                 0.0,

@@ -1,0 +1,273 @@
+"""Stress benchmark of stripe decoding: where does ``camvlp.locate`` read the IDs?
+
+A grid over exposure (0.1 to 1 chip) x rows per chip (2 to 12); in every cell, photos with
+random conditions drawn from: LED off level 0 to 10 % of on, brightness 0.5 to 8 times the
+sensor's full scale, blur sigma 0.5 to 2 px, JPEG quality 70 to 95, lens distortion (none or
+barrel/pincushion), 4 to 16 fixtures, landscape or portrait turned either way (readout rows,
+rows-reversed, columns, columns-reversed), 1080p or 20 MP.  The map always holds IDs whose
+reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
+not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
+maps give the chip rate (``chip_rate_hz``), half do not.
+
+Fixtures are discs on a ceiling 2 m above the camera, placed at random without overlap;
+each spans 1.0 to 2.6 frames of the code along the readout.  A fixture counts as eligible
+when its whole disc is in the photo and it spans 1.2 frames or more; it is decoded when
+``locate`` reports its true ID; a wrong ID is any other ID reported for it.
+
+Prints decode rate and wrong IDs per cell and overall, and saves a plot of the decode rate
+over exposure x rows per chip.  Run::
+
+    python benchmarks/stress_decode.py --per-cell 4 --plot docs/stress/decode_map.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvlp import Camera, Fixture, FixtureMap, Pose, RenderSettings, locate, render
+
+EXPOSURES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
+ROWS_PER_CHIP = (2.0, 2.5, 3.0, 4.0, 6.0, 8.0, 12.0)
+PAIRS = (0, 14, 2, 6, 4, 10, 8, 12)
+ODD = (1, 3, 5, 7, 9, 11, 13, 15)
+CEILING_M = 2.0
+FRAME_CHIPS = 18
+
+
+def make_camera(rng: np.random.Generator, big: bool, portrait: bool) -> Camera:
+    """1080p (f 1400 px, 15 us rows) or 20 MP (f 3912 px, 10 us rows), maybe distorted."""
+    w, h, f, row_time = (5184, 3880, 3912.0, 10e-6) if big else (1920, 1080, 1400.0, 15e-6)
+    if portrait:
+        w, h = h, w
+    k1 = float(rng.choice([0.0, rng.uniform(-0.12, 0.12)]))
+    dist = np.array([k1, 0.0, 0.0, 0.0, 0.0]) if k1 else np.zeros(0)
+    matrix = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+    return Camera(w, h, matrix, dist, row_time_s=row_time)
+
+
+def make_scene(rng, camera: Camera, axis: int, rows_per_chip: float, n_wanted: int):
+    """Fixtures placed at random, without overlap, on a ceiling the camera faces.
+
+    ``axis`` is the readout's pixel coordinate (1: rows, 0: columns).  Returns the map's
+    fixtures (IDs still to assign) as (centre xyz, diameter).
+    """
+    f = camera.matrix[0, 0]
+    w, h = camera.width, camera.height
+    placed: list[tuple[float, float, float]] = []
+    for _ in range(400):
+        if len(placed) >= n_wanted:
+            break
+        frames = rng.uniform(1.0, 2.6)
+        d_px = frames * FRAME_CHIPS * rows_per_chip + 2.0  # the disc's extent along the readout
+        r = 0.5 * d_px
+        margin = r + 6
+        if 2 * margin >= min(w, h):
+            continue
+        u, v = rng.uniform(margin, w - margin), rng.uniform(margin, h - margin)
+        if any(np.hypot(u - a, v - b) < r + c + max(40.0, 0.3 * (r + c)) for a, b, c in placed):
+            continue
+        placed.append((u, v, r))
+    out = []
+    for u, v, r in placed:
+        ray = camera.undistort_pixels(np.array([[u, v]]))[0]
+        centre = np.array([ray[0], ray[1], 1.0]) * CEILING_M
+        out.append((centre, 2 * r * CEILING_M / f))
+    return out
+
+
+def one_photo(rng, exposure: float, rows_per_chip: float):
+    big = rng.uniform() < 0.25
+    readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
+    portrait = readout.startswith("columns")
+    camera = make_camera(rng, big, portrait)
+    axis = 1 if readout.startswith("rows") else 0
+    n_wanted = int(rng.integers(4, 17))
+    scene = make_scene(rng, camera, axis, rows_per_chip, n_wanted)
+    n = len(scene)
+    ids = list(PAIRS[: 2 * min(4, max(2, n // 2))]) + list(rng.permutation(ODD))
+    ids = [int(i) for i in rng.permutation(ids[:n])] if n <= len(ids) else ids
+    chip_rate = 1.0 / (rows_per_chip * camera.row_time_s)
+    fixtures = tuple(
+        Fixture(i, c, diameter=d, normal=np.array([0.0, 0.0, -1.0]))
+        for i, (c, d) in zip(ids, scene, strict=False)
+    )
+    given_rate = rng.uniform() < 0.5
+    fmap = FixtureMap(fixtures, chip_rate_hz=chip_rate if given_rate else None)
+    settings = RenderSettings(
+        chip_rate_hz=chip_rate,
+        exposure_s=exposure / chip_rate,
+        brightness=float(np.exp(rng.uniform(np.log(0.5), np.log(8.0)))),
+        off_level=float(rng.uniform(0.0, 0.1)),
+        blur_px=float(rng.uniform(0.5, 2.0)),
+        readout=readout,
+        seed=int(rng.integers(1 << 30)),
+    )
+    photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
+    quality = int(rng.integers(70, 96))
+    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    t = time.perf_counter()
+    res = locate(image, camera, fmap)
+    dt = time.perf_counter() - t
+    cond = dict(
+        big=big,
+        readout=readout,
+        n=n,
+        quality=quality,
+        k1=float(camera.distortion[0]) if camera.distortion.size else 0.0,
+        brightness=round(settings.brightness, 2),
+        off=round(settings.off_level, 3),
+        blur=round(settings.blur_px, 2),
+        chip_rate_given=given_rate,
+    )
+    return photo, res, cond, dt
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--per-cell", type=int, default=4, help="photos per grid cell")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--plot", type=Path, help="save the decode-rate map here (PNG)")
+    ap.add_argument("--json", type=Path, help="write per-fixture results here")
+    args = ap.parse_args()
+    rng = np.random.default_rng(args.seed)
+    cells = {}
+    records = []
+    t0 = time.perf_counter()
+    n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
+    for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
+        eligible = decoded = wrong = located = 0
+        times = []
+        for _ in range(args.per_cell):
+            photo, res, cond, dt = one_photo(rng, exposure, rpc)
+            times.append(dt)
+            located += bool(res)
+            truth = [t for t in photo.fixtures]
+            for fr in res.fixtures:
+                d = [np.hypot(*(t.pixel - fr.pixel)) for t in truth]
+                k = int(np.argmin(d))
+                t = truth[k]
+                if d[k] > 0.25 * t.rows_spanned + 3:
+                    continue  # not one of the discs (should not happen)
+                elig = t.fully_inside and t.frames_spanned >= 1.2
+                ok = fr.id == t.id
+                bad = fr.id is not None and fr.id != t.id
+                eligible += elig
+                decoded += elig and ok
+                wrong += bad
+                if (elig and not ok) or bad:
+                    records.append(
+                        dict(
+                            exposure=exposure,
+                            rows_per_chip=rpc,
+                            id=t.id,
+                            got=fr.id,
+                            frames=round(t.frames_spanned, 2),
+                            margin=round(fr.margin, 2),
+                            reason=fr.reason,
+                            photo_readout=str(res.readout),
+                            fitted_rpc=round(res.rows_per_chip, 3),
+                            fitted_exposure=round(res.exposure_chips, 3),
+                            **cond,
+                        )
+                    )
+        cells[(exposure, rpc)] = dict(
+            eligible=eligible,
+            decoded=decoded,
+            wrong=wrong,
+            located=located,
+            photos=args.per_cell,
+            locate_ms=1e3 * float(np.median(times)),
+        )
+        print(
+            f"\r{ci + 1}/{n_cells} cells  {time.perf_counter() - t0:.0f} s",
+            end="",
+            file=sys.stderr,
+            flush=True,
+        )
+    print(file=sys.stderr)
+    print(
+        "| exposure (chips) | rows per chip | fixtures >= 1.2 frames | decoded | wrong IDs | "
+        "photos located |"
+    )
+    print("|---|---|---|---|---|---|")
+    for (e, r), c in cells.items():
+        rate = 100 * c["decoded"] / max(c["eligible"], 1)
+        print(
+            f"| {e:g} | {r:g} | {c['eligible']} | {c['decoded']} ({rate:.1f} %) | {c['wrong']} | "
+            f"{c['located']} / {c['photos']} |"
+        )
+    tot = {k: sum(c[k] for c in cells.values()) for k in ("eligible", "decoded", "wrong")}
+    photos = sum(c["photos"] for c in cells.values())
+    located = sum(c["located"] for c in cells.values())
+    worst = min(cells.items(), key=lambda kv: kv[1]["decoded"] / max(kv[1]["eligible"], 1))
+    print(
+        f"\noverall: {tot['decoded']} / {tot['eligible']} fixtures spanning >= 1.2 frames decoded "
+        f"({100 * tot['decoded'] / max(tot['eligible'], 1):.2f} %), wrong IDs {tot['wrong']}, "
+        f"photos located {located} / {photos}; worst cell exposure {worst[0][0]:g} chip, "
+        f"{worst[0][1]:g} rows per chip: {worst[1]['decoded']} / {worst[1]['eligible']}; "
+        f"{time.perf_counter() - t0:.0f} s"
+    )
+    for r in records[:40]:
+        print("  ", r)
+    if args.json:
+        args.json.write_text(
+            json.dumps(
+                dict(
+                    cells=[dict(exposure=e, rows_per_chip=r, **c) for (e, r), c in cells.items()],
+                    misses=records,
+                ),
+                indent=1,
+            )
+        )
+    if args.plot:
+        plot(cells, args.plot)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def plot(cells, path: Path) -> None:
+    """Decode rate over exposure x rows per chip, with counts and wrong IDs in each cell."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rate = np.full((len(EXPOSURES), len(ROWS_PER_CHIP)), np.nan)
+    for i, e in enumerate(EXPOSURES):
+        for j, r in enumerate(ROWS_PER_CHIP):
+            c = cells.get((e, r))
+            if c and c["eligible"]:
+                rate[i, j] = 100 * c["decoded"] / c["eligible"]
+    fig, ax = plt.subplots(figsize=(8, 5))
+    im = ax.imshow(rate, origin="lower", cmap="RdYlGn", vmin=80, vmax=100, aspect="auto")
+    for i, e in enumerate(EXPOSURES):
+        for j, r in enumerate(ROWS_PER_CHIP):
+            c = cells.get((e, r))
+            if not c:
+                continue
+            text = f"{c['decoded']}/{c['eligible']}"
+            if c["wrong"]:
+                text += f"\n{c['wrong']} wrong"
+            ax.text(j, i, text, ha="center", va="center", fontsize=8)
+    ax.set_xticks(range(len(ROWS_PER_CHIP)), [f"{r:g}" for r in ROWS_PER_CHIP])
+    ax.set_yticks(range(len(EXPOSURES)), [f"{e:g}" for e in EXPOSURES])
+    ax.set_xlabel("rows per chip")
+    ax.set_ylabel("exposure (chips)")
+    ax.set_title("fixtures spanning >= 1.2 frames decoded (%), rendered photos")
+    fig.colorbar(im, ax=ax, label="decoded (%)")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

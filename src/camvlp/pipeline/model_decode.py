@@ -1,0 +1,961 @@
+"""Model-based stripe decoding: fit the sensor's forward model of every ID to a row profile.
+
+A rolling-shutter sensor row ``r`` integrates the LED over its exposure window.  In units of
+chips, row ``r`` starts at ``u = r / rows_per_chip + phase`` and sees the mean of the frame's
+chips (repeated cyclically) over ``[u, u + exposure]``: a box of ``exposure`` chips.  The sensor
+responds to that on-fraction ``s`` through a saturation knee and an optional gamma,
+``h(s) = (min(s, knee) / knee) ** gamma`` (an LED that is not fully off, and the background,
+only add an offset before the knee, which with ``gamma = 1`` the fitted offset absorbs);
+processing blurs the rows (a Gaussian of ``blur_rows``); the profile is then
+``gain * h + offset``.
+
+Decoding fits this model for every candidate ID and every phase.  The model is periodic (one
+frame), so on a grid of ``S`` samples per chip every phase of every ID is one circular
+cross-correlation of the profile (folded onto the frame's period) with the ID's template:
+three FFT correlations give, for all IDs and phases at once, the sums from which the
+least-squares gain and offset and the residual follow in closed form.  The ID is the best fit
+when its likelihood ratio over the best other ID of the map (``margin``, decimal log, from the
+residuals and the noise estimated from the best fit) is safe; otherwise there is no ID, with
+the reason.  IDs of the format that are not in the map are fitted too: when one of them fits
+clearly better than every ID of the map, the fixture is refused rather than given the nearest
+map ID.
+
+All fixtures of a photo share ``rows_per_chip``, the exposure, the sensor response and the
+blur: :func:`estimate_photo_model` fits them jointly to all profiles (a trimmed cost, so one bad
+fixture does not pull them), seeded by the chip length when the camera's row time and the
+map's chip rate are known, and :func:`decode_photo` decodes every profile with them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from camvlp.model.linecode import FrameFormat
+
+__all__ = [
+    "ModelDecode",
+    "PhotoDecode",
+    "SensorModel",
+    "decode_photo",
+    "decode_profile_model",
+    "estimate_photo_model",
+    "model_profile",
+]
+
+#: Samples per chip of the periodic templates (phase resolution 1/32 chip).
+SAMPLES_PER_CHIP = 32
+
+#: Smallest margin (decimal log of the likelihood ratio of the best ID over the runner-up)
+#: for which an ID is returned.
+MIN_MARGIN = 4.0
+
+#: Smallest fraction of one frame a profile must span to be decoded (below one frame, IDs that
+#: differ only in the chips not seen fit equally, and the margin refuses them).
+MIN_FRAMES = 0.8
+
+#: Largest fraction of a profile's variance the best fit may leave unexplained.
+MAX_UNEXPLAINED = 0.5
+
+_LN10 = math.log(10.0)
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """The photo-wide parameters of the forward model.
+
+    Attributes
+    ----------
+    rows_per_chip : float
+        Chip length in sensor rows (chip duration / row time).
+    exposure_chips : float
+        Exposure window of a row, chips (the box the LED is integrated over).
+    knee : float
+        Saturation knee as a fraction of the LED's full on-level: on-fractions above it read
+        as full scale (1 = no saturation; 0.25 = the LED is 4x the sensor's full scale).
+    gamma : float
+        Exponent of the sensor's tone curve after the knee (1 = linear).
+    blur_rows : float
+        Sigma of the Gaussian blur along the readout axis, rows.
+    """
+
+    rows_per_chip: float
+    exposure_chips: float = 0.5
+    knee: float = 1.0
+    gamma: float = 1.0
+    blur_rows: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("rows_per_chip", "exposure_chips", "knee", "gamma"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        if not (math.isfinite(self.blur_rows) and self.blur_rows >= 0):
+            raise ValueError(f"blur_rows must be a non-negative number, got {self.blur_rows!r}")
+
+
+@dataclass(frozen=True)
+class ModelDecode:
+    """What the model fit says about one fixture's stripes.
+
+    Attributes
+    ----------
+    id : int or None
+        Decoded ID, or None.
+    reason : str
+        Why there is no ID ("" when decoded).
+    margin : float
+        Decimal log of the likelihood ratio of the best ID over the best other ID of the map
+        (0 when none was fitted); an ID is returned only from :data:`MIN_MARGIN` on.
+    runner_up : int or None
+        The best other ID of the map.
+    phase_chips : float
+        Chip of the frame (fractional) at the start of the profile's first row's exposure.
+    gain, offset : float
+        Fitted gain and offset, profile units.
+    residual_rms : float
+        RMS residual of the best fit, profile units.
+    unexplained : float
+        Fraction of the profile's variance the best fit leaves (0 = perfect).
+    rows_per_chip : float
+        Chip length used, rows.
+    frames : float
+        Frames of the code the profile spans.
+    hamming : int
+        Always -1 (no chips are thresholded); kept for the run-length decoder's interface.
+    bleed_rows : float
+        NaN (the model has a saturation knee instead); kept for the same reason.
+    chips : str
+        The best ID's chips from the profile's first row on, one frame ("" when no fit).
+    fitted : ndarray, shape (n,), or None
+        The best fit's model of the profile, profile units (None when no fit).
+    frame_rss : float
+        Weighted residual sum of squares of the best fit of any ID of the format (in the map
+        or not): how well the stripes read as a frame at all (compares readout directions).
+    noise_var : float
+        The noise variance the margin assumes (residual variance times the inflation for
+        correlated residuals), profile units squared.
+    outside_id : int or None
+        An ID of the format that is not in the map and that the stripes fit clearly better
+        than any other ID (the light sends it), else None.
+    """
+
+    id: int | None
+    reason: str
+    margin: float
+    runner_up: int | None
+    phase_chips: float
+    gain: float
+    offset: float
+    residual_rms: float
+    unexplained: float
+    rows_per_chip: float
+    frames: float
+    hamming: int = -1
+    bleed_rows: float = float("nan")
+    chips: str = ""
+    fitted: np.ndarray | None = field(default=None, repr=False, compare=False)
+    frame_rss: float = float("nan")
+    noise_var: float = float("nan")
+    outside_id: int | None = None
+
+    def __bool__(self) -> bool:
+        return self.id is not None
+
+
+@dataclass(frozen=True)
+class PhotoDecode:
+    """Photo-wide parameters and every fixture's decode.
+
+    Attributes
+    ----------
+    model : SensorModel
+        The fitted parameters (shared by every fixture of the photo).
+    decodes : tuple of ModelDecode
+        One per profile, in the order given.
+    cost : float
+        Trimmed mean, over the fixtures, of the log of the unexplained variance fraction of
+        each fixture's best fit (lower is better; compares readout directions).
+    """
+
+    model: SensorModel
+    decodes: tuple[ModelDecode, ...]
+    cost: float
+
+    @property
+    def rows_per_chip(self) -> float:
+        """Chip length, rows."""
+        return self.model.rows_per_chip
+
+    @property
+    def fit_cost(self) -> float:
+        """Mean unexplained variance fraction of every profile's best fit, the worst dropped
+        (inf when none was fitted): compares decodes of the same profiles."""
+        un = np.array([d.unexplained for d in self.decodes if np.isfinite(d.gain)])
+        return float(_trimmed(un)) if un.size else float("inf")
+
+    @property
+    def exposure_chips(self) -> float:
+        """Exposure window, chips."""
+        return self.model.exposure_chips
+
+
+# --------------------------------------------------------------------------------------------
+# The forward model
+
+
+def _on_time(cum: np.ndarray, chips: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Cumulative on-time (chips) of cyclic chip streams up to times ``t`` (chips).
+
+    ``cum`` (I, N + 1) is each stream's cumulative on-time at the chip boundaries, ``chips``
+    (I, N) its chips, ``t`` any shape ``S``; returns shape ``S + (I,)``.
+    """
+    n = chips.shape[1]
+    cycles = np.floor(t / n)
+    tt = t - cycles * n
+    k = np.minimum(tt.astype(np.int64), n - 1)
+    frac = tt - k
+    return cycles[..., None] * cum[:, -1] + cum.T[k] + frac[..., None] * chips.T[k]
+
+
+def _templates_batch(
+    chips: np.ndarray,
+    rows_per_chip: float,
+    exposure: np.ndarray,
+    knee: np.ndarray,
+    gamma: np.ndarray,
+    blur_rows: np.ndarray,
+    samples: int,
+) -> np.ndarray:
+    """One period of each ID's noise-free profile, for several parameter sets at once.
+
+    Parameters
+    ----------
+    chips : ndarray of {0, 1}, shape (I, N)
+    rows_per_chip : float
+    exposure, knee, gamma, blur_rows : ndarray, shape (V,)
+        Parameter sets (see :class:`SensorModel`).
+    samples : int
+        Grid points per chip.
+
+    Returns
+    -------
+    ndarray of float64, shape (V, I, N * samples)
+        ``h(s)`` blurred, where sample ``k`` is the row whose exposure starts at chip
+        ``k / samples``; values in [0, 1].
+    """
+    c = np.asarray(chips, dtype=np.float64)
+    n = c.shape[1]
+    cum = np.concatenate([np.zeros((c.shape[0], 1)), np.cumsum(c, axis=1)], axis=1)
+    u = np.arange(n * samples) / samples
+    e = np.asarray(exposure, dtype=np.float64)[:, None]
+    start = _on_time(cum, c, u)  # (P, I)
+    stop = _on_time(cum, c, u[None, :] + e)  # (V, P, I)
+    s = np.moveaxis((stop - start[None]) / e[:, :, None], 2, 1)  # (V, I, P)
+    kn = np.asarray(knee, dtype=np.float64)[:, None, None]
+    h = np.minimum(s, kn) / kn
+    g = np.asarray(gamma, dtype=np.float64)[:, None, None]
+    if np.any(g != 1.0):
+        h = np.power(np.clip(h, 0.0, 1.0), g)
+    b = np.asarray(blur_rows, dtype=np.float64)
+    if np.any(b > 0):
+        sigma = (b / rows_per_chip * samples)[:, None, None]  # in samples
+        f = np.fft.rfftfreq(h.shape[2])[None, None, :]
+        h = np.fft.irfft(
+            np.fft.rfft(h, axis=2) * np.exp(-2 * (np.pi * sigma * f) ** 2), n=h.shape[2], axis=2
+        )
+    return h
+
+
+def _templates(chips: np.ndarray, model: SensorModel, samples: int) -> np.ndarray:
+    """:func:`_templates_batch` for one parameter set: shape (I, N * samples)."""
+    return _templates_batch(
+        chips,
+        model.rows_per_chip,
+        np.array([model.exposure_chips]),
+        np.array([model.knee]),
+        np.array([model.gamma]),
+        np.array([model.blur_rows]),
+        samples,
+    )[0]
+
+
+def model_profile(
+    chips, model: SensorModel, n_rows: int, phase_chips: float = 0.0, *, samples: int = 64
+) -> np.ndarray:
+    """The forward model: a fixture's row profile with unit gain and zero offset.
+
+    Parameters
+    ----------
+    chips : array_like of {0, 1}, shape (N,)
+        One frame of chips (1 = on), e.g. ``FrameFormat().chips(5)``.
+    model : SensorModel
+        Photo-wide parameters.
+    n_rows : int
+        Rows of the profile.
+    phase_chips : float
+        Chip (fractional) of the frame at which row 0's exposure starts.
+    samples : int
+        Grid points per chip of the periodic template (the model is exact on the grid and
+        linearly interpolated between its points).
+
+    Returns
+    -------
+    ndarray of float64, shape (n_rows,)
+        Values in [0, 1]: 0 for the LED off throughout, 1 for full scale.
+    """
+    c = np.asarray(chips, dtype=np.float64).reshape(1, -1)
+    t = _templates(c, model, samples)[0]
+    period = t.size
+    x = (np.arange(n_rows) / model.rows_per_chip + phase_chips) * samples
+    return np.interp(x % period, np.arange(period + 1), np.append(t, t[0]))
+
+
+# --------------------------------------------------------------------------------------------
+# Fitting
+
+
+@dataclass(frozen=True)
+class _Folded:
+    """A profile folded onto the template grid's period at one chip length (internal).
+
+    Row ``r`` falls at grid position ``x = r * samples / rows_per_chip`` (modulo the period),
+    between grid points ``i = floor(x)`` and ``i + 1`` with fraction ``f``; the template is
+    interpolated linearly there, so each sum of the fit is a correlation of a folded vector
+    with a template, its square, or its product with its next point.
+    """
+
+    qh: np.ndarray  # (F,) conj. spectrum of sum w p ((1 - f) at i, f at i + 1)
+    wh: np.ndarray  # (F,) the same for the weights
+    ah: np.ndarray  # (F,) weights (1 - f)^2 at i and f^2 at i + 1 (for m^2)
+    bh: np.ndarray  # (F,) weights 2 f (1 - f) at i (for m[i] m[i + 1])
+    s0: float  # sum of weights
+    spp: float  # weighted sum of squares of the centred profile (total sum of squares)
+    centre: float  # weighted mean removed from the profile
+    x: np.ndarray  # (n,) grid position of each row at phase 0
+    period: int  # grid points per frame
+
+
+def _fold(p: np.ndarray, w: np.ndarray, rows_per_chip: float, samples: int, n_chips: int):
+    """Fold a profile onto one frame's grid (see :class:`_Folded`)."""
+    period = n_chips * samples
+    centre = float((w * p).sum() / max(w.sum(), 1e-300))
+    pc = p - centre
+    x = (np.arange(p.size) * (samples / rows_per_chip)) % period
+    i0 = np.floor(x).astype(np.int64)
+    f = x - i0
+    i0 %= period
+    i1 = (i0 + 1) % period
+    both = np.concatenate([i0, i1])
+
+    def spec(v0: np.ndarray, v1: np.ndarray | None = None) -> np.ndarray:
+        v = (
+            np.bincount(i0, weights=v0, minlength=period)
+            if v1 is None
+            else np.bincount(both, weights=np.concatenate([v0, v1]), minlength=period)
+        )
+        return np.conj(np.fft.rfft(v))
+
+    wp = w * pc
+    return _Folded(
+        spec(wp * (1 - f), wp * f),
+        spec(w * (1 - f), w * f),
+        spec(w * (1 - f) ** 2, w * f * f),
+        spec(2 * w * f * (1 - f)),
+        float(w.sum()),
+        float((w * pc * pc).sum()),
+        centre,
+        x,
+        period,
+    )
+
+
+def _fit_folded(fo: _Folded, mh: np.ndarray, m2h: np.ndarray, mmh: np.ndarray):
+    """Least-squares ``gain * template(phase) + offset`` for every template and phase.
+
+    ``mh``, ``m2h`` and ``mmh`` (..., F) are the spectra of the templates, of their squares
+    and of their products with their next grid point; the correlations with the folded
+    profile give, for every phase ``j`` (grid point of the frame at row 0), ``sum w p m``,
+    ``sum w m`` and ``sum w m^2``, hence the fit in closed form.  Returns ``rss, gain,
+    offset``, each of shape (..., P); a candidate whose best gain is not positive (stripes
+    the wrong way round) gets the residual of a constant.
+    """
+    a = np.fft.irfft(fo.qh * mh, n=fo.period)  # sum w p m
+    b = np.fft.irfft(fo.wh * mh, n=fo.period)  # sum w m
+    c = np.fft.irfft(fo.ah * m2h + fo.bh * mmh, n=fo.period)  # sum w m^2
+    s0 = fo.s0
+    det = c * s0 - b * b
+    ok = det > 1e-9 * s0 * s0
+    safe = np.where(ok, det, 1.0)
+    gain = np.where(ok, a * s0 / safe, 0.0)  # sum w p = 0 after centring
+    offset = np.where(ok, -b * a / safe, 0.0) + fo.centre
+    rss = np.where(ok & (gain > 0), fo.spp - gain * a, fo.spp)
+    return np.maximum(rss, 0.0), gain, offset
+
+
+def _template_spectra(t: np.ndarray):
+    """Spectra of templates (..., P), of their squares and of their products with the next."""
+    return (
+        np.fft.rfft(t, axis=-1),
+        np.fft.rfft(t * t, axis=-1),
+        np.fft.rfft(t * np.roll(t, -1, axis=-1), axis=-1),
+    )
+
+
+def _direct_fit(
+    p: np.ndarray, w: np.ndarray, template: np.ndarray, x: np.ndarray, phases: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted least-squares fits of one template at given (fractional) phases.
+
+    ``template`` (P,) is sampled at ``(x + phase) mod P`` with linear interpolation (``x``
+    (n,) the rows' grid positions); returns ``rss, gain, offset``, each of shape (K,) for
+    ``phases`` (K,); a fit with a gain that is not positive gets the residual of a constant.
+    """
+    period = template.size
+    xs = (x[None, :] + np.asarray(phases, dtype=np.float64)[:, None]) % period
+    i0 = np.floor(xs).astype(np.int64)
+    f = xs - i0
+    i0 %= period
+    m = template[i0] * (1 - f) + template[(i0 + 1) % period] * f  # (K, n)
+    s0 = w.sum()
+    mw = (m * w).sum(axis=1) / s0
+    pw = (p * w).sum() / s0
+    mc = m - mw[:, None]
+    pc = p - pw
+    smm = (w * mc * mc).sum(axis=1)
+    spm = (w * mc * pc).sum(axis=1)
+    spp = (w * pc * pc).sum()
+    gain = np.where(smm > 0, spm / np.where(smm > 0, smm, 1.0), 0.0)
+    rss = np.where(gain > 0, spp - gain * spm, spp)
+    return np.maximum(rss, 0.0), gain, pw - gain * mw
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """Least-squares fits of every candidate at every phase (internal)."""
+
+    rss: np.ndarray  # (I, P) weighted residual sum of squares
+    gain: np.ndarray  # (I, P)
+    offset: np.ndarray  # (I, P)
+    tss: float  # weighted total sum of squares around the mean
+    n: int  # rows
+    x: np.ndarray  # (n,) grid position of each row at phase 0
+
+
+def _fit_all(
+    p: np.ndarray,
+    w: np.ndarray,
+    spectra: tuple[np.ndarray, np.ndarray, np.ndarray],
+    rows_per_chip: float,
+    samples: int,
+    n_chips: int,
+) -> _Fit:
+    """Fit every template at every phase to one profile (FFT correlation)."""
+    fo = _fold(p, w, rows_per_chip, samples, n_chips)
+    rss, gain, offset = _fit_folded(fo, *spectra)
+    return _Fit(rss, gain, offset, fo.spp, p.size, fo.x)
+
+
+def _spectra(chips: np.ndarray, model: SensorModel, samples: int):
+    """Templates on the fine grid and the spectra of every other point (the search grid)."""
+    t = _templates(chips, model, samples)
+    return (*_template_spectra(t[:, ::2]), t)
+
+
+def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
+    p = np.asarray(profile, dtype=np.float64).reshape(-1)
+    if weights is None:
+        w = np.ones(p.size)
+    else:
+        w = np.asarray(weights, dtype=np.float64).reshape(-1)
+        if w.shape != p.shape:
+            raise ValueError("weights must have the profile's shape")
+        w = np.where(np.isfinite(w) & (w > 0), w, 0.0)
+        w = w / max(w.mean(), 1e-300)
+    good = np.isfinite(p)
+    return np.where(good, p, 0.0), np.where(good, w, 0.0)
+
+
+def _decide(
+    fit: _Fit,
+    template: np.ndarray,
+    cand_ids: np.ndarray,
+    in_map: np.ndarray,
+    p: np.ndarray,
+    w: np.ndarray,
+    model: SensorModel,
+    n_chips: int,
+    samples: int,
+    min_margin: float,
+    codebook: np.ndarray,
+) -> ModelDecode:
+    """Pick the ID from the fits of every candidate (internal)."""
+    nan = float("nan")
+    frames = fit.n / (n_chips * model.rows_per_chip)
+    per_id = fit.rss.min(axis=1)
+    best_phase = 2.0 * fit.rss.argmin(axis=1)  # the search grid is every other fine point
+    period = template.shape[1]
+    # refine the leading candidates' phases between grid points by direct fits (so that
+    # neither the best nor its rivals are judged at a grid point's misalignment)
+    map_rows = np.flatnonzero(in_map)
+    lead = list(map_rows[np.argsort(per_id[map_rows], kind="stable")][:4])
+    others = np.flatnonzero(~in_map)
+    if others.size:
+        lead.append(int(others[np.argmin(per_id[others])]))
+    steps = np.linspace(-2.0, 2.0, 17)
+    for k in lead:
+        rss_k, _, _ = _direct_fit(p, w, template[k], fit.x, best_phase[k] + steps)
+        i = int(np.argmin(rss_k))
+        per_id[k], best_phase[k] = rss_k[i], best_phase[k] + steps[i]
+    order = map_rows[np.argsort(per_id[map_rows], kind="stable")]
+    k1 = int(order[0])
+    j1 = float(best_phase[k1])
+    xs = (fit.x + j1) % period
+    model_rows = np.interp(xs, np.arange(period + 1), np.append(template[k1], template[k1][0]))
+    _, g1, o1 = _direct_fit(p, w, template[k1], fit.x, np.array([j1]))
+    gain1, offset1 = float(g1[0]), float(o1[0])
+    resid = p - (gain1 * model_rows + offset1)
+    wn = w > 0
+    rss1 = float(np.sum(w * resid * resid))  # the best fit's own residual, not the parabola's
+    dof = max(int(wn.sum()) - 4, 1)
+    sigma2 = max(rss1 / dof, 1e-12 * max(fit.tss / max(fit.n, 1), 1e-300))
+    r = resid[wn]
+    rho = 0.0
+    if r.size > 3:
+        rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))
+    inflation = (1 + rho) / (1 - rho)  # variance inflation of correlated residuals (AR(1))
+
+    def lr(rss_other: float) -> float:
+        return (rss_other - rss1) / (2 * sigma2 * inflation) / _LN10
+
+    runner = int(order[1]) if order.size > 1 else None
+    margin = lr(float(per_id[runner])) if runner is not None else float("inf")
+    unexplained = rss1 / fit.tss if fit.tss > 0 else 1.0
+    phase = (j1 / samples) % n_chips
+    chips_str = "".join(
+        str(int(x)) for x in np.roll(codebook[cand_ids[k1]], -round(phase) % n_chips)
+    )
+    frame_rss = float(min(per_id.min(), rss1))
+    common = dict(
+        frame_rss=frame_rss,
+        noise_var=float(sigma2 * inflation),
+        runner_up=int(cand_ids[runner]) if runner is not None else None,
+        phase_chips=float(phase),
+        gain=float(gain1),
+        offset=float(offset1),
+        residual_rms=math.sqrt(rss1 / max(float(w.sum()), 1e-300)),
+        unexplained=float(unexplained),
+        rows_per_chip=model.rows_per_chip,
+        frames=float(frames),
+        chips=chips_str,
+        fitted=gain1 * model_rows + offset1,
+    )
+    margin = float(min(margin, 99.0))
+    best_id = int(cand_ids[k1])
+    others = np.flatnonzero(~in_map)
+    if others.size:
+        ko = int(others[np.argmin(per_id[others])])
+        if lr(float(per_id[ko])) < -min_margin:
+            # the ID it does send, when that one is clear of every other ID too
+            rest = np.delete(per_id, ko)
+            var_o = max(float(per_id[ko]) / dof, 1e-12 * sigma2) * inflation  # its own fit's
+            clear = (float(rest.min()) - float(per_id[ko])) / (2 * var_o) / _LN10
+            return ModelDecode(
+                None,
+                f"fits ID {int(cand_ids[ko])}, which is not in the map, better than any of the "
+                f"map's (nearest in the map: {best_id})",
+                margin,
+                outside_id=int(cand_ids[ko]) if clear >= min_margin else None,
+                **common,
+            )
+    if unexplained > MAX_UNEXPLAINED:
+        return ModelDecode(
+            None,
+            f"the stripes fit no ID's model ({100 * unexplained:.0f} % of their variance "
+            "unexplained)",
+            margin,
+            **common,
+        )
+    if margin < min_margin:
+        return ModelDecode(
+            None,
+            f"IDs {best_id} and {common['runner_up']} fit almost equally (margin {margin:.1f}, "
+            f"at least {min_margin:g} needed)",
+            margin,
+            **common,
+        )
+    del nan
+    return ModelDecode(best_id, "", margin, **common)
+
+
+def _candidates(frame: FrameFormat, ids, max_extra: int = 1024):
+    """Candidate IDs (the map's first, then the format's others) and which are in the map."""
+    map_ids = np.unique(np.asarray(list(ids), dtype=np.int64))
+    if map_ids.size == 0:
+        raise ValueError("no IDs to decode against")
+    for i in map_ids:
+        frame.check_id(int(i))
+    extra = np.setdiff1d(np.arange(frame.n_ids), map_ids)
+    if frame.n_ids > max_extra:
+        extra = extra[:0]
+    cand = np.concatenate([map_ids, extra])
+    return cand, np.arange(cand.size) < map_ids.size
+
+
+def decode_profile_model(
+    profile,
+    frame: FrameFormat,
+    ids,
+    model: SensorModel,
+    *,
+    weights=None,
+    min_margin: float = MIN_MARGIN,
+    samples: int = SAMPLES_PER_CHIP,
+) -> ModelDecode:
+    """Decode one fixture's row profile by fitting the forward model of every ID.
+
+    Parameters
+    ----------
+    profile : array_like, shape (n,)
+        Mean intensity per sensor row across the fixture, in readout order (any units).
+    frame : FrameFormat
+        The map's frame format.
+    ids : iterable of int
+        The IDs of the map (the only IDs returned).
+    model : SensorModel
+        The photo's parameters (see :func:`estimate_photo_model`).
+    weights : array_like, shape (n,), optional
+        Relative weight of each row (e.g. the pixels it averages); equal by default.
+    min_margin : float
+        Smallest decimal log likelihood ratio over the runner-up for an ID.
+    samples : int
+        Template grid points per chip (phase resolution ``1 / samples`` chip).
+
+    Returns
+    -------
+    ModelDecode
+        Falsy, with a reason, when the stripes do not give one ID safely.
+    """
+    p, w = _prepare(profile, weights)
+    cand, in_map = _candidates(frame, ids)
+    chips = frame.codebook[cand]
+    return _decode_with(
+        p,
+        w,
+        frame,
+        cand,
+        in_map,
+        chips,
+        _spectra(chips, model, samples),
+        model,
+        min_margin,
+        samples,
+    )
+
+
+def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) -> ModelDecode:
+    nan = float("nan")
+    frames = p.size / (n_chips * model.rows_per_chip)
+    return ModelDecode(
+        None, reason, 0.0, None, nan, nan, nan, nan, 1.0, model.rows_per_chip, frames
+    )
+
+
+def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples):
+    n = frame.n_chips
+    frames = p.size / (n * model.rows_per_chip)
+    if p.size < 8:
+        return _fail_small(p, model, n, f"too small to decode ({p.size} rows)")
+    if frames < MIN_FRAMES:
+        return _fail_small(
+            p, model, n, f"spans {frames:.2f} frames of the code, at least {MIN_FRAMES:g} needed"
+        )
+    *spectra, t = spec
+    # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
+    # refined on the full one (see _decide)
+    fit = _fit_all(p, w, tuple(spectra), model.rows_per_chip, samples // 2, n)
+    if fit.tss <= 0:
+        return _fail_small(p, model, n, "no stripes (a steady light)")
+    fit = replace(fit, x=2 * fit.x)
+    return _decide(fit, t, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook)
+
+
+# --------------------------------------------------------------------------------------------
+# Photo-wide parameters
+
+_EXPOSURES = (0.08, 0.15, 0.25, 0.35, 0.5, 0.65, 0.8, 0.9, 1.0, 1.15, 1.35, 1.6)
+_KNEES = (1.0, 0.7, 0.5, 0.35, 0.25, 0.17, 0.12, 0.085, 0.06)
+_BLURS = (0.0, 0.4, 0.8, 1.3, 2.0)
+_GAMMAS = (1.0, 0.7, 0.45)
+
+
+def _trimmed(costs: np.ndarray) -> np.ndarray:
+    """Photo cost from per-fixture unexplained fractions (..., F): mean log, worst dropped."""
+    c = np.sort(costs, axis=-1)
+    if c.shape[-1] >= 3:
+        c = c[..., :-1]  # one bad fixture does not pull the photo's parameters
+    return c.mean(axis=-1)
+
+
+class _PhotoFitter:
+    """Evaluates the photo cost of many parameter sets at once (internal).
+
+    Each profile is fitted with its own candidate IDs (``own``: indices into ``chips``).
+    """
+
+    def __init__(self, data, chips: np.ndarray, samples: int, n_chips: int, own=None) -> None:
+        self.data = data  # list of (p, w)
+        self.chips = chips
+        self.samples = samples
+        self.n_chips = n_chips
+        self.own = own if own is not None else [slice(None)] * len(data)
+        self._folds: dict[float, list[_Folded]] = {}
+
+    def folds(self, rows_per_chip: float) -> list[_Folded]:
+        key = float(rows_per_chip)
+        if key not in self._folds:
+            self._folds[key] = [_fold(p, w, key, self.samples, self.n_chips) for p, w in self.data]
+        return self._folds[key]
+
+    def costs(self, rows_per_chip: float, exposure, knee, gamma, blur) -> np.ndarray:
+        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,)."""
+        t = _templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
+        spectra = _template_spectra(t)  # each (V, I, F)
+        un = np.empty((t.shape[0], len(self.data)))
+        for k, fo in enumerate(self.folds(rows_per_chip)):
+            sel = self.own[k]
+            rss = _fit_folded(fo, *(h[:, sel] for h in spectra))[0]
+            un[:, k] = rss.reshape(rss.shape[0], -1).min(axis=1) / max(fo.spp, 1e-300)
+        return _trimmed(un)
+
+    def sweep(self, model: SensorModel, name: str, values) -> tuple[SensorModel, float]:
+        """Best of ``model`` with ``name`` set to each of ``values`` (and its cost)."""
+        vals = np.asarray(values, dtype=np.float64)
+        fields = {
+            k: np.full(vals.size, getattr(model, k))
+            for k in ("exposure_chips", "knee", "gamma", "blur_rows")
+        }
+        if name == "rows_per_chip":
+            one = [f[:1] for f in fields.values()]
+            costs = np.array([self.costs(float(v), *one)[0] for v in vals])
+        else:
+            fields[name] = vals
+            costs = self.costs(model.rows_per_chip, *fields.values())
+        k = int(np.argmin(costs))
+        best, cost = float(vals[k]), float(costs[k])
+        if name == "rows_per_chip" and 0 < k < vals.size - 1:  # between grid points
+            c0, c1, c2 = costs[k - 1 : k + 2]
+            den = c0 - 2 * c1 + c2
+            if den > 0:
+                off = float(np.clip(0.5 * (c0 - c2) / den, -0.5, 0.5))
+                best += off * 0.5 * (vals[k + 1] - vals[k - 1])
+                c = float(self.costs(best, *(f[:1] for f in fields.values()))[0])
+                if c < cost:
+                    cost = c
+                else:
+                    best = float(vals[k])
+        return replace(model, **{name: best}), cost
+
+
+def estimate_photo_model(
+    profiles,
+    frame: FrameFormat,
+    ids,
+    *,
+    weights=None,
+    rows_per_chip: float | None = None,
+    rows_per_chip_range: tuple[float, float] = (1.5, 48.0),
+    gamma: float | None = 1.0,
+    max_fixtures: int = 5,
+    samples: int = SAMPLES_PER_CHIP,
+) -> tuple[SensorModel, float]:
+    """Fit the photo-wide parameters of the forward model to all fixtures' profiles.
+
+    Parameters
+    ----------
+    profiles : sequence of array_like, each shape (n_k,)
+        Row profiles of the photo's fixtures, in readout order.
+    frame : FrameFormat
+    ids : iterable of int
+        The map's IDs.
+    weights : sequence of array_like, optional
+        Row weights per profile.
+    rows_per_chip : float, optional
+        The chip length when known (row time and chip rate): refined within 2 %; searched
+        over ``rows_per_chip_range`` otherwise.
+    gamma : float or None
+        The sensor's gamma when known (1 for linear raw data); None fits it.
+    max_fixtures : int
+        Profiles used for the fit (the longest ones; the cost drops the worst of them).
+    samples : int
+        Template grid points per chip while fitting.
+
+    Returns
+    -------
+    model : SensorModel
+    cost : float
+        Trimmed mean log unexplained variance of the fit (lower is better).
+
+    Raises
+    ------
+    ValueError
+        No profile long enough to fit.
+    """
+    ps = [np.asarray(p, dtype=np.float64) for p in profiles]
+    ws = [None] * len(ps) if weights is None else list(weights)
+    order = np.argsort([-p.size for p in ps], kind="stable")
+    use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
+    if not use:
+        raise ValueError("no profile long enough to fit the sensor model")
+    data = [_prepare(ps[k], ws[k]) for k in use]
+    cand, _ = _candidates(frame, ids)
+    chips = frame.codebook[cand]
+    n = frame.n_chips
+    start = SensorModel(1.0, 0.5, 0.4, 1.0 if gamma is None else float(gamma), 0.5)
+
+    # 1. the chip length: seeded, or searched with a middling exposure and knee
+    if rows_per_chip is None:
+        lo, hi = rows_per_chip_range
+        hi = min(hi, max(p.size for p, _ in data) / (MIN_FRAMES * n))
+        if hi <= lo:
+            raise ValueError("profiles too short to measure the chip length")
+        coarse = _PhotoFitter(data, chips, 8, n)
+        grid = np.exp(np.arange(np.log(lo), np.log(hi), 0.02))
+        one = [np.array([getattr(start, k)]) for k in ("exposure_chips", "knee", "gamma")]
+        one.append(np.array([start.blur_rows]))
+        costs = np.array([coarse.costs(float(t), *one)[0] for t in grid])
+        # refine around the best few local minima
+        minima = np.flatnonzero((costs <= np.roll(costs, 1)) & (costs <= np.roll(costs, -1)))
+        seeds = grid[minima[np.argsort(costs[minima])[:4]]] if minima.size else grid[:1]
+        fine = np.unique(np.concatenate([s * np.exp(np.arange(-4, 5) * 0.005) for s in seeds]))
+        fine = fine[(fine >= lo) & (fine <= hi)]
+        t0 = coarse.sweep(start, "rows_per_chip", fine)[0].rows_per_chip
+    else:
+        t0 = float(rows_per_chip)
+    model = replace(start, rows_per_chip=t0)
+
+    # 2. exposure and knee on a joint grid (they trade off), coarsely, with each profile's
+    #    two best IDs
+    def own_fitter(s: int, m: SensorModel, keep: int) -> _PhotoFitter:
+        f = _PhotoFitter(data, chips, s, n)
+        spec = _template_spectra(_templates(chips, m, s))
+        tops = [
+            np.argsort(_fit_folded(fo, *spec)[0].min(axis=1))[:keep]
+            for fo in f.folds(m.rows_per_chip)
+        ]
+        union = np.unique(np.concatenate(tops))
+        return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
+
+    coarse = own_fitter(16, model, 2)
+    ee, kk = (a.ravel() for a in np.meshgrid(_EXPOSURES, _KNEES))
+    costs = coarse.costs(
+        t0, ee, kk, np.full(ee.size, model.gamma), np.full(ee.size, model.blur_rows)
+    )
+    # 3. finely, with each profile's best ID, from the two best starts of the grid (exposure
+    #    and knee trade off: one start can stall): one parameter at a time
+    grids: dict[str, tuple[float, ...]] = {
+        "blur_rows": _BLURS,
+        "exposure_chips": _EXPOSURES,
+        "knee": _KNEES,
+    }
+    if gamma is None:
+        grids["gamma"] = _GAMMAS
+    starts = np.argsort(costs)[:2]
+    results = []
+    for k in starts:
+        m = replace(model, exposure_chips=float(ee[k]), knee=float(kk[k]))
+        fitter = own_fitter(samples // 2, m, 1)
+        best = float("inf")
+        for _ in range(2):
+            before = best
+            for name, values in grids.items():
+                m, best = fitter.sweep(m, name, values)
+            if best >= 0.95 * before:
+                break
+        results.append((best, m, fitter))
+    best, model, _ = min(results, key=lambda r: r[0])
+    # 4. on the full grid: the chip length, then the exposure, knee and blur between their
+    #    grid points
+    fitter = own_fitter(samples, model, 1)
+    span = 0.01 if rows_per_chip is not None else 0.006
+    model, best = fitter.sweep(model, "rows_per_chip", t0 * (1 + np.linspace(-span, span, 5)))
+    for name, step in (("exposure_chips", 0.03), ("knee", 0.02), ("blur_rows", 0.15)):
+        v = getattr(model, name) + step * np.arange(-2, 3)
+        v = (
+            v[(v > 0.02) & ((v <= 1.0) if name == "knee" else True)]
+            if name != "blur_rows"
+            else v[v >= 0]
+        )
+        model, best = fitter.sweep(model, name, v)
+    return model, best
+
+
+def decode_photo(
+    profiles,
+    frame: FrameFormat,
+    ids,
+    *,
+    weights=None,
+    rows_per_chip: float | None = None,
+    model: SensorModel | None = None,
+    gamma: float | None = 1.0,
+    min_margin: float = MIN_MARGIN,
+    samples: int = SAMPLES_PER_CHIP,
+) -> PhotoDecode:
+    """Decode every fixture of a photo with photo-wide parameters fitted to all of them.
+
+    Parameters
+    ----------
+    profiles : sequence of array_like, each shape (n_k,)
+        Row profiles, in readout order.
+    frame : FrameFormat
+    ids : iterable of int
+        The map's IDs.
+    weights : sequence of array_like, optional
+        Row weights per profile.
+    rows_per_chip : float, optional
+        Seed of the chip length (camera row time and map chip rate), rows.
+    model : SensorModel, optional
+        Use these parameters instead of fitting them.
+    gamma : float or None
+        Known gamma (default 1), or None to fit it.
+    min_margin : float
+        See :func:`decode_profile_model`.
+    samples : int
+        Template grid points per chip.
+
+    Returns
+    -------
+    PhotoDecode
+        The parameters and one :class:`ModelDecode` per profile.
+    """
+    ps = [np.asarray(p, dtype=np.float64) for p in profiles]
+    ws = [None] * len(ps) if weights is None else list(weights)
+    cost = float("nan")
+    if model is None:
+        try:
+            model, cost = estimate_photo_model(
+                ps, frame, ids, weights=ws, rows_per_chip=rows_per_chip, gamma=gamma
+            )
+        except ValueError as exc:
+            t = float(rows_per_chip) if rows_per_chip else float("nan")
+            fallback = SensorModel(t if math.isfinite(t) else 1.0)
+            decodes = tuple(
+                _fail_small(p, fallback, frame.n_chips, f"no sensor model: {exc}") for p in ps
+            )
+            return PhotoDecode(fallback, decodes, float("inf"))
+    cand, in_map = _candidates(frame, ids)
+    chips = frame.codebook[cand]
+    spec = _spectra(chips, model, samples)
+    decodes = []
+    for p, w in zip(ps, ws, strict=True):
+        pp, wp = _prepare(p, w)
+        decodes.append(
+            _decode_with(pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples)
+        )
+    if not math.isfinite(cost):
+        un = np.array([d.unexplained for d in decodes if np.isfinite(d.unexplained)])
+        cost = float(_trimmed(un)) if un.size else float("inf")
+    return PhotoDecode(model, tuple(decodes), cost)
