@@ -511,8 +511,12 @@ def _decode_manchester(
 
 def _decode(
     blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, list[str]]:
-    """Stage 3 (frequency mode): each blob's decode, measured frequencies (Hz), notes."""
+) -> tuple[list, np.ndarray, list[str]]:
+    """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
+    NaN in Manchester mode), notes.  (:func:`locate` itself decides an unknown direction.)"""
+    if fixture_map.mode != "frequency":
+        man = _decode_manchester(profiles, readout, True, camera, fixture_map)
+        return list(man.photo.decodes), np.full(len(blobs), np.nan), []
     decodes, frequencies, note = _decode_frequencies(
         blobs, gray_rois, extents, readout.axis, camera, fixture_map
     )
