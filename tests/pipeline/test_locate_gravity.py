@@ -145,7 +145,7 @@ def test_cli_gravity_and_sidecar(two_and_three, small_files, capsys) -> None:
         assert code == 0, err
         assert "gravity-2, 2 fixtures" in out
         for text, words in (
-            ("{not json", "not valid JSON"),
+            ("{not json", "malformed sidecar file"),
             ('{"gravity": [0, 0, 0]}', "zero length"),
             ('{"gravity": [1, 2]}', "three numbers"),
         ):

@@ -42,7 +42,17 @@ MAX_DIGITS = 30
 MAX_SIDE_PX = 1_000_000
 
 
-def _read_text(path: str | Path, kind: str) -> str:
+def read_text_file(path: str | Path, kind: str) -> str:
+    """A small text input file (camera, map, survey, sidecar, trajectory), as UTF-8 text.
+
+    Read through :func:`camvlp.io.limits.read_regular_file`: a regular file only, within
+    ``CAMVLP_MAX_FILE_BYTES``.
+
+    Raises
+    ------
+    InputError
+        Not a regular file, too large, unreadable or not UTF-8 (naming the file).
+    """
     p = Path(path)
     data = read_regular_file(p, f"{kind} file", limit("CAMVLP_MAX_FILE_BYTES"))
     try:
@@ -110,7 +120,7 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else exc.__class__.__name__
 
 
-def _parse_mapping(text: str, path: Path, kind: str) -> dict:
+def parse_mapping(text: str, path: Path, kind: str) -> dict:
     """Parse JSON, YAML, or OpenCV FileStorage YAML (``%YAML:1.0``, ``!!opencv-matrix``)."""
     if text.lstrip().startswith("%YAML"):
         lines = text.lstrip().splitlines()[1:]
@@ -199,7 +209,7 @@ def load_camera(path: str | Path) -> Camera:
         Missing or malformed file, naming the file and the key.
     """
     p = Path(path)
-    return camera_from_dict(_parse_mapping(_read_text(p, "camera"), p, "camera"), p)
+    return camera_from_dict(parse_mapping(read_text_file(p, "camera"), p, "camera"), p)
 
 
 def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> Camera:
@@ -310,7 +320,7 @@ def load_map(path: str | Path) -> FixtureMap:
         fixture.
     """
     p = Path(path)
-    return map_from_dict(_parse_mapping(_read_text(p, "map"), p, "map"), p)
+    return map_from_dict(parse_mapping(read_text_file(p, "map"), p, "map"), p)
 
 
 def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> FixtureMap:

@@ -9,6 +9,7 @@ given to the library passes the same checks on its shape, type and size.  The li
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import sys
@@ -54,10 +55,14 @@ def exif_readout(path: str | Path) -> Readout | None:
     Assumes a sensor that reads its native rows from the top down (the usual one); None when
     the file has no orientation tag, a mirrored one, or cannot be read.
     """
+    try:  # through the one gate: a named pipe must not block here either
+        data = read_regular_file(Path(path), "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
+    except InputError:
+        return None
     try:
         from PIL import Image
 
-        with Image.open(path) as im:
+        with Image.open(io.BytesIO(data)) as im:
             tag = im.getexif().get(0x0112)
     except Exception:  # no EXIF is not an error: the direction is found otherwise
         return None

@@ -6,7 +6,6 @@ See ``docs/formats.md`` ("Photo sidecar").  ``{"gravity": [gx, gy, gz]}`` in the
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.files import parse_mapping, read_text_file
 
 __all__ = ["PhotoSidecar", "load_sidecar", "sidecar_path"]
 
@@ -59,17 +59,8 @@ def load_sidecar(photo: str | Path) -> PhotoSidecar | None:
     path = sidecar_path(photo)
     if path is None:
         return None
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"cannot read the photo's sidecar: {exc.__class__.__name__}", path
-        ) from None
-    except json.JSONDecodeError as exc:
-        raise InputError(
-            f"the photo's sidecar is not valid JSON: {exc.msg} (line {exc.lineno})", path
-        ) from None
-    if not isinstance(data, dict) or "gravity" not in data:
+    data = parse_mapping(read_text_file(path, "sidecar"), path, "sidecar")
+    if "gravity" not in data:
         return None  # another file of the same name (the simulator's truth): no gravity
     g = data["gravity"]
     if not (

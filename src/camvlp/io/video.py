@@ -15,6 +15,7 @@ breaks off ends early with a warning.  Nothing raises once the source is open.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.files import read_text_file
 from camvlp.io.images import load_image
 
 __all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_frames", "read_truth"]
@@ -159,11 +161,7 @@ def _luma(frame) -> np.ndarray:
 
 
 def _read_timestamps(path: Path) -> dict[str, float]:
-    try:
-        with path.open(newline="") as fh:
-            rows = list(csv.DictReader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read the timestamps: {exc.__class__.__name__}", path) from None
+    rows = list(csv.DictReader(io.StringIO(read_text_file(path, "timestamps"), newline="")))
     if rows and not {"frame", "t"} <= set(rows[0]):
         raise InputError("timestamps.csv must have the columns frame,t", path)
     out: dict[str, float] = {}

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.files import read_text_file
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
@@ -117,11 +119,7 @@ def load_trajectory(path: str | Path) -> Trajectory:
         not increase (one line naming the file).
     """
     p = Path(path)
-    try:
-        with p.open(newline="") as fh:
-            rows = list(csv.DictReader(fh))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read the trajectory: {exc.__class__.__name__}", p) from None
+    rows = list(csv.DictReader(io.StringIO(read_text_file(p, "trajectory"), newline="")))
     if not rows:
         raise InputError("the trajectory has no rows", p)
     missing = [c for c in TRAJECTORY_COLUMNS if c not in rows[0]]
