@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -25,14 +24,15 @@ from camvlp.geometry.gravity import (
 )
 from camvlp.geometry.pnp import check_solver
 from camvlp.io.images import as_image
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, decode_profile, row_profile
+from camvlp.pipeline.decode import StripeDecode, row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import assign_frequencies
-from camvlp.pipeline.model_decode import ModelDecode, PhotoDecode, decode_photo
+from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
+from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
 from camvlp.pipeline.stripes import estimate_stripe_period
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
@@ -96,214 +96,6 @@ class LocateSettings:
             ):
                 raise InputError(f"{name} must be a positive number, got {sigma!r}")
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
-
-
-@dataclass(frozen=True)
-class FixtureResult:
-    """One fixture seen in the photo.
-
-    Attributes
-    ----------
-    id : int or None
-        Its ID (Manchester mode) or map index (frequency mode); None when not identified.
-    pixel : ndarray, shape (2,)
-        Centre of its disc in the photo as given (before any mirroring), pixels.
-    used : bool
-        Whether the pose uses it.
-    margin : float
-        Decoding confidence: for Manchester IDs the decimal log of the likelihood ratio of
-        the ID over the best other ID of the map (see
-        :class:`camvlp.pipeline.model_decode.ModelDecode`; IDs need 4 or more); for
-        frequencies, in [0, 1], how close the measured frequency is to the map's.
-    reason : str
-        Why it is not used ("" when used).
-    hamming : int
-        Chips that disagreed with the decoded ID (-1 when none were read).
-    rows_spanned : float
-        Extent of the disc along the readout axis, pixels.
-    rows_per_chip : float
-        Measured chip length, sensor rows (NaN when not measured).
-    residual_px : float
-        Reprojection error with the final pose, pixels (NaN without a pose).
-    frequency_hz : float
-        Measured blinking frequency (frequency mode), Hz; NaN otherwise.
-    """
-
-    id: int | None
-    pixel: np.ndarray
-    used: bool
-    margin: float
-    reason: str
-    hamming: int = -1
-    rows_spanned: float = float("nan")
-    rows_per_chip: float = float("nan")
-    residual_px: float = float("nan")
-    frequency_hz: float = float("nan")
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
-        d: dict[str, Any] = {
-            "id": self.id,
-            "pixel": [round(float(v), 3) for v in self.pixel],
-            "used": self.used,
-            "margin": round(self.margin, 3),
-            "reason": self.reason,
-        }
-        for key in ("hamming", "rows_spanned", "rows_per_chip", "residual_px", "frequency_hz"):
-            v = getattr(self, key)
-            if isinstance(v, float):
-                v = None if not np.isfinite(v) else round(v, 3)
-            d[key] = v
-        return d
-
-
-@dataclass(frozen=True)
-class LocateResult:
-    """Where the camera is, or why it could not be located.
-
-    Attributes
-    ----------
-    position : ndarray, shape (3,), or None
-        Camera centre in the map's units and frame; None when not located.
-    rotation : ndarray, shape (3, 3), or None
-        Camera-to-world rotation (the camera's axes, in world coordinates, as columns).
-    euler_deg : ndarray, shape (3,), or None
-        The thesis' angles ``(theta_x, theta_y, theta_z)``, degrees.
-    reprojection_rms_px : float
-        RMS reprojection error over the fixtures used, pixels (NaN when not located).
-    fixtures : tuple of FixtureResult
-        Every fixture detected, identified or not.
-    timing_ms : dict
-        Milliseconds per stage: ``detect``, ``decode``, ``pose``, ``total``.
-    reason : str
-        Why it was not located ("" when it was).  (``error`` is the same, its old name.)
-    readout : Readout
-        The readout the stripes were read with.
-    mirrored : bool
-        The image was flipped left-right before locating.
-    alternative_position : ndarray, shape (3,), or None
-        The other pose of a planar target's two-fold ambiguity, when it exists.
-    alternative_rms_px : float
-        Its reprojection RMS, pixels.
-    notes : tuple of str
-        Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
-    rows_per_chip : float
-        The photo's chip length, sensor rows, fitted to all fixtures (NaN in frequency mode).
-    exposure_chips : float
-        The photo's exposure window, chips, fitted to all fixtures (NaN in frequency mode).
-    stages : LocateStages or None
-        Intermediate results, with ``LocateSettings(keep_stages=True)``.
-    solver : str
-        How the pose was solved: ``"pnp"`` (four or more fixtures, no gravity), or with a
-        gravity direction ``"gravity-2"``, ``"gravity-3"`` or ``"pnp+gravity"`` (see
-        :data:`camvlp.geometry.gravity.SOLVER_NAMES`); ``"gravity"`` when gravity was given
-        but too few fixtures were identified to try.
-    tilt_disagreement_deg : float
-        With gravity and four or more fixtures: the angle between the down of the pose the
-        pixels alone give and the measured gravity, degrees (NaN otherwise).
-    gravity_residual_deg : float
-        With gravity: the angle between the located pose's down and the measured gravity,
-        degrees (NaN otherwise).
-    """
-
-    position: np.ndarray | None
-    rotation: np.ndarray | None
-    euler_deg: np.ndarray | None
-    reprojection_rms_px: float
-    fixtures: tuple[FixtureResult, ...]
-    timing_ms: dict[str, float]
-    reason: str = ""
-    readout: Readout = Readout.ROWS
-    mirrored: bool = False
-    alternative_position: np.ndarray | None = None
-    alternative_rms_px: float = float("nan")
-    notes: tuple[str, ...] = field(default_factory=tuple)
-    rows_per_chip: float = float("nan")
-    exposure_chips: float = float("nan")
-    stages: LocateStages | None = field(default=None, repr=False, compare=False)
-    solver: str = "pnp"
-    tilt_disagreement_deg: float = float("nan")
-    gravity_residual_deg: float = float("nan")
-
-    @property
-    def fixtures_used(self) -> int:
-        """How many fixtures the pose uses."""
-        return sum(f.used for f in self.fixtures)
-
-    def __bool__(self) -> bool:
-        return self.position is not None
-
-    @property
-    def error(self) -> str:
-        """Why it was not located: the same as ``reason`` (its former name)."""
-        return self.reason
-
-    @property
-    def pose(self) -> Pose | None:
-        """The pose as a :class:`Pose`, or None."""
-        if self.position is None or self.rotation is None:
-            return None
-        return Pose(self.rotation, self.position)
-
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON object of ``camvlp locate --json``."""
-
-        def arr(a, nd=6):
-            return None if a is None else np.round(np.asarray(a, dtype=float), nd).tolist()
-
-        d: dict[str, Any] = {
-            "position": arr(self.position),
-            "rotation": arr(self.rotation, 8),
-            "euler_deg": arr(self.euler_deg, 4),
-            "reprojection_rms_px": None
-            if not np.isfinite(self.reprojection_rms_px)
-            else round(self.reprojection_rms_px, 4),
-            "fixtures": [f.to_dict() for f in self.fixtures],
-            "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
-            "readout": str(self.readout),
-            "mirrored": self.mirrored,
-            "solver": self.solver,
-            "fixtures_used": self.fixtures_used,
-        }
-        for key in ("tilt_disagreement_deg", "gravity_residual_deg"):
-            v = getattr(self, key)
-            if np.isfinite(v):
-                d[key] = round(float(v), 4)
-        for key in ("rows_per_chip", "exposure_chips"):
-            v = getattr(self, key)
-            d[key] = None if not np.isfinite(v) else round(float(v), 4)
-        if self.alternative_position is not None:
-            d["alternative"] = {
-                "position": arr(self.alternative_position),
-                "reprojection_rms_px": round(self.alternative_rms_px, 4),
-            }
-        if self.notes:
-            d["notes"] = list(self.notes)
-        if self.reason:
-            d["error"] = self.reason
-        return d
-
-
-@dataclass(frozen=True)
-class LocateStages:
-    """Intermediate results of :func:`locate`, kept for the debug pictures.
-
-    Attributes
-    ----------
-    detection : Detection
-        The detector's output (blobs in the possibly mirrored image).
-    gray_rois : tuple of ndarray, each (h, w) uint8
-        Each blob's region of interest, gray.
-    profiles : tuple of ndarray, each (n,)
-        Each blob's row profile, in the order the sensor read it.
-    decodes : tuple of ModelDecode or StripeDecode
-        Each blob's decode (the model fit's in Manchester mode).
-    """
-
-    detection: Detection
-    gray_rois: tuple[np.ndarray, ...]
-    profiles: tuple[np.ndarray, ...]
-    decodes: tuple[ModelDecode | StripeDecode, ...]
 
 
 def _check_arguments(camera: object, fixture_map: object, settings: object) -> None:
@@ -442,81 +234,14 @@ def _profiles(
     return gray_rois, extents, profiles
 
 
-def _rows_per_chip_seed(camera: Camera, fixture_map: FixtureMap, profiles) -> float | None:
-    """Chip length in rows to start from: the camera's row time and the map's chip rate when
-    both are known, else the run-length decoder's measurement when two fixtures agree."""
-    if camera.row_time_s and fixture_map.chip_rate_hz:
-        return 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
-    quick = [decode_profile(p, fixture_map.frame) for p in profiles]
-    t = np.array([d.rows_per_chip for d in quick if d and np.isfinite(d.rows_per_chip)])
-    if t.size >= 2:
-        med = float(np.median(t))
-        if np.sum(np.abs(t / med - 1) < 0.03) >= 2:
-            return med
-    return None
-
-
-@dataclass(frozen=True)
-class _Manchester:
-    """The Manchester decode of a photo (internal): per direction when it had to be chosen."""
-
-    photo: PhotoDecode
-    readout: Readout
-    other: PhotoDecode | None = None  # the decode under the other direction, when it was tried
-    note: str = ""
-
-
-def _decode_manchester(
-    profiles, readout: Readout, direction_known: bool, camera: Camera, fixture_map: FixtureMap
-) -> _Manchester:
-    """Model-based decode of every profile with photo-wide parameters (see ``model_decode``).
-
-    When the readout's direction is not known, the profiles are decoded both ways (first with
-    one way's parameters, refitted if that does not decide).  A reversed frame is no frame for
-    half the IDs: a direction is taken when it gives more clear IDs (of the map or not) and
-    fits the map's IDs better; otherwise both are kept for the pose to decide.
-    """
-    ids = fixture_map.ids
-    seed = _rows_per_chip_seed(camera, fixture_map, profiles)
-    fwd = decode_photo(profiles, fixture_map.frame, ids, rows_per_chip=seed)
-    if direction_known:
-        return _Manchester(fwd, readout)
-    backwards = [p[::-1] for p in profiles]
-    flipped = Readout.of(readout.axis, not readout.reversed)
-
-    def better(a: PhotoDecode, b: PhotoDecode) -> bool:
-        # read the wrong way, a fixture whose backwards frame is no frame (half the IDs)
-        # reads as no clear ID: the right way gives more clear IDs (of the map or not) and
-        # fits the map's IDs better
-        def clear(p: PhotoDecode) -> int:
-            return sum(d.id is not None or d.outside_id is not None for d in p.decodes)
-
-        return clear(a) > clear(b) and a.fit_cost < b.fit_cost
-
-    # the parameters do not depend on the direction: first try the other way with them
-    back = decode_photo(backwards, fixture_map.frame, ids, model=fwd.model)
-    if better(fwd, back):
-        return _Manchester(fwd, readout)
-    # refitted, from this way's chip length (it does not depend on the direction either)
-    t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
-    back = decode_photo(backwards, fixture_map.frame, ids, rows_per_chip=t_fwd)
-    if better(fwd, back):
-        return _Manchester(fwd, readout)
-    if better(back, fwd):
-        return _Manchester(back, flipped)
-    # the counts tie (every fixture seen has an ID whose backwards frame is another's): the
-    # pose decides
-    return _Manchester(fwd, readout, other=back)
-
-
 def _decode(
     blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list, np.ndarray, list[str]]:
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
     NaN in Manchester mode), notes.  (:func:`locate` itself decides an unknown direction.)"""
     if fixture_map.mode != "frequency":
-        man = _decode_manchester(profiles, readout, True, camera, fixture_map)
-        return list(man.photo.decodes), np.full(len(blobs), np.nan), []
+        man = decode_manchester(profiles, readout, True, camera, fixture_map)
+        return list(man.decodes), np.full(len(blobs), np.nan), []
     decodes, frequencies, note = _decode_frequencies(
         blobs, gray_rois, extents, readout.axis, camera, fixture_map
     )
@@ -740,31 +465,31 @@ def locate(
     blobs = detection.blobs
     t1 = time.perf_counter()
     gray_rois, extents, profiles = _profiles(img, blobs, readout)
-    photo: PhotoDecode | None = None
+    man: Manchester | None = None
     if fixture_map.mode == "frequency":
         decodes, frequencies, notes = _decode(
             blobs, gray_rois, extents, profiles, readout, camera, fixture_map
         )
     else:
-        man = _decode_manchester(profiles, readout, given is not None, camera, fixture_map)
-        photo, decodes, frequencies, notes = man.photo, list(man.photo.decodes), None, []
+        man = decode_manchester(profiles, readout, given is not None, camera, fixture_map)
+        decodes, frequencies, notes = list(man.decodes), None, []
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
     t2 = time.perf_counter()
     found = _identify(blobs, decodes, fixture_map)
     est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px, down)
-    if photo is not None and man.other is not None:
+    if man is not None and man.other is not None:
         # the stripes fit both directions about equally (IDs whose reversed frames are
         # other IDs'): the direction whose IDs give a pose decides, else the photo is refused
-        decodes2 = list(man.other.decodes)
+        decodes2 = list(man.other)
         found2 = _identify(blobs, decodes2, fixture_map)
         est2, reason2 = _solve(camera, fixture_map, blobs, found2, st, outlier_px, down)
         flipped = Readout.of(readout.axis, not readout.reversed)
         pick = _pick_direction(est, est2, found, found2)
         if pick == 2:
-            photo, decodes, found, est, reason, readout = (
-                man.other,
+            man = Manchester(tuple(decodes2), flipped, man.rows_per_chip, man.other_model)
+            decodes, found, est, reason, readout = (
                 decodes2,
                 found2,
                 est2,
@@ -825,8 +550,8 @@ def locate(
         reason=reason,
         readout=readout,
         mirrored=mirrored,
-        rows_per_chip=float("nan") if photo is None else photo.model.rows_per_chip,
-        exposure_chips=float("nan") if photo is None else photo.model.exposure_chips,
+        rows_per_chip=float("nan") if man is None else man.rows_per_chip,
+        exposure_chips=float("nan") if man is None else man.exposure_chips,
         alternative_position=None
         if est is None or est.alternative is None
         else est.alternative.position,

@@ -1,0 +1,247 @@
+"""Manchester IDs of a photo's fixtures, and the readout direction when it is not known.
+
+First the run-length decoder (:func:`camvlp.pipeline.decode.decode_profile`, a few
+milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
+agreeing, a clear run margin, and a chip length that agrees with the other fixtures' (and with
+the camera's row time and the map's chip rate when both are known) is taken as it is.  The
+model fit (:mod:`camvlp.pipeline.model_decode`) runs only for the fixtures it refuses, with the
+chip length it measured as the seed, and not at all when it refuses none.
+
+When the readout's direction is not known, the run-length decoder reads every profile both
+ways.  An ID whose frame read backwards is no ID's frame says which way the sensor read; the
+fast path takes a direction only when two or more fixtures say it and none says the other.
+Otherwise every fixture goes to the model fit under both directions (and then, if that does not
+decide, to the pose), as without the fast path.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.model.linecode import FrameFormat
+from camvlp.model.readout import Readout
+from camvlp.pipeline.decode import StripeDecode, decode_profile
+from camvlp.pipeline.model_decode import (
+    ModelDecode,
+    PhotoDecode,
+    SensorModel,
+    decode_photo,
+    estimate_photo_model,
+)
+
+__all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
+
+#: Smallest run margin (see :class:`StripeDecode`) of an ID taken from the run-length decoder.
+MIN_FAST_MARGIN = 0.3
+
+#: Largest relative disagreement of a fixture's measured chip length with the photo's.
+CHIP_AGREEMENT = 0.03
+
+
+@dataclass(frozen=True)
+class Manchester:
+    """The Manchester decode of a photo.
+
+    Attributes
+    ----------
+    decodes : tuple of (ModelDecode or StripeDecode)
+        One per profile: the run-length decoder's where it was taken, else the model fit's.
+    readout : Readout
+        The readout the profiles were read with.
+    rows_per_chip : float
+        The photo's chip length, rows (the model's when it was fitted, else the run-length
+        decoder's median).
+    model : SensorModel or None
+        The fitted photo-wide parameters (None when no fixture needed the model).
+    other : tuple or None
+        The decodes under the other direction, when the stripes fit both about equally (the
+        pose decides).
+    other_model : SensorModel or None
+        The parameters fitted under the other direction.
+    """
+
+    decodes: tuple[ModelDecode | StripeDecode, ...]
+    readout: Readout
+    rows_per_chip: float = float("nan")
+    model: SensorModel | None = None
+    other: tuple[ModelDecode | StripeDecode, ...] | None = None
+    other_model: SensorModel | None = None
+
+    @property
+    def exposure_chips(self) -> float:
+        """Fitted exposure window, chips (NaN when the model was not needed)."""
+        return float("nan") if self.model is None else self.model.exposure_chips
+
+
+@functools.lru_cache(maxsize=8)
+def _reversed_ids(frame: FrameFormat) -> np.ndarray:
+    """For each ID, the ID whose frame is its frame read backwards (-1 when none is)."""
+    book = frame.codebook
+    rev = np.full(frame.n_ids, -1, dtype=np.int64)
+    for i in range(frame.n_ids):
+        d = frame.decode(book[i][::-1], max_errors=0)
+        if d.id is not None:
+            rev[i] = d.id
+    return rev
+
+
+def _fast(profiles, frame: FrameFormat, map_ids: set[int]):
+    """The run-length decodes that may be taken as they are (None for the others), and the
+    chip lengths it measured (NaN where it could not)."""
+    out: list[StripeDecode | None] = []
+    lengths = np.full(len(profiles), np.nan)
+    for k, p in enumerate(profiles):
+        d = decode_profile(p, frame)
+        sure = d.id is not None and d.id in map_ids and d.hamming == 0
+        out.append(d if sure and d.margin >= MIN_FAST_MARGIN else None)
+        if d:
+            lengths[k] = d.rows_per_chip
+    return out, lengths
+
+
+def _measured(lengths: np.ndarray) -> float | None:
+    """The chip length of the IDs the run-length decoder read when two of them agree."""
+    t = lengths[np.isfinite(lengths)]
+    if t.size >= 2:
+        med = float(np.median(t))
+        if np.sum(np.abs(t / med - 1) < CHIP_AGREEMENT) >= 2:
+            return med
+    return None
+
+
+def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
+    """The photo's chip length from the run-length decodes, and the decodes that agree with
+    it (the others set to None).  With no seed, two fixtures must agree."""
+    t = np.array([d.rows_per_chip for ds in decodes for d in ds if d is not None])
+    ref = seed if seed else (float(np.median(t)) if t.size else float("nan"))
+    ok = np.abs(t / ref - 1) <= CHIP_AGREEMENT if t.size else np.zeros(0, bool)
+    if not seed and int(ok.sum()) < 2:
+        ref = float("nan")
+    if np.isfinite(ref) and ok.any():
+        ref = float(np.median(t[ok])) if not seed else ref
+
+    def agrees(d: StripeDecode | None) -> bool:
+        return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT
+
+    ok_ref = bool(np.isfinite(ref))
+    kept = [[d if ok_ref and agrees(d) else None for d in ds] for ds in decodes]
+    return (ref if np.isfinite(ref) else None), kept
+
+
+def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None):
+    """The fast decodes, completed by the model fit for the fixtures they lack."""
+    refused = [k for k, d in enumerate(fast) if d is None]
+    if not refused:
+        return list(fast), None
+    sub = [profiles[k] for k in refused]
+    try:  # the photo-wide parameters from every fixture, seeded by the chip length
+        model, _ = estimate_photo_model(profiles, frame, ids, rows_per_chip=t)
+        photo = decode_photo(sub, frame, ids, model=model)
+    except ValueError:
+        photo = decode_photo(sub, frame, ids, rows_per_chip=t)
+    out = list(fast)
+    for k, d in zip(refused, photo.decodes, strict=True):
+        out[k] = d
+    return out, photo.model
+
+
+def _manchester(decodes, readout: Readout, model: SensorModel | None, t) -> Manchester:
+    rpc = model.rows_per_chip if model is not None else (float(t) if t else float("nan"))
+    return Manchester(tuple(decodes), readout, rpc, model)
+
+
+def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed) -> Manchester:
+    """Model-based decode of every profile both ways (see the module's docstring).
+
+    The profiles are decoded both ways (first with one way's parameters, refitted if that
+    does not decide).  A reversed frame is no frame for half the IDs: a direction is taken
+    when it gives more clear IDs (of the map or not) and fits the map's IDs better; otherwise
+    both are kept for the pose to decide.
+    """
+    fwd = decode_photo(profiles, frame, ids, rows_per_chip=seed)
+    backwards = [p[::-1] for p in profiles]
+    flipped = Readout.of(readout.axis, not readout.reversed)
+
+    def better(a: PhotoDecode, b: PhotoDecode) -> bool:
+        # read the wrong way, a fixture whose backwards frame is no frame (half the IDs)
+        # reads as no clear ID: the right way gives more clear IDs (of the map or not) and
+        # fits the map's IDs better
+        def clear(p: PhotoDecode) -> int:
+            return sum(d.id is not None or d.outside_id is not None for d in p.decodes)
+
+        return clear(a) > clear(b) and a.fit_cost < b.fit_cost
+
+    def done(p: PhotoDecode, r: Readout) -> Manchester:
+        return Manchester(p.decodes, r, p.model.rows_per_chip, p.model)
+
+    # the parameters do not depend on the direction: first try the other way with them
+    back = decode_photo(backwards, frame, ids, model=fwd.model)
+    if better(fwd, back):
+        return done(fwd, readout)
+    # refitted, from this way's chip length (it does not depend on the direction either)
+    t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
+    back = decode_photo(backwards, frame, ids, rows_per_chip=t_fwd)
+    if better(fwd, back):
+        return done(fwd, readout)
+    if better(back, fwd):
+        return done(back, flipped)
+    # the counts tie (every fixture seen has an ID whose backwards frame is another's): the
+    # pose decides
+    m = done(fwd, readout)
+    return Manchester(m.decodes, readout, m.rows_per_chip, m.model, back.decodes, back.model)
+
+
+def decode_manchester(
+    profiles, readout: Readout, direction_known: bool, camera: Camera, fixture_map: FixtureMap
+) -> Manchester:
+    """Decode every profile: the run-length decoder's sure IDs, the model fit for the rest.
+
+    Parameters
+    ----------
+    profiles : list of ndarray, each shape (n_k,)
+        Row profiles in the order ``readout`` reads them.
+    readout : Readout
+        The readout (its direction a guess when ``direction_known`` is False).
+    direction_known : bool
+        The camera file, the call or the photo's EXIF says which way the sensor read.
+    camera : Camera
+        Its row time (with the map's chip rate) seeds the chip length.
+    fixture_map : FixtureMap
+        The map's frame format and IDs.
+
+    Returns
+    -------
+    Manchester
+        The decodes, the readout they were read with, the photo-wide parameters.
+    """
+    frame, ids = fixture_map.frame, fixture_map.ids
+    map_ids = {int(i) for i in ids}
+    seed = None
+    if camera.row_time_s and fixture_map.chip_rate_hz:
+        seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
+    fwd, lengths = _fast(profiles, frame, map_ids)
+    if direction_known:
+        t, (fwd,) = _agreeing([fwd], seed)
+        t = t or seed or _measured(lengths)
+        decodes, model = _with_model(profiles, fwd, frame, ids, t)
+        return _manchester(decodes, readout, model, t)
+    backwards = [p[::-1] for p in profiles]
+    bwd, _ = _fast(backwards, frame, map_ids)
+    t, (fwd, bwd) = _agreeing([fwd, bwd], seed)
+    t = t or seed or _measured(lengths)
+    rev = _reversed_ids(frame)
+    firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
+    firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
+    if firm_f >= 2 and firm_b == 0:
+        decodes, model = _with_model(profiles, fwd, frame, ids, t)
+        return _manchester(decodes, readout, model, t)
+    if firm_b >= 2 and firm_f == 0:
+        flipped = Readout.of(readout.axis, not readout.reversed)
+        decodes, model = _with_model(backwards, bwd, frame, ids, t)
+        return _manchester(decodes, flipped, model, t)
+    return _model_directions(profiles, readout, frame, ids, t)

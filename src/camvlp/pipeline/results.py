@@ -1,0 +1,228 @@
+"""What :func:`camvlp.pipeline.locate.locate` returns: the result, each fixture's, the stages."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from camvlp.model.camera import Pose
+from camvlp.model.readout import Readout
+from camvlp.pipeline.decode import StripeDecode
+from camvlp.pipeline.detect import Detection
+from camvlp.pipeline.model_decode import ModelDecode
+
+__all__ = ["FixtureResult", "LocateResult", "LocateStages"]
+
+
+@dataclass(frozen=True)
+class FixtureResult:
+    """One fixture seen in the photo.
+
+    Attributes
+    ----------
+    id : int or None
+        Its ID (Manchester mode) or map index (frequency mode); None when not identified.
+    pixel : ndarray, shape (2,)
+        Centre of its disc in the photo as given (before any mirroring), pixels.
+    used : bool
+        Whether the pose uses it.
+    margin : float
+        Decoding confidence.  Manchester IDs the model fit read (``hamming`` -1): the decimal
+        log of the likelihood ratio of the ID over the best other ID of the map (see
+        :class:`camvlp.pipeline.model_decode.ModelDecode`; IDs need 4 or more).  Manchester
+        IDs the run-length decoder read (``hamming`` 0): its run margin in [0, 1] (see
+        :class:`camvlp.pipeline.decode.StripeDecode`; IDs need 0.3 or more).  Frequencies:
+        in [0, 1], how close the measured frequency is to the map's.
+    reason : str
+        Why it is not used ("" when used).
+    hamming : int
+        Chips that disagreed with the decoded ID (-1 when none were read, i.e. the model fit
+        decoded it).
+    rows_spanned : float
+        Extent of the disc along the readout axis, pixels.
+    rows_per_chip : float
+        Measured chip length, sensor rows (NaN when not measured).
+    residual_px : float
+        Reprojection error with the final pose, pixels (NaN without a pose).
+    frequency_hz : float
+        Measured blinking frequency (frequency mode), Hz; NaN otherwise.
+    """
+
+    id: int | None
+    pixel: np.ndarray
+    used: bool
+    margin: float
+    reason: str
+    hamming: int = -1
+    rows_spanned: float = float("nan")
+    rows_per_chip: float = float("nan")
+    residual_px: float = float("nan")
+    frequency_hz: float = float("nan")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
+        d: dict[str, Any] = {
+            "id": self.id,
+            "pixel": [round(float(v), 3) for v in self.pixel],
+            "used": self.used,
+            "margin": round(self.margin, 3),
+            "reason": self.reason,
+        }
+        for key in ("hamming", "rows_spanned", "rows_per_chip", "residual_px", "frequency_hz"):
+            v = getattr(self, key)
+            if isinstance(v, float):
+                v = None if not np.isfinite(v) else round(v, 3)
+            d[key] = v
+        return d
+
+
+@dataclass(frozen=True)
+class LocateResult:
+    """Where the camera is, or why it could not be located.
+
+    Attributes
+    ----------
+    position : ndarray, shape (3,), or None
+        Camera centre in the map's units and frame; None when not located.
+    rotation : ndarray, shape (3, 3), or None
+        Camera-to-world rotation (the camera's axes, in world coordinates, as columns).
+    euler_deg : ndarray, shape (3,), or None
+        The thesis' angles ``(theta_x, theta_y, theta_z)``, degrees.
+    reprojection_rms_px : float
+        RMS reprojection error over the fixtures used, pixels (NaN when not located).
+    fixtures : tuple of FixtureResult
+        Every fixture detected, identified or not.
+    timing_ms : dict
+        Milliseconds per stage: ``detect``, ``decode``, ``pose``, ``total``.
+    reason : str
+        Why it was not located ("" when it was).  (``error`` is the same, its old name.)
+    readout : Readout
+        The readout the stripes were read with.
+    mirrored : bool
+        The image was flipped left-right before locating.
+    alternative_position : ndarray, shape (3,), or None
+        The other pose of a planar target's two-fold ambiguity, when it exists.
+    alternative_rms_px : float
+        Its reprojection RMS, pixels.
+    notes : tuple of str
+        Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
+    rows_per_chip : float
+        The photo's chip length, sensor rows, fitted to all fixtures (NaN in frequency mode).
+    exposure_chips : float
+        The photo's exposure window, chips, fitted to all fixtures (NaN in frequency mode,
+        and when the run-length decoder read every fixture so that no model was fitted).
+    stages : LocateStages or None
+        Intermediate results, with ``LocateSettings(keep_stages=True)``.
+    solver : str
+        How the pose was solved: ``"pnp"`` (four or more fixtures, no gravity), or with a
+        gravity direction ``"gravity-2"``, ``"gravity-3"`` or ``"pnp+gravity"`` (see
+        :data:`camvlp.geometry.gravity.SOLVER_NAMES`); ``"gravity"`` when gravity was given
+        but too few fixtures were identified to try.
+    tilt_disagreement_deg : float
+        With gravity and four or more fixtures: the angle between the down of the pose the
+        pixels alone give and the measured gravity, degrees (NaN otherwise).
+    gravity_residual_deg : float
+        With gravity: the angle between the located pose's down and the measured gravity,
+        degrees (NaN otherwise).
+    """
+
+    position: np.ndarray | None
+    rotation: np.ndarray | None
+    euler_deg: np.ndarray | None
+    reprojection_rms_px: float
+    fixtures: tuple[FixtureResult, ...]
+    timing_ms: dict[str, float]
+    reason: str = ""
+    readout: Readout = Readout.ROWS
+    mirrored: bool = False
+    alternative_position: np.ndarray | None = None
+    alternative_rms_px: float = float("nan")
+    notes: tuple[str, ...] = field(default_factory=tuple)
+    rows_per_chip: float = float("nan")
+    exposure_chips: float = float("nan")
+    stages: LocateStages | None = field(default=None, repr=False, compare=False)
+    solver: str = "pnp"
+    tilt_disagreement_deg: float = float("nan")
+    gravity_residual_deg: float = float("nan")
+
+    @property
+    def fixtures_used(self) -> int:
+        """How many fixtures the pose uses."""
+        return sum(f.used for f in self.fixtures)
+
+    def __bool__(self) -> bool:
+        return self.position is not None
+
+    @property
+    def error(self) -> str:
+        """Why it was not located: the same as ``reason`` (its former name)."""
+        return self.reason
+
+    @property
+    def pose(self) -> Pose | None:
+        """The pose as a :class:`Pose`, or None."""
+        if self.position is None or self.rotation is None:
+            return None
+        return Pose(self.rotation, self.position)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object of ``camvlp locate --json``."""
+
+        def arr(a, nd=6):
+            return None if a is None else np.round(np.asarray(a, dtype=float), nd).tolist()
+
+        d: dict[str, Any] = {
+            "position": arr(self.position),
+            "rotation": arr(self.rotation, 8),
+            "euler_deg": arr(self.euler_deg, 4),
+            "reprojection_rms_px": None
+            if not np.isfinite(self.reprojection_rms_px)
+            else round(self.reprojection_rms_px, 4),
+            "fixtures": [f.to_dict() for f in self.fixtures],
+            "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
+            "readout": str(self.readout),
+            "mirrored": self.mirrored,
+            "solver": self.solver,
+            "fixtures_used": self.fixtures_used,
+        }
+        for key in ("tilt_disagreement_deg", "gravity_residual_deg"):
+            v = getattr(self, key)
+            if np.isfinite(v):
+                d[key] = round(float(v), 4)
+        for key in ("rows_per_chip", "exposure_chips"):
+            v = getattr(self, key)
+            d[key] = None if not np.isfinite(v) else round(float(v), 4)
+        if self.alternative_position is not None:
+            d["alternative"] = {
+                "position": arr(self.alternative_position),
+                "reprojection_rms_px": round(self.alternative_rms_px, 4),
+            }
+        if self.notes:
+            d["notes"] = list(self.notes)
+        if self.reason:
+            d["error"] = self.reason
+        return d
+
+
+@dataclass(frozen=True)
+class LocateStages:
+    """Intermediate results of :func:`locate`, kept for the debug pictures.
+
+    Attributes
+    ----------
+    detection : Detection
+        The detector's output (blobs in the possibly mirrored image).
+    gray_rois : tuple of ndarray, each (h, w) uint8
+        Each blob's region of interest, gray.
+    profiles : tuple of ndarray, each (n,)
+        Each blob's row profile, in the order the sensor read it.
+    decodes : tuple of ModelDecode or StripeDecode
+        Each blob's decode (the model fit's in Manchester mode).
+    """
+
+    detection: Detection
+    gray_rois: tuple[np.ndarray, ...]
+    profiles: tuple[np.ndarray, ...]
+    decodes: tuple[ModelDecode | StripeDecode, ...]
