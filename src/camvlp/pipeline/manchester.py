@@ -90,12 +90,15 @@ def _reversed_ids(frame: FrameFormat) -> np.ndarray:
     return rev
 
 
-def _fast(profiles, frame: FrameFormat, map_ids: set[int]):
-    """The run-length decodes that may be taken as they are (None for the others), and the
-    chip lengths it measured (NaN where it could not)."""
+def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
+    """The run-length decodes that may be taken as they are (None for the others, and for
+    the profiles ``skip`` flags), and the chip lengths it measured (NaN where it could not)."""
     out: list[StripeDecode | None] = []
     lengths = np.full(len(profiles), np.nan)
     for k, p in enumerate(profiles):
+        if k < len(skip) and skip[k]:
+            out.append(None)
+            continue
         d = decode_profile(p, frame)
         sure = d.id is not None and d.id in map_ids and d.hamming == 0
         out.append(d if sure and d.margin >= MIN_FAST_MARGIN else None)
@@ -231,7 +234,9 @@ def decode_manchester(
         decodes, model = _with_model(profiles, fwd, frame, ids, t)
         return _manchester(decodes, readout, model, t)
     backwards = [p[::-1] for p in profiles]
-    bwd, _ = _fast(backwards, frame, map_ids)
+    # read backwards, the chips of an ID read forwards with none in error are that ID's frame
+    # reversed: a frame (rev[id], which does not say the direction) or none
+    bwd, _ = _fast(backwards, frame, map_ids, skip=[d is not None for d in fwd])
     t, (fwd, bwd) = _agreeing([fwd, bwd], seed)
     t = t or seed or _measured(lengths)
     rev = _reversed_ids(frame)
