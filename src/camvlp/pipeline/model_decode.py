@@ -172,6 +172,39 @@ class PhotoDecode:
         return self.model.exposure_chips
 
 
+def _refine_leaders(fit: _Fit, template: np.ndarray, in_map: np.ndarray, p, w):
+    """Each candidate's best residual and phase (fine grid points), the leading candidates'
+    refined between grid points by direct fits (so that neither the best nor its rivals are
+    judged at a grid point's misalignment): ``per_id, best_phase``, each shape (I,)."""
+    per_id = fit.rss.min(axis=1)
+    best_phase = 2.0 * fit.rss.argmin(axis=1)  # the search grid is every other fine point
+    map_rows = np.flatnonzero(in_map)
+    lead = list(map_rows[np.argsort(per_id[map_rows], kind="stable")][:4])
+    others = np.flatnonzero(~in_map)
+    if others.size:
+        lead.append(int(others[np.argmin(per_id[others])]))
+    steps = np.linspace(-2.0, 2.0, 17)
+    for k in lead:
+        rss_k, _, _ = _direct_fit(p, w, template[k], fit.x, best_phase[k] + steps)
+        i = int(np.argmin(rss_k))
+        per_id[k], best_phase[k] = rss_k[i], best_phase[k] + steps[i]
+    return per_id, best_phase
+
+
+def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, float, int]:
+    """The best fit's own weighted residual sum of squares, the noise variance it implies, the
+    variance inflation of its correlated residuals (AR(1)) and its degrees of freedom."""
+    wn = w > 0
+    rss1 = float(np.sum(w * resid * resid))  # the best fit's own residual, not the parabola's
+    dof = max(int(wn.sum()) - 4, 1)
+    sigma2 = max(rss1 / dof, 1e-12 * max(fit.tss / max(fit.n, 1), 1e-300))
+    r = resid[wn]
+    rho = 0.0
+    if r.size > 3:
+        rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))
+    return rss1, sigma2, (1 + rho) / (1 - rho), dof
+
+
 def _decide(
     fit: _Fit,
     template: np.ndarray,
@@ -188,21 +221,9 @@ def _decide(
     """Pick the ID from the fits of every candidate (internal)."""
     nan = float("nan")
     frames = fit.n / (n_chips * model.rows_per_chip)
-    per_id = fit.rss.min(axis=1)
-    best_phase = 2.0 * fit.rss.argmin(axis=1)  # the search grid is every other fine point
+    per_id, best_phase = _refine_leaders(fit, template, in_map, p, w)
     period = template.shape[1]
-    # refine the leading candidates' phases between grid points by direct fits (so that
-    # neither the best nor its rivals are judged at a grid point's misalignment)
     map_rows = np.flatnonzero(in_map)
-    lead = list(map_rows[np.argsort(per_id[map_rows], kind="stable")][:4])
-    others = np.flatnonzero(~in_map)
-    if others.size:
-        lead.append(int(others[np.argmin(per_id[others])]))
-    steps = np.linspace(-2.0, 2.0, 17)
-    for k in lead:
-        rss_k, _, _ = _direct_fit(p, w, template[k], fit.x, best_phase[k] + steps)
-        i = int(np.argmin(rss_k))
-        per_id[k], best_phase[k] = rss_k[i], best_phase[k] + steps[i]
     order = map_rows[np.argsort(per_id[map_rows], kind="stable")]
     k1 = int(order[0])
     j1 = float(best_phase[k1])
@@ -211,15 +232,7 @@ def _decide(
     _, g1, o1 = _direct_fit(p, w, template[k1], fit.x, np.array([j1]))
     gain1, offset1 = float(g1[0]), float(o1[0])
     resid = p - (gain1 * model_rows + offset1)
-    wn = w > 0
-    rss1 = float(np.sum(w * resid * resid))  # the best fit's own residual, not the parabola's
-    dof = max(int(wn.sum()) - 4, 1)
-    sigma2 = max(rss1 / dof, 1e-12 * max(fit.tss / max(fit.n, 1), 1e-300))
-    r = resid[wn]
-    rho = 0.0
-    if r.size > 3:
-        rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))
-    inflation = (1 + rho) / (1 - rho)  # variance inflation of correlated residuals (AR(1))
+    rss1, sigma2, inflation, dof = _noise(resid, w, fit)
 
     def lr(rss_other: float) -> float:
         return (rss_other - rss1) / (2 * sigma2 * inflation) / _LN10
@@ -453,6 +466,37 @@ class _PhotoFitter:
         return replace(model, **{name: best}), cost
 
 
+def _search_chip_length(data, chips: np.ndarray, n: int, start: SensorModel, rows_range) -> float:
+    """The chip length (rows) searched over ``rows_range`` with ``start``'s other parameters:
+    a coarse log grid, then around its best few local minima."""
+    lo, hi = rows_range
+    hi = min(hi, max(p.size for p, _ in data) / (MIN_FRAMES * n))
+    if hi <= lo:
+        raise ValueError("profiles too short to measure the chip length")
+    coarse = _PhotoFitter(data, chips, 8, n)
+    grid = np.exp(np.arange(np.log(lo), np.log(hi), 0.02))
+    one = [np.array([getattr(start, k)]) for k in ("exposure_chips", "knee", "gamma")]
+    one.append(np.array([start.blur_rows]))
+    costs = np.array([coarse.costs(float(t), *one)[0] for t in grid])
+    minima = np.flatnonzero((costs <= np.roll(costs, 1)) & (costs <= np.roll(costs, -1)))
+    seeds = grid[minima[np.argsort(costs[minima])[:4]]] if minima.size else grid[:1]
+    fine = np.unique(np.concatenate([s * np.exp(np.arange(-4, 5) * 0.005) for s in seeds]))
+    fine = fine[(fine >= lo) & (fine <= hi)]
+    return coarse.sweep(start, "rows_per_chip", fine)[0].rows_per_chip
+
+
+def _own_fitter(data, chips: np.ndarray, n: int, s: int, m: SensorModel, keep: int):
+    """A :class:`_PhotoFitter` on ``s`` samples per chip with each profile's ``keep`` best
+    IDs under ``m``."""
+    f = _PhotoFitter(data, chips, s, n)
+    spec = _template_spectra(_templates(chips, m, s))
+    tops = [
+        np.argsort(_fit_folded(fo, *spec)[0].min(axis=1))[:keep] for fo in f.folds(m.rows_per_chip)
+    ]
+    union = np.unique(np.concatenate(tops))
+    return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
+
+
 def estimate_photo_model(
     profiles,
     frame: FrameFormat,
@@ -511,21 +555,7 @@ def estimate_photo_model(
 
     # 1. the chip length: seeded, or searched with a middling exposure and knee
     if rows_per_chip is None:
-        lo, hi = rows_per_chip_range
-        hi = min(hi, max(p.size for p, _ in data) / (MIN_FRAMES * n))
-        if hi <= lo:
-            raise ValueError("profiles too short to measure the chip length")
-        coarse = _PhotoFitter(data, chips, 8, n)
-        grid = np.exp(np.arange(np.log(lo), np.log(hi), 0.02))
-        one = [np.array([getattr(start, k)]) for k in ("exposure_chips", "knee", "gamma")]
-        one.append(np.array([start.blur_rows]))
-        costs = np.array([coarse.costs(float(t), *one)[0] for t in grid])
-        # refine around the best few local minima
-        minima = np.flatnonzero((costs <= np.roll(costs, 1)) & (costs <= np.roll(costs, -1)))
-        seeds = grid[minima[np.argsort(costs[minima])[:4]]] if minima.size else grid[:1]
-        fine = np.unique(np.concatenate([s * np.exp(np.arange(-4, 5) * 0.005) for s in seeds]))
-        fine = fine[(fine >= lo) & (fine <= hi)]
-        t0 = coarse.sweep(start, "rows_per_chip", fine)[0].rows_per_chip
+        t0 = _search_chip_length(data, chips, n, start, rows_per_chip_range)
     else:
         t0 = float(rows_per_chip)
     model = replace(start, rows_per_chip=t0)
@@ -533,14 +563,7 @@ def estimate_photo_model(
     # 2. exposure and knee on a joint grid (they trade off), coarsely, with each profile's
     #    two best IDs
     def own_fitter(s: int, m: SensorModel, keep: int) -> _PhotoFitter:
-        f = _PhotoFitter(data, chips, s, n)
-        spec = _template_spectra(_templates(chips, m, s))
-        tops = [
-            np.argsort(_fit_folded(fo, *spec)[0].min(axis=1))[:keep]
-            for fo in f.folds(m.rows_per_chip)
-        ]
-        union = np.unique(np.concatenate(tops))
-        return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
+        return _own_fitter(data, chips, n, s, m, keep)
 
     coarse = own_fitter(16, model, 2)
     ee, kk = (a.ravel() for a in np.meshgrid(_EXPOSURES, _KNEES))
