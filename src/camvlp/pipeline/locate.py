@@ -406,6 +406,73 @@ def _pick_direction(est1, est2, found1: _Identified, found2: _Identified) -> int
     return 0
 
 
+@dataclass(frozen=True)
+class _Decided:
+    """One direction's decodes, identities, pose (or None) and why it failed (internal)."""
+
+    decodes: list
+    found: _Identified
+    est: PoseEstimate | GravityPose | None
+    reason: str
+
+
+def _withheld(decodes, decodes2) -> list:
+    """The decodes with every ID that depends on the readout direction withheld."""
+
+    def shown(d):
+        return d.id if d.id is not None else getattr(d, "outside_id", None)
+
+    return [
+        dataclasses.replace(
+            d1,
+            id=None,
+            outside_id=None,
+            reason=f"readout direction undecided: ID {shown(d1)} read one way, "
+            f"{shown(d2)} the other",
+        )
+        if shown(d1) != shown(d2)
+        else d1
+        for d1, d2 in zip(decodes, decodes2, strict=True)
+    ]
+
+
+def _direction_by_pose(blobs, fixture_map: FixtureMap, man: Manchester, one: _Decided, solve):
+    """The direction whose IDs give a pose, when the stripes fit both about equally; else
+    no pose and every ID that depends on the direction withheld.  Returns ``man, decodes,
+    found, est, reason`` of the direction kept (``man.readout`` says which)."""
+    decodes2 = list(man.other)
+    found2 = _identify(blobs, decodes2, fixture_map)
+    est2, reason2 = solve(found2)
+    pick = _pick_direction(one.est, est2, one.found, found2)
+    if pick == 2:
+        flipped = Readout.of(man.readout.axis, not man.readout.reversed)
+        man = Manchester(tuple(decodes2), flipped, man.rows_per_chip, man.other_model)
+        return man, decodes2, found2, est2, reason2
+    if pick == 1:
+        return man, one.decodes, one.found, one.est, one.reason
+    # undecided: no ID that depends on the direction is reported, and no pose
+    decodes = _withheld(one.decodes, decodes2)
+    reason = (
+        "readout direction ambiguous: read either way, the stripes give IDs of the map "
+        "that fit a pose; give the camera's readout (e.g. rows or rows-reversed)"
+        if pick == 0
+        else f"{one.reason} (and the readout direction is undecided)"
+    )
+    return man, decodes, _identify(blobs, decodes, fixture_map), None, reason
+
+
+def _gravity(gravity, camera: Camera, fixture_map: FixtureMap) -> tuple[np.ndarray, np.ndarray]:
+    """The checked gravity direction (the camera's own frame: that of the photo unmirrored)
+    and the map's up; InputError when the lights are out of the camera's view."""
+    g = check_gravity(gravity)
+    normals = np.array(
+        [f.normal if f.normal is not None else [np.nan] * 3 for f in fixture_map.fixtures]
+    )
+    up = map_up(fixture_map.positions, up=fixture_map.up, normals=normals)
+    check_gravity_view(g, camera, up, normals)
+    return g, up
+
+
 def locate(
     image: np.ndarray,
     camera: Camera,
@@ -451,15 +518,7 @@ def locate(
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
     img, mirrored = _prepare(image, camera, st)
-    down = None
-    if gravity is not None:
-        g = check_gravity(gravity)  # the camera's own frame: that of the photo unmirrored
-        normals = np.array(
-            [f.normal if f.normal is not None else [np.nan] * 3 for f in fixture_map.fixtures]
-        )
-        up = map_up(fixture_map.positions, up=fixture_map.up, normals=normals)
-        check_gravity_view(g, camera, up, normals)
-        down = (g, up)
+    down = None if gravity is None else _gravity(gravity, camera, fixture_map)
     given = st.readout or camera.readout
     detection, readout = _detect(img, given, st)
     blobs = detection.blobs
@@ -482,47 +541,15 @@ def locate(
     if man is not None and man.other is not None:
         # the stripes fit both directions about equally (IDs whose reversed frames are
         # other IDs'): the direction whose IDs give a pose decides, else the photo is refused
-        decodes2 = list(man.other)
-        found2 = _identify(blobs, decodes2, fixture_map)
-        est2, reason2 = _solve(camera, fixture_map, blobs, found2, st, outlier_px, down)
-        flipped = Readout.of(readout.axis, not readout.reversed)
-        pick = _pick_direction(est, est2, found, found2)
-        if pick == 2:
-            man = Manchester(tuple(decodes2), flipped, man.rows_per_chip, man.other_model)
-            decodes, found, est, reason, readout = (
-                decodes2,
-                found2,
-                est2,
-                reason2,
-                flipped,
-            )
-            profiles = [p[::-1] for p in profiles]
-        elif pick in (0, -1):
-            # undecided: no ID that depends on the direction is reported, and no pose
-            def shown(d):
-                return d.id if d.id is not None else getattr(d, "outside_id", None)
+        def solve(f: _Identified):
+            return _solve(camera, fixture_map, blobs, f, st, outlier_px, down)
 
-            withheld = [
-                dataclasses.replace(
-                    d1,
-                    id=None,
-                    outside_id=None,
-                    reason=f"readout direction undecided: ID {shown(d1)} read one way, "
-                    f"{shown(d2)} the other",
-                )
-                if shown(d1) != shown(d2)
-                else d1
-                for d1, d2 in zip(decodes, decodes2, strict=True)
-            ]
-            decodes = withheld
-            found = _identify(blobs, decodes, fixture_map)
-            est = None
-            reason = (
-                "readout direction ambiguous: read either way, the stripes give IDs of the map "
-                "that fit a pose; give the camera's readout (e.g. rows or rows-reversed)"
-                if pick == 0
-                else f"{reason} (and the readout direction is undecided)"
-            )
+        man, decodes, found, est, reason = _direction_by_pose(
+            blobs, fixture_map, man, _Decided(decodes, found, est, reason), solve
+        )
+        if man.readout != readout:
+            profiles = [p[::-1] for p in profiles]
+        readout = man.readout
     if frequencies is None:
         frequencies = np.full(len(blobs), np.nan)
     t3 = time.perf_counter()
