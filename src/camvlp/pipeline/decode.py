@@ -94,7 +94,11 @@ def _otsu(values: np.ndarray) -> float:
 
 def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
     """Dark and bright levels of a row profile: its 2nd and 98th percentiles."""
-    lo, hi = np.percentile(np.asarray(profile, dtype=float), [2, 98])
+    v = np.sort(np.asarray(profile, dtype=float).reshape(-1))
+    x = np.array([0.02, 0.98]) * (v.size - 1)  # NumPy's default (linear) percentiles
+    i = np.minimum(np.floor(x).astype(np.int64), v.size - 1)
+    j = np.minimum(i + 1, v.size - 1)
+    lo, hi = v[i] + (x - i) * (v[j] - v[i])
     return float(lo), float(hi)
 
 
@@ -261,7 +265,7 @@ def decode_profile(
     lo, hi = stripe_levels(p)
     if hi - lo < 8:
         return fail("no stripes (a steady light, or too little contrast)")
-    runs = find_runs(p, stripe_threshold(p, threshold_level))
+    runs = find_runs(p, lo + threshold_level * (hi - lo))  # stripe_threshold's
     if runs.edges.size < 4:
         return fail("no stripes (a steady light, or too few stripes)")
     t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)
@@ -290,7 +294,7 @@ def decode_profile(
     chip_vals = np.repeat(bright.astype(np.uint8), counts)
     known = np.repeat(sure, counts)
     frames = chip_vals.size / frame.n_chips
-    chip_str = "".join(str(int(c)) if k else "?" for c, k in zip(chip_vals, known, strict=True))
+    chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     res = frame.decode(chip_vals, known=known)
     worst = float(np.max(np.abs(x[interior] - np.round(x[interior])))) if np.any(interior) else 0.5
     margin = float(np.clip(1.0 - 2.0 * worst, 0.0, 1.0))
