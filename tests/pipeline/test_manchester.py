@@ -1,0 +1,75 @@
+"""The run-length fast path before the model fit (camvlp.pipeline.manchester)."""
+
+from __future__ import annotations
+
+import numpy as np
+from tests.pipeline.test_model_decode import FRAME, synth
+
+from camvlp import Camera, Fixture, FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.pipeline.decode import StripeDecode
+from camvlp.pipeline.manchester import _reversed_ids, decode_manchester
+from camvlp.pipeline.model_decode import ModelDecode
+
+CAMERA = Camera.from_focal(1920, 1080, 1400.0)  # no row time: the chip length is measured
+RPC = 5.0
+
+
+def fmap(ids) -> FixtureMap:
+    return FixtureMap(tuple(Fixture(int(i), np.array([i, 0.0, 2.0])) for i in ids))
+
+
+def profiles(ids, rng, *, reverse: bool = False):
+    out = []
+    for i in ids:
+        n = int(rng.uniform(1.4, 2.2) * FRAME.n_chips * RPC)
+        p = synth(FRAME.chips(int(i)), n, RPC, rng.uniform(0, 18), 0.4, noise=2.0, rng=rng)
+        out.append(p[::-1] if reverse else p)
+    return out
+
+
+def test_reversed_ids_of_the_default_format():
+    rev = _reversed_ids(FRAME)
+    for a, b in ((0, 14), (2, 6), (4, 10), (8, 12)):
+        assert rev[a] == b and rev[b] == a
+    assert all(rev[i] < 0 for i in (1, 3, 5, 7, 9, 11, 13, 15))
+
+
+def test_clean_stripes_need_no_model_fit():
+    rng = np.random.default_rng(1)
+    ids = [1, 3, 5, 6, 9]
+    man = decode_manchester(profiles(ids, rng), Readout.ROWS, True, CAMERA, fmap(ids))
+    assert [d.id for d in man.decodes] == ids
+    assert all(isinstance(d, StripeDecode) and d.hamming == 0 for d in man.decodes)
+    assert man.model is None and np.isnan(man.exposure_chips)
+    assert abs(man.rows_per_chip / RPC - 1) < 0.02
+
+
+def test_only_the_refused_fixture_goes_to_the_model():
+    rng = np.random.default_rng(2)
+    ids = [1, 3, 5, 6, 9]
+    ps = profiles(ids, rng)
+    ps[2] = ps[2][: int(0.9 * FRAME.n_chips * RPC)]  # under one frame: the fast path refuses
+    man = decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))
+    assert isinstance(man.decodes[2], ModelDecode)
+    assert all(isinstance(man.decodes[k], StripeDecode) for k in (0, 1, 3, 4))
+    assert man.model is not None
+    assert man.decodes[2].id in (None, 5)  # never another ID
+
+
+def test_direction_from_the_fast_path_when_fixtures_say_it():
+    rng = np.random.default_rng(3)
+    ids = [1, 3, 5, 2, 6]
+    ps = profiles(ids, rng, reverse=True)  # the sensor read them the other way
+    man = decode_manchester(ps, Readout.ROWS, False, CAMERA, fmap(ids))
+    assert man.readout == Readout.ROWS_REVERSED
+    assert [d.id for d in man.decodes] == ids
+
+
+def test_reversal_pairs_only_are_left_to_the_model_and_the_pose():
+    rng = np.random.default_rng(4)
+    ids = [0, 14, 2, 6]
+    man = decode_manchester(profiles(ids, rng), Readout.ROWS, False, CAMERA, fmap(ids))
+    assert all(isinstance(d, ModelDecode) for d in man.decodes)
+    # read either way the IDs are the map's: the pose must decide
+    assert man.other is not None
