@@ -473,6 +473,16 @@ def _gravity(gravity, camera: Camera, fixture_map: FixtureMap) -> tuple[np.ndarr
     return g, up
 
 
+def _timings(t0: float, t1: float, t2: float, t3: float) -> dict[str, float]:
+    """Milliseconds per stage from the stages' start and end times, seconds."""
+    return {
+        "detect": 1e3 * (t1 - t0),
+        "decode": 1e3 * (t2 - t1),
+        "pose": 1e3 * (t3 - t2),
+        "total": 1e3 * (t3 - t0),
+    }
+
+
 def locate(
     image: np.ndarray,
     camera: Camera,
@@ -531,7 +541,7 @@ def locate(
         )
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map)
-        decodes, frequencies, notes = list(man.decodes), None, []
+        decodes, frequencies, notes = list(man.decodes), np.full(len(blobs), np.nan), []
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
@@ -550,8 +560,6 @@ def locate(
         if man.readout != readout:
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
-    if frequencies is None:
-        frequencies = np.full(len(blobs), np.nan)
     t3 = time.perf_counter()
 
     width = img.shape[1]
@@ -568,12 +576,7 @@ def locate(
         fixtures=_fixture_results(
             blobs, decodes, found, est, extents, frequencies, shown, 4 if down is None else 2
         ),
-        timing_ms={
-            "detect": 1e3 * (t1 - t0),
-            "decode": 1e3 * (t2 - t1),
-            "pose": 1e3 * (t3 - t2),
-            "total": 1e3 * (t3 - t0),
-        },
+        timing_ms=_timings(t0, t1, t2, t3),
         reason=reason,
         readout=readout,
         mirrored=mirrored,
