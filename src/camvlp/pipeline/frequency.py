@@ -7,6 +7,11 @@ is unambiguous: near enough, clearly nearer than any other map frequency, and cl
 other fixture in the photo.  Without the row time, the set of periods is matched to the set
 of map frequencies by their ratios: the row time is the one that makes the most periods
 land on distinct map frequencies.
+
+A light's stripes are measured over its whole striped area, down to the background
+(:func:`camvlp.pipeline.detect.light_support`), not only over the bright disc detection
+outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
+period more makes the frequency markedly more precise.
 """
 
 from __future__ import annotations
@@ -15,9 +20,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.decode import StripeDecode
+from camvlp.pipeline.detect import light_support
+from camvlp.pipeline.stripes import estimate_stripe_period
 
-__all__ = ["FrequencyAssignment", "assign_frequencies", "period_uncertainty"]
+__all__ = [
+    "FrequencyAssignment",
+    "assign_frequencies",
+    "decode_frequencies",
+    "period_uncertainty",
+]
 
 
 @dataclass(frozen=True)
@@ -186,3 +200,88 @@ def _fit_row_time(
         if other[3] != best[3] and other[0] == best[0] and other[1] < 2.0 * best[1] + 0.002:
             return None  # two different assignments fit about as well: ambiguous
     return best[2]
+
+
+def decode_frequencies(
+    blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
+) -> tuple[list[StripeDecode], np.ndarray, str]:
+    """Identify frequency-coded fixtures from their stripe periods.
+
+    Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
+    over its disc, then refined over its support down to the background
+    (:func:`camvlp.pipeline.detect.light_support`) starting from the disc's period (the
+    refinement is kept when within 15 % of it); the periods are then matched to the map's
+    frequencies (:func:`assign_frequencies`).
+
+    Parameters
+    ----------
+    blobs : sequence of Blob
+        The detected lights.
+    gray_rois : sequence of ndarray
+        Each blob's region of interest, gray (shape of its ``mask``).
+    axis : {"rows", "columns"}
+        The readout axis.
+    camera : Camera
+        Its ``row_time_s`` converts periods to frequencies (fitted from ratios when None).
+    fixture_map : FixtureMap
+        A map in frequency mode.
+
+    Returns
+    -------
+    decodes : list of StripeDecode
+        Per blob: the map ID or None with the reason; ``rows_per_chip`` is half the period
+        (rows), ``frames`` the periods the support spans.
+    frequencies_hz : ndarray, shape (N,)
+        Measured frequency per blob, Hz (NaN where unknown).
+    note : str
+        A remark on a row time fitted from the ratios ("" otherwise).
+    """
+    n = len(blobs)
+    periods = np.full(n, np.nan)
+    spans = np.zeros(n)
+    failures = [""] * n
+    for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
+        support = light_support(g, b.mask, axis)
+        along = support.any(axis=1 if axis == "rows" else 0)
+        idx = np.flatnonzero(along)
+        spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
+        est = estimate_stripe_period(g, b.mask, axis)
+        if est:  # the disc's period seeds the search over the whole striped area
+            wide = estimate_stripe_period(g, support, axis, near=est.period_px)
+            if wide and abs(np.log(wide.period_px / est.period_px)) < 0.15:
+                est = wide
+        if est:
+            periods[k] = est.period_px
+        else:
+            failures[k] = est.message or "no stripe period could be measured"
+    with np.errstate(invalid="ignore", divide="ignore"):
+        seen = np.where(np.isfinite(periods), spans / periods, 0.0)
+    fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
+    note = ""
+    if fa.row_time_fitted:
+        note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
+            f"frequencies by their ratios (fitted row time {1e6 * fa.row_time_s:.2f} us)"
+            if np.isfinite(fa.row_time_s)
+            else "frequencies by their ratios, and no consistent match was found"
+        )
+    decodes = []
+    for k in range(n):
+        reason = failures[k] or fa.reasons[k]
+        fid = fa.ids[k] if not failures[k] else None
+        margin = 0.0
+        if fid is not None:
+            target = fixture_map.get(fid).frequency_hz
+            margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
+        decodes.append(
+            StripeDecode(
+                fid,
+                "" if fid is not None else reason,
+                -1,
+                margin,
+                0.5 * periods[k],
+                float("nan"),
+                "",
+                float(seen[k]),
+            )
+        )
+    return decodes, fa.frequencies_hz, note
