@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from camvlp.model.camera import Camera
@@ -202,6 +203,26 @@ def _fit_row_time(
     return best[2]
 
 
+def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
+    """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
+
+    Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
+    the lit rows) is kept; along it, the disc's edges are cut by the stripes, and a light
+    with a glow is centred on its whole striped area.  Left as it is when the support
+    reaches the region's edge along the readout axis (the area would be cut) or the disc is
+    cut by the image border.
+    """
+    if blob.touches_border or not support.any():
+        return
+    j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
+    lines = np.flatnonzero(support.any(axis=1 - j))
+    if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
+        return
+    m = cv2.moments(support.astype(np.uint8), binaryImage=True)
+    centre = (m["m10"] if j == 0 else m["m01"]) / m["m00"]
+    blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
+
+
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, str]:
@@ -245,6 +266,7 @@ def decode_frequencies(
         along = support.any(axis=1 if axis == "rows" else 0)
         idx = np.flatnonzero(along)
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
+        _centre_on_support(b, support, axis)
         est = estimate_stripe_period(g, b.mask, axis)
         if est:  # the disc's period seeds the search over the whole striped area
             wide = estimate_stripe_period(g, support, axis, near=est.period_px)
