@@ -203,23 +203,39 @@ def _fit_row_time(
     return best[2]
 
 
-def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
+def _centre_on_support(blob, support: np.ndarray, axis: str, glow_ratio: float = 1.5) -> None:
     """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
 
     Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
-    the lit rows) is kept; along it, the disc's edges are cut by the stripes, and a light
-    with a glow is centred on its whole striped area.  Left as it is when the support
-    reaches the region's edge along the readout axis (the area would be cut) or the disc is
-    cut by the image border.
+    the lit rows) is kept; along it, a light with a glow is centred on its whole striped
+    area: an ellipse fitted to the sides of the support's outline (the points where it runs
+    along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
+    out).  Left as it is when the support reaches the region's edge along the readout axis
+    (the area would be cut), the disc is cut by the image border, or too few side points,
+    and for a light without a glow (a support under ``glow_ratio`` times the disc's area),
+    whose disc edges locate it best.
     """
-    if blob.touches_border or not support.any():
-        return
+    if blob.touches_border or support.sum() < glow_ratio * blob.mask.sum():
+        return  # no glow: the disc's own edges give the centre, to a tenth of a pixel
     j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
     lines = np.flatnonzero(support.any(axis=1 - j))
     if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
         return
-    m = cv2.moments(support.astype(np.uint8), binaryImage=True)
-    centre = (m["m10"] if j == 0 else m["m01"]) / m["m00"]
+    # the outline's sides (running along the readout axis): its caps are cut by the stripes
+    contours, _ = cv2.findContours(
+        support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    pts = max(contours, key=cv2.contourArea)[:, 0, :].astype(float)  # (M, 2) as (x, y)
+    if pts.shape[0] < 20:
+        return
+    tangent = np.roll(pts, -2, axis=0) - np.roll(pts, 2, axis=0)
+    sides = pts[np.abs(tangent[:, j]) > np.abs(tangent[:, 1 - j])]
+    if sides.shape[0] < 12:
+        return
+    (cx, cy), _, _ = cv2.fitEllipse(sides.astype(np.float32))
+    centre = cy if j == 1 else cx
+    if not 0 <= centre < support.shape[1 - j]:
+        return
     blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
 
 
