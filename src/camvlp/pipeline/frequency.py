@@ -203,7 +203,12 @@ def _fit_row_time(
     return best[2]
 
 
-def _centre_on_support(blob, support: np.ndarray, axis: str, glow_ratio: float = 1.5) -> None:
+#: A light "glows" (its striped area reaches well beyond the detected disc) when its support
+#: covers at least this many times the disc's area.
+_GLOW_RATIO = 1.5
+
+
+def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
     """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
 
     Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
@@ -211,12 +216,10 @@ def _centre_on_support(blob, support: np.ndarray, axis: str, glow_ratio: float =
     area: an ellipse fitted to the sides of the support's outline (the points where it runs
     along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
     out).  Left as it is when the support reaches the region's edge along the readout axis
-    (the area would be cut), the disc is cut by the image border, or too few side points,
-    and for a light without a glow (a support under ``glow_ratio`` times the disc's area),
-    whose disc edges locate it best.
+    (the area would be cut), the disc is cut by the image border, or too few side points.
     """
-    if blob.touches_border or support.sum() < glow_ratio * blob.mask.sum():
-        return  # no glow: the disc's own edges give the centre, to a tenth of a pixel
+    if blob.touches_border:
+        return
     j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
     lines = np.flatnonzero(support.any(axis=1 - j))
     if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
@@ -245,10 +248,12 @@ def decode_frequencies(
     """Identify frequency-coded fixtures from their stripe periods.
 
     Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
-    over its disc, then refined over its support down to the background
-    (:func:`camvlp.pipeline.detect.light_support`) starting from the disc's period (the
-    refinement is kept when within 15 % of it); the periods are then matched to the map's
-    frequencies (:func:`assign_frequencies`).
+    over its disc.  A light whose striped area reaches well beyond the disc (a glow: its
+    support down to the background, :func:`camvlp.pipeline.detect.light_support`, covers
+    1.5 times the disc's area or more) has its period refined over that whole area, starting
+    from the disc's (the refinement is kept when within 15 % of it), and its centre along the
+    readout axis moved to the area's centre (``blob.pixel`` is updated in place).  The
+    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -279,15 +284,19 @@ def decode_frequencies(
     failures = [""] * n
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
         support = light_support(g, b.mask, axis)
+        glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
+        if not glow:  # a plain disc: its own outline is its striped area
+            support = b.mask
         along = support.any(axis=1 if axis == "rows" else 0)
         idx = np.flatnonzero(along)
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
-        _centre_on_support(b, support, axis)
         est = estimate_stripe_period(g, b.mask, axis)
-        if est:  # the disc's period seeds the search over the whole striped area
-            wide = estimate_stripe_period(g, support, axis, near=est.period_px)
-            if wide and abs(np.log(wide.period_px / est.period_px)) < 0.15:
-                est = wide
+        if glow:
+            _centre_on_support(b, support, axis)
+            if est:  # the disc's period seeds the search over the whole striped area
+                wide = estimate_stripe_period(g, support, axis, near=est.period_px)
+                if wide and abs(np.log(wide.period_px / est.period_px)) < 0.15:
+                    est = wide
         if est:
             periods[k] = est.period_px
         else:

@@ -101,39 +101,7 @@ def _refine(x: np.ndarray, y: np.ndarray, w: np.ndarray, f0: float, n: int) -> f
     return float(res.x)
 
 
-def _box_mean(v: np.ndarray, w: np.ndarray, length: float) -> np.ndarray:
-    """Weighted running mean of ``v`` over a window of ``length`` samples (fractional)."""
-    n0 = max(int(np.floor(length)), 1)
-    frac = max(length - n0, 0.0)
-    kernel = np.convolve(np.ones(n0), [1.0 - frac, frac]) if frac > 0 else np.ones(n0)
-    num = np.convolve(v * w, kernel, mode="same")
-    den = np.convolve(w, kernel, mode="same")
-    return np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
-
-
-def _envelope_refine(x: np.ndarray, y: np.ndarray, w: np.ndarray, f: float, n: int) -> float:
-    """Refine ``f`` on the profile divided by its stripes' envelope.
-
-    The envelope is the profile's running mean over one period (which cancels the stripes,
-    leaving the light's shape: a hot core, a glow); the profile divided by it has stripes of
-    constant depth that the periodic model fits.  Weights scale with the envelope squared
-    (the divided noise grows where the light is faint).  Two rounds, each with the period
-    just found.
-    """
-    for _ in range(2):
-        env = _box_mean(y, w, 1.0 / f)
-        good = (w > 0) & (env > 0.05 * env.max())
-        if good.sum() < 6:
-            return f
-        yn = np.where(good, y / np.maximum(env, 1e-12), 0.0)
-        wn = np.where(good, w * env**2, 0.0)
-        f = _refine(x, yn, wn, f, n)
-    return f
-
-
-def _period_along(
-    img: np.ndarray, mask: np.ndarray, axis: str, near: float | None, envelope: bool
-) -> StripePeriod:
+def _period_along(img: np.ndarray, mask: np.ndarray, axis: str, near: float | None) -> StripePeriod:
     nan = float("nan")
     counts, sums, sq = _line_sums(img, mask, axis)
     if counts.max() <= 0:
@@ -184,8 +152,6 @@ def _period_along(
 
     # Refine: least-squares fit of trend + harmonics, optimised over the frequency.
     f = _refine(x, y, w, f0, n)
-    if envelope:
-        f = _envelope_refine(x, y, w, f, n)
     _, model = _fit(x, y, w, f)
     strength = float(np.clip(1.0 - pixel_ss(model) / total, 0.0, 1.0))
     return StripePeriod(1.0 / f, axis, strength, periods_seen=n * f)
@@ -197,7 +163,6 @@ def estimate_stripe_period(
     axis: str | None = None,
     *,
     near: float | None = None,
-    envelope: bool = False,
 ) -> StripePeriod:
     """Period of the stripes a rolling shutter draws across a blinking light.
 
@@ -239,10 +204,6 @@ def estimate_stripe_period(
         A first estimate of the period, pixels (e.g. measured over a smaller region): the
         search starts there instead of at the spectrum's peak, which a light's own shape
         (a hot core, a glow) can dominate over a wide region.
-    envelope : bool, keyword-only
-        Also divide the profile by its stripes' envelope (its running mean over one period)
-        and refine the period on that: for lights whose brightness falls off from the
-        centre, whose stripes the constant-depth periodic model otherwise fits with a bias.
 
     Returns
     -------
@@ -264,7 +225,7 @@ def estimate_stripe_period(
     if axis is not None and axis not in AXES:
         raise ValueError(f"axis must be 'rows', 'columns' or None, got {axis!r}")
     axes = AXES if axis is None else (axis,)
-    results = [_period_along(img, m, a, near, envelope) for a in axes]
+    results = [_period_along(img, m, a, near) for a in axes]
     good = [r for r in results if r]
     if not good:
         return results[0]
