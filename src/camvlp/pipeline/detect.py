@@ -397,7 +397,7 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
 
 
 def light_support(
-    gray: np.ndarray, mask: np.ndarray, axis: str, kernel_px: int = 16, k_sigma: float = 12.0
+    gray: np.ndarray, mask: np.ndarray, axis: str, kernel_px: int = 16, k_sigma: float = 8.0
 ) -> np.ndarray:
     """A light's whole striped area, down to the background, inside its region of interest.
 

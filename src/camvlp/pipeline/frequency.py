@@ -16,6 +16,7 @@ period more makes the frequency markedly more precise.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -25,7 +26,7 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import light_support
-from camvlp.pipeline.stripes import estimate_stripe_period
+from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
 
 __all__ = [
     "FrequencyAssignment",
@@ -242,6 +243,30 @@ def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
     blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
 
 
+#: Thresholds of the striped area, noise levels above the background: each ends the area
+#: at another place in the glow (cutting a stripe at another phase); the median of their
+#: periods is kept.
+_GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
+
+
+def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
+    """The stripe period over a glowing light's whole striped area, pixels.
+
+    Measured over the area down to the background at each of :data:`_GLOW_SIGMAS`, starting
+    from the disc's period ``disc``; estimates more than 15 % from the disc's are dropped;
+    the median of the rest is returned (the disc's own estimate when none is left).
+    """
+    found = []
+    for k_sigma in _GLOW_SIGMAS:
+        support = light_support(gray, mask, axis, k_sigma=k_sigma)
+        wide = estimate_stripe_period(gray, support, axis, near=disc.period_px)
+        if wide and abs(np.log(wide.period_px / disc.period_px)) < 0.15:
+            found.append(wide)
+    if not found:
+        return disc
+    return dataclasses.replace(found[0], period_px=float(np.median([w.period_px for w in found])))
+
+
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, str]:
@@ -293,10 +318,8 @@ def decode_frequencies(
         est = estimate_stripe_period(g, b.mask, axis)
         if glow:
             _centre_on_support(b, support, axis)
-            if est:  # the disc's period seeds the search over the whole striped area
-                wide = estimate_stripe_period(g, support, axis, near=est.period_px)
-                if wide and abs(np.log(wide.period_px / est.period_px)) < 0.15:
-                    est = wide
+            if est:
+                est = _period_over_glow(g, b.mask, axis, est)
         if est:
             periods[k] = est.period_px
         else:
