@@ -427,6 +427,57 @@ class Tracker:
         if fresh and rs and len(usable):  # a first guess for PnP: moved to the frame's time
             pixels = measured - self._rs_shift(state, obj, measured, img.shape[:2])
 
+        status, reason, solved, used_mask = self._solve_frame(
+            blobs, ids, usable, state, fresh, obj, measured, pixels, dts
+        )
+        raw_pose, rms, used_ids = None, math.nan, ()
+        if solved is not None:
+            raw_pose, rms = solved.pose, solved.reprojection_rms_px
+            used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
+            self._measure(
+                solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
+            )
+            reason = ""
+        elif self.filter is not None and self._t_measured is not None:
+            status, reason = self._coast(t, reason)
+        self._remember(blobs, ids, reasons, t)
+        t2 = time.perf_counter()
+
+        no_pose = "" if raw_pose is not None else (reason or "no pose")
+        mirror_w = img.shape[1] if mirrored else None
+        fixtures = self._fixtures(
+            blobs, ids, sources, reasons, usable, used_mask, mirror_w, no_pose
+        )
+        pos = euler = None
+        if self.filter is not None and status != "lost":
+            v = self.filter.value
+            pos, euler = v[:3], v[3:]
+        return TrackFrame(
+            index=index,
+            t=float(t),
+            status=status,
+            position=pos,
+            euler_deg=euler,
+            raw_position=None if raw_pose is None else raw_pose.position,
+            raw_euler_deg=None if raw_pose is None else self._near(raw_pose.euler_deg),
+            fixtures_used=used_ids,
+            reprojection_rms_px=rms,
+            fixtures=fixtures,
+            reason=reason,
+            timing_ms={
+                "locate": 1e3 * (t1 - t0),
+                "track": 1e3 * (t2 - t1),
+                "total": 1e3 * (t2 - t0),
+            },
+        )
+
+    def _solve_frame(self, blobs, ids, usable, state, fresh: bool, obj, measured, pixels, dts):
+        """The frame's pose: a fix from four or more fixtures (from the track's prediction,
+        else by PnP), else a tracked pose from fewer with the track's help.
+
+        Returns (status, reason, solved PriorSolve or None, used mask over ``usable``).
+        """
+        st = self.settings.locate
         status, reason = "lost", ""
         solved = None
         used_mask = np.zeros(len(usable), bool)
@@ -473,59 +524,33 @@ class Tracker:
         if status == "fix" and solved is None:
             status, used_mask = "lost", np.zeros(len(usable), bool)
             reason = "the rolling-shutter refinement failed"
-        raw_pose, rms, used_ids = None, math.nan, ()
-        if solved is not None:
-            raw_pose, rms = solved.pose, solved.reprojection_rms_px
-            used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
-            self._measure(
-                solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
-            )
-            reason = ""
-        elif self.filter is not None and self._t_measured is not None:
-            if t - self._t_measured <= self.settings.max_gap_s:
-                self.filter.predict(t - self._t_last)
-                self._t_last = t
-                status = "predicted"
-            else:
-                self.filter, self._t_last, self._t_measured = None, None, None
-                status, reason = "lost", f"no measurement for {self.settings.max_gap_s} s"
-        self._remember(blobs, ids, reasons, t)
-        t2 = time.perf_counter()
+        return status, reason, solved, used_mask
 
-        width = img.shape[1]
-
-        def shown(p: np.ndarray) -> np.ndarray:
-            return np.array([width - 1 - p[0], p[1]]) if mirrored else p
-
+    @staticmethod
+    def _fixtures(blobs, ids, sources, reasons, usable, used_mask, mirror_width, no_pose: str):
+        """The frame's fixtures as reported (pixels of the photo as given: flipped back when
+        ``mirror_width`` is the mirrored image's width); ``no_pose``: why identified fixtures
+        are unused when there is no pose ("" when there is one)."""
         used_set = {usable[j] for j in np.flatnonzero(used_mask)}
-        fixtures = []
+        out = []
         for k, b in enumerate(blobs):
             why = reasons[k]
             if k in usable and k not in used_set:
-                why = "not used by the pose" if raw_pose is not None else (reason or "no pose")
-            fixtures.append(TrackedFixture(ids[k], shown(b.pixel), sources[k], k in used_set, why))
-        pos = euler = None
-        if self.filter is not None and status != "lost":
-            v = self.filter.value
-            pos, euler = v[:3], v[3:]
-        return TrackFrame(
-            index=index,
-            t=float(t),
-            status=status,
-            position=pos,
-            euler_deg=euler,
-            raw_position=None if raw_pose is None else raw_pose.position,
-            raw_euler_deg=None if raw_pose is None else self._near(raw_pose.euler_deg),
-            fixtures_used=used_ids,
-            reprojection_rms_px=rms,
-            fixtures=tuple(fixtures),
-            reason=reason,
-            timing_ms={
-                "locate": 1e3 * (t1 - t0),
-                "track": 1e3 * (t2 - t1),
-                "total": 1e3 * (t2 - t0),
-            },
-        )
+                why = no_pose or "not used by the pose"
+            p = b.pixel
+            if mirror_width is not None:
+                p = np.array([mirror_width - 1 - p[0], p[1]])
+            out.append(TrackedFixture(ids[k], p, sources[k], k in used_set, why))
+        return tuple(out)
+
+    def _coast(self, t: float, reason: str) -> tuple[str, str]:
+        """No measurement this frame: the filter predicts on, or the track is lost."""
+        if t - self._t_measured <= self.settings.max_gap_s:
+            self.filter.predict(t - self._t_last)
+            self._t_last = t
+            return "predicted", reason
+        self.filter, self._t_last, self._t_measured = None, None, None
+        return "lost", f"no measurement for {self.settings.max_gap_s} s"
 
     # ---------------------------------------------------------------------------------------
 
