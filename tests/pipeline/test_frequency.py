@@ -160,3 +160,35 @@ def test_mirrored_photo_is_flagged_and_located_when_flipped():
     res = locate(photo.image, camera, room, LocateSettings(mirrored=True))
     assert res, res.error
     assert np.linalg.norm(res.position - pose.position) < 3e-3
+
+
+def _glowing_room(freqs=(2000.0, 2400.0, 2800.0, 3200.0)) -> FixtureMap:
+    """Four frequency-coded discs at 2.7 m, each 2 stripe periods across (seen from below)."""
+    xz = ((0.25, 0.18), (-0.25, 0.18), (-0.25, -0.18), (0.25, -0.18))
+    fixtures = []
+    for i, ((x, z), f) in enumerate(zip(xz, freqs, strict=True)):
+        period_px = 1.0 / (f * ROW_TIME_S)
+        diameter = 2.0 * period_px * 2.7 / 1000.0  # 2 periods at 2.7 m, focal 1000 px
+        fixtures.append(
+            Fixture(
+                i + 1, np.array([x, -2.7, z]), diameter, np.array([0.0, 1.0, 0.0]), frequency_hz=f
+            )
+        )
+    return FixtureMap(tuple(fixtures), mode="frequency")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_light_with_a_hot_core_and_two_periods(seed):
+    """A hot core, a glow and soft stripes: the centre within 2 px, the frequency within 1 %."""
+    camera = Camera.from_focal(480, 360, 1000.0, row_time_s=ROW_TIME_S)
+    room = _glowing_room()
+    pose = Pose.from_euler([0.01, 0.0, -0.02], [90.0, 0.0, 0.0])
+    settings = dataclasses.replace(_settings(seed=20 + seed), core=4.0, halo=0.4, soft=0.45)
+    photo = render(camera, room, pose, settings)
+    res = locate(photo.image, camera, room)
+    truth = {t.id: t for t in photo.fixtures}
+    assert sorted(f.id for f in res.fixtures if f.id is not None) == [1, 2, 3, 4]
+    for f in res.fixtures:
+        assert truth[f.id].frames_spanned == pytest.approx(2.0, abs=0.1)  # 2 periods
+        assert np.hypot(*(f.pixel - truth[f.id].pixel)) < 2.0
+        assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.01)

@@ -15,7 +15,15 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-__all__ = ["Blob", "Detection", "detect_fixtures", "find_readout_axis", "gray_float", "to_gray"]
+__all__ = [
+    "Blob",
+    "Detection",
+    "detect_fixtures",
+    "find_readout_axis",
+    "gray_float",
+    "light_support",
+    "to_gray",
+]
 
 
 @dataclass(frozen=True)
@@ -386,6 +394,59 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     filled = np.zeros_like(closed)
     cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
     return filled.astype(bool)
+
+
+def light_support(
+    gray: np.ndarray, mask: np.ndarray, axis: str, kernel_px: int = 16, k_sigma: float = 8.0
+) -> np.ndarray:
+    """A light's whole striped area, down to the background, inside its region of interest.
+
+    A detected disc's mask is thresholded well up its brightness; a real light with a hot
+    core, a glow and soft stripes shows its stripes further out, down to where they sink into
+    the background.  Here the region's background is its 10th percentile outside the disc
+    (dilated), its noise the spread of neighbouring pixels' differences there (so that a
+    smooth glow does not count as noise); the pixels (lightly smoothed) more than
+    ``k_sigma`` noise levels above the background, with the dark stripes bridged as in
+    detection, form the support.  Its outline that overlaps ``mask`` is kept (filled), joined
+    with ``mask``.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The region of interest, gray levels (any real dtype).
+    mask : ndarray of bool, shape (h, w)
+        The detected disc (:attr:`Blob.mask`).
+    axis : {"rows", "columns"}
+        The readout axis (stripes across it).
+    kernel_px : int
+        Smallest closing length bridging the dark stripes, pixels.
+    k_sigma : float
+        Threshold above the background, in noise standard deviations.
+
+    Returns
+    -------
+    ndarray of bool, shape (h, w)
+        The support; ``mask`` itself when the region has too little background to tell.
+    """
+    g = np.asarray(gray, dtype=np.float32)
+    m = np.asarray(mask, dtype=bool)
+    if g.shape != m.shape or not m.any():
+        return m
+    outside = cv2.dilate(m.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0
+    if outside.sum() < 50:
+        return m
+    background = float(np.percentile(g[outside], 10))
+    # noise: neighbouring pixels across the readout axis see the same stripe phase
+    d = np.diff(g, axis=1) if axis == "rows" else np.diff(g, axis=0)
+    both = outside[:, 1:] & outside[:, :-1] if axis == "rows" else outside[1:] & outside[:-1]
+    dd = d[both]
+    noise = 1.4826 * float(np.median(np.abs(dd - np.median(dd)))) / np.sqrt(2.0)
+    lit = cv2.GaussianBlur(g, (0, 0), 1.0) > background + max(k_sigma * noise, 2.0)
+    lit |= m
+    support = _disc_mask(lit, axis, kernel_px)
+    if support is None or not (support & m).any():
+        return m
+    return support | m
 
 
 def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: str) -> np.ndarray:

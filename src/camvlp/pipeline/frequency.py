@@ -7,17 +7,33 @@ is unambiguous: near enough, clearly nearer than any other map frequency, and cl
 other fixture in the photo.  Without the row time, the set of periods is matched to the set
 of map frequencies by their ratios: the row time is the one that makes the most periods
 land on distinct map frequencies.
+
+A light's stripes are measured over its whole striped area, down to the background
+(:func:`camvlp.pipeline.detect.light_support`), not only over the bright disc detection
+outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
+period more makes the frequency markedly more precise.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
+from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.decode import StripeDecode
+from camvlp.pipeline.detect import light_support
+from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
 
-__all__ = ["FrequencyAssignment", "assign_frequencies", "period_uncertainty"]
+__all__ = [
+    "FrequencyAssignment",
+    "assign_frequencies",
+    "decode_frequencies",
+    "period_uncertainty",
+]
 
 
 @dataclass(frozen=True)
@@ -186,3 +202,156 @@ def _fit_row_time(
         if other[3] != best[3] and other[0] == best[0] and other[1] < 2.0 * best[1] + 0.002:
             return None  # two different assignments fit about as well: ambiguous
     return best[2]
+
+
+#: A light "glows" (its striped area reaches well beyond the detected disc) when its support
+#: covers at least this many times the disc's area.
+_GLOW_RATIO = 1.5
+
+
+def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
+    """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
+
+    Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
+    the lit rows) is kept; along it, a light with a glow is centred on its whole striped
+    area: an ellipse fitted to the sides of the support's outline (the points where it runs
+    along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
+    out).  Left as it is when the support reaches the region's edge along the readout axis
+    (the area would be cut), the disc is cut by the image border, or too few side points.
+    """
+    if blob.touches_border:
+        return
+    j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
+    lines = np.flatnonzero(support.any(axis=1 - j))
+    if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
+        return
+    # the outline's sides (running along the readout axis): its caps are cut by the stripes
+    contours, _ = cv2.findContours(
+        support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    pts = max(contours, key=cv2.contourArea)[:, 0, :].astype(float)  # (M, 2) as (x, y)
+    if pts.shape[0] < 20:
+        return
+    tangent = np.roll(pts, -2, axis=0) - np.roll(pts, 2, axis=0)
+    sides = pts[np.abs(tangent[:, j]) > np.abs(tangent[:, 1 - j])]
+    if sides.shape[0] < 12:
+        return
+    (cx, cy), _, _ = cv2.fitEllipse(sides.astype(np.float32))
+    centre = cy if j == 1 else cx
+    if not 0 <= centre < support.shape[1 - j]:
+        return
+    blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
+
+
+#: Thresholds of the striped area, noise levels above the background: each ends the area
+#: at another place in the glow (cutting a stripe at another phase); the median of their
+#: periods is kept.
+_GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
+
+
+def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
+    """The stripe period over a glowing light's whole striped area, pixels.
+
+    Measured over the area down to the background at each of :data:`_GLOW_SIGMAS`, starting
+    from the disc's period ``disc``; estimates more than 15 % from the disc's are dropped;
+    the median of the rest is returned (the disc's own estimate when none is left).
+    """
+    found = []
+    for k_sigma in _GLOW_SIGMAS:
+        support = light_support(gray, mask, axis, k_sigma=k_sigma)
+        wide = estimate_stripe_period(gray, support, axis, near=disc.period_px)
+        if wide and abs(np.log(wide.period_px / disc.period_px)) < 0.15:
+            found.append(wide)
+    if not found:
+        return disc
+    return dataclasses.replace(found[0], period_px=float(np.median([w.period_px for w in found])))
+
+
+def decode_frequencies(
+    blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
+) -> tuple[list[StripeDecode], np.ndarray, str]:
+    """Identify frequency-coded fixtures from their stripe periods.
+
+    Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
+    over its disc.  A light whose striped area reaches well beyond the disc (a glow: its
+    support down to the background, :func:`camvlp.pipeline.detect.light_support`, covers
+    1.5 times the disc's area or more) has its period refined over that whole area, starting
+    from the disc's (the refinement is kept when within 15 % of it), and its centre along the
+    readout axis moved to the area's centre (``blob.pixel`` is updated in place).  The
+    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
+
+    Parameters
+    ----------
+    blobs : sequence of Blob
+        The detected lights.
+    gray_rois : sequence of ndarray
+        Each blob's region of interest, gray (shape of its ``mask``).
+    axis : {"rows", "columns"}
+        The readout axis.
+    camera : Camera
+        Its ``row_time_s`` converts periods to frequencies (fitted from ratios when None).
+    fixture_map : FixtureMap
+        A map in frequency mode.
+
+    Returns
+    -------
+    decodes : list of StripeDecode
+        Per blob: the map ID or None with the reason; ``rows_per_chip`` is half the period
+        (rows), ``frames`` the periods the support spans.
+    frequencies_hz : ndarray, shape (N,)
+        Measured frequency per blob, Hz (NaN where unknown).
+    note : str
+        A remark on a row time fitted from the ratios ("" otherwise).
+    """
+    n = len(blobs)
+    periods = np.full(n, np.nan)
+    spans = np.zeros(n)
+    failures = [""] * n
+    for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
+        support = light_support(g, b.mask, axis)
+        glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
+        if not glow:  # a plain disc: its own outline is its striped area
+            support = b.mask
+        along = support.any(axis=1 if axis == "rows" else 0)
+        idx = np.flatnonzero(along)
+        spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
+        est = estimate_stripe_period(g, b.mask, axis)
+        if glow:
+            _centre_on_support(b, support, axis)
+            if est:
+                est = _period_over_glow(g, b.mask, axis, est)
+        if est:
+            periods[k] = est.period_px
+        else:
+            failures[k] = est.message or "no stripe period could be measured"
+    with np.errstate(invalid="ignore", divide="ignore"):
+        seen = np.where(np.isfinite(periods), spans / periods, 0.0)
+    fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
+    note = ""
+    if fa.row_time_fitted:
+        note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
+            f"frequencies by their ratios (fitted row time {1e6 * fa.row_time_s:.2f} us)"
+            if np.isfinite(fa.row_time_s)
+            else "frequencies by their ratios, and no consistent match was found"
+        )
+    decodes = []
+    for k in range(n):
+        reason = failures[k] or fa.reasons[k]
+        fid = fa.ids[k] if not failures[k] else None
+        margin = 0.0
+        if fid is not None:
+            target = fixture_map.get(fid).frequency_hz
+            margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
+        decodes.append(
+            StripeDecode(
+                fid,
+                "" if fid is not None else reason,
+                -1,
+                margin,
+                0.5 * periods[k],
+                float("nan"),
+                "",
+                float(seen[k]),
+            )
+        )
+    return decodes, fa.frequencies_hz, note

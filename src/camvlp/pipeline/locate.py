@@ -29,11 +29,10 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
-from camvlp.pipeline.frequency import assign_frequencies
+from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
-from camvlp.pipeline.stripes import estimate_stripe_period
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
 
@@ -141,45 +140,7 @@ def _decode_frequencies(
     blobs, gray_rois, extents: np.ndarray, axis: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
-    periods = np.full(len(blobs), np.nan)
-    failures = [""] * len(blobs)
-    for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
-        est = estimate_stripe_period(g, b.mask, axis)
-        if est:
-            periods[k] = est.period_px
-        else:
-            failures[k] = est.message or "no stripe period could be measured"
-    fa = assign_frequencies(
-        periods, fixture_map, camera.row_time_s, periods_spanned=extents / periods
-    )
-    note = ""
-    if fa.row_time_fitted:
-        note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
-            f"frequencies by their ratios (fitted row time {1e6 * fa.row_time_s:.2f} us)"
-            if np.isfinite(fa.row_time_s)
-            else "frequencies by their ratios, and no consistent match was found"
-        )
-    decodes = []
-    for k in range(len(blobs)):
-        reason = failures[k] or fa.reasons[k]
-        fid = fa.ids[k] if not failures[k] else None
-        margin = 0.0
-        if fid is not None:
-            target = fixture_map.get(fid).frequency_hz
-            margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
-        decodes.append(
-            StripeDecode(
-                fid,
-                "" if fid is not None else reason,
-                -1,
-                margin,
-                0.5 * periods[k],
-                float("nan"),
-                "",
-                extents[k] / periods[k] if np.isfinite(periods[k]) else 0.0,
-            )
-        )
-    return decodes, fa.frequencies_hz, note
+    return decode_frequencies(blobs, gray_rois, axis, camera, fixture_map)
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,8 @@ from camvlp.pipeline.locate import (
     _profiles,
     _solve,
 )
+from camvlp.pipeline.track_assoc import associate, known_blobs
+from camvlp.pipeline.track_filter import ConstantVelocityFilter
 
 __all__ = [
     "STATUSES",
@@ -149,108 +151,6 @@ class TrackSettings:
             raise ValueError(f"ambiguity must be at least 1, got {self.ambiguity!r}")
         if self.min_tracked < 1:
             raise ValueError(f"min_tracked must be at least 1, got {self.min_tracked!r}")
-
-
-class ConstantVelocityFilter:
-    """Kalman filter with a constant-velocity model on D coordinates.
-
-    State: the D values, then their D rates (units per s); ``x`` (2D,), ``P`` (2D, 2D).  The
-    process noise is a random acceleration, constant over each step, of standard deviation
-    ``accel_sigma`` per coordinate (units / s^2; the discrete white-noise acceleration model).
-
-    Parameters
-    ----------
-    value : array_like, shape (D,)
-        First measurement.
-    value_sigma : array_like, shape (D,)
-        Its standard deviation.
-    rate_sigma : array_like, shape (D,)
-        Standard deviation of the unknown initial rate (units per s).
-    accel_sigma : array_like, shape (D,)
-        Standard deviation of the acceleration per coordinate, units per s^2.
-    """
-
-    def __init__(self, value, value_sigma, rate_sigma, accel_sigma) -> None:
-        v = np.asarray(value, dtype=float).reshape(-1)
-        d = v.size
-        self.d = d
-        self.x = np.concatenate([v, np.zeros(d)])
-        var = np.concatenate(
-            [
-                np.broadcast_to(np.asarray(value_sigma, dtype=float) ** 2, (d,)),
-                np.broadcast_to(np.asarray(rate_sigma, dtype=float) ** 2, (d,)),
-            ]
-        )
-        self.P = np.diag(var)
-        self.q = np.broadcast_to(np.asarray(accel_sigma, dtype=float) ** 2, (d,)).copy()
-
-    @property
-    def value(self) -> np.ndarray:
-        """Current values, shape (D,)."""
-        return self.x[: self.d].copy()
-
-    @property
-    def rate(self) -> np.ndarray:
-        """Current rates (units per s), shape (D,)."""
-        return self.x[self.d :].copy()
-
-    @property
-    def sigma(self) -> np.ndarray:
-        """Standard deviation of each value, shape (D,)."""
-        return np.sqrt(np.diag(self.P)[: self.d])
-
-    def predicted(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
-        """The state (2D,) and covariance (2D, 2D) ``dt`` seconds on, without moving."""
-        dt = max(float(dt), 0.0)
-        eye = np.eye(self.d)
-        f = np.block([[eye, dt * eye], [np.zeros_like(eye), eye]])
-        q = np.diag(self.q)
-        qm = np.block([[q * dt**4 / 4, q * dt**3 / 2], [q * dt**3 / 2, q * dt**2]])
-        return f @ self.x, f @ self.P @ f.T + qm
-
-    def predict(self, dt: float) -> None:
-        """Move the state ``dt`` seconds on (``dt`` >= 0)."""
-        self.x, self.P = self.predicted(dt)
-
-    def update(self, z, sigma) -> None:
-        """Fuse a measurement of the values, ``z`` (D,), with standard deviations (D,)."""
-        z = np.asarray(z, dtype=float).reshape(-1)
-        h = np.hstack([np.eye(self.d), np.zeros((self.d, self.d))])
-        r = np.diag(np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape))
-        self._fuse(z - self.x[: self.d], h, r)
-
-    def update_some(self, indices, z, sigma) -> None:
-        """Fuse a measurement of some of the values (``indices``), ``z`` and ``sigma`` alike."""
-        idx = np.asarray(indices, dtype=int).reshape(-1)
-        h = np.zeros((idx.size, self.x.size))
-        h[np.arange(idx.size), idx] = 1.0
-        z = np.asarray(z, dtype=float).reshape(-1)
-        r = np.diag(np.broadcast_to(np.asarray(sigma, dtype=float) ** 2, z.shape))
-        self._fuse(z - self.x[idx], h, r)
-
-    def update_linearized(self, residual, jacobian, state_ref, sigma: float) -> None:
-        """Fuse a nonlinear measurement, linearised at ``state_ref``.
-
-        ``residual`` (M,) is the measurement minus its model at ``state_ref``, ``jacobian``
-        the model's derivative there with respect to the values (M, D) or the whole state
-        (M, 2D), ``state_ref`` (D,) or (2D,) accordingly, ``sigma`` the measurement's standard
-        deviation (an iterated extended Kalman filter step).  Directions the measurement does
-        not see keep their prior.
-        """
-        jac = np.asarray(jacobian, dtype=float)
-        ref = np.asarray(state_ref, dtype=float)
-        if jac.shape[1] == self.d:
-            jac = np.hstack([jac, np.zeros_like(jac)])
-            ref = np.concatenate([ref, self.x[self.d :]])
-        innovation = np.asarray(residual, dtype=float) - jac @ (self.x - ref)
-        self._fuse(innovation, jac, np.eye(jac.shape[0]) * sigma**2)
-
-    def _fuse(self, innovation: np.ndarray, h: np.ndarray, r: np.ndarray) -> None:
-        s = h @ self.P @ h.T + r
-        k = np.linalg.solve(s, h @ self.P).T
-        self.x = self.x + k @ innovation
-        ikh = np.eye(self.x.size) - k @ h
-        self.P = ikh @ self.P @ ikh.T + k @ r @ k.T  # Joseph form: stays symmetric
 
 
 @dataclass(frozen=True)
@@ -430,102 +330,31 @@ class Tracker:
         return out, False
 
     # ---------------------------------------------------------------------------------------
-    # Association
+    # Association (see :mod:`camvlp.pipeline.track_assoc`)
 
     def _associate(
         self, blobs, found: _Identified, predicted: dict[int, np.ndarray], from_pose: bool
     ) -> tuple[list[int | None], list[str], list[str]]:
         """IDs per blob (decoded, carried or None), their sources, and reasons."""
-        n = len(blobs)
-        ids: list[int | None] = [None] * n
-        sources = [""] * n
-        reasons = list(found.reasons)
         gate = self._gate * (1.0 if from_pose else 2.0)
-        pred_ids = list(predicted)
-        pred_px = np.array([predicted[i] for i in pred_ids]).reshape(-1, 2)
-        pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
-        dist = np.linalg.norm(pixels[:, None, :] - pred_px[None, :, :], axis=2)  # (n, m)
-        # decoded IDs, checked against the prediction
-        for k in range(n):
-            fid = found.ids[k]
-            decoded = fid is not None and (not found.reasons[k] or blobs[k].touches_border)
-            if not decoded or self.map.get(fid) is None:
-                continue
-            if fid in predicted:
-                d = dist[k, pred_ids.index(fid)]
-                # a cut disc's centre is off by up to its radius
-                slack = 0.5 * float(np.max(blobs[k].axes_px)) if blobs[k].touches_border else 0
-                if d > gate + slack:
-                    reasons[k] = (
-                        f"decoded ID {fid}, but the track puts that fixture {d:.0f} px away"
-                    )
-                    continue
-            ids[k], sources[k] = fid, "decoded"
-            if reasons[k].startswith("ID ") and "decoded for two" in reasons[k]:
-                reasons[k] = ""
-        # the same ID decoded twice: keep neither
-        for k in range(n):
-            if ids[k] is not None and sum(i == ids[k] for i in ids) > 1:
-                reasons[k] = f"ID {ids[k]} was decoded for two fixtures"
-        for k in range(n):
-            if reasons[k].startswith(f"ID {ids[k]} was decoded for two"):
-                ids[k], sources[k] = None, ""
-        # carried IDs: the one prediction within the gate, no rival nearly as close
-        claimed = {i for i in ids if i is not None}
-        for k in range(n):
-            if ids[k] is not None or pred_px.shape[0] == 0:
-                continue
-            order = np.argsort(dist[k])
-            j = int(order[0])
-            d = dist[k, j]
-            fid = pred_ids[j]
-            if d > gate:
-                continue
-            if order.size > 1 and dist[k, order[1]] < self.settings.ambiguity * max(d, 1.0):
-                reasons[k] = reasons[k] or "ambiguous: two fixtures are predicted near it"
-                continue
-            others = [q for q in range(n) if q != k and ids[q] is None]
-            if any(dist[q, j] < self.settings.ambiguity * max(d, 1.0) for q in others):
-                reasons[k] = reasons[k] or "ambiguous: two blobs near one predicted fixture"
-                continue
-            if fid in claimed:
-                continue
-            ids[k], sources[k] = fid, "carried"
-            claimed.add(fid)
-        for k in range(n):
-            if ids[k] is not None:
-                border = blobs[k].touches_border
-                reasons[k] = (
-                    "cut by the image border (its centre would be biased)" if border else ""
-                )
-        return ids, sources, reasons
-
-    # ---------------------------------------------------------------------------------------
+        return associate(
+            blobs, found.ids, found.reasons, predicted, self.map, gate, self.settings.ambiguity
+        )
 
     def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
-        """Blobs whose ID the track already knows: each the only prediction (from the pose)
-        within the gate, for a fixture whose stripes were decoded in the last
-        ``verify_every`` frames.  Their stripes need not be decoded again."""
+        """Blobs whose ID the track already knows (their stripes need not be decoded)."""
         n_verify = self.settings.verify_every
-        if not from_pose or n_verify <= 1 or self.map.mode == "frequency" or not predicted:
+        if not from_pose or n_verify <= 1 or self.map.mode == "frequency":
             return set()
-        pred_ids = list(predicted)
-        pred_px = np.array([predicted[i] for i in pred_ids])
-        known = set()
-        for k, b in enumerate(blobs):
-            if b.touches_border:
-                continue
-            d = np.linalg.norm(pred_px - b.pixel, axis=1)
-            order = np.argsort(d)
-            j = int(order[0])
-            if d[j] > self._gate:
-                continue
-            if order.size > 1 and d[order[1]] < self.settings.ambiguity * max(d[j], 1.0):
-                continue
-            last = self._verified.get(pred_ids[j])
-            if last is not None and self._index - last < n_verify:
-                known.add(k)
-        return known
+        return known_blobs(
+            blobs,
+            predicted,
+            self._verified,
+            self._index,
+            n_verify,
+            self._gate,
+            self.settings.ambiguity,
+        )
 
     def _decode(self, img, blobs, readout, skip: set[int]):
         todo = [k for k in range(len(blobs)) if k not in skip]
@@ -598,6 +427,57 @@ class Tracker:
         if fresh and rs and len(usable):  # a first guess for PnP: moved to the frame's time
             pixels = measured - self._rs_shift(state, obj, measured, img.shape[:2])
 
+        status, reason, solved, used_mask = self._solve_frame(
+            blobs, ids, usable, state, fresh, obj, measured, pixels, dts
+        )
+        raw_pose, rms, used_ids = None, math.nan, ()
+        if solved is not None:
+            raw_pose, rms = solved.pose, solved.reprojection_rms_px
+            used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
+            self._measure(
+                solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
+            )
+            reason = ""
+        elif self.filter is not None and self._t_measured is not None:
+            status, reason = self._coast(t, reason)
+        self._remember(blobs, ids, reasons, t)
+        t2 = time.perf_counter()
+
+        no_pose = "" if raw_pose is not None else (reason or "no pose")
+        mirror_w = img.shape[1] if mirrored else None
+        fixtures = self._fixtures(
+            blobs, ids, sources, reasons, usable, used_mask, mirror_w, no_pose
+        )
+        pos = euler = None
+        if self.filter is not None and status != "lost":
+            v = self.filter.value
+            pos, euler = v[:3], v[3:]
+        return TrackFrame(
+            index=index,
+            t=float(t),
+            status=status,
+            position=pos,
+            euler_deg=euler,
+            raw_position=None if raw_pose is None else raw_pose.position,
+            raw_euler_deg=None if raw_pose is None else self._near(raw_pose.euler_deg),
+            fixtures_used=used_ids,
+            reprojection_rms_px=rms,
+            fixtures=fixtures,
+            reason=reason,
+            timing_ms={
+                "locate": 1e3 * (t1 - t0),
+                "track": 1e3 * (t2 - t1),
+                "total": 1e3 * (t2 - t0),
+            },
+        )
+
+    def _solve_frame(self, blobs, ids, usable, state, fresh: bool, obj, measured, pixels, dts):
+        """The frame's pose: a fix from four or more fixtures (from the track's prediction,
+        else by PnP), else a tracked pose from fewer with the track's help.
+
+        Returns (status, reason, solved PriorSolve or None, used mask over ``usable``).
+        """
+        st = self.settings.locate
         status, reason = "lost", ""
         solved = None
         used_mask = np.zeros(len(usable), bool)
@@ -644,59 +524,33 @@ class Tracker:
         if status == "fix" and solved is None:
             status, used_mask = "lost", np.zeros(len(usable), bool)
             reason = "the rolling-shutter refinement failed"
-        raw_pose, rms, used_ids = None, math.nan, ()
-        if solved is not None:
-            raw_pose, rms = solved.pose, solved.reprojection_rms_px
-            used_ids = tuple(int(ids[usable[j]]) for j in np.flatnonzero(used_mask))
-            self._measure(
-                solved, t, obj[used_mask], measured[used_mask], dts[used_mask], fix=status == "fix"
-            )
-            reason = ""
-        elif self.filter is not None and self._t_measured is not None:
-            if t - self._t_measured <= self.settings.max_gap_s:
-                self.filter.predict(t - self._t_last)
-                self._t_last = t
-                status = "predicted"
-            else:
-                self.filter, self._t_last, self._t_measured = None, None, None
-                status, reason = "lost", f"no measurement for {self.settings.max_gap_s} s"
-        self._remember(blobs, ids, reasons, t)
-        t2 = time.perf_counter()
+        return status, reason, solved, used_mask
 
-        width = img.shape[1]
-
-        def shown(p: np.ndarray) -> np.ndarray:
-            return np.array([width - 1 - p[0], p[1]]) if mirrored else p
-
+    @staticmethod
+    def _fixtures(blobs, ids, sources, reasons, usable, used_mask, mirror_width, no_pose: str):
+        """The frame's fixtures as reported (pixels of the photo as given: flipped back when
+        ``mirror_width`` is the mirrored image's width); ``no_pose``: why identified fixtures
+        are unused when there is no pose ("" when there is one)."""
         used_set = {usable[j] for j in np.flatnonzero(used_mask)}
-        fixtures = []
+        out = []
         for k, b in enumerate(blobs):
             why = reasons[k]
             if k in usable and k not in used_set:
-                why = "not used by the pose" if raw_pose is not None else (reason or "no pose")
-            fixtures.append(TrackedFixture(ids[k], shown(b.pixel), sources[k], k in used_set, why))
-        pos = euler = None
-        if self.filter is not None and status != "lost":
-            v = self.filter.value
-            pos, euler = v[:3], v[3:]
-        return TrackFrame(
-            index=index,
-            t=float(t),
-            status=status,
-            position=pos,
-            euler_deg=euler,
-            raw_position=None if raw_pose is None else raw_pose.position,
-            raw_euler_deg=None if raw_pose is None else self._near(raw_pose.euler_deg),
-            fixtures_used=used_ids,
-            reprojection_rms_px=rms,
-            fixtures=tuple(fixtures),
-            reason=reason,
-            timing_ms={
-                "locate": 1e3 * (t1 - t0),
-                "track": 1e3 * (t2 - t1),
-                "total": 1e3 * (t2 - t0),
-            },
-        )
+                why = no_pose or "not used by the pose"
+            p = b.pixel
+            if mirror_width is not None:
+                p = np.array([mirror_width - 1 - p[0], p[1]])
+            out.append(TrackedFixture(ids[k], p, sources[k], k in used_set, why))
+        return tuple(out)
+
+    def _coast(self, t: float, reason: str) -> tuple[str, str]:
+        """No measurement this frame: the filter predicts on, or the track is lost."""
+        if t - self._t_measured <= self.settings.max_gap_s:
+            self.filter.predict(t - self._t_last)
+            self._t_last = t
+            return "predicted", reason
+        self.filter, self._t_last, self._t_measured = None, None, None
+        return "lost", f"no measurement for {self.settings.max_gap_s} s"
 
     # ---------------------------------------------------------------------------------------
 
