@@ -154,18 +154,9 @@ def pnp_candidates(
     of four points are on one line), each refined by Levenberg-Marquardt
     (``cv2.solvePnPRefineLM``) unless the solver is ``ippe`` or ``epnp``, which are kept raw.
 
-    Parameters
-    ----------
-    object_points : array_like, shape (N, 3)
-        World points, map units, N >= 4.
-    image_points : array_like, shape (N, 2)
-        Their pixels in the (distorted) image.
-    camera : Camera
-        Intrinsics and distortion.
-    solver : str
-        A key of :data:`SOLVERS`.
-    planar : bool
-        The object points are coplanar (add IPPE's two candidates).
+    ``object_points``, ``image_points``, ``camera`` and ``solver`` are as in
+    :func:`solve_pnp`; ``planar`` says the object points are coplanar (add IPPE's two
+    candidates).
 
     Returns
     -------
@@ -278,26 +269,14 @@ def solve_pnp_batch(
 ) -> np.ndarray:
     """Camera positions for many sets of correspondences (one OpenCV call per set).
 
-    Parameters
-    ----------
-    object_points : array_like, shape (N, 3) or (B, N, 3)
-        World coordinates (map units), shared by every set or one array per set.
-    image_points : array_like, shape (B, N, 2)
-        Pixel coordinates; a set with a non-finite coordinate is not solved.
-    camera : Camera
-        Intrinsics and distortion.
-    solver : {"iterative", "sqpnp", "ippe", "epnp"}
-        The OpenCV method (:data:`SOLVERS`).
+    The parameters and the ValueError of :func:`solve_pnp`, for ``B`` sets:
+    ``object_points`` of shape (N, 3) (shared by every set) or (B, N, 3), map units;
+    ``image_points`` of shape (B, N, 2), a set with a non-finite coordinate not solved.
 
     Returns
     -------
     ndarray, shape (B, 3)
         Camera centres in world coordinates (map units); NaN rows where the solve failed.
-
-    Raises
-    ------
-    ValueError
-        Bad shapes, fewer than four points, non-finite object points, or an unknown solver.
     """
     flag = _solver_flag(solver)
     obj, img = _check_points(object_points, image_points, batch=True)
@@ -518,12 +497,8 @@ def refine_pose(
 
     Parameters
     ----------
-    object_points : array_like, shape (N, 3)
-        World points, map units, N >= 1.
-    image_points : array_like, shape (N, 2)
-        Their pixels in the (distorted) image.
-    camera : Camera
-        Intrinsics and distortion.
+    object_points, image_points, camera
+        As in :func:`solve_pnp`, but N >= 1.
     prior_position : array_like, shape (3,)
         The prior camera centre, map units.
     prior_euler_deg : array_like, shape (3,)
@@ -553,40 +528,17 @@ def refine_pose(
     n = obj.shape[0]
     if img.shape[0] != n or n < 1:
         raise ValueError("object_points and image_points need the same number (>= 1) of points")
-    x0 = np.concatenate(
-        [
-            np.asarray(prior_position, dtype=float).reshape(3),
-            np.asarray(prior_euler_deg, dtype=float).reshape(3),
-        ]
-    )
-    sig = np.concatenate(
-        [
-            np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,)),
-            np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,)),
-        ]
-    )
     moving = dt_s is not None
     dt = np.zeros(n) if not moving else np.asarray(dt_s, dtype=np.float64).reshape(n)
-    if moving:
-        if prior_rates is None or sigma_rates is None:
-            raise ValueError("dt_s needs prior_rates and sigma_rates")
-        r0 = np.asarray(prior_rates, dtype=np.float64).reshape(6)
-        x0 = np.concatenate([x0, r0])
-        sig = np.concatenate([sig, np.broadcast_to(np.asarray(sigma_rates, dtype=float), (6,))])
-    else:
-        r0 = np.zeros(6) if prior_rates is None else np.asarray(prior_rates, dtype=float)
+    x0, sig, r0 = _prior_vector(
+        (prior_position, prior_euler_deg),
+        (sigma_position, sigma_euler_deg),
+        (prior_rates, sigma_rates),
+        moving=moving,
+    )
     if not (np.all(sig > 0) and np.all(np.isfinite(sig)) and sigma_px > 0):
         raise ValueError("the prior's standard deviations and sigma_px must be positive")
-
-    whiten = np.diag(1.0 / sig)
-    if prior_covariance is not None:
-        cov = np.asarray(prior_covariance, dtype=np.float64)
-        if cov.shape != (x0.size, x0.size) or not np.all(np.isfinite(cov)):
-            raise ValueError(f"prior_covariance must be a finite {x0.size} x {x0.size} matrix")
-        try:  # residual L^T (x - x0) with L L^T = cov^-1
-            whiten = np.linalg.cholesky(np.linalg.inv(cov)).T
-        except np.linalg.LinAlgError:
-            raise ValueError("prior_covariance must be positive definite") from None
+    whiten = _prior_whitening(sig, prior_covariance)
     steps = 1e-6 * np.maximum(np.abs(x0), 1.0)
 
     def pixel_terms(x: np.ndarray, with_jacobian: bool):
@@ -601,11 +553,86 @@ def refine_pose(
             return res, None
         return res, ((uv[1:] - uv[0]) / steps[:, None]).T / sigma_px
 
+    x = _levenberg_marquardt(pixel_terms, x0, whiten, sig)
+    if x is None:
+        return None
+    try:
+        pose = Pose.from_euler(x[:3], x[3:6])
+    except ValueError:
+        return None
+    if np.any(pose.to_camera(obj)[:, 2] <= 0):
+        return None
+    res_w, jac = pixel_terms(x, True)
+    res = np.hypot(*(res_w.reshape(-1, 2) * sigma_px).T)
+    if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
+        return None
+    jac = jac * sigma_px
+    return PriorSolve(pose, x[:6].copy(), x[6:].copy() if moving else r0, res, jac)
+
+
+def _prior_vector(
+    values: tuple, sigmas: tuple, rates: tuple, *, moving: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The prior's mean (6,) or (12,), its standard deviations (same) and the rates (6,).
+
+    ``values`` is ``(prior_position, prior_euler_deg)``, ``sigmas`` their standard deviations
+    and ``rates`` ``(prior_rates, sigma_rates)`` as :func:`refine_pose` takes them.  The mean
+    is ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees), followed by the rates
+    per s when the camera is ``moving`` (which needs both of ``rates``).
+    """
+    prior_position, prior_euler_deg = values
+    sigma_position, sigma_euler_deg = sigmas
+    prior_rates, sigma_rates = rates
+    x0 = np.concatenate(
+        [
+            np.asarray(prior_position, dtype=float).reshape(3),
+            np.asarray(prior_euler_deg, dtype=float).reshape(3),
+        ]
+    )
+    sig = np.concatenate(
+        [
+            np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,)),
+            np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,)),
+        ]
+    )
+    if moving:
+        if prior_rates is None or sigma_rates is None:
+            raise ValueError("dt_s needs prior_rates and sigma_rates")
+        r0 = np.asarray(prior_rates, dtype=np.float64).reshape(6)
+        x0 = np.concatenate([x0, r0])
+        sig = np.concatenate([sig, np.broadcast_to(np.asarray(sigma_rates, dtype=float), (6,))])
+    else:
+        r0 = np.zeros(6) if prior_rates is None else np.asarray(prior_rates, dtype=float)
+    return x0, sig, r0
+
+
+def _prior_whitening(sig: np.ndarray, prior_covariance) -> np.ndarray:
+    """The matrix W (P, P) with ``|W (x - x0)|^2`` the prior's cost: ``diag(1 / sig)``, or
+    ``L^T`` with ``L L^T`` the inverse of ``prior_covariance`` (P, P) when given."""
+    if prior_covariance is None:
+        return np.diag(1.0 / sig)
+    cov = np.asarray(prior_covariance, dtype=np.float64)
+    if cov.shape != (sig.size, sig.size) or not np.all(np.isfinite(cov)):
+        raise ValueError(f"prior_covariance must be a finite {sig.size} x {sig.size} matrix")
+    try:
+        return np.linalg.cholesky(np.linalg.inv(cov)).T
+    except np.linalg.LinAlgError:
+        raise ValueError("prior_covariance must be positive definite") from None
+
+
+def _levenberg_marquardt(pixel_terms, x0: np.ndarray, whiten: np.ndarray, sig: np.ndarray):
+    """Minimise the pixel terms plus the prior's (linear) terms from the prior ``x0`` (P,).
+
+    ``pixel_terms(x, with_jacobian)`` gives the whitened pixel residuals (2N,) and their
+    Jacobian (2N, P); ``whiten`` (P, P) the prior's; ``sig`` (P,) scales the step that counts
+    as converged.  Returns the fitted values (P,), or None when a cost is not finite or a
+    step cannot be solved.
+    """
+
     def cost(x: np.ndarray) -> float:
         res, _ = pixel_terms(x, False)
         return float(res @ res + np.sum((whiten @ (x - x0)) ** 2))
 
-    # Levenberg-Marquardt from the prior; the prior's terms are linear
     x = x0.copy()
     current = cost(x)
     if not np.isfinite(current):
@@ -635,15 +662,4 @@ def refine_pose(
         current = new
         if np.all(np.abs(step) <= 1e-3 * np.maximum(sig, 1e-12)):
             break
-    try:
-        pose = Pose.from_euler(x[:3], x[3:6])
-    except ValueError:
-        return None
-    if np.any(pose.to_camera(obj)[:, 2] <= 0):
-        return None
-    res_w, jac = pixel_terms(x, True)
-    res = np.hypot(*(res_w.reshape(-1, 2) * sigma_px).T)
-    if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
-        return None
-    jac = jac * sigma_px
-    return PriorSolve(pose, x[:6].copy(), x[6:].copy() if moving else r0, res, jac)
+    return x

@@ -136,6 +136,18 @@ def parse_mapping(text: str, path: Path, kind: str) -> dict:
     return data
 
 
+def read_mapping(path: str | Path, kind: str) -> dict:
+    """Read and parse the ``kind`` file (``"camera"``, ``"map"``...) at ``path`` into a dict.
+
+    Raises
+    ------
+    InputError
+        Missing, oversized or malformed file, naming it.
+    """
+    p = Path(path)
+    return parse_mapping(read_text_file(p, kind), p, kind)
+
+
 def _matrix(value: Any, shape: tuple[int, ...] | None, key: str, path: str | Path) -> np.ndarray:
     """A matrix given as nested lists, a flat list, or OpenCV's {rows, cols, data}."""
     if isinstance(value, dict) and "data" in value:
@@ -208,8 +220,7 @@ def load_camera(path: str | Path) -> Camera:
     InputError
         Missing or malformed file, naming the file and the key.
     """
-    p = Path(path)
-    return camera_from_dict(parse_mapping(read_text_file(p, "camera"), p, "camera"), p)
+    return camera_from_dict(read_mapping(path, "camera"), Path(path))
 
 
 def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> Camera:
@@ -319,26 +330,46 @@ def load_map(path: str | Path) -> FixtureMap:
         missing or non-numeric position, an ambiguous frame format; naming the file and the
         fixture.
     """
-    p = Path(path)
-    return map_from_dict(parse_mapping(read_text_file(p, "map"), p, "map"), p)
+    return map_from_dict(read_mapping(path, "map"), Path(path))
 
 
 def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> FixtureMap:
     """Build a fixture map from an already-parsed mapping with a map file's keys.
 
-    The one validation path of :func:`load_map` (which calls it), for maps that arrive
-    parsed (e.g. as JSON over HTTP).  ``source`` names the input in error messages.
-
-    Raises
-    ------
-    InputError
-        As :func:`load_map`, naming ``source`` and the fixture at fault.
+    What :func:`camera_from_dict` is to cameras, for maps: :func:`load_map` calls it;
+    it raises InputError as :func:`load_map` does, naming ``source`` and the fixture at fault.
     """
     p = source
     if not isinstance(data, Mapping):
         raise InputError("malformed map: expected a mapping of keys", p)
     units = data.get("units", "m")
-    frame_spec = data.get("frame") or {}
+    mode, frame, chip_rate = _frame_from_dict(data.get("frame") or {}, p)
+    entries = data.get("fixtures")
+    if not isinstance(entries, list) or not entries:
+        raise InputError("map needs a non-empty list 'fixtures'", p)
+    seen: set[int] = set()
+    fixtures = [_fixture_from_dict(e, i, mode, frame, seen, p) for i, e in enumerate(entries)]
+    up = None
+    if data.get("up") is not None:
+        up = _matrix(data["up"], (3,), "up", p)
+        if not np.any(up):
+            raise InputError("up must be a non-zero 3-vector (the map's up direction)", p)
+    try:
+        return FixtureMap(
+            tuple(fixtures),
+            units=str(units),
+            mode=mode,
+            frame=frame,
+            source=str(p),
+            up=up,
+            chip_rate_hz=chip_rate,
+        )
+    except ValueError as exc:
+        raise InputError(str(exc), p) from None
+
+
+def _frame_from_dict(frame_spec: Any, p: str | Path) -> tuple[str, FrameFormat, float | None]:
+    """A map's ``frame`` key: the line code's mode, its frame format and chip rate (Hz)."""
     if not isinstance(frame_spec, dict):
         raise InputError("frame must be a mapping", p)
     mode = str(frame_spec.get("mode", frame_spec.get("line_code", "manchester"))).lower()
@@ -363,60 +394,45 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
     chip_rate = None
     if frame_spec.get("chip_rate_hz") is not None:
         chip_rate = _number(frame_spec["chip_rate_hz"], "frame chip_rate_hz", p, positive=True)
-    entries = data.get("fixtures")
-    if not isinstance(entries, list) or not entries:
-        raise InputError("map needs a non-empty list 'fixtures'", p)
-    fixtures = []
-    seen: set[int] = set()
-    for index, entry in enumerate(entries):
-        where = f"fixture #{index + 1}"
-        if not isinstance(entry, dict):
-            raise InputError(f"{where} must be a mapping", p)
-        fid = entry.get("id", index if mode == "frequency" else None)
-        if isinstance(fid, bool) or not isinstance(fid, int):
-            raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
-        where = f"fixture {fid}"
-        if fid in seen:
-            raise InputError(f"duplicate ID in {where}", p)
-        seen.add(fid)
-        if mode == "manchester":
-            try:
-                frame.check_id(fid)
-            except ValueError as exc:
-                raise InputError(f"{exc} in {where}", p) from None
-        pos = entry.get("position")
-        if pos is None:
-            raise InputError(f"{where} has no position", p)
-        if not (isinstance(pos, list) and len(pos) == 3):
-            raise InputError(f"{where}: position must be three numbers, got {_short(pos)}", p)
-        pos = [_number(v, f"{where}: position", p) for v in pos]
-        kwargs: dict[str, Any] = {}
-        for key in ("diameter", "frequency_hz"):
-            if entry.get(key) is not None:
-                kwargs[key] = _number(entry[key], f"{where}: {key}", p, positive=True)
-        if entry.get("normal") is not None:
-            kwargs["normal"] = _matrix(entry["normal"], (3,), f"{where}: normal", p)
+    return mode, frame, chip_rate
+
+
+def _fixture_from_dict(
+    entry: Any, index: int, mode: str, frame: FrameFormat, seen: set[int], p: str | Path
+) -> Fixture:
+    """The map's ``index``-th fixture (from 0): its id (added to the ``seen`` ones), position
+    and optional keys."""
+    where = f"fixture #{index + 1}"
+    if not isinstance(entry, dict):
+        raise InputError(f"{where} must be a mapping", p)
+    fid = entry.get("id", index if mode == "frequency" else None)
+    if isinstance(fid, bool) or not isinstance(fid, int):
+        raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
+    where = f"fixture {fid}"
+    if fid in seen:
+        raise InputError(f"duplicate ID in {where}", p)
+    seen.add(fid)
+    if mode == "manchester":
         try:
-            fixtures.append(Fixture(fid, np.asarray(pos, dtype=float), **kwargs))
+            frame.check_id(fid)
         except ValueError as exc:
-            raise InputError(f"{where}: {exc}", p) from None
-    up = None
-    if data.get("up") is not None:
-        up = _matrix(data["up"], (3,), "up", p)
-        if not np.any(up):
-            raise InputError("up must be a non-zero 3-vector (the map's up direction)", p)
+            raise InputError(f"{exc} in {where}", p) from None
+    pos = entry.get("position")
+    if pos is None:
+        raise InputError(f"{where} has no position", p)
+    if not (isinstance(pos, list) and len(pos) == 3):
+        raise InputError(f"{where}: position must be three numbers, got {_short(pos)}", p)
+    pos = [_number(v, f"{where}: position", p) for v in pos]
+    kwargs: dict[str, Any] = {}
+    for key in ("diameter", "frequency_hz"):
+        if entry.get(key) is not None:
+            kwargs[key] = _number(entry[key], f"{where}: {key}", p, positive=True)
+    if entry.get("normal") is not None:
+        kwargs["normal"] = _matrix(entry["normal"], (3,), f"{where}: normal", p)
     try:
-        return FixtureMap(
-            tuple(fixtures),
-            units=str(units),
-            mode=mode,
-            frame=frame,
-            source=str(p),
-            up=up,
-            chip_rate_hz=chip_rate,
-        )
+        return Fixture(fid, np.asarray(pos, dtype=float), **kwargs)
     except ValueError as exc:
-        raise InputError(str(exc), p) from None
+        raise InputError(f"{where}: {exc}", p) from None
 
 
 def save_map(fixture_map: FixtureMap, path: str | Path) -> None:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import parse_mapping, read_text_file
+from camvlp.io.files import read_mapping
 
 __all__ = ["PhotoSidecar", "load_sidecar", "sidecar_path"]
 
@@ -59,7 +59,7 @@ def load_sidecar(photo: str | Path) -> PhotoSidecar | None:
     path = sidecar_path(photo)
     if path is None:
         return None
-    data = parse_mapping(read_text_file(path, "sidecar"), path, "sidecar")
+    data = read_mapping(path, "sidecar")
     if "gravity" not in data:
         return None  # another file of the same name (the simulator's truth): no gravity
     g = data["gravity"]

@@ -8,7 +8,6 @@ report it in one line.
 from __future__ import annotations
 
 import csv
-import json
 import math
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import contextmanager
@@ -19,6 +18,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.atomic import finite_or_none, strict_json
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -45,18 +45,11 @@ def _writing(path: Path):
 
 
 def jsonable(obj: Any) -> Any:
-    """``obj`` with NumPy arrays, floats and integers turned into JSON types (NaN -> None)."""
-    if isinstance(obj, dict):
-        return {k: jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        return float(obj) if np.isfinite(obj) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    return obj
+    """``obj`` with NumPy arrays, floats and integers turned into JSON types (NaN -> None).
+
+    The same as :func:`camvlp.io.atomic.finite_or_none`.
+    """
+    return finite_or_none(obj)
 
 
 def write_csv(path: str | Path, header: Sequence[str], rows: Iterable[Sequence]) -> Path:
@@ -84,7 +77,7 @@ def write_json(path: str | Path, data: dict) -> Path:
     """Write ``data`` as indented JSON (NumPy values converted, NaN as null)."""
     p = Path(path)
     with _writing(p):
-        p.write_text(json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n", encoding="utf-8")
+        p.write_text(strict_json(data, indent=2) + "\n", encoding="utf-8")
     return p
 
 
@@ -241,9 +234,7 @@ def save_render(result, out_path, *, jpeg_quality: int = 95) -> Path:
     json_path = p.with_suffix(".json")
     try:
         p.write_bytes(buf.tobytes())
-        json_path.write_text(
-            json.dumps(jsonable(result.truth_dict()), indent=2, allow_nan=False) + "\n"
-        )
+        json_path.write_text(strict_json(result.truth_dict(), indent=2) + "\n")
     except OSError as exc:
         what = exc.strerror or exc.__class__.__name__
         raise InputError(f"cannot write output: {what}", p) from None

@@ -11,7 +11,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import sqlalchemy as sa
+from pydantic import ConfigDict
 from sqlalchemy.engine import Engine
+
+from camvlp.service.schemas import FixFields
 
 __all__ = ["FixRow", "SiteRow", "Store", "make_engine"]
 
@@ -98,22 +101,14 @@ class SiteRow:
     created: float
 
 
-@dataclass(frozen=True)
-class FixRow:
+class FixRow(FixFields):
     """One recorded fix (see the ``fixes`` table)."""
 
-    id: int
+    model_config = ConfigDict(frozen=True)
+
     site_id: int
     time: float
-    device: str
-    camera: str
-    located: bool
-    position: list[float] | None
-    rotation: list[list[float]] | None
-    euler_deg: list[float] | None
     rms_px: float | None
-    fixtures_used: list[int]
-    error: str
     has_picture: bool
     result: dict[str, Any]
 

@@ -32,6 +32,7 @@ from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
 from camvlp.service.schemas import (
     CameraPut,
+    FixFields,
     FixOut,
     FixPage,
     PlanFixture,
@@ -66,18 +67,10 @@ def _fix_out(row: FixRow, view: PlanView | None, *, with_result: bool = False) -
             heading = view.heading_deg(np.array(row.rotation))
             plan["heading_deg"] = None if heading is None else round(heading, 3)
     return FixOut(
-        id=row.id,
+        **row.model_dump(include=set(FixFields.model_fields)),
         time=_iso(row.time),
         time_unix=row.time,
-        device=row.device,
-        camera=row.camera,
-        located=row.located,
-        position=row.position,
-        rotation=row.rotation,
-        euler_deg=row.euler_deg,
         reprojection_rms_px=row.rms_px,
-        fixtures_used=row.fixtures_used,
-        error=row.error,
         plan=plan,
         has_picture=row.has_picture,
         result=row.result if with_result else None,

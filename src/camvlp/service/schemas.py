@@ -8,6 +8,7 @@ from pydantic import BaseModel, Field
 
 __all__ = [
     "CameraPut",
+    "FixFields",
     "FixOut",
     "FixPage",
     "PlanFixture",
@@ -63,7 +64,21 @@ class CameraPut(BaseModel):
     created: bool
 
 
-class FixOut(BaseModel):
+class FixFields(BaseModel):
+    """What a stored fix and its HTTP view share (see the ``fixes`` table)."""
+
+    id: int
+    device: str
+    camera: str
+    located: bool
+    position: list[float] | None
+    rotation: list[list[float]] | None
+    euler_deg: list[float] | None
+    fixtures_used: list[int]
+    error: str
+
+
+class FixOut(FixFields):
     """One recorded fix.
 
     ``position`` (map units) and ``rotation`` (camera-to-world) are in the map's frame;
@@ -71,18 +86,9 @@ class FixOut(BaseModel):
     counterclockwise from the plan's first axis), for drawing.
     """
 
-    id: int
     time: str
     time_unix: float
-    device: str
-    camera: str
-    located: bool
-    position: list[float] | None
-    rotation: list[list[float]] | None
-    euler_deg: list[float] | None
     reprojection_rms_px: float | None
-    fixtures_used: list[int]
-    error: str
     plan: dict[str, Any]
     has_picture: bool = False
     result: dict[str, Any] | None = None
