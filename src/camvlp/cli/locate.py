@@ -10,13 +10,14 @@ import typer
 
 from camvlp.io import (
     InputError,
+    decode_image,
     exif_readout,
     load_camera,
-    load_image,
     load_map,
     load_sidecar,
 )
 from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
+from camvlp.io.images import read_photo
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
@@ -92,7 +93,8 @@ def locate_command(
         check_output_dir(debug_dir, "--debug-dir")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
-    image = load_image(photo)
+    raw = read_photo(photo)  # read once: decoded here, its EXIF read below
+    image = decode_image(raw, photo)
     sidecar = load_sidecar(photo) if g is None else None
     if sidecar is not None:
         g = sidecar.gravity
@@ -100,7 +102,7 @@ def locate_command(
             gravity_sigma_deg = sidecar.gravity_sigma_deg
     if given_readout is None and camera.readout is None:
         # a phone's orientation tag says how its sensor's rows lie in the upright photo
-        given_readout = exif_readout(photo)
+        given_readout = exif_readout(raw)
     settings = LocateSettings(
         solver=solver,
         readout=given_readout,

@@ -32,6 +32,7 @@ __all__ = [
     "exif_readout",
     "image_header",
     "load_image",
+    "read_photo",
 ]
 
 #: Decoder messages that mean the pixels are not the whole picture (libjpeg, libpng, libtiff).
@@ -49,16 +50,20 @@ _EXIF_READOUTS = {
 }
 
 
-def exif_readout(path: str | Path) -> Readout | None:
+def exif_readout(photo: str | Path | bytes) -> Readout | None:
     """The readout of a photo loaded upright by :func:`load_image`, from its EXIF orientation.
 
-    Assumes a sensor that reads its native rows from the top down (the usual one); None when
-    the file has no orientation tag, a mirrored one, or cannot be read.
+    ``photo`` is the file's path or its bytes as :func:`read_photo` gave them (so that a photo
+    is read once).  Assumes a sensor that reads its native rows from the top down (the usual
+    one); None when the file has no orientation tag, a mirrored one, or cannot be read.
     """
-    try:  # through the one gate: a named pipe must not block here either
-        data = read_regular_file(Path(path), "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
-    except InputError:
-        return None
+    if isinstance(photo, bytes):
+        data = photo
+    else:
+        try:  # through the one gate: a named pipe must not block here either
+            data = read_photo(photo)
+        except InputError:
+            return None
     try:
         from PIL import Image
 
@@ -92,8 +97,18 @@ def load_image(path: str | Path, *, max_pixels: int | None = None) -> np.ndarray
         limit, or a truncated or corrupt image.
     """
     p = Path(path)
-    data = read_regular_file(p, "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
-    return decode_image(data, p, max_pixels=max_pixels)
+    return decode_image(read_photo(p), p, max_pixels=max_pixels)
+
+
+def read_photo(path: str | Path) -> bytes:
+    """A photo file's bytes, not decoded: a regular file of at most ``CAMVLP_MAX_IMAGE_BYTES``.
+
+    Raises
+    ------
+    InputError
+        Missing, not a regular file, or too large.
+    """
+    return read_regular_file(Path(path), "photo", limit("CAMVLP_MAX_IMAGE_BYTES"))
 
 
 def decode_image(
