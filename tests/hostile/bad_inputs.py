@@ -222,6 +222,22 @@ def cases(root: Path) -> list[Case]:
     def add(name: str, kind: str, argv: list[str], code: int = 2, **kw) -> None:
         c.append(Case(name, kind, [str(a) for a in argv], code, **kw))
 
+    def render_argv(camera, png, *extra, position="0,0,0") -> list:
+        """``camvlp render`` of ``camera`` and the small map into ``png``, with ``extra``."""
+        return [
+            "render",
+            "--camera",
+            camera,
+            "--map",
+            fmap,
+            f"--position={position}",
+            "--euler",
+            "0,0,0",
+            "--out",
+            png,
+            *extra,
+        ]
+
     # images: bombs, depths, damage, special files
     for name in ("bomb_100000.png", "bomb_32000.png", "bomb_30000.jpg"):
         add(f"locate {name}", "memory: image bomb", ["locate", f[name], *loc])
@@ -290,37 +306,13 @@ def cases(root: Path) -> list[Case]:
     add(
         "render huge camera",
         "memory: render size",
-        [
-            "render",
-            "--camera",
-            f["huge_camera.yaml"],
-            "--map",
-            fmap,
-            "--position",
-            "0,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            out / "huge.png",
-        ],
+        render_argv(f["huge_camera.yaml"], out / "huge.png"),
         left_behind=[out / "huge.png", out / "huge.json"],
     )
     add(
         "render 196 MP camera",
         "memory: render size",
-        [
-            "render",
-            "--camera",
-            f["camera_196mp.yaml"],
-            "--map",
-            fmap,
-            "--position",
-            "0,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            out / "big.png",
-        ],
+        render_argv(f["camera_196mp.yaml"], out / "big.png"),
         left_behind=[out / "big.png", out / "big.json"],
     )
     # option values
@@ -370,58 +362,19 @@ def cases(root: Path) -> list[Case]:
     add(
         "render --blur 1e6",
         "crash: blur",
-        [
-            "render",
-            "--camera",
-            thesis_cam,
-            "--map",
-            fmap,
-            "--position",
-            "0,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            out / "b1.png",
-            "--blur",
-            "1e6",
-        ],
+        render_argv(thesis_cam, out / "b1.png", "--blur", "1e6"),
         left_behind=[out / "b1.png", out / "b1.json"],
     )
     add(
         "render --blur 1000",
         "hang: blur",
-        [
-            "render",
-            "--camera",
-            thesis_cam,
-            "--map",
-            fmap,
-            "--position",
-            "0,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            out / "b2.png",
-            "--blur",
-            "1000",
-        ],
+        render_argv(thesis_cam, out / "b2.png", "--blur", "1000"),
         left_behind=[out / "b2.png", out / "b2.json"],
     )
     add(
         "render --position=1e308,0,0",
         "wrong answer: NaN truth",
-        [
-            "render",
-            "--camera",
-            cam,
-            "--map",
-            fmap,
-            "--position=1e308,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            out / "p.png",
-        ],
+        render_argv(cam, out / "p.png", position="1e308,0,0"),
         left_behind=[out / "p.png", out / "p.json"],
     )
     add(
@@ -465,19 +418,7 @@ def cases(root: Path) -> list[Case]:
     add(
         "render truth file blocked",
         "half-written output",
-        [
-            "render",
-            "--camera",
-            cam,
-            "--map",
-            fmap,
-            "--position",
-            "0,0,0",
-            "--euler",
-            "0,0,0",
-            "--out",
-            root / "truth_dir_out.png",
-        ],
+        render_argv(cam, root / "truth_dir_out.png"),
         left_behind=[root / "truth_dir_out.png"],
     )
     add(
