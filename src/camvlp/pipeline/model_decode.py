@@ -30,7 +30,6 @@ from camvlp.pipeline.stripe_model import (
     SensorModel,
     _direct_fit,
     _Fit,
-    _fit_all,
     _fit_folded,
     _fold,
     _Folded,
@@ -62,6 +61,17 @@ MIN_FRAMES = 0.8
 
 #: Largest fraction of a profile's variance the best fit may leave unexplained.
 MAX_UNEXPLAINED = 0.5
+
+#: Saturation knees every fixture is also fitted at, besides the photo's.  The knee is a
+#: fixture's own: an LED of brightness ``B`` times the sensor's full scale and off level ``o``
+#: clips from on-fraction ``(1 / B - o) / (1 - o)`` on, and fixtures differ in brightness
+#: (distance, angle, the LED itself).  Each candidate ID is judged at its best knee, so an ID
+#: is never preferred only because the photo's knee suits it better than its rivals.
+FIXTURE_KNEES = (*(round(0.02 * 1.25**k, 4) for k in range(18)), 1.0)
+
+#: Candidate IDs fitted at every knee: all of them up to this many, else the best ones at the
+#: photo's knee (see :func:`_own_knee`).
+KNEE_LEADERS = 24
 
 _LN10 = math.log(10.0)
 
@@ -110,6 +120,9 @@ class ModelDecode:
     outside_id : int or None
         An ID of the format that is not in the map and that the stripes fit clearly better
         than any other ID (the light sends it), else None.
+    knee : float
+        The best ID's saturation knee for this fixture (fraction of its on-level; see
+        :data:`FIXTURE_KNEES`), NaN when no fit.
     """
 
     id: int | None
@@ -130,6 +143,7 @@ class ModelDecode:
     frame_rss: float = float("nan")
     noise_var: float = float("nan")
     outside_id: int | None = None
+    knee: float = float("nan")
 
     def __bool__(self) -> bool:
         return self.id is not None
@@ -217,8 +231,9 @@ def _decide(
     samples: int,
     min_margin: float,
     codebook: np.ndarray,
+    knees: np.ndarray,
 ) -> ModelDecode:
-    """Pick the ID from the fits of every candidate (internal)."""
+    """Pick the ID from the fits of every candidate, each at its own knee (internal)."""
     nan = float("nan")
     frames = fit.n / (n_chips * model.rows_per_chip)
     per_id, best_phase = _refine_leaders(fit, template, in_map, p, w)
@@ -258,6 +273,7 @@ def _decide(
         frames=float(frames),
         chips=chips_str,
         fitted=gain1 * model_rows + offset1,
+        knee=float(knees[k1]),
     )
     margin = float(min(margin, 99.0))
     best_id = int(cand_ids[k1])
@@ -288,8 +304,8 @@ def _decide(
     if margin < min_margin:
         return ModelDecode(
             None,
-            f"IDs {best_id} and {common['runner_up']} fit almost equally (margin {margin:.1f}, "
-            f"at least {min_margin:g} needed)",
+            f"IDs {best_id} and {common['runner_up']} fit almost equally "
+            f"(margin {max(margin, 0.0):.1f}, at least {min_margin:g} needed)",
             margin,
             **common,
         )
@@ -370,7 +386,7 @@ def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) ->
     )
 
 
-def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples):
+def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples, cache=None):
     n = frame.n_chips
     frames = p.size / (n * model.rows_per_chip)
     if p.size < 8:
@@ -382,11 +398,56 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
     *spectra, t = spec
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see _decide)
-    fit = _fit_all(p, w, tuple(spectra), model.rows_per_chip, samples // 2, n)
+    fo = _fold(p, w, model.rows_per_chip, samples // 2, n)
+    fit = _Fit(*_fit_folded(fo, *spectra), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
         return _fail_small(p, model, n, "no stripes (a steady light)")
+    fit, t, knees = _own_knee(fit, fo, t, chips, in_map, model, samples, cache)
     fit = replace(fit, x=2 * fit.x)
-    return _decide(fit, t, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook)
+    return _decide(fit, t, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook, knees)
+
+
+def _own_knee(
+    fit: _Fit, fo: _Folded, t: np.ndarray, chips, in_map, model: SensorModel, samples, cache
+):
+    """Each candidate's fits at its own best saturation knee (internal).
+
+    ``fit`` and ``t`` (I, P) are at the photo's knee (``fo``: the profile folded for it); the
+    leading candidates (all of them for small formats, see :data:`KNEE_LEADERS`) are fitted
+    again at every knee of :data:`FIXTURE_KNEES`, and each keeps its best.  Returns the fit
+    (rss, gain and offset of each candidate at its knee), the templates (I, P) at those knees
+    and the knees (I,).
+    """
+    n_cand = chips.shape[0]
+    knees = np.full(n_cand, float(model.knee))
+    if n_cand <= KNEE_LEADERS:
+        lead = np.arange(n_cand)
+    else:
+        best = fit.rss.min(axis=1)
+        map_rows, others = np.flatnonzero(in_map), np.flatnonzero(~in_map)
+        top = map_rows[np.argsort(best[map_rows], kind="stable")][: KNEE_LEADERS - 4]
+        lead = np.concatenate([top, others[np.argsort(best[others], kind="stable")][:4]])
+    key = tuple(lead.tolist())
+    if cache is not None and key in cache:
+        spec_k = cache[key]
+    else:
+        kn = np.asarray(FIXTURE_KNEES, dtype=np.float64)
+        spec_k = _spectra(chips[lead], model, samples, kn)
+        if cache is not None:
+            cache[key] = spec_k
+    *spectra, tk = spec_k  # (K, L, ...)
+    rss, gain, offset = _fit_folded(fo, *spectra)
+    kb = rss.min(axis=2).argmin(axis=0)  # (L,)
+    li = np.arange(lead.size)
+    better = rss[kb, li].min(axis=1) < fit.rss[lead].min(axis=1)
+    rows, ks = lead[better], kb[better]
+    out_rss, out_gain, out_offset, out_t = (a.copy() for a in (fit.rss, fit.gain, fit.offset, t))
+    out_rss[rows] = rss[ks, li[better]]
+    out_gain[rows] = gain[ks, li[better]]
+    out_offset[rows] = offset[ks, li[better]]
+    out_t[rows] = tk[ks, li[better]]
+    knees[rows] = np.asarray(FIXTURE_KNEES)[ks]
+    return replace(fit, rss=out_rss, gain=out_gain, offset=out_offset), out_t, knees
 
 
 # --------------------------------------------------------------------------------------------
@@ -666,11 +727,14 @@ def decode_photo(
     cand, in_map = _candidates(frame, ids)
     chips = frame.codebook[cand]
     spec = _spectra(chips, model, samples)
+    cache: dict = {}  # the knees' templates, shared by the fixtures with the same leaders
     decodes = []
     for p, w in zip(ps, ws, strict=True):
         pp, wp = _prepare(p, w)
         decodes.append(
-            _decode_with(pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples)
+            _decode_with(
+                pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples, cache
+            )
         )
     if not math.isfinite(cost):
         un = np.array([d.unexplained for d in decodes if np.isfinite(d.unexplained)])

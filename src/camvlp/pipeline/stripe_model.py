@@ -319,10 +319,27 @@ def _fit_all(
     return _Fit(rss, gain, offset, fo.spp, p.size, fo.x)
 
 
-def _spectra(chips: np.ndarray, model: SensorModel, samples: int):
-    """Templates on the fine grid and the spectra of every other point (the search grid)."""
-    t = _templates(chips, model, samples)
-    return (*_template_spectra(t[:, ::2]), t)
+def _spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
+    """Templates on the fine grid and the spectra of every other point (the search grid).
+
+    With ``knees`` (K,), the templates at each of those saturation knees instead of the
+    model's: shapes (K, I, ...) instead of (I, ...).
+    """
+    if knees is None:
+        t = _templates(chips, model, samples)
+    else:
+        kn = np.asarray(knees, dtype=np.float64).reshape(-1)
+        v = np.ones(kn.size)
+        t = _templates_batch(
+            chips,
+            model.rows_per_chip,
+            v * model.exposure_chips,
+            kn,
+            v * model.gamma,
+            v * model.blur_rows,
+            samples,
+        )
+    return (*_template_spectra(t[..., ::2]), t)
 
 
 def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
