@@ -31,7 +31,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from camvlp import Camera, Fixture, FixtureMap, Pose, RenderSettings, locate, render
+from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
+from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
+from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
 
 EXPOSURES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
 ROWS_PER_CHIP = (2.0, 2.5, 3.0, 4.0, 6.0, 8.0, 12.0)
@@ -114,7 +116,7 @@ def one_photo(rng, exposure: float, rows_per_chip: float):
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     t = time.perf_counter()
-    res = locate(image, camera, fmap)
+    res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
     dt = time.perf_counter() - t
     cond = dict(
         big=big,
@@ -127,7 +129,46 @@ def one_photo(rng, exposure: float, rows_per_chip: float):
         blur=round(settings.blur_px, 2),
         chip_rate_given=given_rate,
     )
-    return photo, res, cond, dt
+    return photo, res, cond, dt, fmap
+
+
+def separation(profile, true_id: int, fmap: FixtureMap, rpc: float, exposure: float, blur: float):
+    """How well an ideal decoder that knows the photo's true chip length, exposure and blur
+    could tell the true ID from the map's others on this profile.
+
+    The true ID's model (its knee and phase fitted) is fitted to the profile; every other ID's
+    model (knee and phase free) is then fitted to that noise-free curve.  Returns the smallest
+    expected decimal log likelihood ratio (its residual over twice the profile's noise variance,
+    inflated for correlated residuals as the decoder does) and the ID it belongs to: below
+    ``MIN_MARGIN``, no decoder may name the ID at that safety, whatever its parameters.
+    """
+    s = 32
+    ids = sorted(f.id for f in fmap.fixtures)
+    book = fmap.frame.codebook[ids]
+    kn = np.asarray(FIXTURE_KNEES)
+    one = np.ones(kn.size)
+    t = _templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
+    p, w = _prepare(profile, None)
+    x = np.arange(p.size) / rpc * s
+    phases = np.arange(t.shape[2], dtype=float)
+
+    def best_fit(target, k):
+        fits = [_direct_fit(target, w, t[v, k], x, phases) for v in range(kn.size)]
+        v = int(np.argmin([f[0].min() for f in fits]))
+        j = int(np.argmin(fits[v][0]))
+        return fits[v][0][j], fits[v][1][j], fits[v][2][j], v, j
+
+    it = ids.index(true_id)
+    rss, g, o, v, j = best_fit(p, it)
+    xs = (x + j) % t.shape[2]
+    ideal = g * np.interp(xs, np.arange(t.shape[2] + 1), np.append(t[v, it], t[v, it][0])) + o
+    r = p - ideal
+    rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))
+    var = max(rss / max(p.size - 4, 1), 1e-12) * (1 + rho) / (1 - rho)
+    seps = [
+        (best_fit(ideal, k)[0] / (2 * var) / np.log(10), ids[k]) for k in range(len(ids)) if k != it
+    ]
+    return min(seps)
 
 
 def main() -> int:
@@ -143,14 +184,14 @@ def main() -> int:
     t0 = time.perf_counter()
     n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
     for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
-        eligible = decoded = wrong = located = 0
+        eligible = decoded = wrong = located = ambiguous = 0
         times = []
         for _ in range(args.per_cell):
-            photo, res, cond, dt = one_photo(rng, exposure, rpc)
+            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc)
             times.append(dt)
             located += bool(res)
             truth = [t for t in photo.fixtures]
-            for fr in res.fixtures:
+            for k_fr, fr in enumerate(res.fixtures):
                 d = [np.hypot(*(t.pixel - fr.pixel)) for t in truth]
                 k = int(np.argmin(d))
                 t = truth[k]
@@ -162,6 +203,15 @@ def main() -> int:
                 eligible += elig
                 decoded += elig and ok
                 wrong += bad
+                sep = None
+                if elig and not ok and res.stages is not None:
+                    prof = res.stages.profiles[k_fr]
+                    if str(res.readout).endswith("reversed") != cond["readout"].endswith(
+                        "reversed"
+                    ):
+                        prof = prof[::-1]  # the true sensor order
+                    sep = separation(prof, t.id, fmap, rpc, exposure, cond["blur"])
+                    ambiguous += sep[0] < MIN_MARGIN
                 if (elig and not ok) or bad:
                     records.append(
                         dict(
@@ -172,6 +222,8 @@ def main() -> int:
                             frames=round(t.frames_spanned, 2),
                             margin=round(fr.margin, 2),
                             reason=fr.reason,
+                            separation=None if sep is None else round(float(sep[0]), 2),
+                            closest_id=None if sep is None else sep[1],
                             photo_readout=str(res.readout),
                             fitted_rpc=round(res.rows_per_chip, 3),
                             fitted_exposure=round(res.exposure_chips, 3),
@@ -183,6 +235,7 @@ def main() -> int:
             decoded=decoded,
             wrong=wrong,
             located=located,
+            ambiguous=ambiguous,
             photos=args.per_cell,
             locate_ms=1e3 * float(np.median(times)),
         )
@@ -195,25 +248,42 @@ def main() -> int:
     print(file=sys.stderr)
     print(
         "| exposure (chips) | rows per chip | fixtures >= 1.2 frames | decoded | wrong IDs | "
-        "photos located |"
+        "photos located | not identifiable | decoded of the identifiable |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for (e, r), c in cells.items():
         rate = 100 * c["decoded"] / max(c["eligible"], 1)
+        ident = c["eligible"] - c["ambiguous"]
         print(
             f"| {e:g} | {r:g} | {c['eligible']} | {c['decoded']} ({rate:.1f} %) | {c['wrong']} | "
-            f"{c['located']} / {c['photos']} |"
+            f"{c['located']} / {c['photos']} | {c['ambiguous']} | "
+            f"{c['decoded']} / {ident} ({100 * c['decoded'] / max(ident, 1):.1f} %) |"
         )
-    tot = {k: sum(c[k] for c in cells.values()) for k in ("eligible", "decoded", "wrong")}
+    tot = {
+        k: sum(c[k] for c in cells.values()) for k in ("eligible", "decoded", "wrong", "ambiguous")
+    }
     photos = sum(c["photos"] for c in cells.values())
     located = sum(c["located"] for c in cells.values())
     worst = min(cells.items(), key=lambda kv: kv[1]["decoded"] / max(kv[1]["eligible"], 1))
+    worst_id = min(
+        cells.items(),
+        key=lambda kv: kv[1]["decoded"] / max(kv[1]["eligible"] - kv[1]["ambiguous"], 1),
+    )
+    ident = tot["eligible"] - tot["ambiguous"]
     print(
         f"\noverall: {tot['decoded']} / {tot['eligible']} fixtures spanning >= 1.2 frames decoded "
         f"({100 * tot['decoded'] / max(tot['eligible'], 1):.2f} %), wrong IDs {tot['wrong']}, "
         f"photos located {located} / {photos}; worst cell exposure {worst[0][0]:g} chip, "
         f"{worst[0][1]:g} rows per chip: {worst[1]['decoded']} / {worst[1]['eligible']}; "
         f"{time.perf_counter() - t0:.0f} s"
+    )
+    print(
+        f"not identifiable from their stripes (even with the true chip length, exposure and "
+        f"blur, another ID of the map fits within a margin of {MIN_MARGIN:g}): "
+        f"{tot['ambiguous']}; decoded of the identifiable: {tot['decoded']} / {ident} "
+        f"({100 * tot['decoded'] / max(ident, 1):.2f} %), worst cell exposure "
+        f"{worst_id[0][0]:g} chip, {worst_id[0][1]:g} rows per chip: {worst_id[1]['decoded']} / "
+        f"{worst_id[1]['eligible'] - worst_id[1]['ambiguous']}"
     )
     for r in records[:40]:
         print("  ", r)

@@ -27,6 +27,7 @@ from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profile
 from camvlp.pipeline.model_decode import (
+    MIN_MARGIN,
     ModelDecode,
     PhotoDecode,
     SensorModel,
@@ -158,26 +159,41 @@ def _manchester(decodes, readout: Readout, model: SensorModel | None, t) -> Manc
     return Manchester(tuple(decodes), readout, rpc, model)
 
 
+def _direction_votes(a: PhotoDecode, b: PhotoDecode) -> tuple[int, int]:
+    """How many fixtures fit a frame clearly better read as in ``a`` than as in ``b``, and
+    the other way round: the decimal log likelihood ratio of their best frame fits (any ID of
+    the format) at least :data:`MIN_MARGIN` (the noise the smaller of the two fits')."""
+    for_a = for_b = 0
+    for da, db in zip(a.decodes, b.decodes, strict=True):
+        ra, rb = da.frame_rss, db.frame_rss
+        var = min(da.noise_var, db.noise_var)
+        if not (np.isfinite(ra) and np.isfinite(rb) and np.isfinite(var) and var > 0):
+            continue
+        lr = (rb - ra) / (2 * var) / np.log(10)
+        for_a += lr >= MIN_MARGIN
+        for_b += lr <= -MIN_MARGIN
+    return for_a, for_b
+
+
 def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed) -> Manchester:
     """Model-based decode of every profile both ways (see the module's docstring).
 
     The profiles are decoded both ways (first with one way's parameters, refitted if that
     does not decide).  A reversed frame is no frame for half the IDs: a direction is taken
-    when it gives more clear IDs (of the map or not) and fits the map's IDs better; otherwise
-    both are kept for the pose to decide.
+    when two or more fixtures fit a frame clearly better read that way and none the other
+    way (:func:`_direction_votes`); otherwise both are kept for the pose to decide.
     """
     fwd = decode_photo(profiles, frame, ids, rows_per_chip=seed)
     backwards = [p[::-1] for p in profiles]
     flipped = Readout.of(readout.axis, not readout.reversed)
 
     def better(a: PhotoDecode, b: PhotoDecode) -> bool:
-        # read the wrong way, a fixture whose backwards frame is no frame (half the IDs)
-        # reads as no clear ID: the right way gives more clear IDs (of the map or not) and
-        # fits the map's IDs better
-        def clear(p: PhotoDecode) -> int:
-            return sum(d.id is not None or d.outside_id is not None for d in p.decodes)
-
-        return clear(a) > clear(b) and a.fit_cost < b.fit_cost
+        # read the wrong way, a fixture whose backwards frame is no frame (half the IDs) fits
+        # no ID's frame well; one whose backwards frame is another ID's fits both ways alike
+        # and says nothing.  A direction is taken when two or more fixtures say it clearly
+        # and none says the other (as on the fast path)
+        for_a, for_b = _direction_votes(a, b)
+        return for_a >= 2 and for_b == 0
 
     def done(p: PhotoDecode, r: Readout) -> Manchester:
         return Manchester(p.decodes, r, p.model.rows_per_chip, p.model)
@@ -186,15 +202,19 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
     back = decode_photo(backwards, frame, ids, model=fwd.model)
     if better(fwd, back):
         return done(fwd, readout)
-    # refitted, from this way's chip length (it does not depend on the direction either)
+    # refitted, from this way's chip length (it does not depend on the direction either);
+    # the two directions are then compared under the same parameters, those that fit best
+    # either way (fits under two different estimates would compare the estimates)
     t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
-    back = decode_photo(backwards, frame, ids, rows_per_chip=t_fwd)
+    back2 = decode_photo(backwards, frame, ids, rows_per_chip=t_fwd)
+    if back2.fit_cost < min(fwd.fit_cost, back.fit_cost):
+        fwd, back = decode_photo(profiles, frame, ids, model=back2.model), back2
     if better(fwd, back):
         return done(fwd, readout)
     if better(back, fwd):
         return done(back, flipped)
-    # the counts tie (every fixture seen has an ID whose backwards frame is another's): the
-    # pose decides
+    # no fixture says which way (every fixture seen has an ID whose backwards frame is
+    # another's): the pose decides
     m = done(fwd, readout)
     return Manchester(m.decodes, readout, m.rows_per_chip, m.model, back.decodes, back.model)
 

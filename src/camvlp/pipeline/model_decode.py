@@ -186,23 +186,80 @@ class PhotoDecode:
         return self.model.exposure_chips
 
 
-def _refine_leaders(fit: _Fit, template: np.ndarray, in_map: np.ndarray, p, w):
-    """Each candidate's best residual and phase (fine grid points), the leading candidates'
-    refined between grid points by direct fits (so that neither the best nor its rivals are
-    judged at a grid point's misalignment): ``per_id, best_phase``, each shape (I,)."""
+#: The leading candidates' phases are refined on templates this many times finer than the
+#: search's: with short exposures a stripe edge spans a row or two, and the residual changes
+#: by tens of per cent over 1/100 of a chip, so a coarse phase would judge IDs by their luck
+#: with the grid rather than by their fit.
+FINE_PHASE = 16
+
+#: Most candidates of the map refined (those whose coarse residual is within
+#: :data:`LEAD_FACTOR` of the best), besides the best one outside the map.
+MAX_LEADERS = 8
+LEAD_FACTOR = 3.0
+
+
+@dataclass(frozen=True)
+class _Leaders:
+    """The leading candidates' refined fits (internal): ``per_id`` and ``phase`` (I,), the
+    residual and the phase (template grid points of ``samples`` per chip) of every candidate,
+    refined for the leaders; ``fine`` the leaders' templates on the fine grid; ``knees`` (I,)
+    each candidate's saturation knee, refined for the leaders."""
+
+    per_id: np.ndarray
+    phase: np.ndarray
+    fine: dict
+    knees: np.ndarray
+
+
+def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, samples):
+    """Each candidate's best residual and phase; the leading candidates' (the best of the map
+    and those close to it, and the best outside it) refined on templates
+    :data:`FINE_PHASE` times finer, to a parabola's minimum between their points, so that
+    neither the best nor its rivals are judged at a grid point's misalignment."""
     per_id = fit.rss.min(axis=1)
-    best_phase = 2.0 * fit.rss.argmin(axis=1)  # the search grid is every other fine point
+    phase = 2.0 * fit.rss.argmin(axis=1)  # the search grid is every other template point
     map_rows = np.flatnonzero(in_map)
-    lead = list(map_rows[np.argsort(per_id[map_rows], kind="stable")][:4])
+    ranked = map_rows[np.argsort(per_id[map_rows], kind="stable")]
+    close = per_id[ranked] <= LEAD_FACTOR * max(float(per_id[ranked[0]]), 1e-300)
+    lead = list(ranked[: max(2, min(MAX_LEADERS, int(close.sum())))])
     others = np.flatnonzero(~in_map)
     if others.size:
         lead.append(int(others[np.argmin(per_id[others])]))
-    steps = np.linspace(-2.0, 2.0, 17)
+    f = FINE_PHASE
+    xf = fit.x * f
+    steps = np.arange(-2 * f, 2 * f + 1, dtype=np.float64)  # +-2 template points
+    grid = np.asarray(FIXTURE_KNEES)
+    knees = np.array(knees, dtype=np.float64)
+    fine = {}
     for k in lead:
-        rss_k, _, _ = _direct_fit(p, w, template[k], fit.x, best_phase[k] + steps)
-        i = int(np.argmin(rss_k))
-        per_id[k], best_phase[k] = rss_k[i], best_phase[k] + steps[i]
-    return per_id, best_phase
+        # the knee too: at the coarse phase its choice is as much luck as the phase's
+        near = int(np.argmin(np.abs(np.log(grid / knees[k]))))
+        kn = np.unique(np.append(grid[max(near - 2, 0) : near + 3], knees[k]))
+        one = np.ones(kn.size)
+        tfs = _templates_batch(
+            chips[k : k + 1],
+            model.rows_per_chip,
+            one * model.exposure_chips,
+            kn,
+            one * model.gamma,
+            one * model.blur_rows,
+            samples * f,
+        )[:, 0]
+        ph = phase[k] * f + steps
+        rss_v = np.stack([_direct_fit(p, w, tf, xf, ph)[0] for tf in tfs])
+        v, i = np.unravel_index(int(np.argmin(rss_v)), rss_v.shape)
+        rss_k, tf = rss_v[v], tfs[v]
+        best, at = float(rss_k[i]), float(ph[i])
+        if 0 < i < steps.size - 1:  # the parabola through the minimum and its neighbours
+            c0, c1, c2 = rss_k[i - 1 : i + 2]
+            den = c0 - 2 * c1 + c2
+            if den > 0:
+                x = float(ph[i] + np.clip(0.5 * (c0 - c2) / den, -0.5, 0.5))
+                r = float(_direct_fit(p, w, tf, xf, np.array([x]))[0][0])
+                if r < best:
+                    best, at = r, x
+        per_id[k], phase[k], fine[k], knees[k] = best, at / f, tf, kn[v]
+    return _Leaders(per_id, phase, fine, knees)
 
 
 def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, float, int]:
@@ -221,7 +278,7 @@ def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, f
 
 def _decide(
     fit: _Fit,
-    template: np.ndarray,
+    chips: np.ndarray,
     cand_ids: np.ndarray,
     in_map: np.ndarray,
     p: np.ndarray,
@@ -236,15 +293,16 @@ def _decide(
     """Pick the ID from the fits of every candidate, each at its own knee (internal)."""
     nan = float("nan")
     frames = fit.n / (n_chips * model.rows_per_chip)
-    per_id, best_phase = _refine_leaders(fit, template, in_map, p, w)
-    period = template.shape[1]
+    leaders = _refine_leaders(fit, chips, knees, model, in_map, p, w, samples)
+    per_id = leaders.per_id
     map_rows = np.flatnonzero(in_map)
     order = map_rows[np.argsort(per_id[map_rows], kind="stable")]
     k1 = int(order[0])
-    j1 = float(best_phase[k1])
-    xs = (fit.x + j1) % period
-    model_rows = np.interp(xs, np.arange(period + 1), np.append(template[k1], template[k1][0]))
-    _, g1, o1 = _direct_fit(p, w, template[k1], fit.x, np.array([j1]))
+    j1 = float(leaders.phase[k1])
+    tf = leaders.fine[k1]
+    xs = (fit.x + j1) * FINE_PHASE % tf.size
+    model_rows = np.interp(xs, np.arange(tf.size + 1), np.append(tf, tf[0]))
+    _, g1, o1 = _direct_fit(p, w, tf, fit.x * FINE_PHASE, np.array([j1 * FINE_PHASE]))
     gain1, offset1 = float(g1[0]), float(o1[0])
     resid = p - (gain1 * model_rows + offset1)
     rss1, sigma2, inflation, dof = _noise(resid, w, fit)
@@ -273,7 +331,7 @@ def _decide(
         frames=float(frames),
         chips=chips_str,
         fitted=gain1 * model_rows + offset1,
-        knee=float(knees[k1]),
+        knee=float(leaders.knees[k1]),
     )
     margin = float(min(margin, 99.0))
     best_id = int(cand_ids[k1])
@@ -404,7 +462,9 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
         return _fail_small(p, model, n, "no stripes (a steady light)")
     fit, t, knees = _own_knee(fit, fo, t, chips, in_map, model, samples, cache)
     fit = replace(fit, x=2 * fit.x)
-    return _decide(fit, t, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook, knees)
+    return _decide(
+        fit, chips, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook, knees
+    )
 
 
 def _own_knee(
