@@ -159,10 +159,20 @@ def _manchester(decodes, readout: Readout, model: SensorModel | None, t) -> Manc
     return Manchester(tuple(decodes), readout, rpc, model)
 
 
-def _direction_votes(a: PhotoDecode, b: PhotoDecode) -> tuple[int, int]:
-    """How many fixtures fit a frame clearly better read as in ``a`` than as in ``b``, and
-    the other way round: the decimal log likelihood ratio of their best frame fits (any ID of
-    the format) at least :data:`MIN_MARGIN` (the noise the smaller of the two fits')."""
+def _direction_votes(a: PhotoDecode, b: PhotoDecode, rev: np.ndarray) -> tuple[int, int]:
+    """How many fixtures say the direction of ``a`` and how many that of ``b``.
+
+    A fixture says a direction when read that way it gives a clear ID (of the map or not)
+    whose frame read backwards is no frame (``rev`` < 0), and its best frame fit that way is
+    better than the other way's by a decimal log likelihood ratio of :data:`MIN_MARGIN` (the
+    noise the smaller of the two fits').  An ID whose backwards frame is another ID's fits
+    both ways alike (the forward model is symmetric in time), whatever the fits say.
+    """
+
+    def firm(d) -> bool:
+        i = d.id if d.id is not None else getattr(d, "outside_id", None)
+        return i is not None and rev[i] < 0
+
     for_a = for_b = 0
     for da, db in zip(a.decodes, b.decodes, strict=True):
         ra, rb = da.frame_rss, db.frame_rss
@@ -170,8 +180,8 @@ def _direction_votes(a: PhotoDecode, b: PhotoDecode) -> tuple[int, int]:
         if not (np.isfinite(ra) and np.isfinite(rb) and np.isfinite(var) and var > 0):
             continue
         lr = (rb - ra) / (2 * var) / np.log(10)
-        for_a += lr >= MIN_MARGIN
-        for_b += lr <= -MIN_MARGIN
+        for_a += lr >= MIN_MARGIN and firm(da)
+        for_b += lr <= -MIN_MARGIN and firm(db)
     return for_a, for_b
 
 
@@ -185,6 +195,7 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
     """
     fwd = decode_photo(profiles, frame, ids, rows_per_chip=seed)
     backwards = [p[::-1] for p in profiles]
+    rev = _reversed_ids(frame)
     flipped = Readout.of(readout.axis, not readout.reversed)
 
     def better(a: PhotoDecode, b: PhotoDecode) -> bool:
@@ -192,7 +203,7 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
         # no ID's frame well; one whose backwards frame is another ID's fits both ways alike
         # and says nothing.  A direction is taken when two or more fixtures say it clearly
         # and none says the other (as on the fast path)
-        for_a, for_b = _direction_votes(a, b)
+        for_a, for_b = _direction_votes(a, b, rev)
         return for_a >= 2 and for_b == 0
 
     def done(p: PhotoDecode, r: Readout) -> Manchester:
