@@ -190,7 +190,7 @@ class PhotoDecode:
 #: search's: with short exposures a stripe edge spans a row or two, and the residual changes
 #: by tens of per cent over 1/100 of a chip, so a coarse phase would judge IDs by their luck
 #: with the grid rather than by their fit.
-FINE_PHASE = 16
+FINE_PHASE = 8
 
 #: Most candidates of the map refined (those whose coarse residual is within
 #: :data:`LEAD_FACTOR` of the best), besides the best one outside the map.
