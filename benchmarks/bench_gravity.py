@@ -87,7 +87,7 @@ def run_case(
     sigma: float,
     rng,
     sigma_given: float = 1.0,
-    centre_sigma: float = 1.0,
+    centre_sigma: float | None = None,
 ) -> dict:
     """Render and locate ``n`` photos with exactly ``k`` fixtures in view."""
     up = map_up(room.positions, up=room.up)
@@ -139,7 +139,8 @@ def renders(args) -> int:
     rng = np.random.default_rng(args.seed)
     print(
         f"gravity noise {args.gravity_noise_deg} deg per axis; given sigmas: gravity "
-        f"{args.sigma_deg} deg, centres {args.centre_sigma_px} px"
+        f"{args.sigma_deg} deg, centres "
+        + ("each disc's own" if args.centre_sigma_px is None else f"{args.centre_sigma_px} px")
     )
     print(
         "fixtures | height | located | wrong IDs | positions from wrong IDs | "
@@ -264,7 +265,12 @@ def main() -> int:
     ap.add_argument("--gravity-noise-deg", type=float, default=0.5)
     ap.add_argument("--fixtures", default="2,3", help="fixtures in view, e.g. 2,3 (renders)")
     ap.add_argument("--sigma-deg", type=float, default=1.0, help="gravity sigma given")
-    ap.add_argument("--centre-sigma-px", type=float, default=1.0, help="centre sigma given")
+    ap.add_argument(
+        "--centre-sigma-px",
+        type=float,
+        default=None,
+        help="centre sigma given, px (default: each disc's own estimate)",
+    )
     ap.add_argument("--sweep", action="store_true", help="the geometry sweep instead")
     ap.add_argument("--trials", type=int, default=300, help="poses per cell (sweep)")
     ap.add_argument("--noise-px", type=float, default=0.1, help="centre noise, px (sweep)")

@@ -289,3 +289,21 @@ def test_conventions_worked_example() -> None:
         r = camvlp.euler_to_matrix(euler)
         assert tilt_error_deg(r, g, UP) < 1e-9
         assert tilt_error_deg(r, -np.asarray(g), UP) > 179.9
+
+
+def test_per_fixture_centre_sigmas() -> None:
+    """A fixture whose centre is 2 px off: weighed as uncertain it barely moves the pose."""
+    rng = np.random.default_rng(8)
+    pose = _random_pose(rng)
+    uv = CAMERA.project(pose, PTS)
+    uv[0] += [2.0, -1.0]
+    g = _gravity(pose, 0.0, rng)
+    errors = []
+    for sigma in ([20.0, 0.05, 0.05, 0.05], [0.05, 0.05, 0.05, 0.05]):
+        res = solve_pose_gravity(uv, PTS, CAMERA, g, up=UP, pixel_sigma_px=sigma, outlier_px=10)
+        assert res and res.n_fixtures == 4
+        errors.append(np.linalg.norm(res.pose.position - pose.position))
+    assert errors[0] < 0.2 * errors[1]
+    for bad in ([1.0, 1.0], [1.0, 1.0, 0.0, 1.0], [np.nan] * 4):
+        with pytest.raises(ValueError, match="pixel_sigma_px"):
+            solve_pose_gravity(uv, PTS, CAMERA, g, up=UP, pixel_sigma_px=bad)

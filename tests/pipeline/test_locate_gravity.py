@@ -271,3 +271,25 @@ def test_one_fixture_with_gravity_is_not_enough(small_camera) -> None:
     res = locate(r.image, small_camera, room, gravity=true_gravity(pose))
     assert not res and res.solver == "gravity"
     assert "at least 2 are needed with gravity" in res.reason
+
+
+def test_thesis_room_three_fixtures_weighed_by_their_own_centre_sigmas(
+    thesis_camera_path, thesis_room_path
+):
+    """Three fixtures on the floor, gravity 0.5 degrees off: each disc weighed by its own
+    centre sigma (hundredths of a pixel) trusts the pixels as much as they deserve; one
+    sigma of 1 px for all lets the accelerometer's error through."""
+    camera, room = camvlp.load_camera(thesis_camera_path), camvlp.load_map(thesis_room_path)
+    rng = np.random.default_rng(61)
+    settings = camvlp.RenderSettings(exposure_s=50e-6, seed=1)
+    pose = _pose_with(3, rng, camera, room, settings, 0.0)
+    photo = render(camera, room, pose, settings)
+    g = turned(true_gravity(pose), 0.5, rng)
+    res = locate(photo.image, camera, room, gravity=g)
+    assert res and res.solver == "gravity-3", res.reason
+    sigmas = np.array([f.centre_sigma_px for f in res.fixtures if f.used])
+    assert np.all((sigmas >= 0.01) & (sigmas < 0.2))
+    assert all(f.to_dict()["centre_sigma_px"] == round(f.centre_sigma_px, 4) for f in res.fixtures)
+    assert np.linalg.norm(res.position - pose.position) < 3e-3
+    one = locate(photo.image, camera, room, LocateSettings(centre_sigma_px=1.0), gravity=g)
+    assert one and np.linalg.norm(one.position - pose.position) > 3e-3

@@ -11,7 +11,15 @@ import numpy as np
 
 from camvlp.model.camera import Camera, Pose
 
-__all__ = ["disc_normals", "perspective_offset", "plane_basis", "rim_points"]
+__all__ = [
+    "CENTRE_SIGMA_FLOOR_PX",
+    "centre_sigma",
+    "disc_normals",
+    "ellipse_centre_covariance",
+    "perspective_offset",
+    "plane_basis",
+    "rim_points",
+]
 
 
 def plane_basis(normals) -> tuple[np.ndarray, np.ndarray]:
@@ -141,3 +149,96 @@ def perspective_offset(camera: Camera, pose: Pose, centre, diameter: float, norm
         return np.zeros(2)
     (cx, cy), _, _ = cv2.fitEllipse(uv[1:].astype(np.float32))
     return np.array([cx, cy]) - uv[0]
+
+
+#: Smallest centre uncertainty an ellipse fit is credited with, pixels (1-sigma per axis):
+#: the fit cannot see errors common to all its edge points (the disc's own outline, the
+#: perspective correction), so a perfect fit never weighs infinitely.
+CENTRE_SIGMA_FLOOR_PX = 0.01
+
+
+def ellipse_centre_covariance(points, centre, axes, angle_deg: float, groups=None) -> np.ndarray:
+    """Covariance of a fitted ellipse's centre, from the scatter of the points about it.
+
+    The points' geometric (Sampson) distances from the ellipse, linearised in the five
+    parameters (centre, semi-axes, angle) as ``J`` (M, 5), give the cluster-robust
+    ("sandwich") covariance ``B (sum_g s_g s_g^T) B`` with ``B = (J^T J)^-1`` and
+    ``s_g = J_g^T d_g`` the summed score of group ``g``: points of one group share their
+    errors (the two ends of one sensor row see the same exposure, so a row's chord comes out
+    too wide or too narrow as a whole), points of different groups do not, and each group's
+    errors may have a spread of its own.  An error common to a row's two ends moves the
+    centre along the row not at all and across it according to where the row lies, which
+    is what this measures.  It also reflects how the points sit around the rim (a rim seen
+    only in part fixes its centre less well).  Errors that every point shares (the disc's
+    own outline, the perspective correction) are not seen.
+
+    Parameters
+    ----------
+    points : array_like, shape (M, 2)
+        The edge points fitted, pixels, M >= 6.
+    centre : array_like, shape (2,)
+        The fitted centre, same pixels.
+    axes : array_like, shape (2,)
+        Full lengths of the axes, as :func:`cv2.fitEllipse` gives them (first along
+        ``angle_deg``).
+    angle_deg : float
+        Orientation of the first axis, degrees (OpenCV's convention).
+    groups : array_like, shape (M,), optional
+        A label per point; points with the same label share their errors.  Default: every
+        point alone.
+
+    Returns
+    -------
+    ndarray, shape (2, 2)
+        Covariance of ``(u, v)``, pixels squared; NaN when it cannot be told (fewer than six
+        points or groups, or a degenerate fit).
+    """
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    m = pts.shape[0]
+    _, label = np.unique(
+        np.arange(m) if groups is None else np.asarray(groups), return_inverse=True
+    )
+    n_groups = int(label.max()) + 1 if m else 0
+    p0 = np.array(
+        [*np.asarray(centre, float), *(0.5 * np.asarray(axes, float)), np.radians(angle_deg)]
+    )
+    if n_groups < 6 or not np.all(np.isfinite(p0)) or min(p0[2], p0[3]) <= 0:
+        return np.full((2, 2), np.nan)
+
+    def distances(p: np.ndarray) -> np.ndarray:
+        """Sampson distances of the points from each ellipse ``p`` (K, 5): shape (K, M)."""
+        c, s = np.cos(p[:, 4:5]), np.sin(p[:, 4:5])
+        dx, dy = pts[:, 0] - p[:, 0:1], pts[:, 1] - p[:, 1:2]
+        u, v = c * dx + s * dy, -s * dx + c * dy
+        a2, b2 = p[:, 2:3] ** 2, p[:, 3:4] ** 2
+        f = u**2 / a2 + v**2 / b2 - 1.0
+        return f / (2.0 * np.hypot(u / a2, v / b2))
+
+    step = 1e-6 * np.maximum(1.0, np.abs(p0))
+    d = distances(np.vstack([p0, p0 + np.diag(step)]))
+    jac = ((d[1:] - d[0]) / step[:, None]).T  # (M, 5)
+    jtj = jac.T @ jac
+    if not np.all(np.isfinite(jtj)) or np.linalg.cond(jtj) > 1e12:
+        return np.full((2, 2), np.nan)
+    scores = np.zeros((n_groups, 5))
+    np.add.at(scores, label, jac * d[0][:, None])
+    # small-sample factor of the cluster-robust estimator (CR1)
+    scale = n_groups / (n_groups - 1) * (m - 1) / max(m - 5, 1)
+    bread = np.linalg.inv(jtj)
+    return (scale * bread @ (scores.T @ scores) @ bread)[:2, :2]
+
+
+def centre_sigma(cov) -> float:
+    """One uncertainty of a centre from its covariance: the RMS of its two axes' sigmas,
+    pixels, at least :data:`CENTRE_SIGMA_FLOOR_PX`; NaN when the covariance is unknown.
+
+    Parameters
+    ----------
+    cov : array_like, shape (2, 2)
+        Covariance of the centre, pixels squared.
+    """
+    c = np.asarray(cov, dtype=float).reshape(2, 2)
+    var = 0.5 * float(np.trace(c))
+    if not np.isfinite(var):
+        return float("nan")
+    return max(CENTRE_SIGMA_FLOOR_PX, float(np.sqrt(max(var, 0.0))))

@@ -10,10 +10,12 @@ disc and not from the stripes.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
+from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariance
 
 __all__ = [
     "Blob",
@@ -51,6 +53,10 @@ class Blob:
         for a striped disc, near 1 for a steady light.
     edge_points : int
         Edge points the ellipse was fitted to (0 when the centroid was used instead).
+    centre_cov_px2 : ndarray, shape (2, 2)
+        Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared
+        (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`); NaN when the centroid was
+        used or the fit cannot tell.
     """
 
     pixel: np.ndarray
@@ -62,6 +68,14 @@ class Blob:
     axis: str
     stripe_contrast: float
     edge_points: int
+    centre_cov_px2: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+
+    @property
+    def centre_sigma_px(self) -> float:
+        """The centre's uncertainty, pixels (1-sigma per axis, the RMS of the two): from
+        :attr:`centre_cov_px2`, at least
+        :data:`~camvlp.geometry.disc.CENTRE_SIGMA_FLOOR_PX`; NaN when unknown."""
+        return centre_sigma(self.centre_cov_px2)
 
 
 @dataclass(frozen=True)
@@ -331,10 +345,12 @@ def _refine(
         or (y1 == height and ys.max() == mask.shape[0] - 1)
     )
     points = _edge_points(gray, mask, background, axis)
+    cov = np.full((2, 2), np.nan)
     if points.shape[0] >= 12:
         (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
         if not (0 <= cx < mask.shape[1] and 0 <= cy < mask.shape[0]):
             points = np.zeros((0, 2))
+        cov = _centre_covariance(points, (cx, cy), (a, b), angle, axis)
     if points.shape[0] < 12:
         m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
         cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
@@ -352,7 +368,21 @@ def _refine(
         axis=axis,
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
+        centre_cov_px2=cov,
     )
+
+
+def _centre_covariance(points: np.ndarray, centre, axes, angle: float, axis: str) -> np.ndarray:
+    """Covariance (2, 2) of a fitted ellipse's centre, pixels squared: the edge points
+    grouped in runs of about sqrt(n) consecutive sensor rows out of the n they span (batch
+    means): a row's two ends share its exposure, and the stripes make neighbouring rows'
+    errors depend on each other, while runs far apart do not."""
+    if points.shape[0] == 0:
+        return np.full((2, 2), np.nan)
+    rows = points[:, 1] if axis == "rows" else points[:, 0]
+    span = float(np.ptp(rows)) + 1.0
+    groups = np.floor((rows - rows.min()) / max(1.0, np.sqrt(span)))
+    return ellipse_centre_covariance(points, centre, axes, angle, groups=groups)
 
 
 def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:

@@ -69,10 +69,11 @@ class LocateSettings:
     gravity_sigma_deg : float
         Uncertainty of a gravity direction given to :func:`locate`, degrees: weighs the
         gravity residual against the reprojection residuals.
-    centre_sigma_px : float
+    centre_sigma_px : float or None
         With gravity: the uncertainty of a detected disc centre, pixels, which weighs the
-        reprojection residuals against the gravity residual.  1 px suits real photos; the
-        simulator's are good to a few hundredths of a pixel.
+        reprojection residuals against the gravity residual.  None (the default): each
+        disc's own, estimated from its ellipse fit (:attr:`FixtureResult.centre_sigma_px`;
+        1 px for a disc too small to fit).
     """
 
     solver: str = "iterative"
@@ -84,12 +85,14 @@ class LocateSettings:
     correct_perspective: bool = True
     keep_stages: bool = False
     gravity_sigma_deg: float = 1.0
-    centre_sigma_px: float = 1.0
+    centre_sigma_px: float | None = None
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
         for name in ("gravity_sigma_deg", "centre_sigma_px"):
             sigma = getattr(self, name)
+            if sigma is None and name == "centre_sigma_px":
+                continue
             if isinstance(sigma, bool) or not (
                 isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
             ):
@@ -235,6 +238,18 @@ def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
     return _Identified(tuple(ids), tuple(reasons), usable)
 
 
+#: Centre sigma of a disc whose ellipse fit gives none (the centroid of a small disc), pixels.
+UNKNOWN_CENTRE_SIGMA_PX = 1.0
+
+
+def _centre_sigmas(blobs, usable: tuple[int, ...], st: LocateSettings) -> np.ndarray:
+    """Each usable disc's centre sigma (pixels): the one given, else the disc's own."""
+    if st.centre_sigma_px is not None:
+        return np.full(len(usable), float(st.centre_sigma_px))
+    sigma = np.array([blobs[k].centre_sigma_px for k in usable], dtype=float)
+    return np.where(np.isfinite(sigma), sigma, UNKNOWN_CENTRE_SIGMA_PX)
+
+
 def _solve(
     camera: Camera,
     fixture_map: FixtureMap,
@@ -273,7 +288,7 @@ def _solve(
                 up=gravity[1],
                 normals=normals,
                 sigma_deg=st.gravity_sigma_deg,
-                pixel_sigma_px=st.centre_sigma_px,
+                pixel_sigma_px=_centre_sigmas(blobs, usable, st),
                 outlier_px=outlier_px,
             )
         return estimate_pose(
@@ -335,6 +350,7 @@ def _fixture_results(
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,
                 frequency_hz=float(frequencies[k]),
+                centre_sigma_px=b.centre_sigma_px,
             )
         )
     return tuple(results)

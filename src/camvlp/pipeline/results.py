@@ -48,6 +48,9 @@ class FixtureResult:
         Reprojection error with the final pose, pixels (NaN without a pose).
     frequency_hz : float
         Measured blinking frequency (frequency mode), Hz; NaN otherwise.
+    centre_sigma_px : float
+        Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
+        axis; NaN when the disc was too small to fit).
     """
 
     id: int | None
@@ -60,6 +63,7 @@ class FixtureResult:
     rows_per_chip: float = float("nan")
     residual_px: float = float("nan")
     frequency_hz: float = float("nan")
+    centre_sigma_px: float = float("nan")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
@@ -75,6 +79,8 @@ class FixtureResult:
             if isinstance(v, float):
                 v = None if not np.isfinite(v) else round(v, 3)
             d[key] = v
+        sigma = self.centre_sigma_px
+        d["centre_sigma_px"] = None if not np.isfinite(sigma) else round(float(sigma), 4)
         return d
 
 

@@ -19,7 +19,7 @@ def refine_gravity_batch(
     *,
     focal_px: float,
     sigma_deg: float = 1.0,
-    pixel_sigma_px: float = 1.0,
+    pixel_sigma_px=1.0,
     mask=None,
     iterations: int = 12,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -47,8 +47,10 @@ def refine_gravity_batch(
         The map's up.
     focal_px : float
         Focal length (pixels per unit of normalised coordinates).
-    sigma_deg, pixel_sigma_px : float
-        Uncertainties of the gravity direction (degrees) and of the centres (pixels).
+    sigma_deg : float
+        Uncertainty of the gravity direction, degrees.
+    pixel_sigma_px : float or array_like, shape (N,) or (B, N)
+        Uncertainty of the centres, pixels: one for all, or one per fixture (per pose).
     mask : array_like of bool, shape (B, N), optional
         Which fixtures each pose uses (default all).
     iterations : int
@@ -67,6 +69,7 @@ def refine_gravity_batch(
     g = g / np.linalg.norm(g, axis=1, keepdims=True)
     down = -np.asarray(up, float) / np.linalg.norm(up)
     w = np.ones(b_obs.shape[:2]) if mask is None else np.asarray(mask, float)
+    w = w / np.broadcast_to(np.asarray(pixel_sigma_px, float), b_obs.shape[:2])
     sigma = np.radians(sigma_deg)
     nb = r0.shape[0]
 
@@ -75,7 +78,7 @@ def refine_gravity_batch(
         rot = (rodrigues_batch(q[..., :3].reshape(-1, 3)).reshape(7, nb, 3, 3)) @ r0
         pc = np.einsum("kbni,kbij->kbnj", x[None, None] - q[..., None, 3:], rot)
         z = np.where(np.abs(pc[..., 2]) < 1e-12, 1e-12, pc[..., 2])
-        rp = focal_px * (pc[..., :2] / z[..., None] - b_obs) * w[..., None] / pixel_sigma_px
+        rp = focal_px * (pc[..., :2] / z[..., None] - b_obs) * w[..., None]
         gw = np.einsum("kbij,bj->kbi", rot, g)
         rg = np.stack(
             [

@@ -115,9 +115,10 @@ _TILT_HELD_DEG = 1e-4
 
 
 def _fit_heading_position(
-    starts: list[Pose], points, bearings, gravity, up, focal_px
+    starts: list[Pose], points, bearings, gravity, up, focal_px, pixel_sigma_px=1.0
 ) -> list[Pose]:
-    """Least squares over heading and position with the tilt held, from each start."""
+    """Least squares over heading and position with the tilt held, from each start (each
+    fixture's residual over its ``pixel_sigma_px``)."""
     if not starts:
         return []
     rots, centres = refine_gravity_batch(
@@ -129,6 +130,7 @@ def _fit_heading_position(
         up,
         focal_px=focal_px,
         sigma_deg=_TILT_HELD_DEG,
+        pixel_sigma_px=pixel_sigma_px,
     )
     out = []
     for r, c in zip(rots, centres, strict=True):
@@ -147,7 +149,7 @@ def _refine(
     gravity=None,
     up=None,
     sigma_deg: float = 1.0,
-    pixel_sigma_px: float = 1.0,
+    pixel_sigma_px=1.0,
 ) -> Pose:
     """Full six-degree refinement: reprojection (pixels / pixel sigma) and gravity residual;
     without ``gravity``, the reprojection alone."""
@@ -180,7 +182,7 @@ def solve_pose_gravity(
     up,
     normals=None,
     sigma_deg: float = 1.0,
-    pixel_sigma_px: float = 1.0,
+    pixel_sigma_px=1.0,
     outlier_px: float = 4.0,
 ) -> GravityPose:
     """The camera's pose from two or more identified fixtures and the gravity direction.
@@ -202,8 +204,10 @@ def solve_pose_gravity(
     sigma_deg : float
         The accelerometer's uncertainty, degrees: weighs the gravity residual against the
         reprojection residuals.
-    pixel_sigma_px : float
-        The centres' uncertainty, pixels.
+    pixel_sigma_px : float or array_like, shape (N,)
+        The centres' uncertainty, pixels (1-sigma per axis): one for all, or one per fixture
+        (e.g. :attr:`camvlp.pipeline.detect.Blob.centre_sigma_px`), which weighs each
+        fixture's reprojection residual.
     outlier_px : float
         A fixture whose reprojection error exceeds this (pixels) does not fit, nor does a
         pose whose down is more than :data:`MAX_TILT_SIGMAS` sigmas from gravity: with four or
@@ -231,8 +235,12 @@ def solve_pose_gravity(
         raise ValueError("image_points and object_points must be finite")
     if not (np.isfinite(sigma_deg) and sigma_deg > 0):
         raise ValueError(f"sigma_deg must be positive, got {sigma_deg!r}")
-    if not (np.isfinite(pixel_sigma_px) and pixel_sigma_px > 0):
+    pix_sigma = np.asarray(pixel_sigma_px, dtype=float)
+    if pix_sigma.ndim > 1 or pix_sigma.size not in (1, img.shape[0]):
+        raise ValueError("pixel_sigma_px must be one number or one per fixture")
+    if not np.all(np.isfinite(pix_sigma) & (pix_sigma > 0)):
         raise ValueError(f"pixel_sigma_px must be positive, got {pixel_sigma_px!r}")
+    pix_sigma = np.broadcast_to(pix_sigma.reshape(-1), (img.shape[0],))
     u = map_up(obj, up=up)
     nrm = None if normals is None else np.asarray(normals, dtype=float).reshape(-1, 3)
     n = obj.shape[0]
@@ -252,7 +260,7 @@ def solve_pose_gravity(
         nrm,
         focal,
         sigma_deg,
-        pixel_sigma_px=pixel_sigma_px,
+        pixel_sigma_px=pix_sigma,
         outlier_px=outlier_px,
     )
 
@@ -266,17 +274,23 @@ def _three_or_more(
     focal: float,
     sigma_deg: float,
     *,
-    pixel_sigma_px: float,
+    pixel_sigma_px: np.ndarray,
     outlier_px: float,
 ) -> GravityPose:
     """:func:`solve_pose_gravity` for N >= 3 fixtures: bearings (N, 2), map points (N, 3),
-    unit gravity ``g`` (camera frame) and up ``u``; the worst fixture dropped while the rest
-    do not fit and at least three remain."""
+    unit gravity ``g`` (camera frame) and up ``u``, centre sigmas (N,) pixels; the worst
+    fixture dropped while the rest do not fit and at least three remain."""
     n = obj.shape[0]
     idx = np.arange(n)
     while True:
         pose, reason = _least_squares(
-            bearings[idx], obj[idx], g, u, None if nrm is None else nrm[idx], focal
+            bearings[idx],
+            obj[idx],
+            g,
+            u,
+            None if nrm is None else nrm[idx],
+            focal,
+            pixel_sigma_px[idx],
         )
         if pose is None:
             return _failure(n, reason)
@@ -288,7 +302,7 @@ def _three_or_more(
             gravity=g,
             up=u,
             sigma_deg=sigma_deg,
-            pixel_sigma_px=pixel_sigma_px,
+            pixel_sigma_px=pixel_sigma_px[idx],
         )
         res = _pixel_residuals(pose, obj[idx], bearings[idx], focal)
         tilt = tilt_error_deg(pose.world_from_camera, g, u)
@@ -311,7 +325,7 @@ def _three_or_more(
                 reason=f"the fixtures do not fit one pose with this gravity ({why}): a wrong "
                 "ID, map, camera file or gravity",
             )
-        idx = _drop_worst(idx, bearings, obj, g, u, nrm, focal)
+        idx = _drop_worst(idx, bearings, obj, g, u, nrm, focal, pixel_sigma_px)
     in_front, lit = _valid(pose, obj[idx], None if nrm is None else nrm[idx])
     if not (in_front and lit):
         return _failure(
@@ -323,7 +337,7 @@ def _three_or_more(
     used[idx] = True
     disagreement = float("nan")
     if idx.size >= 4:
-        photo = _refine(pose, obj[idx], bearings[idx], focal)
+        photo = _refine(pose, obj[idx], bearings[idx], focal, pixel_sigma_px=pixel_sigma_px[idx])
         disagreement = tilt_error_deg(photo.world_from_camera, g, u)
     return GravityPose(
         pose,
@@ -337,13 +351,19 @@ def _three_or_more(
     )
 
 
-def _drop_worst(idx, bearings, obj, g, u, nrm, focal) -> np.ndarray:
-    """The subset, one fixture fewer, that fits best."""
+def _drop_worst(idx, bearings, obj, g, u, nrm, focal, pixel_sigma_px) -> np.ndarray:
+    """The subset, one fixture fewer, that fits best (centre sigmas (N,), pixels)."""
     best, best_cost = idx[:-1], np.inf
     for sub in combinations(idx.tolist(), idx.size - 1):
         sub = np.array(sub)
         pose, _ = _least_squares(
-            bearings[sub], obj[sub], g, u, None if nrm is None else nrm[sub], focal
+            bearings[sub],
+            obj[sub],
+            g,
+            u,
+            None if nrm is None else nrm[sub],
+            focal,
+            pixel_sigma_px[sub],
         )
         if pose is None:
             continue
@@ -389,8 +409,9 @@ def _two(bearings, obj, g, u, nrm, focal) -> GravityPose:
     )
 
 
-def _least_squares(bearings, obj, g, u, nrm, focal) -> tuple[Pose | None, str]:
-    """Heading and position with the tilt held, from the two-fixture solutions of pairs."""
+def _least_squares(bearings, obj, g, u, nrm, focal, pixel_sigma_px) -> tuple[Pose | None, str]:
+    """Heading and position with the tilt held, from the two-fixture solutions of pairs;
+    each fixture's residual weighed by its centre sigma ``pixel_sigma_px`` (N,), pixels."""
     n = obj.shape[0]
     pairs = sorted(
         combinations(range(n), 2),
@@ -402,11 +423,11 @@ def _least_squares(bearings, obj, g, u, nrm, focal) -> tuple[Pose | None, str]:
         reasons += [reason] if reason else []
         starts += [p for p in found if _valid(p, obj[[i, j]], None)[0]]
     best, best_cost = None, np.inf
-    for pose in _fit_heading_position(starts, obj, bearings, g, u, focal):
+    for pose in _fit_heading_position(starts, obj, bearings, g, u, focal, pixel_sigma_px):
         in_front, lit = _valid(pose, obj, nrm)
         if not (in_front and lit):
             continue
-        cost = float(np.sum(_pixel_residuals(pose, obj, bearings, focal) ** 2))
+        cost = float(np.sum((_pixel_residuals(pose, obj, bearings, focal) / pixel_sigma_px) ** 2))
         if cost < best_cost:
             best, best_cost = pose, cost
     if best is None:

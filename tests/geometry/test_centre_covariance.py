@@ -1,0 +1,69 @@
+"""A fitted ellipse's centre covariance against the scatter of centres over noisy trials."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camvlp.geometry.disc import (
+    CENTRE_SIGMA_FLOOR_PX,
+    centre_sigma,
+    ellipse_centre_covariance,
+)
+
+CENTRE = np.array([60.3, 55.7])
+A, B, ANGLE = 40.0, 28.0, 25.0  # semi-axes (px) and orientation (deg)
+
+
+def _chords(rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Left and right ends (x) of the ellipse's chords along image rows ``rows``."""
+    t = np.radians(ANGLE)
+    c, s = np.cos(t), np.sin(t)
+    y = rows - CENTRE[1]
+    # (c x + s y)^2 / A^2 + (-s x + c y)^2 / B^2 = 1, a quadratic in x
+    qa = c**2 / A**2 + s**2 / B**2
+    qb = 2 * y * c * s * (1 / A**2 - 1 / B**2)
+    qc = y**2 * (s**2 / A**2 + c**2 / B**2) - 1
+    root = np.sqrt(qb**2 - 4 * qa * qc)
+    return CENTRE[0] + (-qb - root) / (2 * qa), CENTRE[0] + (-qb + root) / (2 * qa)
+
+
+def _trial(rng, rows, shared: bool, noise: float):
+    """Edge points of every row with noise along the row, each end its own (``shared``
+    False) or one width error per row shared by its two ends: the fitted centre, its
+    covariance (the rows as groups when shared), the points, axes and angle."""
+    xl, xr = _chords(rows)
+    if shared:
+        e = rng.normal(0, noise, rows.size)
+        xl, xr = xl - e, xr + e
+    else:
+        xl, xr = xl + rng.normal(0, noise, rows.size), xr + rng.normal(0, noise, rows.size)
+    pts = np.concatenate([np.stack([xl, rows], 1), np.stack([xr, rows], 1)])
+    (cx, cy), axes, angle = cv2.fitEllipse(pts.astype(np.float32))
+    groups = np.concatenate([rows, rows]) if shared else None
+    cov = ellipse_centre_covariance(pts, (cx, cy), axes, angle, groups)
+    return np.array([cx, cy]), cov, pts, axes, angle
+
+
+@pytest.mark.parametrize("shared", [False, True])
+def test_covariance_matches_the_scatter_of_centres(shared: bool) -> None:
+    rng = np.random.default_rng(5)
+    rows = np.arange(int(CENTRE[1] - 28), int(CENTRE[1] + 28), dtype=float)
+    trials = [_trial(rng, rows, shared, 0.3) for _ in range(300)]
+    scatter = np.std(np.array([t[0] for t in trials]), axis=0)
+    covs = np.array([t[1] for t in trials])
+    predicted = np.sqrt(np.median(np.diagonal(covs, axis1=1, axis2=2), axis=0))
+    np.testing.assert_allclose(predicted, scatter, rtol=0.3)
+    if shared:
+        # the same points taken as independent: the centre along the rows misjudged
+        alone = np.array([ellipse_centre_covariance(p, c, ax, a) for c, _, p, ax, a in trials])
+        assert np.sqrt(np.median(alone[:, 0, 0])) > 1.5 * scatter[0]
+
+
+def test_degenerate_and_floor() -> None:
+    assert np.all(np.isnan(ellipse_centre_covariance(np.zeros((3, 2)), (0, 0), (2, 2), 0)))
+    assert np.all(np.isnan(ellipse_centre_covariance(np.ones((20, 2)), (0, 0), (0, 2), 0)))
+    assert centre_sigma(np.zeros((2, 2))) == CENTRE_SIGMA_FLOOR_PX
+    assert np.isnan(centre_sigma(np.full((2, 2), np.nan)))
+    assert centre_sigma(np.diag([0.04, 0.0])) == pytest.approx(np.sqrt(0.02))
