@@ -16,7 +16,6 @@ period more makes the frequency markedly more precise.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -25,8 +24,8 @@ import numpy as np
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import light_support
-from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
+from camvlp.pipeline.detect import gray_float, light_support
+from camvlp.pipeline.stripes import estimate_stripe_period
 
 __all__ = [
     "FrequencyAssignment",
@@ -204,67 +203,196 @@ def _fit_row_time(
     return best[2]
 
 
+# --------------------------------------------------------------------------------------------
+# The stripes' forward model, fitted over the whole striped profile
+
+
+def _wave(x: np.ndarray, period, phase, exposure, knee) -> np.ndarray:
+    """A 50 % square wave integrated over each row's exposure, through a saturation knee.
+
+    ``x`` (n,) rows; ``period`` (rows), ``phase`` (cycles at row 0), ``exposure`` (cycles)
+    and ``knee`` (0-1) broadcast against each other to shape ``G``; returns ``G + (n,)``
+    values in [0, 1]: the on-fraction ``s`` of each row's window, read as
+    ``min(s, knee) / knee`` (a light brighter than full scale clips at ``knee``).
+    """
+    t = x / np.asarray(period)[..., None] + np.asarray(phase)[..., None]
+    e = np.asarray(exposure)[..., None]
+
+    def on_time(u: np.ndarray) -> np.ndarray:  # cycles of on-time up to u (cycles)
+        whole = np.floor(u)
+        return 0.5 * whole + np.minimum(u - whole, 0.5)
+
+    s = (on_time(t + e) - on_time(t)) / e
+    k = np.asarray(knee)[..., None]
+    return np.minimum(s, k) / k
+
+
+def _wave_cost(x, y, sw, basis, period, phase, exposure, knee) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted residuals of the best ``offset + envelope(x) * wave`` for each parameter set.
+
+    ``basis`` (n, d) is the envelope's basis (low-order Legendre polynomials), ``sw`` (n,)
+    the square roots of the rows' weights; the offset and the envelope's coefficients are
+    solved by linear least squares.  Returns the residual sums (G,) and residuals (G, n).
+    """
+    h = _wave(x, period, phase, exposure, knee)  # (G, n)
+    design = np.concatenate(
+        [np.broadcast_to(sw, h.shape)[..., None], (h * sw)[..., None] * basis], axis=-1
+    )  # (G, n, 1 + d)
+    target = y * sw
+    gram = np.einsum("gnp,gnq->gpq", design, design)
+    rhs = np.einsum("gnp,n->gp", design, target)
+    gram += 1e-9 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(gram.shape[1])
+    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
+    resid = target - np.einsum("gnp,gp->gn", design, coef)
+    return np.einsum("gn,gn->g", resid, resid), resid
+
+
+def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float) -> float:
+    """The stripe period (rows) of a profile, by fitting the stripes' forward model.
+
+    The profile ``y`` (n,), with weights ``w`` (n,), is modelled as an offset plus a smooth
+    envelope (a polynomial, of higher degree over more periods) times :func:`_wave`: a 50 %
+    square wave of unknown period and phase, integrated over an unknown exposure, clipped
+    at an unknown knee.  A grid of periods around ``period0`` (wider over fewer periods),
+    phases, exposures and knees seeds a bounded least-squares refinement of all four.
+    Returns NaN when the profile is too short.
+    """
+    from scipy.optimize import least_squares  # here: SciPy's import costs 0.3 s
+
+    n = y.size
+    if n < 6 or not (np.isfinite(period0) and period0 > 0):
+        return float("nan")
+    x = np.arange(n, dtype=np.float64)
+    seen = n / period0
+    degree = int(np.clip(seen / 2.0, 2, 8))
+    basis = np.polynomial.legendre.legvander(np.linspace(-1.0, 1.0, n), degree)
+    sw = np.sqrt(np.maximum(w, 0.0))
+    reach = 1.0 + min(0.6, 3.0 / seen)
+    step = min(0.02, 0.2 / seen)
+    lo_p, hi_p = max(period0 / reach, 2.2), min(period0 * reach, 4.0 * n)
+    if hi_p <= lo_p * (1 + step):
+        return float("nan")
+    periods = np.exp(np.arange(np.log(lo_p), np.log(hi_p), step))
+    grid = np.meshgrid(
+        periods, np.arange(8) / 8.0, (0.05, 0.25, 0.45), (0.95, 0.5, 0.2), indexing="ij"
+    )
+    cost, _ = _wave_cost(x, y, sw, basis, *(g.ravel() for g in grid))
+    bounds = ([lo_p, -np.inf, 0.01, 0.05], [hi_p, np.inf, 1.5, 1.0])
+    best_p, best_cost = float("nan"), np.inf
+    order = np.argsort(cost)
+    tried: list[float] = []
+    for g in order[:40]:
+        start = np.array([grid[i].ravel()[g] for i in range(4)])
+        start[0] = np.clip(start[0], lo_p * (1 + 1e-9), hi_p * (1 - 1e-9))
+        if any(abs(np.log(start[0] / t)) < 2 * step for t in tried):
+            continue
+        tried.append(start[0])
+        fit = least_squares(
+            lambda p: _wave_cost(x, y, sw, basis, *(np.array([v]) for v in p))[1][0],
+            start,
+            bounds=bounds,
+            x_scale=np.array([0.01 * period0, 0.01, 0.02, 0.02]),
+        )
+        if fit.cost < best_cost:
+            best_p, best_cost = float(fit.x[0]), fit.cost
+        if len(tried) == 3:
+            break
+    return best_p
+
+
 #: A light "glows" (its striped area reaches well beyond the detected disc) when its support
 #: covers at least this many times the disc's area.
 _GLOW_RATIO = 1.5
 
 
-def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
-    """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
+def _centre_on_support(blob, support: np.ndarray, axis: str) -> np.ndarray:
+    """The light's centre ``[u, v]`` with its coordinate along the readout axis on its support.
 
     Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
     the lit rows) is kept; along it, a light with a glow is centred on its whole striped
     area: an ellipse fitted to the sides of the support's outline (the points where it runs
     along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
-    out).  Left as it is when the support reaches the region's edge along the readout axis
-    (the area would be cut), the disc is cut by the image border, or too few side points.
+    out).  The detected centre is returned as it is when the support reaches the region's
+    edge along the readout axis (the area would be cut), the disc is cut by the image border,
+    or there are too few side points.  ``blob`` is not changed.
     """
+    pixel = np.array(blob.pixel, dtype=float)
     if blob.touches_border:
-        return
+        return pixel
     j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
     lines = np.flatnonzero(support.any(axis=1 - j))
     if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
-        return
+        return pixel
     # the outline's sides (running along the readout axis): its caps are cut by the stripes
     contours, _ = cv2.findContours(
         support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
     )
     pts = max(contours, key=cv2.contourArea)[:, 0, :].astype(float)  # (M, 2) as (x, y)
     if pts.shape[0] < 20:
-        return
+        return pixel
     tangent = np.roll(pts, -2, axis=0) - np.roll(pts, 2, axis=0)
     sides = pts[np.abs(tangent[:, j]) > np.abs(tangent[:, 1 - j])]
     if sides.shape[0] < 12:
-        return
+        return pixel
     (cx, cy), _, _ = cv2.fitEllipse(sides.astype(np.float32))
     centre = cy if j == 1 else cx
-    if not 0 <= centre < support.shape[1 - j]:
-        return
-    blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
+    if 0 <= centre < support.shape[1 - j]:
+        pixel[j] = blob.box[j] + centre
+    return pixel
 
 
-#: Thresholds of the striped area, noise levels above the background: each ends the area
-#: at another place in the glow (cutting a stripe at another phase); the median of their
-#: periods is kept.
-_GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
+def _mean_profile(gray: np.ndarray, region: np.ndarray, axis: str) -> tuple[np.ndarray, np.ndarray]:
+    """Mean gray level (n,) and pixel count (n,) of ``region``'s lines along the readout.
 
-
-def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
-    """The stripe period over a glowing light's whole striped area, pixels.
-
-    Measured over the area down to the background at each of :data:`_GLOW_SIGMAS`, starting
-    from the disc's period ``disc``; estimates more than 15 % from the disc's are dropped;
-    the median of the rest is returned (the disc's own estimate when none is left).
+    Lines with under a quarter of the widest line's pixels are cut from both ends.
     """
-    found = []
-    for k_sigma in _GLOW_SIGMAS:
-        support = light_support(gray, mask, axis, k_sigma=k_sigma)
-        wide = estimate_stripe_period(gray, support, axis, near=disc.period_px)
-        if wide and abs(np.log(wide.period_px / disc.period_px)) < 0.15:
-            found.append(wide)
-    if not found:
-        return disc
-    return dataclasses.replace(found[0], period_px=float(np.median([w.period_px for w in found])))
+    a = 1 if axis == "rows" else 0
+    counts = region.sum(axis=a).astype(np.float64)
+    idx = np.flatnonzero(counts >= 0.25 * counts.max()) if counts.max() > 0 else []
+    if len(idx) == 0:
+        return np.zeros(0), np.zeros(0)
+    sums = np.where(region, gray, 0.0).sum(axis=a)
+    c = counts[idx[0] : idx[-1] + 1]
+    return sums[idx[0] : idx[-1] + 1] / np.maximum(c, 1.0), c
+
+
+def _glow_profile(
+    gray: np.ndarray, region: np.ndarray, axis: str, period: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A glowing light's normalised stripe profile along the readout (n,), lines' weights (n,).
+
+    Each pixel is put on the scale of its own stripes: between the lowest and highest level
+    within one stripe period along the readout axis (``period``, pixels), which do not
+    depend on the stripes' phase.  A light's brightness across its area (a hot core, a glow,
+    a disc's rim) then leaves the same stripes everywhere, clipped where the light saturates.
+    Each line's mean over the pixels of ``region`` (and 2 px around it) with a contrast over a fifth of the
+    largest (of a saturated light, only those that never reach full scale, when most lines
+    have two or more: a clipped pixel's stripes have lost their shape) is weighted by their
+    summed contrast; lines with under a quarter of the largest
+    weight are cut from both ends.
+    """
+    g = gray if axis == "rows" else gray.T
+    r = region if axis == "rows" else region.T
+    r = cv2.dilate(r.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0  # and its rim
+    if not r.any():
+        return np.zeros(0), np.zeros(0)
+    kernel = np.ones((int(np.ceil(period)) + 1, 1), np.uint8)
+    hi = cv2.dilate(g, kernel, borderType=cv2.BORDER_REPLICATE)
+    lo = cv2.erode(g, kernel, borderType=cv2.BORDER_REPLICATE)
+    contrast = hi - lo
+    use = r & (contrast > 0.2 * np.percentile(contrast[r], 95))
+    top = float(g[r].max())
+    if np.mean(g[r] >= top - 2.0) > 0.05:  # a saturated light: its stripes' shape is clipped
+        linear = use & (hi < top - 4.0)  # pixels that never reach full scale keep it whole
+        lines = linear.sum(axis=1)
+        if np.mean(lines[use.any(axis=1)] >= 2) > 0.75:
+            use = linear
+    weight = np.where(use, contrast, 0.0).sum(axis=1)
+    y = np.where(use, g - lo, 0.0).sum(axis=1) / np.maximum(weight, 1e-12)
+    idx = np.flatnonzero(weight >= 0.25 * weight.max())
+    if idx.size == 0:
+        return np.zeros(0), np.zeros(0)
+    return y[idx[0] : idx[-1] + 1], weight[idx[0] : idx[-1] + 1]
 
 
 def decode_frequencies(
@@ -306,8 +434,10 @@ def decode_frequencies(
     n = len(blobs)
     periods = np.full(n, np.nan)
     spans = np.zeros(n)
+    centres = np.array([np.asarray(b.pixel, dtype=float) for b in blobs]).reshape(n, 2)
     failures = [""] * n
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
+        g = gray_float(g)
         support = light_support(g, b.mask, axis)
         glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
         if not glow:  # a plain disc: its own outline is its striped area
@@ -315,15 +445,19 @@ def decode_frequencies(
         along = support.any(axis=1 if axis == "rows" else 0)
         idx = np.flatnonzero(along)
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
-        est = estimate_stripe_period(g, b.mask, axis)
         if glow:
-            _centre_on_support(b, support, axis)
-            if est:
-                est = _period_over_glow(g, b.mask, axis, est)
-        if est:
-            periods[k] = est.period_px
-        else:
+            centres[k] = _centre_on_support(b, support, axis)
+        est = estimate_stripe_period(g, b.mask, axis)  # the disc's: the fit's first guess
+        if not est:
             failures[k] = est.message or "no stripe period could be measured"
+            continue
+        if glow:
+            y, w = _glow_profile(g, support, axis, est.period_px)
+        else:
+            y, w = _mean_profile(g, support, axis)
+        periods[k] = _fit_wave(y, w, est.period_px)
+        if not np.isfinite(periods[k]):
+            failures[k] = "no stripe period could be measured"
     with np.errstate(invalid="ignore", divide="ignore"):
         seen = np.where(np.isfinite(periods), spans / periods, 0.0)
     fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
@@ -354,4 +488,4 @@ def decode_frequencies(
                 float(seen[k]),
             )
         )
-    return decodes, fa.frequencies_hz, note
+    return decodes, fa.frequencies_hz, centres, note

@@ -368,7 +368,7 @@ class Tracker:
             rpc = float(np.median(self._chip_rows[-50:]))
             done = [decode_profile(p, self.map.frame, rows_per_chip=rpc) for p in profiles]
         else:
-            done, _, _ = _decode(sub, gray_rois, extents, profiles, readout, self.camera, self.map)
+            done, *_ = _decode(sub, gray_rois, extents, profiles, readout, self.camera, self.map)
         for d in done:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
