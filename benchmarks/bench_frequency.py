@@ -3,7 +3,7 @@
 Renders frequency-coded lights (50 % square waves, 2000 to 4000 Hz, at a real phone's
 47,540 rows/s, so 11.9 to 23.8 rows per period) over a seeded sweep: periods shown across the
 disc 1.5 to 8; plain hard stripes (saturated, and dim), soft stripes, a hot core with a
-halo; exposure 0.05 to 0.5 of a 3000 Hz period; clean, noisy, and noisy JPEG (quality 80);
+halo; exposure 0.05 to 0.35 of the shortest (4000 Hz) period; clean, noisy, and noisy JPEG (quality 80);
 the readout down the rows and, reversed, along the columns.  Each photo shows four lights in
 a 2 x 2 grid seen from 2.7 m below; ``camvlp.locate`` measures them.  Prints, per light
 style and periods shown, the frequency error (median and worst, %) and the centre error
@@ -40,7 +40,7 @@ STYLES = {
     "soft": dict(brightness=2.0, soft=0.3),
     "core+halo": dict(brightness=4.0, core=4.0, halo=0.4, soft=0.45),
 }
-EXPOSURES = (0.05, 0.25, 0.5)  # fractions of a 3000 Hz period
+EXPOSURES = (0.05, 0.2, 0.35)  # fractions of the shortest period (4000 Hz)
 NOISES = {  # read noise (fraction of full scale), JPEG quality (None: no JPEG)
     "clean": (0.002, None),
     "noisy": (0.02, None),
@@ -77,7 +77,7 @@ def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float
     read_noise, quality = NOISES[noise]
     settings = RenderSettings(
         row_time_s=ROW_TIME_S,
-        exposure_s=exposure / 3000.0,
+        exposure_s=exposure / max(FREQS_HZ),
         read_noise=read_noise,
         readout=readout,
         seed=seed,
@@ -119,7 +119,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one exposure, no readout sweep")
     args = parser.parse_args(argv)
-    exposures = (0.25,) if args.quick else EXPOSURES
+    exposures = (0.2,) if args.quick else EXPOSURES
     readouts = READOUTS[:1] if args.quick else READOUTS
     t0 = time.perf_counter()
     by: dict[str, dict] = defaultdict(lambda: defaultdict(list))
@@ -130,7 +130,7 @@ def main(argv=None) -> None:
         everything += rows
         by["style, periods"][f"{style:<10} {periods:4.1f}"] += rows
         by["style"][style] += rows
-        by["exposure (of a 3000 Hz period)"][f"{exposure:.2f}"] += rows
+        by["exposure (of a 4000 Hz period)"][f"{exposure:.2f}"] += rows
         by["noise"][noise] += rows
         by["readout"][readout] += rows
     head = f"{'':<28} {'n':>5} {'miss':>5}   {'freq err %':>13}   {'centre px':>13}"

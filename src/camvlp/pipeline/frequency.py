@@ -247,7 +247,19 @@ def _wave_cost(x, y, sw, basis, period, phase, exposure, knee) -> tuple[np.ndarr
     return np.einsum("gn,gn->g", resid, resid), resid
 
 
-def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float) -> float:
+#: Multiples of the first guess of a period around which the fit searches.
+_ALIASES = np.array([0.5, 1.0, 2.0])
+
+
+def _wave_jacobian(x, y, sw, basis, p: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Forward-difference Jacobian (n, 4) of :func:`_wave_cost`'s residuals at ``p`` (4,),
+    steps ``h`` (4,): the five parameter sets evaluated in one batch."""
+    sets = np.vstack([p, p + np.diag(h)])  # (5, 4)
+    _, r = _wave_cost(x, y, sw, basis, *sets.T)
+    return ((r[1:] - r[0]) / h[:, None]).T
+
+
+def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float, min_degree: int = 2) -> float:
     """The stripe period (rows) of a profile, by fitting the stripes' forward model.
 
     The profile ``y`` (n,), with weights ``w`` (n,), is modelled as an offset plus a smooth
@@ -264,21 +276,31 @@ def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float) -> float:
         return float("nan")
     x = np.arange(n, dtype=np.float64)
     seen = n / period0
-    degree = int(np.clip(seen / 2.0, 2, 8))
+    degree = int(np.clip(seen / 2.0, min_degree, 8))
     basis = np.polynomial.legendre.legvander(np.linspace(-1.0, 1.0, n), degree)
     sw = np.sqrt(np.maximum(w, 0.0))
     reach = 1.0 + min(0.6, 3.0 / seen)
     step = min(0.02, 0.2 / seen)
-    lo_p, hi_p = max(period0 / reach, 2.2), min(period0 * reach, 4.0 * n)
+    # around the first guess, and around its half and double (a guess over a short profile
+    # can lock onto an alias)
+    lo_p, hi_p = max(0.5 * period0 / reach, 2.2), min(2.0 * period0 * reach, 4.0 * n)
     if hi_p <= lo_p * (1 + step):
         return float("nan")
     periods = np.exp(np.arange(np.log(lo_p), np.log(hi_p), step))
+    periods = periods[
+        np.min(np.abs(np.log(periods[:, None] / (period0 * _ALIASES))), 1) < np.log(reach)
+    ]
     grid = np.meshgrid(
-        periods, np.arange(8) / 8.0, (0.05, 0.25, 0.45), (0.95, 0.5, 0.2), indexing="ij"
+        periods,
+        np.arange(24 if seen < 4 else 8) / (24 if seen < 4 else 8),
+        (0.02, 0.1, 0.25, 0.45),
+        (0.95, 0.5, 0.2),
+        indexing="ij",
     )
     cost, _ = _wave_cost(x, y, sw, basis, *(g.ravel() for g in grid))
     bounds = ([lo_p, -np.inf, 0.01, 0.05], [hi_p, np.inf, 1.5, 1.0])
     best_p, best_cost = float("nan"), np.inf
+    scale = np.array([0.01 * period0, 0.01, 0.02, 0.02])
     order = np.argsort(cost)
     tried: list[float] = []
     for g in order[:40]:
@@ -288,10 +310,12 @@ def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float) -> float:
             continue
         tried.append(start[0])
         fit = least_squares(
-            lambda p: _wave_cost(x, y, sw, basis, *(np.array([v]) for v in p))[1][0],
+            lambda p: _wave_cost(x, y, sw, basis, *p[:, None])[1][0],
             start,
+            jac=lambda p: _wave_jacobian(x, y, sw, basis, p, 1e-4 * scale),
             bounds=bounds,
-            x_scale=np.array([0.01 * period0, 0.01, 0.02, 0.02]),
+            x_scale=scale,
+            xtol=1e-7,
         )
         if fit.cost < best_cost:
             best_p, best_cost = float(fit.x[0]), fit.cost
@@ -365,11 +389,11 @@ def _glow_profile(
     within one stripe period along the readout axis (``period``, pixels), which do not
     depend on the stripes' phase.  A light's brightness across its area (a hot core, a glow,
     a disc's rim) then leaves the same stripes everywhere, clipped where the light saturates.
-    Each line's mean over the pixels of ``region`` (and 2 px around it) with a contrast over a fifth of the
-    largest (of a saturated light, only those that never reach full scale, when most lines
-    have two or more: a clipped pixel's stripes have lost their shape) is weighted by their
-    summed contrast; lines with under a quarter of the largest
-    weight are cut from both ends.
+    Each line's mean over the pixels of ``region`` (and 2 px around it) with a contrast over
+    a fifth of the largest is weighted by their summed contrast; of a saturated light only
+    the pixels that never reach full scale are used (a clipped pixel's stripes have lost
+    their shape) when most lines have two or more.  Lines with under a quarter of the
+    largest weight are cut from both ends.
     """
     g = gray if axis == "rows" else gray.T
     r = region if axis == "rows" else region.T
@@ -455,7 +479,8 @@ def decode_frequencies(
             y, w = _glow_profile(g, support, axis, est.period_px)
         else:
             y, w = _mean_profile(g, support, axis)
-        periods[k] = _fit_wave(y, w, est.period_px)
+            degree = 2
+        periods[k] = _fit_wave(y, w, est.period_px, 2 if glow else degree)
         if not np.isfinite(periods[k]):
             failures[k] = "no stripe period could be measured"
     with np.errstate(invalid="ignore", divide="ignore"):
