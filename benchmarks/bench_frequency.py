@@ -3,12 +3,13 @@
 Renders frequency-coded lights (50 % square waves, 2000 to 4000 Hz, at a real phone's
 47,540 rows/s, so 11.9 to 23.8 rows per period) over a seeded sweep: periods shown across the
 disc 1.5 to 8; plain hard stripes (saturated, and dim), soft stripes, a hot core with a
-halo; exposure 0.05 to 0.35 of the shortest (4000 Hz) period; clean, noisy, and noisy JPEG (quality 80);
-the readout down the rows and, reversed, along the columns.  Each photo shows four lights in
-a 2 x 2 grid seen from 2.7 m below; ``camvlp.locate`` measures them.  Prints, per light
-style and periods shown, the frequency error (median and worst, %) and the centre error
-(median and worst, px, against the projected disc centre), then per exposure, noise and
-readout, and overall, with how many lights showing 1.5 periods or more came out within 1 %.
+halo; exposure 0.05 to 0.35 of the shortest (4000 Hz) period; clean, noisy, and noisy JPEG
+(quality 80); the readout down the rows and, reversed, along the columns.  Each photo shows
+four lights in a 2 x 2 grid seen from 2.7 m below; ``camvlp.locate`` measures them.  Prints,
+per light style and periods shown, the frequency error (median and worst, %) and the centre
+error (median and worst, px, against the projected disc centre), then per exposure, noise
+and readout, and overall, with how many lights showing 1.5 periods or more came out within
+1 %.
 
 Run: ``python benchmarks/bench_frequency.py [--quick]`` (about a minute; --quick for less).
 """
@@ -87,7 +88,7 @@ def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float
     photo = render(camera, fmap, pose, settings)
     image = photo.image
     if quality is not None:
-        ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+        _, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
         image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     res = locate(image, camera, fmap)
     rows = []

@@ -16,6 +16,7 @@ period more makes the frequency markedly more precise.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -24,8 +25,8 @@ import numpy as np
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import gray_float, light_support
-from camvlp.pipeline.stripes import estimate_stripe_period
+from camvlp.pipeline.detect import light_support
+from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
 
 __all__ = [
     "FrequencyAssignment",
@@ -203,127 +204,6 @@ def _fit_row_time(
     return best[2]
 
 
-# --------------------------------------------------------------------------------------------
-# The stripes' forward model, fitted over the whole striped profile
-
-
-def _wave(x: np.ndarray, period, phase, exposure, knee) -> np.ndarray:
-    """A 50 % square wave integrated over each row's exposure, through a saturation knee.
-
-    ``x`` (n,) rows; ``period`` (rows), ``phase`` (cycles at row 0), ``exposure`` (cycles)
-    and ``knee`` (0-1) broadcast against each other to shape ``G``; returns ``G + (n,)``
-    values in [0, 1]: the on-fraction ``s`` of each row's window, read as
-    ``min(s, knee) / knee`` (a light brighter than full scale clips at ``knee``).
-    """
-    t = x / np.asarray(period)[..., None] + np.asarray(phase)[..., None]
-    e = np.asarray(exposure)[..., None]
-
-    def on_time(u: np.ndarray) -> np.ndarray:  # cycles of on-time up to u (cycles)
-        whole = np.floor(u)
-        return 0.5 * whole + np.minimum(u - whole, 0.5)
-
-    s = (on_time(t + e) - on_time(t)) / e
-    k = np.asarray(knee)[..., None]
-    return np.minimum(s, k) / k
-
-
-def _wave_cost(x, y, sw, basis, period, phase, exposure, knee) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted residuals of the best ``offset + envelope(x) * wave`` for each parameter set.
-
-    ``basis`` (n, d) is the envelope's basis (low-order Legendre polynomials), ``sw`` (n,)
-    the square roots of the rows' weights; the offset and the envelope's coefficients are
-    solved by linear least squares.  Returns the residual sums (G,) and residuals (G, n).
-    """
-    h = _wave(x, period, phase, exposure, knee)  # (G, n)
-    design = np.concatenate(
-        [np.broadcast_to(sw, h.shape)[..., None], (h * sw)[..., None] * basis], axis=-1
-    )  # (G, n, 1 + d)
-    target = y * sw
-    gram = np.einsum("gnp,gnq->gpq", design, design)
-    rhs = np.einsum("gnp,n->gp", design, target)
-    gram += 1e-9 * np.trace(gram, axis1=1, axis2=2)[:, None, None] * np.eye(gram.shape[1])
-    coef = np.linalg.solve(gram, rhs[..., None])[..., 0]
-    resid = target - np.einsum("gnp,gp->gn", design, coef)
-    return np.einsum("gn,gn->g", resid, resid), resid
-
-
-#: Multiples of the first guess of a period around which the fit searches.
-_ALIASES = np.array([0.5, 1.0, 2.0])
-
-
-def _wave_jacobian(x, y, sw, basis, p: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Forward-difference Jacobian (n, 4) of :func:`_wave_cost`'s residuals at ``p`` (4,),
-    steps ``h`` (4,): the five parameter sets evaluated in one batch."""
-    sets = np.vstack([p, p + np.diag(h)])  # (5, 4)
-    _, r = _wave_cost(x, y, sw, basis, *sets.T)
-    return ((r[1:] - r[0]) / h[:, None]).T
-
-
-def _fit_wave(y: np.ndarray, w: np.ndarray, period0: float, min_degree: int = 2) -> float:
-    """The stripe period (rows) of a profile, by fitting the stripes' forward model.
-
-    The profile ``y`` (n,), with weights ``w`` (n,), is modelled as an offset plus a smooth
-    envelope (a polynomial, of higher degree over more periods) times :func:`_wave`: a 50 %
-    square wave of unknown period and phase, integrated over an unknown exposure, clipped
-    at an unknown knee.  A grid of periods around ``period0`` (wider over fewer periods),
-    phases, exposures and knees seeds a bounded least-squares refinement of all four.
-    Returns NaN when the profile is too short.
-    """
-    from scipy.optimize import least_squares  # here: SciPy's import costs 0.3 s
-
-    n = y.size
-    if n < 6 or not (np.isfinite(period0) and period0 > 0):
-        return float("nan")
-    x = np.arange(n, dtype=np.float64)
-    seen = n / period0
-    degree = int(np.clip(seen / 2.0, min_degree, 8))
-    basis = np.polynomial.legendre.legvander(np.linspace(-1.0, 1.0, n), degree)
-    sw = np.sqrt(np.maximum(w, 0.0))
-    reach = 1.0 + min(0.6, 3.0 / seen)
-    step = min(0.02, 0.2 / seen)
-    # around the first guess, and around its half and double (a guess over a short profile
-    # can lock onto an alias)
-    lo_p, hi_p = max(0.5 * period0 / reach, 2.2), min(2.0 * period0 * reach, 4.0 * n)
-    if hi_p <= lo_p * (1 + step):
-        return float("nan")
-    periods = np.exp(np.arange(np.log(lo_p), np.log(hi_p), step))
-    periods = periods[
-        np.min(np.abs(np.log(periods[:, None] / (period0 * _ALIASES))), 1) < np.log(reach)
-    ]
-    grid = np.meshgrid(
-        periods,
-        np.arange(24 if seen < 4 else 8) / (24 if seen < 4 else 8),
-        (0.02, 0.1, 0.25, 0.45),
-        (0.95, 0.5, 0.2),
-        indexing="ij",
-    )
-    cost, _ = _wave_cost(x, y, sw, basis, *(g.ravel() for g in grid))
-    bounds = ([lo_p, -np.inf, 0.01, 0.05], [hi_p, np.inf, 1.5, 1.0])
-    best_p, best_cost = float("nan"), np.inf
-    scale = np.array([0.01 * period0, 0.01, 0.02, 0.02])
-    order = np.argsort(cost)
-    tried: list[float] = []
-    for g in order[:40]:
-        start = np.array([grid[i].ravel()[g] for i in range(4)])
-        start[0] = np.clip(start[0], lo_p * (1 + 1e-9), hi_p * (1 - 1e-9))
-        if any(abs(np.log(start[0] / t)) < 2 * step for t in tried):
-            continue
-        tried.append(start[0])
-        fit = least_squares(
-            lambda p: _wave_cost(x, y, sw, basis, *p[:, None])[1][0],
-            start,
-            jac=lambda p: _wave_jacobian(x, y, sw, basis, p, 1e-4 * scale),
-            bounds=bounds,
-            x_scale=scale,
-            xtol=1e-7,
-        )
-        if fit.cost < best_cost:
-            best_p, best_cost = float(fit.x[0]), fit.cost
-        if len(tried) == 3:
-            break
-    return best_p
-
-
 #: A light "glows" (its striped area reaches well beyond the detected disc) when its support
 #: covers at least this many times the disc's area.
 _GLOW_RATIO = 1.5
@@ -365,63 +245,33 @@ def _centre_on_support(blob, support: np.ndarray, axis: str) -> np.ndarray:
     return pixel
 
 
-def _mean_profile(gray: np.ndarray, region: np.ndarray, axis: str) -> tuple[np.ndarray, np.ndarray]:
-    """Mean gray level (n,) and pixel count (n,) of ``region``'s lines along the readout.
+#: Thresholds of the striped area, noise levels above the background: each ends the area
+#: at another place in the glow (cutting a stripe at another phase); the median of their
+#: periods is kept.
+_GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
 
-    Lines with under a quarter of the widest line's pixels are cut from both ends.
+
+def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
+    """The stripe period over a glowing light's whole striped area, pixels.
+
+    Measured over the area down to the background at each of :data:`_GLOW_SIGMAS`, starting
+    from the disc's period ``disc``; estimates more than 15 % from the disc's are dropped;
+    the median of the rest is returned (the disc's own estimate when none is left).
     """
-    a = 1 if axis == "rows" else 0
-    counts = region.sum(axis=a).astype(np.float64)
-    idx = np.flatnonzero(counts >= 0.25 * counts.max()) if counts.max() > 0 else []
-    if len(idx) == 0:
-        return np.zeros(0), np.zeros(0)
-    sums = np.where(region, gray, 0.0).sum(axis=a)
-    c = counts[idx[0] : idx[-1] + 1]
-    return sums[idx[0] : idx[-1] + 1] / np.maximum(c, 1.0), c
-
-
-def _glow_profile(
-    gray: np.ndarray, region: np.ndarray, axis: str, period: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """A glowing light's normalised stripe profile along the readout (n,), lines' weights (n,).
-
-    Each pixel is put on the scale of its own stripes: between the lowest and highest level
-    within one stripe period along the readout axis (``period``, pixels), which do not
-    depend on the stripes' phase.  A light's brightness across its area (a hot core, a glow,
-    a disc's rim) then leaves the same stripes everywhere, clipped where the light saturates.
-    Each line's mean over the pixels of ``region`` (and 2 px around it) with a contrast over
-    a fifth of the largest is weighted by their summed contrast; of a saturated light only
-    the pixels that never reach full scale are used (a clipped pixel's stripes have lost
-    their shape) when most lines have two or more.  Lines with under a quarter of the
-    largest weight are cut from both ends.
-    """
-    g = gray if axis == "rows" else gray.T
-    r = region if axis == "rows" else region.T
-    r = cv2.dilate(r.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0  # and its rim
-    if not r.any():
-        return np.zeros(0), np.zeros(0)
-    kernel = np.ones((int(np.ceil(period)) + 1, 1), np.uint8)
-    hi = cv2.dilate(g, kernel, borderType=cv2.BORDER_REPLICATE)
-    lo = cv2.erode(g, kernel, borderType=cv2.BORDER_REPLICATE)
-    contrast = hi - lo
-    use = r & (contrast > 0.2 * np.percentile(contrast[r], 95))
-    top = float(g[r].max())
-    if np.mean(g[r] >= top - 2.0) > 0.05:  # a saturated light: its stripes' shape is clipped
-        linear = use & (hi < top - 4.0)  # pixels that never reach full scale keep it whole
-        lines = linear.sum(axis=1)
-        if np.mean(lines[use.any(axis=1)] >= 2) > 0.75:
-            use = linear
-    weight = np.where(use, contrast, 0.0).sum(axis=1)
-    y = np.where(use, g - lo, 0.0).sum(axis=1) / np.maximum(weight, 1e-12)
-    idx = np.flatnonzero(weight >= 0.25 * weight.max())
-    if idx.size == 0:
-        return np.zeros(0), np.zeros(0)
-    return y[idx[0] : idx[-1] + 1], weight[idx[0] : idx[-1] + 1]
+    found = []
+    for k_sigma in _GLOW_SIGMAS:
+        support = light_support(gray, mask, axis, k_sigma=k_sigma)
+        wide = estimate_stripe_period(gray, support, axis, near=disc.period_px)
+        if wide and abs(np.log(wide.period_px / disc.period_px)) < 0.15:
+            found.append(wide)
+    if not found:
+        return disc
+    return dataclasses.replace(found[0], period_px=float(np.median([w.period_px for w in found])))
 
 
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, str]:
+) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods.
 
     Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
@@ -429,8 +279,9 @@ def decode_frequencies(
     support down to the background, :func:`camvlp.pipeline.detect.light_support`, covers
     1.5 times the disc's area or more) has its period refined over that whole area, starting
     from the disc's (the refinement is kept when within 15 % of it), and its centre along the
-    readout axis moved to the area's centre (``blob.pixel`` is updated in place).  The
-    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
+    readout axis moved to the area's centre (returned in ``centres``; the blobs are not
+    changed).  The periods are then matched to the map's frequencies
+    (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -452,6 +303,9 @@ def decode_frequencies(
         (rows), ``frames`` the periods the support spans.
     frequencies_hz : ndarray, shape (N,)
         Measured frequency per blob, Hz (NaN where unknown).
+    centres : ndarray, shape (N, 2)
+        Each light's centre ``[u, v]``, full-resolution pixels: the blob's own, or for a
+        glowing light, on its whole striped area along the readout axis.
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
     """
@@ -461,7 +315,6 @@ def decode_frequencies(
     centres = np.array([np.asarray(b.pixel, dtype=float) for b in blobs]).reshape(n, 2)
     failures = [""] * n
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
-        g = gray_float(g)
         support = light_support(g, b.mask, axis)
         glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
         if not glow:  # a plain disc: its own outline is its striped area
@@ -469,20 +322,15 @@ def decode_frequencies(
         along = support.any(axis=1 if axis == "rows" else 0)
         idx = np.flatnonzero(along)
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
+        est = estimate_stripe_period(g, b.mask, axis)
         if glow:
             centres[k] = _centre_on_support(b, support, axis)
-        est = estimate_stripe_period(g, b.mask, axis)  # the disc's: the fit's first guess
-        if not est:
-            failures[k] = est.message or "no stripe period could be measured"
-            continue
-        if glow:
-            y, w = _glow_profile(g, support, axis, est.period_px)
+            if est:
+                est = _period_over_glow(g, b.mask, axis, est)
+        if est:
+            periods[k] = est.period_px
         else:
-            y, w = _mean_profile(g, support, axis)
-            degree = 2
-        periods[k] = _fit_wave(y, w, est.period_px, 2 if glow else degree)
-        if not np.isfinite(periods[k]):
-            failures[k] = "no stripe period could be measured"
+            failures[k] = est.message or "no stripe period could be measured"
     with np.errstate(invalid="ignore", divide="ignore"):
         seen = np.where(np.isfinite(periods), spans / periods, 0.0)
     fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
