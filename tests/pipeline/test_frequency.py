@@ -10,7 +10,8 @@ from camvlp.locate import LocateSettings, locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.frequency import assign_frequencies
+from camvlp.pipeline.detect import detect_fixtures, to_gray
+from camvlp.pipeline.frequency import assign_frequencies, decode_frequencies
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 26.5e-6
@@ -192,3 +193,24 @@ def test_light_with_a_hot_core_and_two_periods(seed):
         assert truth[f.id].frames_spanned == pytest.approx(2.0, abs=0.1)  # 2 periods
         assert np.hypot(*(f.pixel - truth[f.id].pixel)) < 2.0
         assert f.frequency_hz == pytest.approx(room.get(f.id).frequency_hz, rel=0.01)
+
+
+def test_decode_frequencies_returns_centres_and_leaves_the_blobs_alone():
+    """A glowing light's centre on its whole striped area is returned; no blob is changed."""
+    camera = Camera.from_focal(480, 360, 1000.0, row_time_s=ROW_TIME_S)
+    room = _glowing_room()
+    pose = Pose.from_euler([0.01, 0.0, -0.02], [90.0, 0.0, 0.0])
+    settings = dataclasses.replace(_settings(seed=30), core=4.0, halo=0.4, soft=0.45)
+    photo = render(camera, room, pose, settings)
+    blobs = detect_fixtures(photo.image, readout="rows").blobs
+    rois = [to_gray(photo.image[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
+    before = [b.pixel.copy() for b in blobs]
+    decodes, freqs, centres, _ = decode_frequencies(blobs, rois, "rows", camera, room)
+    assert centres.shape == (len(blobs), 2) and len(decodes) == freqs.size == len(blobs)
+    for b, p in zip(blobs, before, strict=True):
+        assert np.array_equal(b.pixel, p)
+    for c in centres:
+        truth = min(photo.fixtures, key=lambda t: np.hypot(*(t.pixel - c)))
+        assert np.hypot(*(c - truth.pixel)) < 2.0
+    # the glow's centre differs from the bright disc's: the returned centres carry it
+    assert any(not np.array_equal(c, b.pixel) for c, b in zip(centres, blobs, strict=True))

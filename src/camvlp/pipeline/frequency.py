@@ -209,38 +209,40 @@ def _fit_row_time(
 _GLOW_RATIO = 1.5
 
 
-def _centre_on_support(blob, support: np.ndarray, axis: str) -> None:
-    """Move ``blob.pixel`` along the readout axis to the centre of the light's support.
+def _centre_on_support(blob, support: np.ndarray, axis: str) -> np.ndarray:
+    """The light's centre ``[u, v]`` with its coordinate along the readout axis on its support.
 
     Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
     the lit rows) is kept; along it, a light with a glow is centred on its whole striped
     area: an ellipse fitted to the sides of the support's outline (the points where it runs
     along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
-    out).  Left as it is when the support reaches the region's edge along the readout axis
-    (the area would be cut), the disc is cut by the image border, or too few side points.
+    out).  The detected centre is returned as it is when the support reaches the region's
+    edge along the readout axis (the area would be cut), the disc is cut by the image border,
+    or there are too few side points.  ``blob`` is not changed.
     """
+    pixel = np.array(blob.pixel, dtype=float)
     if blob.touches_border:
-        return
+        return pixel
     j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
     lines = np.flatnonzero(support.any(axis=1 - j))
     if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
-        return
+        return pixel
     # the outline's sides (running along the readout axis): its caps are cut by the stripes
     contours, _ = cv2.findContours(
         support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
     )
     pts = max(contours, key=cv2.contourArea)[:, 0, :].astype(float)  # (M, 2) as (x, y)
     if pts.shape[0] < 20:
-        return
+        return pixel
     tangent = np.roll(pts, -2, axis=0) - np.roll(pts, 2, axis=0)
     sides = pts[np.abs(tangent[:, j]) > np.abs(tangent[:, 1 - j])]
     if sides.shape[0] < 12:
-        return
+        return pixel
     (cx, cy), _, _ = cv2.fitEllipse(sides.astype(np.float32))
     centre = cy if j == 1 else cx
-    if not 0 <= centre < support.shape[1 - j]:
-        return
-    blob.pixel[j] = blob.box[j] + centre  # the frozen Blob's centre, updated in place
+    if 0 <= centre < support.shape[1 - j]:
+        pixel[j] = blob.box[j] + centre
+    return pixel
 
 
 #: Thresholds of the striped area, noise levels above the background: each ends the area
@@ -269,7 +271,7 @@ def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: Strip
 
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, str]:
+) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods.
 
     Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
@@ -277,8 +279,9 @@ def decode_frequencies(
     support down to the background, :func:`camvlp.pipeline.detect.light_support`, covers
     1.5 times the disc's area or more) has its period refined over that whole area, starting
     from the disc's (the refinement is kept when within 15 % of it), and its centre along the
-    readout axis moved to the area's centre (``blob.pixel`` is updated in place).  The
-    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
+    readout axis moved to the area's centre (returned in ``centres``; the blobs are not
+    changed).  The periods are then matched to the map's frequencies
+    (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -300,12 +303,16 @@ def decode_frequencies(
         (rows), ``frames`` the periods the support spans.
     frequencies_hz : ndarray, shape (N,)
         Measured frequency per blob, Hz (NaN where unknown).
+    centres : ndarray, shape (N, 2)
+        Each light's centre ``[u, v]``, full-resolution pixels: the blob's own, or for a
+        glowing light, on its whole striped area along the readout axis.
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
     """
     n = len(blobs)
     periods = np.full(n, np.nan)
     spans = np.zeros(n)
+    centres = np.array([np.asarray(b.pixel, dtype=float) for b in blobs]).reshape(n, 2)
     failures = [""] * n
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
         support = light_support(g, b.mask, axis)
@@ -317,7 +324,7 @@ def decode_frequencies(
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
         est = estimate_stripe_period(g, b.mask, axis)
         if glow:
-            _centre_on_support(b, support, axis)
+            centres[k] = _centre_on_support(b, support, axis)
             if est:
                 est = _period_over_glow(g, b.mask, axis, est)
         if est:
@@ -354,4 +361,4 @@ def decode_frequencies(
                 float(seen[k]),
             )
         )
-    return decodes, fa.frequencies_hz, note
+    return decodes, fa.frequencies_hz, centres, note

@@ -141,7 +141,7 @@ def _extent(blob: Blob, axis: str) -> float:
 
 def _decode_frequencies(
     blobs, gray_rois, extents: np.ndarray, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, str]:
+) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
     return decode_frequencies(blobs, gray_rois, axis, camera, fixture_map)
 
@@ -200,16 +200,22 @@ def _profiles(
 
 def _decode(
     blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list, np.ndarray, list[str]]:
+) -> tuple[list, np.ndarray, list[str], list[Blob]]:
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
-    NaN in Manchester mode), notes.  (:func:`locate` itself decides an unknown direction.)"""
+    NaN in Manchester mode), notes, and the blobs (new ones, where a frequency-coded light's
+    centre moved to its whole striped area).  (:func:`locate` itself decides an unknown
+    direction.)"""
     if fixture_map.mode != "frequency":
         man = decode_manchester(profiles, readout, True, camera, fixture_map)
-        return list(man.decodes), np.full(len(blobs), np.nan), []
-    decodes, frequencies, note = _decode_frequencies(
+        return list(man.decodes), np.full(len(blobs), np.nan), [], list(blobs)
+    decodes, frequencies, centres, note = _decode_frequencies(
         blobs, gray_rois, extents, readout.axis, camera, fixture_map
     )
-    return decodes, frequencies, [note] if note else []
+    moved = [
+        b if np.array_equal(c, b.pixel) else dataclasses.replace(b, pixel=c)
+        for b, c in zip(blobs, centres, strict=True)
+    ]
+    return decodes, frequencies, [note] if note else [], moved
 
 
 def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
@@ -513,7 +519,7 @@ def locate(
     gray_rois, extents, profiles = _profiles(img, blobs, readout)
     man: Manchester | None = None
     if fixture_map.mode == "frequency":
-        decodes, frequencies, notes = _decode(
+        decodes, frequencies, notes, blobs = _decode(
             blobs, gray_rois, extents, profiles, readout, camera, fixture_map
         )
     else:

@@ -360,22 +360,21 @@ class Tracker:
         todo = [k for k in range(len(blobs)) if k not in skip]
         sub = [blobs[k] for k in todo]
         gray_rois, extents, profiles = _profiles(img, sub, readout)
-        if (
-            self.settings.carry_chip_length
-            and self.map.mode != "frequency"
-            and len(self._chip_rows) >= 3
-        ):
+        carry = self.settings.carry_chip_length and self.map.mode != "frequency"
+        if carry and len(self._chip_rows) >= 3:
             rpc = float(np.median(self._chip_rows[-50:]))
             done = [decode_profile(p, self.map.frame, rows_per_chip=rpc) for p in profiles]
-        else:
-            done, _, _ = _decode(sub, gray_rois, extents, profiles, readout, self.camera, self.map)
+        else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
+            done, _, _, sub = _decode(
+                sub, gray_rois, extents, profiles, readout, self.camera, self.map
+            )
         for d in done:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
         del self._chip_rows[:-50]
         decodes = [_NOT_DECODED] * len(blobs)
-        for k, d in zip(todo, done, strict=True):
-            decodes[k] = d
+        for k, d, b in zip(todo, done, sub, strict=True):
+            decodes[k], blobs[k] = d, b
         return decodes
 
     def update(self, image: np.ndarray, t: float) -> TrackFrame:
