@@ -251,6 +251,30 @@ def _centre_on_support(blob, support: np.ndarray, axis: str) -> np.ndarray:
 _GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
 
 
+#: Largest ratio of a disc's ellipse axes for which its outline is drawn as a circle.
+_ROUND = 1.1
+
+
+def _disc_support(blob) -> np.ndarray:
+    """The pixels of a plain disc: its lit mask and the circle of its fitted outline.
+
+    The lit mask stops where a dark stripe covers the end of the disc (an LED that is fully
+    off there leaves nothing to detect), which would hide a stripe edge and shift the
+    period; the outline, fitted to the disc's sides, still reaches there.  For a disc seen
+    obliquely (axes differing by more than :data:`_ROUND`) the mask alone is returned.
+    """
+    a, b = (float(v) for v in blob.axes_px)
+    if not (np.isfinite(a) and np.isfinite(b)) or b <= 0 or a / b > _ROUND:
+        return blob.mask
+    x0, y0 = blob.box[0], blob.box[1]
+    h, w = blob.mask.shape
+    yy, xx = np.ogrid[:h, :w]
+    r = 0.25 * (a + b)
+    cx, cy = float(blob.pixel[0]) - x0, float(blob.pixel[1]) - y0
+    circle = (xx - cx) ** 2 + (yy - cy) ** 2 <= (r - 0.5) ** 2
+    return blob.mask | circle
+
+
 def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
     """The stripe period over a glowing light's whole striped area, pixels.
 
@@ -317,12 +341,12 @@ def decode_frequencies(
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
         support = light_support(g, b.mask, axis)
         glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
-        if not glow:  # a plain disc: its own outline is its striped area
-            support = b.mask
+        if not glow:  # a plain disc: its own outline is its striped area, dark ends included
+            support = _disc_support(b)
         along = support.any(axis=1 if axis == "rows" else 0)
         idx = np.flatnonzero(along)
         spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
-        est = estimate_stripe_period(g, b.mask, axis)
+        est = estimate_stripe_period(g, b.mask if glow else support, axis)
         if glow:
             centres[k] = _centre_on_support(b, support, axis)
             if est:
