@@ -17,6 +17,7 @@ __all__ = [
     "disc_normals",
     "ellipse_centre_covariance",
     "perspective_offset",
+    "perspective_offsets",
     "plane_basis",
     "rim_points",
 ]
@@ -142,13 +143,41 @@ def perspective_offset(camera: Camera, pose: Pose, centre, diameter: float, norm
     ndarray, shape (2,)
         ``ellipse centre - projected centre``, pixels; zeros when the rim is not all in front.
     """
-    c = np.asarray(centre, dtype=float).reshape(1, 3)
-    rim = rim_points(c, [diameter], np.asarray(normal, float).reshape(1, 3), 72)[0]
-    uv = camera.project(pose, np.vstack([c, rim]))
-    if not np.all(np.isfinite(uv)):
-        return np.zeros(2)
-    (cx, cy), _, _ = cv2.fitEllipse(uv[1:].astype(np.float32))
-    return np.array([cx, cy]) - uv[0]
+    return perspective_offsets(camera, pose, centre, [diameter], normal)[0]
+
+
+def perspective_offsets(camera: Camera, pose: Pose, centres, diameters, normals) -> np.ndarray:
+    """:func:`perspective_offset` of several discs at once (one projection for all).
+
+    Parameters
+    ----------
+    camera, pose : Camera, Pose
+        The camera and its pose in the map frame.
+    centres : array_like, shape (N, 3)
+        The discs' centres, map units.
+    diameters : array_like, shape (N,)
+        Their diameters, map units.
+    normals : array_like, shape (N, 3)
+        Their normals.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        ``ellipse centre - projected centre`` of each disc, pixels; zeros for a disc whose rim
+        is not all in front.
+    """
+    c = np.asarray(centres, dtype=float).reshape(-1, 3)
+    n_rim = 72
+    rim = rim_points(c, diameters, np.asarray(normals, float).reshape(-1, 3), n_rim)
+    pts = np.concatenate([c[:, None, :], rim], axis=1)  # (N, 1 + n_rim, 3): centre, rim
+    uv = camera.project(pose, pts.reshape(-1, 3)).reshape(c.shape[0], 1 + n_rim, 2)
+    out = np.zeros((c.shape[0], 2))
+    finite = np.all(np.isfinite(uv), axis=(1, 2))
+    rim_uv = uv[:, 1:].astype(np.float32)
+    for k in np.flatnonzero(finite).tolist():
+        (cx, cy), _, _ = cv2.fitEllipse(rim_uv[k])
+        out[k] = (cx - uv[k, 0, 0], cy - uv[k, 0, 1])
+    return out
 
 
 #: Smallest centre uncertainty an ellipse fit is credited with, pixels (1-sigma per axis):

@@ -121,6 +121,20 @@ def _vector(value, n: int, name: str) -> np.ndarray:
     return v
 
 
+def _is_rotation(r: np.ndarray) -> bool:
+    """``r.T @ r`` within ``np.allclose(..., atol=1e-6)`` of the identity and ``det r >= 0``,
+    for a finite (3, 3) matrix: with Python floats, as a pose is built for every candidate."""
+    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
+    cols = ((a, d, g), (b, e, h), (c, f, i))
+    for j in range(3):
+        for k in range(j, 3):
+            u, v = cols[j], cols[k]
+            dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+            if abs(dot - (j == k)) > 1e-6 + 1e-5 * (j == k):  # allclose's atol + rtol * |1|
+                return False
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) >= 0
+
+
 @dataclass(frozen=True)
 class Pose:
     """A camera pose in the map's world frame.
@@ -140,7 +154,7 @@ class Pose:
         r = np.asarray(self.world_from_camera, dtype=float)
         if r.shape != (3, 3) or not np.all(np.isfinite(r)):
             raise ValueError("world_from_camera must be a finite (3, 3) matrix")
-        if not np.allclose(r.T @ r, np.eye(3), atol=1e-6) or np.linalg.det(r) < 0:
+        if not _is_rotation(r):
             raise ValueError("world_from_camera must be a proper rotation matrix")
         object.__setattr__(self, "world_from_camera", r)
         object.__setattr__(self, "position", _vector(self.position, 3, "position"))

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.geometry.disc import disc_normals, perspective_offset
+from camvlp.geometry.disc import disc_normals, perspective_offsets
 from camvlp.geometry.gravity import (
     GravityPose,
     check_gravity,
@@ -305,12 +305,7 @@ def _solve(
     if est and st.correct_perspective and all(f.diameter for f in fixtures):
         # discs without a map normal lie on the plane of the others, facing the camera
         facing = disc_normals(obj, normals, est.pose.position)
-        offsets = np.array(
-            [
-                perspective_offset(camera, est.pose, f.position, f.diameter, n)
-                for f, n in zip(fixtures, facing, strict=True)
-            ]
-        )
+        offsets = perspective_offsets(camera, est.pose, obj, [f.diameter for f in fixtures], facing)
         if np.max(np.abs(offsets)) >= 0.02:  # below: facing the lights, nothing to correct
             corrected = solve(pixels - offsets)
             est = corrected if corrected else est

@@ -91,15 +91,19 @@ def _choose(
 ) -> tuple[Pose | None, float, Pose | None, float, bool]:
     """Best valid candidate and the runner-up; flags a best fit that is behind the lights."""
     scored = []
+    if normals is not None:
+        has = np.all(np.isfinite(normals), axis=1)
+        nrm, at = normals[has], obj[has]
     for pose in pnp_candidates(obj, img, camera, solver, planar=planar):
         depth = pose.to_camera(obj)[:, 2]
-        in_front = bool(np.all(depth > 0))
+        in_front = bool((depth > 0).all())
         facing = True
         if normals is not None:
-            has = np.all(np.isfinite(normals), axis=1)
-            facing = bool(np.all(np.einsum("ij,ij->i", normals[has], pose.position - obj[has]) > 0))
-        r = _residuals(camera, pose, obj, img)
-        rms = float(np.sqrt(np.mean(r**2))) if np.all(np.isfinite(r)) else np.inf
+            facing = bool((np.einsum("ij,ij->i", nrm, pose.position - at) > 0).all())
+        rms = np.inf  # behind the camera: neither valid nor a mirrored fit, never chosen
+        if in_front:
+            r = _residuals(camera, pose, obj, img)
+            rms = float(np.sqrt(np.mean(r**2))) if np.isfinite(r).all() else np.inf
         scored.append((rms, in_front, facing, pose))
     valid = sorted((s for s in scored if s[1] and s[2]), key=lambda s: s[0])
     behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
@@ -167,11 +171,12 @@ def estimate_pose(
     sw, si = _spread(obj), _spread(img)
     if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
         return _failure(n, "the fixtures are (nearly) on one line: the pose is not determined")
-    if np.unique(np.round(img, 3), axis=0).shape[0] < n:
+    if len(set(map(tuple, np.round(img, 3).tolist()))) < n:
         return _failure(n, "two fixtures were detected at the same pixel")
 
     def solve(idx: np.ndarray):
-        planar = bool(_spread(obj[idx])[2] <= 1e-4 * _spread(obj[idx])[0])
+        spread = sw if idx.size == n else _spread(obj[idx])
+        planar = bool(spread[2] <= 1e-4 * spread[0])
         return _choose(
             camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
         )
