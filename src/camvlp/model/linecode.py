@@ -235,29 +235,35 @@ class FrameFormat:
         ChipDecode
             Falsy, with a reason, when no ID is within the radius or two IDs tie.
         """
-        c = _bits_array(chips)
+        if isinstance(chips, np.ndarray) and chips.dtype == np.uint8 and chips.ndim == 1:
+            c = chips  # the stripe decoder's chips: checked with one reduction
+            if c.size and c.max() > 1:
+                raise ValueError("bits must be 0 or 1")
+        else:
+            c = _bits_array(chips)
         n = self.n_chips
-        mask = np.ones(c.size, bool) if known is None else np.asarray(known, bool).reshape(-1)
-        if mask.shape != c.shape:
+        mask = None if known is None else np.asarray(known, bool).reshape(-1)
+        if mask is not None and mask.shape != c.shape:
             raise ValueError("known must have the same length as chips")
         cols = np.arange(c.size) % n
-        coverage = int(np.bincount(cols[mask], minlength=n).min()) if c.size else 0
+        if mask is not None and not mask.all():
+            cols, c = cols[mask], c[mask]
+        coverage = int(np.bincount(cols, minlength=n).min()) if c.size else 0
         if coverage == 0:
-            return ChipDecode(
-                None, -1, -1, 0, f"{int(mask.sum())} chips seen, not one whole frame of {n}"
-            )
+            return ChipDecode(None, -1, -1, 0, f"{c.size} chips seen, not one whole frame of {n}")
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = min(limit, int(max_errors))
-        expected = self._rotations[:, :, cols[mask]]  # (ids, rotations, known chips)
-        dist = (expected != c[mask][None, None, :]).sum(axis=2)  # (ids, rotations)
-        best_rot = dist.argmin(axis=1)
-        per_id = dist[np.arange(self.n_ids), best_rot]
-        order = np.argsort(per_id, kind="stable")
-        best = int(order[0])
+        expected = self._rotations[:, :, cols]  # (ids, rotations, known chips)
+        dist = (expected != c).sum(axis=2)  # (ids, rotations)
+        per_id = dist.min(axis=1)
+        best = int(per_id.argmin())  # the first of the nearest, as a stable sort's
         d_best = int(per_id[best])
-        d_second = int(per_id[order[1]]) if self.n_ids > 1 else c.size + 1
-        offset = int(best_rot[best])
+        offset = int(dist[best].argmin())
+        d_second = c.size + 1
+        if self.n_ids > 1:
+            per_id[best] = d_second
+            d_second = int(per_id.min())
         if d_best == d_second:
             return ChipDecode(None, d_best, d_second, offset, "two IDs fit equally well")
         if d_best > limit:

@@ -19,6 +19,7 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -95,11 +96,14 @@ def _otsu(values: np.ndarray) -> float:
 def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
     """Dark and bright levels of a row profile: its 2nd and 98th percentiles."""
     v = np.sort(np.asarray(profile, dtype=float).reshape(-1))
-    x = np.array([0.02, 0.98]) * (v.size - 1)  # NumPy's default (linear) percentiles
-    i = np.minimum(np.floor(x).astype(np.int64), v.size - 1)
-    j = np.minimum(i + 1, v.size - 1)
-    lo, hi = v[i] + (x - i) * (v[j] - v[i])
-    return float(lo), float(hi)
+    last = v.size - 1
+    out = []
+    for q in (0.02, 0.98):  # NumPy's default (linear) percentiles, in Python floats
+        x = q * last
+        i = min(math.floor(x), last)
+        a, b = float(v[i]), float(v[min(i + 1, last)])
+        out.append(a + (x - i) * (b - a))
+    return out[0], out[1]
 
 
 def stripe_threshold(profile: np.ndarray, level: float = 0.6) -> float:
@@ -215,10 +219,10 @@ def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
         return float("nan")
     grid = np.arange(lo, hi, 0.01)
     x = d[None, :] / grid[:, None]
-    n = np.clip(np.round(x), 2, 4)
+    n = np.minimum(np.maximum(np.round(x), 2), 4)  # np.clip, without its overhead
     cost = (((x - n) * grid[:, None]) ** 2).sum(axis=1)  # squared residual in rows
     t = float(grid[int(np.argmin(cost))])
-    n = np.clip(np.round(d / t), 2, 4)
+    n = np.minimum(np.maximum(np.round(d / t), 2), 4)
     return float((d * n).sum() / (n * n).sum())  # least squares refinement
 
 
@@ -280,24 +284,22 @@ def decode_profile(
     li, bi = lengths[interior], bright[interior]
     grid = np.linspace(-0.95 * t, 0.95 * t, 191)
     xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
-    cost = ((xs - np.clip(np.round(xs), 1, 2)) ** 2).sum(axis=1)
+    cost = ((xs - np.minimum(np.maximum(np.round(xs), 1), 2)) ** 2).sum(axis=1)
     b = float(grid[int(np.argmin(cost))])
     x = np.where(bright, lengths - b, lengths + b) / t
     counts = np.round(x).astype(int)
-    sure = np.ones(lengths.size, bool)
     # runs cut by the disc's edge: count only the chips surely inside
     for k in (0, lengths.size - 1):
-        counts[k] = int(np.clip(np.floor(x[k] + 0.25), 0, 2))
-    bad = interior & ((counts < 1) | (counts > 2))
-    sure[bad] = False
-    counts[interior] = np.clip(counts[interior], 1, 2)
+        counts[k] = min(max(math.floor(float(x[k]) + 0.25), 0), 2)
+    sure = ~(interior & ((counts < 1) | (counts > 2)))
+    counts[interior] = np.minimum(np.maximum(counts[interior], 1), 2)
     chip_vals = np.repeat(bright.astype(np.uint8), counts)
     known = np.repeat(sure, counts)
     frames = chip_vals.size / frame.n_chips
     chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     res = frame.decode(chip_vals, known=known)
     worst = float(np.max(np.abs(x[interior] - np.round(x[interior])))) if np.any(interior) else 0.5
-    margin = float(np.clip(1.0 - 2.0 * worst, 0.0, 1.0))
+    margin = min(max(1.0 - 2.0 * worst, 0.0), 1.0)
     common = dict(rows_per_chip=t, bleed_rows=b, chips=chip_str, frames=frames)
     if not res:
         return fail(res.reason, hamming=res.distance, **common)

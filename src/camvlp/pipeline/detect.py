@@ -154,13 +154,12 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
     """
     m = mask.astype(np.float32)
     g = gray.astype(np.float32) * m
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rows = g.sum(1) / m.sum(1)
-        cols = g.sum(0) / m.sum(0)
-    rows = rows[mask.sum(1) >= 3]
-    cols = cols[mask.sum(0) >= 3]
-    vr = float(np.var(np.diff(rows))) if rows.size > 2 else 0.0
-    vc = float(np.var(np.diff(cols))) if cols.size > 2 else 0.0
+    n_rows, n_cols = m.sum(1), m.sum(0)
+    keep_r, keep_c = n_rows >= 3, n_cols >= 3
+    rows = g.sum(1)[keep_r] / n_rows[keep_r]
+    cols = g.sum(0)[keep_c] / n_cols[keep_c]
+    vr = float(np.diff(rows).var()) if rows.size > 2 else 0.0
+    vc = float(np.diff(cols).var()) if cols.size > 2 else 0.0
     if vr >= vc:
         return "rows", vr / max(vc, 1e-9)
     return "columns", vc / max(vr, 1e-9)
@@ -337,12 +336,11 @@ def _refine(
     if area < 0.5 * min_diameter_px**2:
         return None
     height, width = img.shape[:2]
-    ys, xs = np.nonzero(mask)
-    touches = bool(
-        (x0 == 0 and xs.min() == 0)
-        or (y0 == 0 and ys.min() == 0)
-        or (x1 == width and xs.max() == mask.shape[1] - 1)
-        or (y1 == height and ys.max() == mask.shape[0] - 1)
+    touches = bool(  # the disc reaches an edge of its region that is the image's
+        (x0 == 0 and mask[:, 0].any())
+        or (y0 == 0 and mask[0].any())
+        or (x1 == width and mask[:, -1].any())
+        or (y1 == height and mask[-1].any())
     )
     points = _edge_points(gray, mask, background, axis)
     cov = np.full((2, 2), np.nan)
