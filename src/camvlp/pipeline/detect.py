@@ -153,7 +153,7 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
         Ratio of the larger to the smaller variance of the two mean profiles (>= 1).
     """
     m = mask.astype(np.float32)
-    g = gray.astype(np.float32) * m
+    g = gray.astype(np.float32, copy=False) * m
     n_rows, n_cols = m.sum(1), m.sum(0)
     keep_r, keep_c = n_rows >= 3, n_cols >= 3
     rows = g.sum(1)[keep_r] / n_rows[keep_r]
@@ -228,7 +228,8 @@ def detect_fixtures(
     if peak - background < 12:  # nothing stands out of the noise
         return Detection((), s, np.zeros_like(small), peak)
     thr = background + relative_threshold * (peak - background)
-    binary = (small > thr).astype(np.uint8) * 255
+    # small > thr as 255 and 0: OpenCV compares with floor(thr), the same for whole levels
+    binary = cv2.threshold(small, thr, 255, cv2.THRESH_BINARY)[1]
     k = max(3, int(np.ceil(2.0 * kernel_px / s)) | 1)
     binary = cv2.morphologyEx(
         binary, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
@@ -262,7 +263,7 @@ def detect_fixtures(
 def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
     """Two candidates whose refined discs are the same fixture: keep the larger."""
     keep: list[Blob] = []
-    for b in sorted(blobs, key=lambda b: -float(b.mask.sum())):
+    for b in sorted(blobs, key=lambda b: -np.count_nonzero(b.mask)):
         r = 0.5 * float(b.axes_px[1])
         if all(np.hypot(*(b.pixel - k.pixel)) > max(r, 0.5 * float(k.axes_px[1])) for k in keep):
             keep.append(b)
@@ -323,7 +324,7 @@ def _refine(
         return None
     # a low threshold: real lights are often brighter in the middle than at the rim
     lit = gray > background + 0.25 * (peak - background)
-    lit_u8 = lit.astype(np.uint8)
+    lit_u8 = lit.view(np.uint8)
     axis = readout
     if axis is None:
         axis, contrast = find_readout_axis(gray, cv2.dilate(lit_u8, np.ones((3, 3), np.uint8)) > 0)
@@ -332,7 +333,7 @@ def _refine(
     mask = _disc_mask(lit, axis, kernel_px)
     if mask is None:
         return None
-    area = float(mask.sum())
+    area = float(np.count_nonzero(mask))
     if area < 0.5 * min_diameter_px**2:
         return None
     height, width = img.shape[:2]
@@ -421,7 +422,7 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
         return None
     filled = np.zeros_like(closed)
     cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
-    return filled.astype(bool)
+    return filled.view(bool)
 
 
 def light_support(
@@ -486,33 +487,29 @@ def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: st
     """
     g = gray if axis == "rows" else gray.T
     m = mask if axis == "rows" else mask.T
-    counts = m.sum(axis=1)
+    counts = m.view(np.uint8).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         level = (g * m).sum(axis=1) / counts
-    top = np.nanmax(level) if np.any(counts) else 0.0
+    top = np.nanmax(level) if counts.any() else 0.0
     rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
     if rows.size == 0:
         return np.zeros((0, 2))
-    dilated = cv2.dilate(m.astype(np.uint8), np.ones((3, 7), np.uint8)) > 0
+    dilated = cv2.dilate(np.ascontiguousarray(m).view(np.uint8), np.ones((3, 7), np.uint8))
+    dilated = dilated.view(bool)
     sub = np.where(dilated[rows], g[rows], background)  # (k, w): other lights masked out
     half = background + 0.5 * (level[rows] - background)
     above = sub > half[:, None]
-    has = above.any(axis=1)
-    rows, sub, half, above = rows[has], sub[has], half[has], above[has]
     w = sub.shape[1]
-    k = np.arange(rows.size)
-    left = above.argmax(axis=1)
+    left = above.argmax(axis=1)  # 0 also when nothing is above: such a row is left out
     right = w - 1 - above[:, ::-1].argmax(axis=1)
     ok = (left > 0) & (right < w - 1) & (right - left >= 3)
-    k, rows, left, right, half, sub = k[ok], rows[ok], left[ok], right[ok], half[ok], sub[ok]
+    rows, left, right, half, sub = rows[ok], left[ok], right[ok], half[ok], sub[ok]
     j = np.arange(rows.size)
     a0, a1 = sub[j, left - 1], sub[j, left]
-    xl = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
     b0, b1 = sub[j, right], sub[j, right + 1]
-    xr = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
-    pts = np.concatenate(
-        [np.stack([xl, rows], axis=1), np.stack([xr, rows], axis=1)], axis=0
-    ).astype(float)
-    if axis == "columns":
-        pts = pts[:, ::-1]
+    u = 0 if axis == "rows" else 1  # the column of pts that holds x
+    pts = np.empty((2 * rows.size, 2))
+    pts[: rows.size, u] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
+    pts[rows.size :, u] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
+    pts[:, 1 - u] = np.concatenate([rows, rows])
     return pts
