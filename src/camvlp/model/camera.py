@@ -333,5 +333,6 @@ def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:
     uv, _ = cv2.projectPoints(p, rvec, tvec, camera.matrix, d)
     uv = uv.reshape(-1, 2)
     behind = pose.to_camera(p)[:, 2] <= 0
-    uv[behind] = np.nan
+    if behind.any():
+        uv[behind] = np.nan
     return uv

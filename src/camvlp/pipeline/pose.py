@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from itertools import combinations
 
@@ -76,8 +77,8 @@ def _spread(points: np.ndarray) -> np.ndarray:
 
 
 def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
-    proj = camera.project(pose, obj)
-    r = np.linalg.norm(proj - img, axis=1)
+    d = camera.project(pose, obj) - img
+    r = np.sqrt(np.add.reduce(d * d, axis=1))  # np.linalg.norm(d, axis=1), without its checks
     return np.where(np.isfinite(r), r, np.inf)
 
 
@@ -117,9 +118,10 @@ def _choose(
     scale = float(np.linalg.norm(best.position - obj.mean(axis=0)))
     alt = (np.nan, None, None, None)
     for s in valid[1:]:
-        cos_turn = (np.trace(s[3].world_from_camera.T @ best.world_from_camera) - 1.0) / 2.0
-        turn_deg = float(np.degrees(np.arccos(np.clip(cos_turn, -1.0, 1.0))))
-        if np.linalg.norm(s[3].position - best.position) > 1e-3 * scale or turn_deg > 0.1:
+        # the turn between the two: trace(R1^T R2) = sum of the elementwise products
+        cos_turn = (float((s[3].world_from_camera * best.world_from_camera).sum()) - 1.0) / 2.0
+        turn_deg = math.degrees(math.acos(min(max(cos_turn, -1.0), 1.0)))
+        if math.dist(s[3].position, best.position) > 1e-3 * scale or turn_deg > 0.1:
             alt = s
             break
     return best, valid[0][0], alt[3], float(alt[0]), mirrored
