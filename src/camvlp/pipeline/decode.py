@@ -19,6 +19,7 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -59,12 +60,13 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     """
     m = mask.astype(np.uint8)
     eroded = cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
-    if eroded.sum() >= 0.3 * m.sum():
+    if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m):
         m = eroded
     g = gray.astype(np.float32)
+    # pixels of the disc in each sensor row (an image row, or column)
+    counts = cv2.reduce(m, 1 if axis != "columns" else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
     if axis == "columns":
         g, m = g.T, m.T
-    counts = m.sum(axis=1)
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
         return np.zeros(0), 0
@@ -72,7 +74,7 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     c = counts[first:last].astype(np.float64)
     s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
-    if np.any(np.isnan(prof)):  # rows the mask skips: interpolate
+    if np.isnan(prof).any():  # rows the mask skips: interpolate
         idx = np.arange(prof.size)
         good = ~np.isnan(prof)
         prof = np.interp(idx, idx[good], prof[good])
@@ -226,6 +228,22 @@ def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
     return float((d * n).sum() / (n * n).sum())  # least squares refinement
 
 
+@functools.lru_cache(maxsize=4)
+def _counting(num: int) -> np.ndarray:
+    a = np.arange(num, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+def _linspace(start: float, stop: float, num: int) -> np.ndarray:
+    """``np.linspace(start, stop, num)`` for Python floats, the same arithmetic without its
+    set-up (steps of ``(stop - start) / (num - 1)`` from ``start``, ``stop`` itself last)."""
+    y = _counting(num) * ((stop - start) / (num - 1))
+    y += start
+    y[-1] = stop
+    return y
+
+
 def decode_profile(
     profile: np.ndarray,
     frame: FrameFormat,
@@ -282,7 +300,7 @@ def decode_profile(
     # b that makes every interior run closest to one or two chips (both kinds occur in
     # every frame, which pins b down)
     li, bi = lengths[interior], bright[interior]
-    grid = np.linspace(-0.95 * t, 0.95 * t, 191)
+    grid = _linspace(-0.95 * t, 0.95 * t, 191)
     xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
     cost = ((xs - np.minimum(np.maximum(np.round(xs), 1), 2)) ** 2).sum(axis=1)
     b = float(grid[int(np.argmin(cost))])
@@ -298,7 +316,8 @@ def decode_profile(
     frames = chip_vals.size / frame.n_chips
     chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     res = frame.decode(chip_vals, known=known)
-    worst = float(np.max(np.abs(x[interior] - np.round(x[interior])))) if np.any(interior) else 0.5
+    xi = x[interior]
+    worst = float(np.abs(xi - np.round(xi)).max()) if xi.size else 0.5
     margin = min(max(1.0 - 2.0 * worst, 0.0), 1.0)
     common = dict(rows_per_chip=t, bleed_rows=b, chips=chip_str, frames=frames)
     if not res:

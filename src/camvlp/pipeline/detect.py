@@ -158,11 +158,19 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
     keep_r, keep_c = n_rows >= 3, n_cols >= 3
     rows = g.sum(1)[keep_r] / n_rows[keep_r]
     cols = g.sum(0)[keep_c] / n_cols[keep_c]
-    vr = float(np.diff(rows).var()) if rows.size > 2 else 0.0
-    vc = float(np.diff(cols).var()) if cols.size > 2 else 0.0
+    vr = _diff_var(rows) if rows.size > 2 else 0.0
+    vc = _diff_var(cols) if cols.size > 2 else 0.0
     if vr >= vc:
         return "rows", vr / max(vc, 1e-9)
     return "columns", vc / max(vr, 1e-9)
+
+
+def _diff_var(v: np.ndarray) -> float:
+    """``np.var(np.diff(v))`` with NumPy's own steps (mean, squared deviations, mean), in
+    the array's dtype, without ``np.var``'s set-up."""
+    d = v[1:] - v[:-1]
+    x = d - np.add.reduce(d, keepdims=True) / d.size
+    return float(np.add.reduce(x * x) / d.size)
 
 
 def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
@@ -268,17 +276,6 @@ def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
         if all(np.hypot(*(b.pixel - k.pixel)) > max(r, 0.5 * float(k.axes_px[1])) for k in keep):
             keep.append(b)
     return keep
-
-
-def _runs(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Run starts, lengths and values of a 1-D array."""
-    v = np.asarray(values)
-    if v.size == 0:
-        return np.zeros(0, int), np.zeros(0, int), v
-    edges = np.flatnonzero(v[1:] != v[:-1]) + 1
-    starts = np.concatenate([[0], edges])
-    lengths = np.diff(np.concatenate([starts, [v.size]]))
-    return starts, lengths, v[starts]
 
 
 def _refine(
@@ -399,10 +396,12 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     ]
     gap = 0
     if centre_lines.size:
-        line = centre_lines.mean(axis=1) > 0.5
-        starts, lengths, vals = _runs(line)
-        interior = (~vals) & (starts > 0) & (starts + lengths < line.size)
-        gap = int(lengths[interior].max()) if np.any(interior) else 0
+        # lines more than half lit; the widest dark run between two of them
+        lit_lines = np.flatnonzero(
+            np.count_nonzero(centre_lines, axis=1) * 2 > centre_lines.shape[1]
+        )
+        if lit_lines.size >= 2:
+            gap = int(np.diff(lit_lines).max()) - 1
     length = max(kernel_px, gap + 3) | 1
     ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
     # Close a copy padded by repeating its edge: OpenCV's own border keeps whatever the
@@ -490,7 +489,7 @@ def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: st
     counts = m.view(np.uint8).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         level = (g * m).sum(axis=1) / counts
-    top = np.nanmax(level) if counts.any() else 0.0
+    top = np.fmax.reduce(level) if counts.any() else 0.0  # np.nanmax: rows with no disc are NaN
     rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
     if rows.size == 0:
         return np.zeros((0, 2))
