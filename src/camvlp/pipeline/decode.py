@@ -221,8 +221,11 @@ def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
         return float("nan")
     grid = np.arange(lo, hi, 0.01)
     x = d[None, :] / grid[:, None]
-    n = np.minimum(np.maximum(np.round(x), 2), 4)  # np.clip, without its overhead
-    cost = (((x - n) * grid[:, None]) ** 2).sum(axis=1)  # squared residual in rows
+    n = np.round(x)
+    np.minimum(np.maximum(n, 2, out=n), 4, out=n)  # np.clip, without its overhead
+    x -= n
+    x *= grid[:, None]
+    cost = np.square(x, out=x).sum(axis=1)  # squared residual in rows
     t = float(grid[int(np.argmin(cost))])
     n = np.minimum(np.maximum(np.round(d / t), 2), 4)
     return float((d * n).sum() / (n * n).sum())  # least squares refinement
@@ -302,7 +305,9 @@ def decode_profile(
     li, bi = lengths[interior], bright[interior]
     grid = _linspace(-0.95 * t, 0.95 * t, 191)
     xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
-    cost = ((xs - np.minimum(np.maximum(np.round(xs), 1), 2)) ** 2).sum(axis=1)
+    n = np.round(xs)
+    xs -= np.minimum(np.maximum(n, 1, out=n), 2, out=n)
+    cost = np.square(xs, out=xs).sum(axis=1)
     b = float(grid[int(np.argmin(cost))])
     x = np.where(bright, lengths - b, lengths + b) / t
     counts = np.round(x).astype(int)

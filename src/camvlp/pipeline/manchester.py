@@ -17,6 +17,7 @@ decide, to the pose), as without the fast path.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -108,11 +109,21 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     return out, lengths
 
 
+def _median(values: np.ndarray) -> float:
+    """``np.median`` of a few chip lengths (at least one), in Python floats: the middle value,
+    or the mean of the middle two; NaN when one is NaN."""
+    v = sorted(values.tolist())
+    if any(math.isnan(x) for x in v):
+        return float("nan")
+    n = len(v)
+    return v[n // 2] if n % 2 else (v[n // 2 - 1] + v[n // 2]) / 2
+
+
 def _measured(lengths: np.ndarray) -> float | None:
     """The chip length of the IDs the run-length decoder read when two of them agree."""
     t = lengths[np.isfinite(lengths)]
     if t.size >= 2:
-        med = float(np.median(t))
+        med = _median(t)
         if np.sum(np.abs(t / med - 1) < CHIP_AGREEMENT) >= 2:
             return med
     return None
@@ -122,12 +133,12 @@ def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     """The photo's chip length from the run-length decodes, and the decodes that agree with
     it (the others set to None).  With no seed, two fixtures must agree."""
     t = np.array([d.rows_per_chip for ds in decodes for d in ds if d is not None])
-    ref = seed if seed else (float(np.median(t)) if t.size else float("nan"))
+    ref = seed if seed else (_median(t) if t.size else float("nan"))
     ok = np.abs(t / ref - 1) <= CHIP_AGREEMENT if t.size else np.zeros(0, bool)
     if not seed and int(ok.sum()) < 2:
         ref = float("nan")
     if np.isfinite(ref) and ok.any():
-        ref = float(np.median(t[ok])) if not seed else ref
+        ref = _median(t[ok]) if not seed else ref
 
     def agrees(d: StripeDecode | None) -> bool:
         return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT
