@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from camvlp.model.camera import Pose
-from camvlp.pipeline.detect import detect_fixtures, to_gray
+from camvlp.pipeline.detect import _close_lit, detect_fixtures, to_gray
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -34,8 +34,9 @@ TILTED = {
 def render_case(camera, room, case):
     position, euler, readout, exposure, seed = case
     pose = Pose.from_euler(position, euler)
-    return render(camera, room, pose, small_settings(readout=readout, exposure_s=exposure,
-                                                      seed=seed))
+    return render(
+        camera, room, pose, small_settings(readout=readout, exposure_s=exposure, seed=seed)
+    )
 
 
 @pytest.fixture(scope="module")
@@ -136,8 +137,12 @@ def test_fully_inside_disc_near_the_border_is_not_flagged(facing_up, small_camer
     r = facing_up["rows-1m-up"]
     radius = radius_px(small_camera, 1.7)
     gaps = [
-        min(t.pixel[0] - radius, small_camera.width - 1 - t.pixel[0] - radius,
-            t.pixel[1] - radius, small_camera.height - 1 - t.pixel[1] - radius)
+        min(
+            t.pixel[0] - radius,
+            small_camera.width - 1 - t.pixel[0] - radius,
+            t.pixel[1] - radius,
+            small_camera.height - 1 - t.pixel[1] - radius,
+        )
         for t in r.fixtures
     ]
     assert 2.0 < min(gaps) < 20.0  # the scene is as intended
@@ -158,8 +163,12 @@ def test_black_image_has_no_blobs():
 
 def test_noise_without_lights_has_no_blobs(small_camera, small_room):
     # looking at the floor: no fixture in view, only ambient light and sensor noise
-    r = render(small_camera, small_room, Pose.from_euler([0, 0, 0], (-90.0, 0.0, 0.0)),
-               small_settings(seed=3))
+    r = render(
+        small_camera,
+        small_room,
+        Pose.from_euler([0, 0, 0], (-90.0, 0.0, 0.0)),
+        small_settings(seed=3),
+    )
     assert r.image.max() > 0
     assert detect_fixtures(r.image).blobs == ()
 
@@ -185,3 +194,25 @@ def test_bad_arguments_raise_value_error():
         detect_fixtures(np.zeros((20, 20), np.uint8), readout="diagonal")
     with pytest.raises(ValueError, match="8 x 8"):
         detect_fixtures(np.zeros((4, 20), np.uint8))
+
+
+def test_closing_around_lit_pixels_equals_whole_image_closing():
+    """The candidate closing, done box by box around the lit pixels, gives the whole image's."""
+    rng = np.random.default_rng(4)
+    boxed = 0
+    for case in range(300):
+        h, w = (int(v) for v in rng.integers(8, 160, 2))
+        binary = np.zeros((h, w), np.uint8)
+        for _ in range(int(rng.integers(0, 10))):
+            centre = (int(rng.integers(0, w)), int(rng.integers(0, h)))
+            cv2.circle(binary, centre, int(rng.integers(1, 12)), 255, -1)
+        if case % 3 == 0:  # specks, and stripes cut through the discs
+            binary[rng.random((h, w)) < 0.002] = 255
+            binary[::4] = 0
+        k = int(rng.choice([3, 5, 11, 13]))
+        kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+        whole = cv2.morphologyEx(binary, cv2.MORPH_CLOSE, kernel)
+        np.testing.assert_array_equal(_close_lit(binary, k, max_boxes=1000), whole)
+        np.testing.assert_array_equal(_close_lit(binary, k), whole)
+        boxed += np.count_nonzero(binary) > 0
+    assert boxed > 200
