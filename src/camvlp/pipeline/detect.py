@@ -57,6 +57,9 @@ class Blob:
         Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared
         (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`); NaN when the centroid was
         used or the fit cannot tell.
+    gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
+        The region of interest in gray levels (:func:`to_gray`), kept so that later stages
+        need not convert it again.
     """
 
     pixel: np.ndarray
@@ -69,6 +72,8 @@ class Blob:
     stripe_contrast: float
     edge_points: int
     centre_cov_px2: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+
+    gray: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def centre_sigma_px(self) -> float:
@@ -406,6 +411,7 @@ def _refine(
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
         centre_cov_px2=cov,
+        gray=gray8,
     )
 
 

@@ -188,7 +188,10 @@ def _profiles(
 
     Each profile is in the order the sensor read it (reversed for a reversed readout).
     """
-    gray_rois = [to_gray(img[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
+    gray_rois = [
+        b.gray if b.gray is not None else to_gray(img[b.box[1] : b.box[3], b.box[0] : b.box[2]])
+        for b in blobs
+    ]
     extents = np.array([_extent(b, readout.axis) for b in blobs])
     step = -1 if readout.reversed else 1
     profiles = [
