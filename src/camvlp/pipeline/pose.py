@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from itertools import combinations
@@ -74,6 +75,15 @@ def _spread(points: np.ndarray) -> np.ndarray:
     """Singular values of the centred points (how far they are from a point, line, plane)."""
     c = points - points.mean(axis=0)
     return np.linalg.svd(c, compute_uv=False)
+
+
+@functools.lru_cache(maxsize=64)
+def _object_spread(data: bytes, n: int) -> np.ndarray:
+    """:func:`_spread` of (n, 3) map points given as their float64 bytes: the same map
+    fixtures come back photo after photo."""
+    s = _spread(np.frombuffer(data).reshape(n, 3))
+    s.flags.writeable = False
+    return s
 
 
 def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
@@ -168,16 +178,16 @@ def estimate_pose(
     n = obj.shape[0]
     if n < 4:
         return _failure(n, f"{n} identified fixture{'s' if n != 1 else ''}, at least 4 are needed")
-    if not (np.all(np.isfinite(img)) and np.all(np.isfinite(obj))):
+    if not (np.isfinite(img).all() and np.isfinite(obj).all()):
         raise ValueError("image_points and object_points must be finite")
-    sw, si = _spread(obj), _spread(img)
+    sw, si = _object_spread(obj.tobytes(), n), _spread(img)
     if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
         return _failure(n, "the fixtures are (nearly) on one line: the pose is not determined")
     if len(set(map(tuple, np.round(img, 3).tolist()))) < n:
         return _failure(n, "two fixtures were detected at the same pixel")
 
     def solve(idx: np.ndarray):
-        spread = sw if idx.size == n else _spread(obj[idx])
+        spread = sw if idx.size == n else _object_spread(obj[idx].tobytes(), idx.size)
         planar = bool(spread[2] <= 1e-4 * spread[0])
         return _choose(
             camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
