@@ -100,6 +100,9 @@ class LocateSettings:
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
 
 
+_DEFAULT_SETTINGS = LocateSettings()  # frozen: one instance serves every call without settings
+
+
 def _check_arguments(camera: object, fixture_map: object, settings: object) -> None:
     for name, value, kind in (
         ("camera", camera, Camera),
@@ -134,8 +137,7 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
 
 def _extent(blob: Blob, axis: str) -> float:
     """Sensor rows a detected disc spans along the readout axis ("rows" or "columns")."""
-    m = blob.mask if axis == "rows" else blob.mask.T
-    r = np.flatnonzero(m.any(axis=1))
+    r = np.flatnonzero(blob.mask.any(axis=1 if axis == "rows" else 0))
     return float(r[-1] - r[0] + 1) if r.size else 0.0
 
 
@@ -505,7 +507,7 @@ def locate(
         looking along gravity, at the floor, cannot see lights that face down).
     """
     _check_arguments(camera, fixture_map, settings)
-    st = settings or LocateSettings()
+    st = settings or _DEFAULT_SETTINGS
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
     img, mirrored = _prepare(image, camera, st)
