@@ -234,9 +234,7 @@ def ellipse_centre_covariance(points, centre, axes, angle_deg: float, groups=Non
     """
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     m = pts.shape[0]
-    _, label = np.unique(
-        np.arange(m) if groups is None else np.asarray(groups), return_inverse=True
-    )
+    label = _group_labels(np.arange(m) if groups is None else np.asarray(groups))
     n_groups = int(label.max()) + 1 if m else 0
     p0 = np.array(
         [*np.asarray(centre, float), *(0.5 * np.asarray(axes, float)), np.radians(angle_deg)]
@@ -265,6 +263,16 @@ def ellipse_centre_covariance(points, centre, axes, angle_deg: float, groups=Non
     scale = n_groups / (n_groups - 1) * (m - 1) / max(m - 5, 1)
     bread = np.linalg.inv(jtj)
     return (scale * bread @ (scores.T @ scores) @ bread)[:2, :2]
+
+
+def _group_labels(groups: np.ndarray) -> np.ndarray:
+    """Each point's group as the rank of its label among the distinct labels (NumPy's
+    ``np.unique(..., return_inverse=True)``); small non-negative integer labels by counting."""
+    g = groups.reshape(-1)
+    if g.dtype.kind in "iu" and g.size and 0 <= g.min() and g.max() < 4 * g.size + 64:
+        rank = np.cumsum(np.bincount(g) > 0) - 1
+        return rank[g]
+    return np.unique(g, return_inverse=True)[1].reshape(-1)
 
 
 def centre_sigma(cov) -> float:

@@ -424,7 +424,7 @@ def _centre_covariance(points: np.ndarray, centre, axes, angle: float, axis: str
         return np.full((2, 2), np.nan)
     rows = points[:, 1] if axis == "rows" else points[:, 0]
     span = float(np.ptp(rows)) + 1.0
-    groups = np.floor((rows - rows.min()) / max(1.0, np.sqrt(span)))
+    groups = np.floor((rows - rows.min()) / max(1.0, np.sqrt(span))).astype(np.int64)
     return ellipse_centre_covariance(points, centre, axes, angle, groups=groups)
 
 
