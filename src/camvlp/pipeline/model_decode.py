@@ -12,9 +12,9 @@ clearly better than every ID of the map, the fixture is refused rather than give
 map ID.
 
 All fixtures of a photo share ``rows_per_chip``, the exposure, the sensor response and the
-blur: :func:`estimate_photo_model` fits them jointly to all profiles (a trimmed cost, so one bad
-fixture does not pull them), seeded by the chip length when the camera's row time and the
-map's chip rate are known, and :func:`decode_photo` decodes every profile with them.
+blur: :func:`camvlp.pipeline.photo_model.estimate_photo_model` fits them jointly to all
+profiles, and :func:`decode_photo` decodes every profile with them, each fixture at its own
+saturation knee (fixtures differ in brightness).
 """
 
 from __future__ import annotations
@@ -25,9 +25,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline.photo_model import _trimmed, estimate_photo_model
 from camvlp.pipeline.stripe_model import (
+    MIN_FRAMES,
     SAMPLES_PER_CHIP,
     SensorModel,
+    _candidates,
     _direct_fit,
     _Fit,
     _fit_folded,
@@ -35,8 +38,6 @@ from camvlp.pipeline.stripe_model import (
     _Folded,
     _prepare,
     _spectra,
-    _template_spectra,
-    _templates,
     _templates_batch,
     model_profile,
 )
@@ -54,10 +55,6 @@ __all__ = [
 #: Smallest margin (decimal log of the likelihood ratio of the best ID over the runner-up)
 #: for which an ID is returned.
 MIN_MARGIN = 4.0
-
-#: Smallest fraction of one frame a profile must span to be decoded (below one frame, IDs that
-#: differ only in the chips not seen fit equally, and the margin refuses them).
-MIN_FRAMES = 0.8
 
 #: Largest fraction of a profile's variance the best fit may leave unexplained.
 MAX_UNEXPLAINED = 0.5
@@ -371,20 +368,6 @@ def _decide(
     return ModelDecode(best_id, "", margin, **common)
 
 
-def _candidates(frame: FrameFormat, ids, max_extra: int = 1024):
-    """Candidate IDs (the map's first, then the format's others) and which are in the map."""
-    map_ids = np.unique(np.asarray(list(ids), dtype=np.int64))
-    if map_ids.size == 0:
-        raise ValueError("no IDs to decode against")
-    for i in map_ids:
-        frame.check_id(int(i))
-    extra = np.setdiff1d(np.arange(frame.n_ids), map_ids)
-    if frame.n_ids > max_extra:
-        extra = extra[:0]
-    cand = np.concatenate([map_ids, extra])
-    return cand, np.arange(cand.size) < map_ids.size
-
-
 def decode_profile_model(
     profile,
     frame: FrameFormat,
@@ -453,30 +436,27 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
         return _fail_small(
             p, model, n, f"spans {frames:.2f} frames of the code, at least {MIN_FRAMES:g} needed"
         )
-    *spectra, t = spec
+    *spectra, _ = spec
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see _decide)
     fo = _fold(p, w, model.rows_per_chip, samples // 2, n)
     fit = _Fit(*_fit_folded(fo, *spectra), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
         return _fail_small(p, model, n, "no stripes (a steady light)")
-    fit, t, knees = _own_knee(fit, fo, t, chips, in_map, model, samples, cache)
+    fit, knees = _own_knee(fit, fo, chips, in_map, model, samples, cache)
     fit = replace(fit, x=2 * fit.x)
     return _decide(
         fit, chips, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook, knees
     )
 
 
-def _own_knee(
-    fit: _Fit, fo: _Folded, t: np.ndarray, chips, in_map, model: SensorModel, samples, cache
-):
+def _own_knee(fit: _Fit, fo: _Folded, chips, in_map, model: SensorModel, samples, cache):
     """Each candidate's fits at its own best saturation knee (internal).
 
-    ``fit`` and ``t`` (I, P) are at the photo's knee (``fo``: the profile folded for it); the
+    ``fit`` is at the photo's knee (``fo``: the profile folded for it); the
     leading candidates (all of them for small formats, see :data:`KNEE_LEADERS`) are fitted
     again at every knee of :data:`FIXTURE_KNEES`, and each keeps its best.  Returns the fit
-    (rss, gain and offset of each candidate at its knee), the templates (I, P) at those knees
-    and the knees (I,).
+    (rss, gain and offset of each candidate at its knee) and the knees (I,).
     """
     n_cand = chips.shape[0]
     knees = np.full(n_cand, float(model.knee))
@@ -495,239 +475,18 @@ def _own_knee(
         spec_k = _spectra(chips[lead], model, samples, kn)
         if cache is not None:
             cache[key] = spec_k
-    *spectra, tk = spec_k  # (K, L, ...)
+    *spectra, _ = spec_k  # (K, L, ...)
     rss, gain, offset = _fit_folded(fo, *spectra)
     kb = rss.min(axis=2).argmin(axis=0)  # (L,)
     li = np.arange(lead.size)
     better = rss[kb, li].min(axis=1) < fit.rss[lead].min(axis=1)
     rows, ks = lead[better], kb[better]
-    out_rss, out_gain, out_offset, out_t = (a.copy() for a in (fit.rss, fit.gain, fit.offset, t))
+    out_rss, out_gain, out_offset = (a.copy() for a in (fit.rss, fit.gain, fit.offset))
     out_rss[rows] = rss[ks, li[better]]
     out_gain[rows] = gain[ks, li[better]]
     out_offset[rows] = offset[ks, li[better]]
-    out_t[rows] = tk[ks, li[better]]
     knees[rows] = np.asarray(FIXTURE_KNEES)[ks]
-    return replace(fit, rss=out_rss, gain=out_gain, offset=out_offset), out_t, knees
-
-
-# --------------------------------------------------------------------------------------------
-# Photo-wide parameters
-
-_EXPOSURES = (0.08, 0.15, 0.25, 0.35, 0.5, 0.65, 0.8, 0.9, 1.0, 1.15, 1.35, 1.6)
-_KNEES = (1.0, 0.7, 0.5, 0.35, 0.25, 0.17, 0.12, 0.085, 0.06)
-_BLURS = (0.0, 0.4, 0.8, 1.3, 2.0)
-_GAMMAS = (1.0, 0.7, 0.45)
-
-
-def _trimmed(costs: np.ndarray) -> np.ndarray:
-    """Photo cost from per-fixture unexplained fractions (..., F): mean log, worst dropped."""
-    c = np.sort(costs, axis=-1)
-    if c.shape[-1] >= 3:
-        c = c[..., :-1]  # one bad fixture does not pull the photo's parameters
-    return c.mean(axis=-1)
-
-
-class _PhotoFitter:
-    """Evaluates the photo cost of many parameter sets at once (internal).
-
-    Each profile is fitted with its own candidate IDs (``own``: indices into ``chips``).
-    """
-
-    def __init__(self, data, chips: np.ndarray, samples: int, n_chips: int, own=None) -> None:
-        self.data = data  # list of (p, w)
-        self.chips = chips
-        self.samples = samples
-        self.n_chips = n_chips
-        self.own = own if own is not None else [slice(None)] * len(data)
-        self._folds: dict[float, list[_Folded]] = {}
-
-    def folds(self, rows_per_chip: float) -> list[_Folded]:
-        key = float(rows_per_chip)
-        if key not in self._folds:
-            self._folds[key] = [_fold(p, w, key, self.samples, self.n_chips) for p, w in self.data]
-        return self._folds[key]
-
-    def costs(self, rows_per_chip: float, exposure, knee, gamma, blur) -> np.ndarray:
-        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,)."""
-        t = _templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
-        spectra = _template_spectra(t)  # each (V, I, F)
-        un = np.empty((t.shape[0], len(self.data)))
-        for k, fo in enumerate(self.folds(rows_per_chip)):
-            sel = self.own[k]
-            rss = _fit_folded(fo, *(h[:, sel] for h in spectra))[0]
-            un[:, k] = rss.reshape(rss.shape[0], -1).min(axis=1) / max(fo.spp, 1e-300)
-        return _trimmed(un)
-
-    def sweep(self, model: SensorModel, name: str, values) -> tuple[SensorModel, float]:
-        """Best of ``model`` with ``name`` set to each of ``values`` (and its cost)."""
-        vals = np.asarray(values, dtype=np.float64)
-        fields = {
-            k: np.full(vals.size, getattr(model, k))
-            for k in ("exposure_chips", "knee", "gamma", "blur_rows")
-        }
-        if name == "rows_per_chip":
-            one = [f[:1] for f in fields.values()]
-            costs = np.array([self.costs(float(v), *one)[0] for v in vals])
-        else:
-            fields[name] = vals
-            costs = self.costs(model.rows_per_chip, *fields.values())
-        k = int(np.argmin(costs))
-        best, cost = float(vals[k]), float(costs[k])
-        if name == "rows_per_chip" and 0 < k < vals.size - 1:  # between grid points
-            c0, c1, c2 = costs[k - 1 : k + 2]
-            den = c0 - 2 * c1 + c2
-            if den > 0:
-                off = float(np.clip(0.5 * (c0 - c2) / den, -0.5, 0.5))
-                best += off * 0.5 * (vals[k + 1] - vals[k - 1])
-                c = float(self.costs(best, *(f[:1] for f in fields.values()))[0])
-                if c < cost:
-                    cost = c
-                else:
-                    best = float(vals[k])
-        return replace(model, **{name: best}), cost
-
-
-def _search_chip_length(data, chips: np.ndarray, n: int, start: SensorModel, rows_range) -> float:
-    """The chip length (rows) searched over ``rows_range`` with ``start``'s other parameters:
-    a coarse log grid, then around its best few local minima."""
-    lo, hi = rows_range
-    hi = min(hi, max(p.size for p, _ in data) / (MIN_FRAMES * n))
-    if hi <= lo:
-        raise ValueError("profiles too short to measure the chip length")
-    coarse = _PhotoFitter(data, chips, 8, n)
-    grid = np.exp(np.arange(np.log(lo), np.log(hi), 0.02))
-    one = [np.array([getattr(start, k)]) for k in ("exposure_chips", "knee", "gamma")]
-    one.append(np.array([start.blur_rows]))
-    costs = np.array([coarse.costs(float(t), *one)[0] for t in grid])
-    minima = np.flatnonzero((costs <= np.roll(costs, 1)) & (costs <= np.roll(costs, -1)))
-    seeds = grid[minima[np.argsort(costs[minima])[:4]]] if minima.size else grid[:1]
-    fine = np.unique(np.concatenate([s * np.exp(np.arange(-4, 5) * 0.005) for s in seeds]))
-    fine = fine[(fine >= lo) & (fine <= hi)]
-    return coarse.sweep(start, "rows_per_chip", fine)[0].rows_per_chip
-
-
-def _own_fitter(data, chips: np.ndarray, n: int, s: int, m: SensorModel, keep: int):
-    """A :class:`_PhotoFitter` on ``s`` samples per chip with each profile's ``keep`` best
-    IDs under ``m``."""
-    f = _PhotoFitter(data, chips, s, n)
-    spec = _template_spectra(_templates(chips, m, s))
-    tops = [
-        np.argsort(_fit_folded(fo, *spec)[0].min(axis=1))[:keep] for fo in f.folds(m.rows_per_chip)
-    ]
-    union = np.unique(np.concatenate(tops))
-    return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
-
-
-def estimate_photo_model(
-    profiles,
-    frame: FrameFormat,
-    ids,
-    *,
-    weights=None,
-    rows_per_chip: float | None = None,
-    rows_per_chip_range: tuple[float, float] = (1.5, 48.0),
-    gamma: float | None = 1.0,
-    max_fixtures: int = 5,
-    samples: int = SAMPLES_PER_CHIP,
-) -> tuple[SensorModel, float]:
-    """Fit the photo-wide parameters of the forward model to all fixtures' profiles.
-
-    Parameters
-    ----------
-    profiles : sequence of array_like, each shape (n_k,)
-        Row profiles of the photo's fixtures, in readout order.
-    frame : FrameFormat
-    ids : iterable of int
-        The map's IDs.
-    weights : sequence of array_like, optional
-        Row weights per profile.
-    rows_per_chip : float, optional
-        The chip length when known (row time and chip rate): refined within 2 %; searched
-        over ``rows_per_chip_range`` otherwise.
-    gamma : float or None
-        The sensor's gamma when known (1 for linear raw data); None fits it.
-    max_fixtures : int
-        Profiles used for the fit (the longest ones; the cost drops the worst of them).
-    samples : int
-        Template grid points per chip while fitting.
-
-    Returns
-    -------
-    model : SensorModel
-    cost : float
-        Trimmed mean log unexplained variance of the fit (lower is better).
-
-    Raises
-    ------
-    ValueError
-        No profile long enough to fit.
-    """
-    ps = [np.asarray(p, dtype=np.float64) for p in profiles]
-    ws = [None] * len(ps) if weights is None else list(weights)
-    order = np.argsort([-p.size for p in ps], kind="stable")
-    use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
-    if not use:
-        raise ValueError("no profile long enough to fit the sensor model")
-    data = [_prepare(ps[k], ws[k]) for k in use]
-    cand, _ = _candidates(frame, ids)
-    chips = frame.codebook[cand]
-    n = frame.n_chips
-    start = SensorModel(1.0, 0.5, 0.4, 1.0 if gamma is None else float(gamma), 0.5)
-
-    # 1. the chip length: seeded, or searched with a middling exposure and knee
-    if rows_per_chip is None:
-        t0 = _search_chip_length(data, chips, n, start, rows_per_chip_range)
-    else:
-        t0 = float(rows_per_chip)
-    model = replace(start, rows_per_chip=t0)
-
-    # 2. exposure and knee on a joint grid (they trade off), coarsely, with each profile's
-    #    two best IDs
-    def own_fitter(s: int, m: SensorModel, keep: int) -> _PhotoFitter:
-        return _own_fitter(data, chips, n, s, m, keep)
-
-    coarse = own_fitter(16, model, 2)
-    ee, kk = (a.ravel() for a in np.meshgrid(_EXPOSURES, _KNEES))
-    costs = coarse.costs(
-        t0, ee, kk, np.full(ee.size, model.gamma), np.full(ee.size, model.blur_rows)
-    )
-    # 3. finely, with each profile's best ID, from the two best starts of the grid (exposure
-    #    and knee trade off: one start can stall): one parameter at a time
-    grids: dict[str, tuple[float, ...]] = {
-        "blur_rows": _BLURS,
-        "exposure_chips": _EXPOSURES,
-        "knee": _KNEES,
-    }
-    if gamma is None:
-        grids["gamma"] = _GAMMAS
-    starts = np.argsort(costs)[:2]
-    results = []
-    for k in starts:
-        m = replace(model, exposure_chips=float(ee[k]), knee=float(kk[k]))
-        fitter = own_fitter(samples // 2, m, 1)
-        best = float("inf")
-        for _ in range(2):
-            before = best
-            for name, values in grids.items():
-                m, best = fitter.sweep(m, name, values)
-            if best >= 0.95 * before:
-                break
-        results.append((best, m, fitter))
-    best, model, _ = min(results, key=lambda r: r[0])
-    # 4. on the full grid: the chip length, then the exposure, knee and blur between their
-    #    grid points
-    fitter = own_fitter(samples, model, 1)
-    span = 0.01 if rows_per_chip is not None else 0.006
-    model, best = fitter.sweep(model, "rows_per_chip", t0 * (1 + np.linspace(-span, span, 5)))
-    for name, step in (("exposure_chips", 0.03), ("knee", 0.02), ("blur_rows", 0.15)):
-        v = getattr(model, name) + step * np.arange(-2, 3)
-        v = (
-            v[(v > 0.02) & ((v <= 1.0) if name == "knee" else True)]
-            if name != "blur_rows"
-            else v[v >= 0]
-        )
-        model, best = fitter.sweep(model, name, v)
-    return model, best
+    return replace(fit, rss=out_rss, gain=out_gain, offset=out_offset), knees
 
 
 def decode_photo(

@@ -28,6 +28,10 @@ __all__ = ["SAMPLES_PER_CHIP", "SensorModel", "model_profile"]
 #: Samples per chip of the periodic templates (phase resolution 1/32 chip).
 SAMPLES_PER_CHIP = 32
 
+#: Smallest fraction of one frame a profile must span to be decoded (below one frame, IDs that
+#: differ only in the chips not seen fit equally, and the margin refuses them).
+MIN_FRAMES = 0.8
+
 
 @dataclass(frozen=True)
 class SensorModel:
@@ -354,3 +358,17 @@ def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
         w = w / max(w.mean(), 1e-300)
     good = np.isfinite(p)
     return np.where(good, p, 0.0), np.where(good, w, 0.0)
+
+
+def _candidates(frame, ids, max_extra: int = 1024):
+    """Candidate IDs (the map's first, then the format's others) and which are in the map."""
+    map_ids = np.unique(np.asarray(list(ids), dtype=np.int64))
+    if map_ids.size == 0:
+        raise ValueError("no IDs to decode against")
+    for i in map_ids:
+        frame.check_id(int(i))
+    extra = np.setdiff1d(np.arange(frame.n_ids), map_ids)
+    if frame.n_ids > max_extra:
+        extra = extra[:0]
+    cand = np.concatenate([map_ids, extra])
+    return cand, np.arange(cand.size) < map_ids.size
