@@ -27,7 +27,7 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, row_profile
+from camvlp.pipeline.decode import row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.manchester import Manchester, decode_manchester
@@ -141,13 +141,6 @@ def _extent(blob: Blob, axis: str) -> float:
     return float(r[-1] - r[0] + 1) if r.size else 0.0
 
 
-def _decode_frequencies(
-    blobs, gray_rois, extents: np.ndarray, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
-    """Identify frequency-coded fixtures from their stripe periods (see ``frequency.py``)."""
-    return decode_frequencies(blobs, gray_rois, axis, camera, fixture_map)
-
-
 @dataclass(frozen=True)
 class _Identified:
     """The identify stage: each blob's ID (or None) and why it cannot be used ("" if it can)."""
@@ -204,7 +197,7 @@ def _profiles(
 
 
 def _decode(
-    blobs, gray_rois, extents, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
+    blobs, gray_rois, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list, np.ndarray, list[str], list[Blob]]:
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
     NaN in Manchester mode), notes, and the blobs (new ones, where a frequency-coded light's
@@ -213,8 +206,8 @@ def _decode(
     if fixture_map.mode != "frequency":
         man = decode_manchester(profiles, readout, True, camera, fixture_map)
         return list(man.decodes), np.full(len(blobs), np.nan), [], list(blobs)
-    decodes, frequencies, centres, note = _decode_frequencies(
-        blobs, gray_rois, extents, readout.axis, camera, fixture_map
+    decodes, frequencies, centres, note = decode_frequencies(
+        blobs, gray_rois, readout.axis, camera, fixture_map
     )
     moved = [
         b if np.array_equal(c, b.pixel) else dataclasses.replace(b, pixel=c)
@@ -520,7 +513,7 @@ def locate(
     man: Manchester | None = None
     if fixture_map.mode == "frequency":
         decodes, frequencies, notes, blobs = _decode(
-            blobs, gray_rois, extents, profiles, readout, camera, fixture_map
+            blobs, gray_rois, profiles, readout, camera, fixture_map
         )
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map)

@@ -288,7 +288,6 @@ def _decide(
     knees: np.ndarray,
 ) -> ModelDecode:
     """Pick the ID from the fits of every candidate, each at its own knee (internal)."""
-    nan = float("nan")
     frames = fit.n / (n_chips * model.rows_per_chip)
     leaders = _refine_leaders(fit, chips, knees, model, in_map, p, w, samples)
     per_id = leaders.per_id
@@ -364,7 +363,6 @@ def _decide(
             margin,
             **common,
         )
-    del nan
     return ModelDecode(best_id, "", margin, **common)
 
 
@@ -436,11 +434,10 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
         return _fail_small(
             p, model, n, f"spans {frames:.2f} frames of the code, at least {MIN_FRAMES:g} needed"
         )
-    *spectra, _ = spec
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see _decide)
     fo = _fold(p, w, model.rows_per_chip, samples // 2, n)
-    fit = _Fit(*_fit_folded(fo, *spectra), fo.spp, p.size, fo.x)
+    fit = _Fit(*_fit_folded(fo, *spec), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
         return _fail_small(p, model, n, "no stripes (a steady light)")
     fit, knees = _own_knee(fit, fo, chips, in_map, model, samples, cache)
@@ -475,8 +472,7 @@ def _own_knee(fit: _Fit, fo: _Folded, chips, in_map, model: SensorModel, samples
         spec_k = _spectra(chips[lead], model, samples, kn)
         if cache is not None:
             cache[key] = spec_k
-    *spectra, _ = spec_k  # (K, L, ...)
-    rss, gain, offset = _fit_folded(fo, *spectra)
+    rss, gain, offset = _fit_folded(fo, *spec_k)  # each (K, L, P)
     kb = rss.min(axis=2).argmin(axis=0)  # (L,)
     li = np.arange(lead.size)
     better = rss[kb, li].min(axis=1) < fit.rss[lead].min(axis=1)

@@ -309,25 +309,12 @@ class _Fit:
     x: np.ndarray  # (n,) grid position of each row at phase 0
 
 
-def _fit_all(
-    p: np.ndarray,
-    w: np.ndarray,
-    spectra: tuple[np.ndarray, np.ndarray, np.ndarray],
-    rows_per_chip: float,
-    samples: int,
-    n_chips: int,
-) -> _Fit:
-    """Fit every template at every phase to one profile (FFT correlation)."""
-    fo = _fold(p, w, rows_per_chip, samples, n_chips)
-    rss, gain, offset = _fit_folded(fo, *spectra)
-    return _Fit(rss, gain, offset, fo.spp, p.size, fo.x)
-
-
 def _spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
-    """Templates on the fine grid and the spectra of every other point (the search grid).
+    """Spectra (see :func:`_template_spectra`) of the templates on the search grid: every
+    other point of the ``samples``-per-chip grid.
 
-    With ``knees`` (K,), the templates at each of those saturation knees instead of the
-    model's: shapes (K, I, ...) instead of (I, ...).
+    With ``knees`` (K,), those of the templates at each of these saturation knees instead of
+    the model's: shapes (K, I, F) instead of (I, F).
     """
     if knees is None:
         t = _templates(chips, model, samples)
@@ -343,7 +330,7 @@ def _spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
             v * model.blur_rows,
             samples,
         )
-    return (*_template_spectra(t[..., ::2]), t)
+    return _template_spectra(t[..., ::2])
 
 
 def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
