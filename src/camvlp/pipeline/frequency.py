@@ -11,22 +11,23 @@ land on distinct map frequencies.
 A light's stripes are measured over its whole striped area, down to the background
 (:func:`camvlp.pipeline.detect.light_support`), not only over the bright disc detection
 outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
-period more makes the frequency markedly more precise.
+period more makes the frequency markedly more precise.  The light's waveform is separated
+from its shape (a hot core, a halo) and fitted as what it is, a square wave integrated over
+the exposure (:mod:`camvlp.pipeline.light_wave`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import light_support
-from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
+from camvlp.pipeline.light_wave import light_wave
+from camvlp.pipeline.stripes import estimate_stripe_period
 
 __all__ = [
     "FrequencyAssignment",
@@ -209,48 +210,6 @@ def _fit_row_time(
 _GLOW_RATIO = 1.5
 
 
-def _centre_on_support(blob, support: np.ndarray, axis: str) -> np.ndarray:
-    """The light's centre ``[u, v]`` with its coordinate along the readout axis on its support.
-
-    Across the readout axis the detected centre (an ellipse fitted to the disc's edges along
-    the lit rows) is kept; along it, a light with a glow is centred on its whole striped
-    area: an ellipse fitted to the sides of the support's outline (the points where it runs
-    along the readout axis; its two caps are cut wherever a dark stripe falls, and are left
-    out).  The detected centre is returned as it is when the support reaches the region's
-    edge along the readout axis (the area would be cut), the disc is cut by the image border,
-    or there are too few side points.  ``blob`` is not changed.
-    """
-    pixel = np.array(blob.pixel, dtype=float)
-    if blob.touches_border:
-        return pixel
-    j = 1 if axis == "rows" else 0  # pixel coordinate along the readout: v for rows
-    lines = np.flatnonzero(support.any(axis=1 - j))
-    if lines[0] == 0 or lines[-1] == support.shape[1 - j] - 1:
-        return pixel
-    # the outline's sides (running along the readout axis): its caps are cut by the stripes
-    contours, _ = cv2.findContours(
-        support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
-    )
-    pts = max(contours, key=cv2.contourArea)[:, 0, :].astype(float)  # (M, 2) as (x, y)
-    if pts.shape[0] < 20:
-        return pixel
-    tangent = np.roll(pts, -2, axis=0) - np.roll(pts, 2, axis=0)
-    sides = pts[np.abs(tangent[:, j]) > np.abs(tangent[:, 1 - j])]
-    if sides.shape[0] < 12:
-        return pixel
-    (cx, cy), _, _ = cv2.fitEllipse(sides.astype(np.float32))
-    centre = cy if j == 1 else cx
-    if 0 <= centre < support.shape[1 - j]:
-        pixel[j] = blob.box[j] + centre
-    return pixel
-
-
-#: Thresholds of the striped area, noise levels above the background: each ends the area
-#: at another place in the glow (cutting a stripe at another phase); the median of their
-#: periods is kept.
-_GLOW_SIGMAS = (5.0, 8.0, 12.0, 20.0)
-
-
 #: Largest ratio of a disc's ellipse axes for which its outline is drawn as a circle.
 _ROUND = 1.1
 
@@ -275,22 +234,39 @@ def _disc_support(blob) -> np.ndarray:
     return blob.mask | circle
 
 
-def _period_over_glow(gray: np.ndarray, mask: np.ndarray, axis: str, disc: StripePeriod):
-    """The stripe period over a glowing light's whole striped area, pixels.
+def _measure_light(blob, gray: np.ndarray, axis: str) -> tuple[float, float, np.ndarray, str]:
+    """One light's stripe period (pixels), the periods its support spans, its centre, and why
+    the period is unknown ("" when known).
 
-    Measured over the area down to the background at each of :data:`_GLOW_SIGMAS`, starting
-    from the disc's period ``disc``; estimates more than 15 % from the disc's are dropped;
-    the median of the rest is returned (the disc's own estimate when none is left).
+    The light's waveform is separated from its shape and fitted with a square wave
+    (:func:`camvlp.pipeline.light_wave.light_wave`) over its whole striped area: down to the
+    background for a light that glows (its support covers :data:`_GLOW_RATIO` times the
+    disc or more), the disc's own outline otherwise.  A glowing light is centred on its
+    radial shape (the detected disc is only the part of it bright enough to clip); a plain
+    disc keeps the centre detection fitted to its edges.  When the wave fit fails, the
+    periodic fit over the disc (:func:`~camvlp.pipeline.stripes.estimate_stripe_period`)
+    is used instead.
     """
-    found = []
-    for k_sigma in _GLOW_SIGMAS:
-        support = light_support(gray, mask, axis, k_sigma=k_sigma)
-        wide = estimate_stripe_period(gray, support, axis, near=disc.period_px)
-        if wide and abs(np.log(wide.period_px / disc.period_px)) < 0.15:
-            found.append(wide)
-    if not found:
-        return disc
-    return dataclasses.replace(found[0], period_px=float(np.median([w.period_px for w in found])))
+    centre = np.asarray(blob.pixel, dtype=float)
+    support = light_support(gray, blob.mask, axis)
+    glow = bool(support.sum() >= _GLOW_RATIO * blob.mask.sum())
+    if not glow:  # a plain disc: its own outline is its striped area, dark ends included
+        support = _disc_support(blob)
+    along = np.flatnonzero(support.any(axis=1 if axis == "rows" else 0))
+    span = float(along[-1] - along[0] + 1) if along.size else 0.0
+    x0, y0 = blob.box[0], blob.box[1]
+    ellipse = ((centre[0] - x0, centre[1] - y0), tuple(blob.axes_px), blob.angle_deg)
+    wave = light_wave(gray, support, ellipse, axis)
+    if wave:
+        h, w = support.shape
+        inside = 0 <= wave.centre[0] < w and 0 <= wave.centre[1] < h
+        if glow and inside and not blob.touches_border:
+            centre = wave.centre + np.array([x0, y0], dtype=float)
+        return wave.period_px, span, centre, ""
+    est = estimate_stripe_period(gray, support, axis)
+    if est:
+        return est.period_px, span, centre, ""
+    return float("nan"), span, centre, est.message or "no stripe period could be measured"
 
 
 def decode_frequencies(
@@ -298,14 +274,13 @@ def decode_frequencies(
 ) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
     """Identify frequency-coded fixtures from their stripe periods.
 
-    Each light's period is measured (:func:`camvlp.pipeline.stripes.estimate_stripe_period`)
-    over its disc.  A light whose striped area reaches well beyond the disc (a glow: its
-    support down to the background, :func:`camvlp.pipeline.detect.light_support`, covers
-    1.5 times the disc's area or more) has its period refined over that whole area, starting
-    from the disc's (the refinement is kept when within 15 % of it), and its centre along the
-    readout axis moved to the area's centre (returned in ``centres``; the blobs are not
-    changed).  The periods are then matched to the map's frequencies
-    (:func:`assign_frequencies`).
+    Each light's period comes from its waveform, separated from its shape and fitted with a
+    square wave over its whole striped area (:func:`_measure_light`,
+    :func:`camvlp.pipeline.light_wave.light_wave`).  A light whose striped area reaches well
+    beyond the disc (a glow: its support down to the background,
+    :func:`camvlp.pipeline.detect.light_support`, covers 1.5 times the disc's area or more) is
+    centred on its radial shape (returned in ``centres``; the blobs are not changed).  The
+    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -329,7 +304,7 @@ def decode_frequencies(
         Measured frequency per blob, Hz (NaN where unknown).
     centres : ndarray, shape (N, 2)
         Each light's centre ``[u, v]``, full-resolution pixels: the blob's own, or for a
-        glowing light, on its whole striped area along the readout axis.
+        glowing light, the centre of its radial shape.
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
     """
@@ -339,22 +314,7 @@ def decode_frequencies(
     centres = np.array([np.asarray(b.pixel, dtype=float) for b in blobs]).reshape(n, 2)
     failures = [""] * n
     for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
-        support = light_support(g, b.mask, axis)
-        glow = bool(support.sum() >= _GLOW_RATIO * b.mask.sum())
-        if not glow:  # a plain disc: its own outline is its striped area, dark ends included
-            support = _disc_support(b)
-        along = support.any(axis=1 if axis == "rows" else 0)
-        idx = np.flatnonzero(along)
-        spans[k] = float(idx[-1] - idx[0] + 1) if idx.size else 0.0
-        est = estimate_stripe_period(g, b.mask if glow else support, axis)
-        if glow:
-            centres[k] = _centre_on_support(b, support, axis)
-            if est:
-                est = _period_over_glow(g, b.mask, axis, est)
-        if est:
-            periods[k] = est.period_px
-        else:
-            failures[k] = est.message or "no stripe period could be measured"
+        periods[k], spans[k], centres[k], failures[k] = _measure_light(b, g, axis)
     with np.errstate(invalid="ignore", divide="ignore"):
         seen = np.where(np.isfinite(periods), spans / periods, 0.0)
     fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
