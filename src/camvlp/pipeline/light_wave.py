@@ -36,6 +36,10 @@ _BIN_PX = 0.5
 _BINS_PER_RADIUS = 40
 #: Gray level at or above which a pixel counts as clipped (8-bit photos; JPEG rings below 255).
 _CLIP = 235.0
+#: Shortest window of the square wave, lines.  Lines sample the wave once each: an edge
+#: sharper than a line lies anywhere between two lines at the same cost, and a ramp of one
+#: line puts it half-way (and makes the cost smooth in the period).
+_MIN_WINDOW = 1.0
 #: Pixels (at most, every k-th) whose fit refines the light's outline.
 _GEOMETRY_PIXELS = 4000
 
@@ -156,7 +160,7 @@ def _grid(data, periods: np.ndarray, n_phase: int, windows) -> np.ndarray:
     """Cost over periods x phases (``n_phase`` per period) x windows (fractions of a period)."""
     p = np.asarray(periods, dtype=float)[:, None, None]
     phase = (np.arange(n_phase) / n_phase)[None, :, None] * p
-    window = np.asarray(windows, dtype=float)[None, None, :] * p
+    window = np.maximum(np.asarray(windows, dtype=float)[None, None, :] * p, _MIN_WINDOW)
     return _cost(data, p[..., None], phase[..., None], window[..., None])[0]
 
 
@@ -259,12 +263,13 @@ def fit_square_wave(
         k = np.unravel_index(int(np.argmin(cost)), cost.shape)
         if cost[k] < best[0]:
             p = fine[k[0]]
-            best = (float(cost[k]), np.array([p, k[1] / 16 * p, fractions[k[2]] * p]))
+            window = max(fractions[k[2]] * p, _MIN_WINDOW)
+            best = (float(cost[k]), np.array([p, k[1] / 16 * p, window]))
     x0 = best[1]
 
     def objective(x: np.ndarray) -> float:
         p, phase, window = x
-        if p <= 2.0 or not 0.0 <= window <= 0.5 * p:
+        if p <= 2.0 or not _MIN_WINDOW <= window <= 0.5 * p:
             return 1e300
         return float(_cost(data, p, phase, window)[0])
 
@@ -423,6 +428,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         bound_weight = np.bincount(cy_, env * env, minlength=n_lines)
         bound_lines = np.arange(n_lines, dtype=float)
         bounds = np.where(top > 0, (_CLIP - background) / np.maximum(top, 1e-300), 0.0)
+    weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
     lines = np.arange(n_lines, dtype=float)
     period, phase, window, low, high = fit_square_wave(
         lines, s, weight, bound_lines, bounds, bound_weight
