@@ -10,12 +10,13 @@ disc and not from the stripes.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariance
+from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
 
 __all__ = [
     "Blob",
@@ -254,7 +255,7 @@ def detect_fixtures(
         if cv2.contourArea(c) + r[2] + r[3] >= min_area
     ]
     comps.sort(key=lambda r: -r[2] * r[3])
-    blobs = []
+    found = []
     pad = kernel_px + 6 + 2 * s
     for x, y, w, h in comps[:max_blobs]:
         box = (
@@ -263,10 +264,12 @@ def detect_fixtures(
             min(width, (x + w) * s + pad),
             min(height, (y + h) * s + pad),
         )
-        blob = _refine(img, box, readout, kernel_px, min_diameter_px)
-        if blob is not None:
-            blobs.append(blob)
-    blobs = _drop_duplicates(blobs)
+        refined = _refine(img, box, readout, kernel_px, min_diameter_px)
+        if refined is not None:
+            found.append(refined)
+    fits = {id(b): fit for b, fit in found}
+    blobs = _drop_duplicates([b for b, _ in found])
+    blobs = _with_covariances(blobs, [fits[id(b)] for b in blobs])
     blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
     return Detection(tuple(blobs), s, binary, thr)
 
@@ -314,6 +317,20 @@ def _close_lit(binary: np.ndarray, k: int, max_boxes: int = 16) -> np.ndarray:
     return out
 
 
+def _with_covariances(blobs: list[Blob], fits: list) -> list[Blob]:
+    """The blobs with their centres' covariances, all worked at once
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`); ``fits`` holds each blob's
+    ellipse fit as :func:`_refine` gives it (None for a centroid: its covariance stays NaN)."""
+    k = [i for i, f in enumerate(fits) if f is not None]
+    if not k:
+        return blobs
+    covs = ellipse_centre_covariances([fits[i] for i in k])
+    out = list(blobs)
+    for i, cov in zip(k, covs, strict=True):
+        out[i] = dataclasses.replace(blobs[i], centre_cov_px2=cov)
+    return out
+
+
 def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
     """Two candidates whose refined discs are the same fixture: keep the larger."""
     keep: list[Blob] = []
@@ -330,7 +347,7 @@ def _refine(
     readout: str | None,
     kernel_px: int,
     min_diameter_px: float,
-) -> Blob | None:
+) -> tuple[Blob, tuple | None] | None:
     """One candidate region at full resolution: its disc, readout axis and centre.
 
     The region is thresholded at a quarter of the way from its background (10th percentile)
@@ -354,8 +371,14 @@ def _refine(
 
     Returns
     -------
-    Blob or None
-        None when the region holds no light large and bright enough.
+    blob : Blob
+        The disc, its centre's covariance not yet worked out (NaN).
+    fit : tuple or None
+        ``(points, centre, axes, angle_deg, groups)`` of the ellipse fit, in the region's
+        pixels, as :func:`~camvlp.geometry.disc.ellipse_centre_covariances` takes it; None
+        when the centroid was used.
+    None
+        When the region holds no light large and bright enough.
     """
     x0, y0, x1, y1 = box
     gray8 = to_gray(img[y0:y1, x0:x1])
@@ -387,12 +410,13 @@ def _refine(
         or (y1 == height and mask[-1].any())
     )
     points = _edge_points(gray, mask, background, axis)
-    cov = np.full((2, 2), np.nan)
+    fit = None
     if points.shape[0] >= 12:
         (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
         if not (0 <= cx < mask.shape[1] and 0 <= cy < mask.shape[0]):
             points = np.zeros((0, 2))
-        cov = _centre_covariance(points, (cx, cy), (a, b), angle, axis)
+        else:
+            fit = (points, (cx, cy), (a, b), angle, _row_groups(points, axis))
     if points.shape[0] < 12:
         m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
         cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
@@ -400,7 +424,7 @@ def _refine(
         a = b = d
         angle = 0.0
     axes = np.sort(np.array([a, b], dtype=float))[::-1]
-    return Blob(
+    blob = Blob(
         pixel=np.array([x0 + cx, y0 + cy]),
         box=box,
         mask=mask,
@@ -410,22 +434,20 @@ def _refine(
         axis=axis,
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
-        centre_cov_px2=cov,
         gray=gray8,
     )
+    return blob, fit
 
 
-def _centre_covariance(points: np.ndarray, centre, axes, angle: float, axis: str) -> np.ndarray:
-    """Covariance (2, 2) of a fitted ellipse's centre, pixels squared: the edge points
-    grouped in runs of about sqrt(n) consecutive sensor rows out of the n they span (batch
-    means): a row's two ends share its exposure, and the stripes make neighbouring rows'
-    errors depend on each other, while runs far apart do not."""
-    if points.shape[0] == 0:
-        return np.full((2, 2), np.nan)
+def _row_groups(points: np.ndarray, axis: str) -> np.ndarray:
+    """The groups of edge points whose errors an ellipse's centre covariance takes as shared
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`): runs of about sqrt(n)
+    consecutive sensor rows out of the n they span (batch means).  A row's two ends share
+    its exposure, and the stripes make neighbouring rows' errors depend on each other, while
+    runs far apart do not."""
     rows = points[:, 1] if axis == "rows" else points[:, 0]
     span = float(np.ptp(rows)) + 1.0
-    groups = np.floor((rows - rows.min()) / max(1.0, np.sqrt(span))).astype(np.int64)
-    return ellipse_centre_covariance(points, centre, axes, angle, groups=groups)
+    return np.floor((rows - rows.min()) / max(1.0, np.sqrt(span))).astype(np.int64)
 
 
 def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
