@@ -39,6 +39,10 @@ __all__ = [
 ]
 
 
+#: The erosion that trims a disc's anti-aliased rim before its rows are averaged.
+_RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+
+
 def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
     """Mean intensity of each sensor row inside a disc.
 
@@ -58,21 +62,26 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    m = mask.astype(np.uint8)
-    eroded = cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
+    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
+    eroded = cv2.erode(m, _RIM_KERNEL)
     if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m):
         m = eroded
-    g = gray.astype(np.float32)
+    dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
-    counts = cv2.reduce(m, 1 if axis != "columns" else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    if axis == "columns":
-        g, m = g.T, m.T
+    counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
         return np.zeros(0), 0
     first, last = int(rows[0]), int(rows[-1]) + 1
     c = counts[first:last].astype(np.float64)
-    s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
+    if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
+        s = cv2.reduce(cv2.multiply(gray, m), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        s = s[first:last].astype(np.float64)
+    else:
+        g = gray.astype(np.float32)
+        if axis == "columns":
+            g, m = g.T, m.T
+        s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
     if np.isnan(prof).any():  # rows the mask skips: interpolate
         idx = np.arange(prof.size)
