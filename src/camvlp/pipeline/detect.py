@@ -583,15 +583,13 @@ def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: st
     Each lit sensor row crosses the disc once; its two ends are found where the row's
     intensity crosses half-way between the background and the row's own level inside the
     disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
-    ``gray`` is the region in uint8 (its sums are then taken by OpenCV) or any real dtype.
+    ``gray`` is the region's uint8 gray levels (h, w), ``mask`` the disc (bool, h x w).
     """
     m8 = np.ascontiguousarray(mask).view(np.uint8)
     dim = 1 if axis == "rows" else 0  # cv2.reduce to one value per sensor row
     counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    if gray.dtype == np.uint8:  # whole levels: float32 sums exact (below 2**24)
-        sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
-    else:
-        sums = (gray.astype(np.float32) * m8).sum(axis=1 - dim)
+    # whole levels: the float32 sums are exact (below 2**24)
+    sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
     level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
     top = level.max()
     rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
