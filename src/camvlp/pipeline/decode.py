@@ -221,7 +221,12 @@ class StripeDecode:
 
 def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
     """Chip length in rows from same-polarity edge spacings (2, 3 or 4 chips each)."""
-    d = np.concatenate([np.diff(runs.edges[runs.rising]), np.diff(runs.edges[~runs.rising])])
+    # the crossings alternate, so same-polarity spacings are those two crossings apart:
+    # the rising edges' first, then the falling edges'
+    e = runs.edges
+    two = e[2:] - e[:-2]
+    first = 0 if runs.rising.size and runs.rising[0] else 1  # ``two``'s first rising spacing
+    d = np.concatenate([two[first::2], two[1 - first :: 2]])
     d = d[d > 0]
     if d.size < 2:
         return float("nan")
