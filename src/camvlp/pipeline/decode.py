@@ -230,7 +230,8 @@ def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
     d = d[d > 0]
     if d.size < 2:
         return float("nan")
-    lo, hi = max(0.8, d.min() / 4.6), min(max_rows_per_chip, d.min() / 1.6)
+    shortest = d.min()
+    lo, hi = max(0.8, shortest / 4.6), min(max_rows_per_chip, shortest / 1.6)
     if hi <= lo:
         return float("nan")
     grid = np.arange(lo, hi, 0.01)
@@ -310,13 +311,11 @@ def decode_profile(
     t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)
     if not np.isfinite(t) or t <= 0:
         return fail("stripes too irregular to measure the chip length")
-    lengths, bright = runs.lengths, runs.bright
-    interior = np.arange(lengths.size)
-    interior = (interior > 0) & (interior < lengths.size - 1)
+    lengths, bright = runs.lengths, runs.bright  # four edges or more: three interior runs
     # bleeding: bright runs are b rows longer, dark ones b rows shorter, than n chips; the
     # b that makes every interior run closest to one or two chips (both kinds occur in
     # every frame, which pins b down)
-    li, bi = lengths[interior], bright[interior]
+    li, bi = lengths[1:-1], bright[1:-1]
     grid = _linspace(-0.95 * t, 0.95 * t, 191)
     xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
     n = np.round(xs)
@@ -328,14 +327,16 @@ def decode_profile(
     # runs cut by the disc's edge: count only the chips surely inside
     for k in (0, lengths.size - 1):
         counts[k] = min(max(math.floor(float(x[k]) + 0.25), 0), 2)
-    sure = ~(interior & ((counts < 1) | (counts > 2)))
-    counts[interior] = np.minimum(np.maximum(counts[interior], 1), 2)
+    sure = np.ones(counts.size, bool)
+    inner = counts[1:-1]
+    sure[1:-1] = (inner >= 1) & (inner <= 2)
+    np.minimum(np.maximum(inner, 1, out=inner), 2, out=inner)  # in counts itself
     chip_vals = np.repeat(bright.astype(np.uint8), counts)
     known = np.repeat(sure, counts)
     frames = chip_vals.size / frame.n_chips
     chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     res = frame.decode(chip_vals, known=known)
-    xi = x[interior]
+    xi = x[1:-1]
     worst = float(np.abs(xi - np.round(xi)).max()) if xi.size else 0.5
     margin = min(max(1.0 - 2.0 * worst, 0.0), 1.0)
     common = dict(rows_per_chip=t, bleed_rows=b, chips=chip_str, frames=frames)
