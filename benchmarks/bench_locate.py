@@ -5,13 +5,19 @@ then prints, as medians of several runs in one process, the time of ``cv2.imdeco
 each JPEG, the time of ``camvlp.locate`` on the decoded image (per stage), their ratio, and
 the peak memory of a fresh process that decodes and locates the 20-megapixel photo.
 
-Run: ``python benchmarks/bench_locate.py [--runs 15]``.
+Run: ``python benchmarks/bench_locate.py [--runs 15] [--against OTHER/src]``.
+
+``--against`` compares this code with another copy of the package (e.g. a worktree of the
+main branch): both run in worker processes, one ``imdecode`` and ``locate`` at a time in
+turn, on the same JPEGs, so that a machine whose speed drifts (a shared one) slows both
+alike; each code's medians and ratios are printed, and each one's peak memory.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -31,7 +37,7 @@ from camvlp.sim.render import RenderSettings, render
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _peak_child(jpeg: Path) -> dict:
+def _peak_child(jpeg: Path, src: Path | None = None) -> dict:
     """Peak resident memory of a fresh process: imports, then decode, then locate."""
     code = f"""
 import json, re, cv2, numpy as np, camvlp
@@ -48,14 +54,101 @@ res = locate(img, cam, fmap)
 print(json.dumps(dict(after_imports_mb=base, after_decode_mb=decoded, peak_mb=rss(),
                       located=bool(res))))
 """
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=_env(src)
+    )
     return json.loads(out.stdout)
 
 
-def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs: int, tmp: Path):
-    photo = render(camera, fmap, pose, settings)
+def _env(src: Path | None) -> dict | None:
+    """The environment of a child that imports the package from ``src`` (None: as this one)."""
+    return None if src is None else {**os.environ, "PYTHONPATH": str(src)}
+
+
+_WORKER = """
+import json, sys, time, cv2, numpy as np, camvlp
+from camvlp.locate import locate
+cv2.setNumThreads(1)
+_x = np.ones(20_000_000, np.uint8); del _x  # glibc's heap as after the 20 MP photo's decode
+fmap = camvlp.load_map(sys.argv[1])
+cams = {"20MP": camvlp.load_camera(sys.argv[2]),
+        "1080p": camvlp.Camera.from_focal(*json.loads(sys.argv[3])[:3],
+                                          row_time_s=json.loads(sys.argv[3])[3])}
+print(camvlp.__file__, flush=True)
+for line in sys.stdin:
+    name, jpeg, truth = json.loads(line)
+    data = np.fromfile(jpeg, np.uint8)
+    t = time.perf_counter()
+    img = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    t1 = time.perf_counter()
+    res = locate(img, cams[name], fmap)
+    t2 = time.perf_counter()
+    err = 1e3 * float(np.linalg.norm(res.position - truth)) if res else float("nan")
+    print(json.dumps([1e3 * (t1 - t), 1e3 * (t2 - t1), res.timing_ms, err]), flush=True)
+"""
+
+
+def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: int) -> None:
+    """This code and the one at ``against`` in turn on each photo; their medians and ratios."""
+    codes = {"this": None, "against": against}
+    workers = {
+        k: subprocess.Popen(
+            [
+                sys.executable,
+                "-c",
+                _WORKER,
+                str(ROOT / "examples/thesis_room.yaml"),
+                str(ROOT / "examples/thesis_camera.yaml"),
+                json.dumps(HD),
+            ],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            env=_env(src),
+        )
+        for k, src in codes.items()
+    }
+    for k, w in workers.items():
+        print(f"{k}: {w.stdout.readline().strip()}")
+    for name, jpeg, truth in photos:
+        rows: dict[str, list] = {k: [] for k in workers}
+        for i in range(runs + 2):  # the first two of each warm up
+            for k in list(workers)[:: 1 if i % 2 else -1]:
+                workers[k].stdin.write(json.dumps([name, str(jpeg), truth.tolist()]) + "\n")
+                workers[k].stdin.flush()
+                rows[k].append(json.loads(workers[k].stdout.readline()))
+        print(f"{name}, {runs} runs each, in turn:")
+        for k, r in rows.items():
+            r = r[2:]
+            dec, loc = statistics.median(x[0] for x in r), statistics.median(x[1] for x in r)
+            st = " / ".join(f"{statistics.median(x[2][s] for x in r):.1f}" for s in STAGES)
+            print(
+                f"  {k:<8} imdecode {dec:6.1f} ms  locate {loc:6.1f} ms ({st})  ratio "
+                f"{loc / dec:.2f}  error {r[-1][3]:.3f} mm"
+            )
+    for w in workers.values():
+        w.stdin.close()
+        w.wait()
+    for k, src in codes.items():
+        print(f"peak memory, {k}: {_peak_child(photos[0][1], src)['peak_mb']:.0f} MB")
+
+
+STAGES = ("detect", "decode", "pose")
+#: The 1080p camera: width, height, focal length (px), row time (s).
+HD = (1920, 1080, 1200.0, 30e-6)
+
+
+def _jpeg(name: str, camera: Camera, fmap, pose, settings: RenderSettings, tmp: Path) -> Path:
+    """The photo rendered and saved as ``tmp/name.jpg`` (quality 92)."""
     path = tmp / f"{name}.jpg"
-    cv2.imwrite(str(path), photo.image, [cv2.IMWRITE_JPEG_QUALITY, 92])
+    cv2.imwrite(
+        str(path), render(camera, fmap, pose, settings).image, [cv2.IMWRITE_JPEG_QUALITY, 92]
+    )
+    return path
+
+
+def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs: int, tmp: Path):
+    path = _jpeg(name, camera, fmap, pose, settings, tmp)
     data = np.fromfile(str(path), np.uint8)
     decode_ms, locate_ms = [], []
     stages: dict[str, list[float]] = {"detect": [], "decode": [], "pose": []}
@@ -91,26 +184,29 @@ def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=15)
+    ap.add_argument("--against", type=Path, help="another copy's src/ to run in turn with")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     fmap = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
     thesis = camvlp.load_camera(ROOT / "examples/thesis_camera.yaml")
-    hd = Camera.from_focal(1920, 1080, 1200.0, row_time_s=30e-6)
-    pose = camvlp.Pose.from_euler([0.05, 0.0, -0.08], [91.0, 2.0, 15.0])
+    hd = Camera.from_focal(*HD[:3], row_time_s=HD[3])
+    photos = [
+        ("20MP", thesis, camvlp.Pose.from_euler([0.05, 0.0, -0.08], [91.0, 2.0, 15.0]), 1),
+        ("1080p", hd, camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0]), 2),
+    ]
     print(f"OpenCV {cv2.__version__}, NumPy {np.__version__}, OpenCV threads 1")
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
-        big, _, _ = _bench("20MP", thesis, fmap, pose, RenderSettings(seed=1), args.runs, tmp)
-        _bench(
-            "1080p",
-            hd,
-            fmap,
-            camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0]),
-            RenderSettings(seed=2),
-            args.runs,
-            tmp,
-        )
-        mem = _peak_child(big)
+        if args.against is not None:
+            jpegs = [
+                (n, _jpeg(n, cam, fmap, pose, RenderSettings(seed=seed), tmp), pose.position)
+                for n, cam, pose, seed in photos
+            ]
+            _compare(jpegs, args.against, args.runs)
+            return 0
+        for n, cam, pose, seed in photos:
+            _bench(n, cam, fmap, pose, RenderSettings(seed=seed), args.runs, tmp)
+        mem = _peak_child(tmp / "20MP.jpg")
     print(
         f"peak memory, fresh process decoding and locating the 20MP JPEG: {mem['peak_mb']:.0f} MB "
         f"(after imports {mem['after_imports_mb']:.0f} MB, after decoding "

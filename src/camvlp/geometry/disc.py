@@ -16,6 +16,7 @@ __all__ = [
     "centre_sigma",
     "disc_normals",
     "ellipse_centre_covariance",
+    "ellipse_centre_covariances",
     "perspective_offset",
     "perspective_offsets",
     "plane_basis",
@@ -175,7 +176,15 @@ def perspective_offsets(camera: Camera, pose: Pose, centres, diameters, normals)
     ndarray, shape (N, 2)
         ``ellipse centre - projected centre`` of each disc, pixels; zeros for a disc whose rim
         is not all in front.
+
+    Notes
+    -----
+    Without lens distortion the image of a disc is exactly an ellipse, whose centre is given
+    in closed form (:func:`_pinhole_offsets`).  With distortion the rim is projected at 72
+    points and an ellipse fitted to them (:func:`cv2.fitEllipse`).
     """
+    if camera.dist_or_none is None:
+        return _pinhole_offsets(camera, pose, centres, diameters, normals)
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     n_rim = 72
     rim = rim_points(c, diameters, np.asarray(normals, float).reshape(-1, 3), n_rim)
@@ -187,6 +196,33 @@ def perspective_offsets(camera: Camera, pose: Pose, centres, diameters, normals)
     for k in np.flatnonzero(finite).tolist():
         (cx, cy), _, _ = cv2.fitEllipse(rim_uv[k])
         out[k] = (cx - uv[k, 0, 0], cy - uv[k, 0, 1])
+    return out
+
+
+def _pinhole_offsets(camera: Camera, pose: Pose, centres, diameters, normals) -> np.ndarray:
+    """:func:`perspective_offsets` for a camera without distortion, in closed form.
+
+    A disc of radius ``r``, centre ``C`` and unit normal ``n`` (camera frame) is the image
+    under ``H = K [r a, r b, C]`` of the unit circle (``a``, ``b`` spanning its plane).  The
+    centre of an image conic is the pole of the line at infinity, ``H diag(1, 1, -1) H^T
+    (0, 0, 1)``, which is ``K (C_z C - r^2 (z - n_z n))`` with ``z = (0, 0, 1)``: the ellipse's
+    centre, exact (a fit to sampled rim points is off by up to about 1e-3 px).  A disc whose
+    rim reaches behind the camera (``C_z <= r sqrt(1 - n_z^2)``) gets zeros.
+    """
+    c = np.asarray(centres, dtype=float).reshape(-1, 3)
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    r = 0.5 * np.asarray(diameters, dtype=float).reshape(-1)
+    cc = pose.to_camera(c)
+    nc = n @ pose.world_from_camera  # normals in the camera frame
+    w = -nc[:, 2:3] * nc
+    w[:, 2] += 1.0  # z - n_z n: the optical axis' part in the disc's plane
+    e = cc[:, 2:3] * cc - (r * r)[:, None] * w
+    front = cc[:, 2] > r * np.sqrt(np.maximum(0.0, 1.0 - nc[:, 2] ** 2))
+    out = np.zeros((c.shape[0], 2))
+    k = camera.matrix
+    he, hc = e[front] @ k.T, cc[front] @ k.T
+    out[front] = he[:, :2] / he[:, 2:] - hc[:, :2] / hc[:, 2:]
     return out
 
 
@@ -232,37 +268,91 @@ def ellipse_centre_covariance(points, centre, axes, angle_deg: float, groups=Non
         Covariance of ``(u, v)``, pixels squared; NaN when it cannot be told (fewer than six
         points or groups, or a degenerate fit).
     """
-    pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    m = pts.shape[0]
-    label = _group_labels(np.arange(m) if groups is None else np.asarray(groups))
-    n_groups = int(label.max()) + 1 if m else 0
+    return ellipse_centre_covariances([(points, centre, axes, angle_deg, groups)])[0]
+
+
+def ellipse_centre_covariances(fits) -> np.ndarray:
+    """:func:`ellipse_centre_covariance` of several fitted ellipses at once.
+
+    The ellipses' points are padded to the longest and worked as one stack, so that the
+    cost of a photo's discs is that of one (the padding adds nothing to any sum).
+
+    Parameters
+    ----------
+    fits : sequence of tuple
+        ``(points, centre, axes, angle_deg, groups)`` per ellipse, each as
+        :func:`ellipse_centre_covariance` takes them (``groups`` may be None).
+
+    Returns
+    -------
+    ndarray, shape (N, 2, 2)
+        Each centre's covariance, pixels squared; NaN for those that cannot be told.
+    """
+    n = len(fits)
+    out = np.full((n, 2, 2), np.nan)
+    pts = [np.asarray(f[0], dtype=float).reshape(-1, 2) for f in fits]
+    sizes = np.array([p.shape[0] for p in pts], dtype=np.int64)
+    labels = [
+        _group_labels(np.arange(m) if f[4] is None else np.asarray(f[4]))
+        for m, f in zip(sizes.tolist(), fits, strict=True)
+    ]
+    n_groups = np.array([int(g.max()) + 1 if g.size else 0 for g in labels], dtype=np.int64)
     p0 = np.array(
-        [*np.asarray(centre, float), *(0.5 * np.asarray(axes, float)), np.radians(angle_deg)]
-    )
-    if n_groups < 6 or not np.all(np.isfinite(p0)) or min(p0[2], p0[3]) <= 0:
-        return np.full((2, 2), np.nan)
-
-    def distances(p: np.ndarray) -> np.ndarray:
-        """Sampson distances of the points from each ellipse ``p`` (K, 5): shape (K, M)."""
-        c, s = np.cos(p[:, 4:5]), np.sin(p[:, 4:5])
-        dx, dy = pts[:, 0] - p[:, 0:1], pts[:, 1] - p[:, 1:2]
-        u, v = c * dx + s * dy, -s * dx + c * dy
-        a2, b2 = p[:, 2:3] ** 2, p[:, 3:4] ** 2
-        f = u**2 / a2 + v**2 / b2 - 1.0
-        return f / (2.0 * np.hypot(u / a2, v / b2))
-
-    step = 1e-6 * np.maximum(1.0, np.abs(p0))
-    d = distances(np.vstack([p0, p0 + np.diag(step)]))
-    jac = ((d[1:] - d[0]) / step[:, None]).T  # (M, 5)
-    jtj = jac.T @ jac
-    if not np.all(np.isfinite(jtj)) or np.linalg.cond(jtj) > 1e12:
-        return np.full((2, 2), np.nan)
-    scores = np.zeros((n_groups, 5))
-    np.add.at(scores, label, jac * d[0][:, None])
+        [
+            [*np.asarray(f[1], float), *(0.5 * np.asarray(f[2], float)), np.radians(f[3])]
+            for f in fits
+        ]
+    ).reshape(n, 5)
+    ok = (n_groups >= 6) & np.all(np.isfinite(p0), axis=1) & (np.minimum(p0[:, 2], p0[:, 3]) > 0)
+    k = np.flatnonzero(ok)
+    if k.size == 0:
+        return out
+    p0, sizes, n_groups = p0[k], sizes[k], n_groups[k]
+    m_max = int(sizes.max())
+    xy = np.zeros((k.size, m_max, 2))
+    lab = np.zeros((k.size, m_max), dtype=np.int64)
+    for j, i in enumerate(k.tolist()):
+        xy[j] = pts[i][0]  # padding: a point of the fit's own, so that its distance is finite
+        xy[j, : sizes[j]] = pts[i]
+        lab[j, : sizes[j]] = labels[i]
+    real = np.arange(m_max)[None, :] < sizes[:, None]  # (K, M): not padding
+    step = 1e-6 * np.maximum(1.0, np.abs(p0))  # (K, 5)
+    p = np.repeat(p0[:, None, :], 6, axis=1)  # (K, 6, 5): the fit, then each parameter moved
+    p[:, 1:] += step[:, :, None] * np.eye(5)
+    d = _sampson(p, xy[:, None, :, 0], xy[:, None, :, 1])  # (K, 6, M)
+    d *= real[:, None, :]
+    jac = ((d[:, 1:] - d[:, :1]) / step[:, :, None]).transpose(0, 2, 1)  # (K, M, 5)
+    jtj = jac.transpose(0, 2, 1) @ jac
+    good = np.all(np.isfinite(jtj), axis=(1, 2))
+    # np.linalg.cond(jtj) <= 1e12: J^T J is symmetric, its singular values its |eigenvalues|
+    eig = np.abs(np.linalg.eigvalsh(jtj[good]))
+    good[good] = eig.max(axis=1) <= 1e12 * eig.min(axis=1)
+    g_max = int(n_groups.max())
+    # each group's summed score, (K, G, 5): np.add.at's sums, in the points' order
+    flat = (lab + g_max * np.arange(k.size)[:, None])[real]
+    scores = np.bincount(
+        (5 * flat[:, None] + np.arange(5)).ravel(),
+        weights=(jac * d[:, 0, :, None])[real].ravel(),
+        minlength=5 * g_max * k.size,
+    ).reshape(k.size, g_max, 5)
     # small-sample factor of the cluster-robust estimator (CR1)
-    scale = n_groups / (n_groups - 1) * (m - 1) / max(m - 5, 1)
-    bread = np.linalg.inv(jtj)
-    return (scale * bread @ (scores.T @ scores) @ bread)[:2, :2]
+    scale = n_groups / (n_groups - 1) * (sizes - 1) / np.maximum(sizes - 5, 1)
+    kk = np.flatnonzero(good)
+    bread = np.linalg.inv(jtj[kk])
+    meat = scores[kk].transpose(0, 2, 1) @ scores[kk]
+    out[k[kk]] = (scale[kk, None, None] * bread @ meat @ bread)[:, :2, :2]
+    return out
+
+
+def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Sampson distances of points ``(x, y)`` from ellipses ``p`` (..., 5) as (centre,
+    semi-axes, angle): the last axis of ``p`` is taken apart, the rest broadcast."""
+    c, s = np.cos(p[..., 4:5]), np.sin(p[..., 4:5])
+    dx, dy = x - p[..., 0:1], y - p[..., 1:2]
+    u, v = c * dx + s * dy, -s * dx + c * dy
+    a2, b2 = p[..., 2:3] ** 2, p[..., 3:4] ** 2
+    f = u**2 / a2 + v**2 / b2 - 1.0
+    return f / (2.0 * np.hypot(u / a2, v / b2))
 
 
 def _group_labels(groups: np.ndarray) -> np.ndarray:

@@ -186,6 +186,21 @@ class FrameFormat:
         return self.codebook[:, idx]
 
     @cached_property
+    def _expected_by_length(self) -> dict[int, np.ndarray]:
+        return {}
+
+    def _expected_all(self, length: int) -> np.ndarray:
+        """Every rotation of every ID over ``length`` consecutive chips, shape (n_ids,
+        n_chips, length): kept per length (the lengths a photo's fixtures give recur)."""
+        out = self._expected_by_length.get(length)
+        if out is None:
+            out = self._rotations[:, :, np.arange(length) % self.n_chips]
+            out.flags.writeable = False
+            if len(self._expected_by_length) < 256:
+                self._expected_by_length[length] = out
+        return out
+
+    @cached_property
     def min_distance(self) -> int:
         """Least Hamming distance between any rotations of two different IDs' frames.
 
@@ -245,16 +260,20 @@ class FrameFormat:
         mask = None if known is None else np.asarray(known, bool).reshape(-1)
         if mask is not None and mask.shape != c.shape:
             raise ValueError("known must have the same length as chips")
-        cols = np.arange(c.size) % n
         if mask is not None and not mask.all():
+            cols = np.arange(c.size) % n
             cols, c = cols[mask], c[mask]
-        coverage = int(np.bincount(cols, minlength=n).min()) if c.size else 0
+            coverage = int(np.bincount(cols, minlength=n).min()) if c.size else 0
+            expected = None
+        else:  # every chip known: each frame position seen size // n times
+            expected, coverage = self._expected_all(c.size), c.size // n
         if coverage == 0:
             return ChipDecode(None, -1, -1, 0, f"{c.size} chips seen, not one whole frame of {n}")
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = min(limit, int(max_errors))
-        expected = self._rotations[:, :, cols]  # (ids, rotations, known chips)
+        if expected is None:
+            expected = self._rotations[:, :, cols]  # (ids, rotations, known chips)
         dist = (expected != c).sum(axis=2)  # (ids, rotations)
         per_id = dist.min(axis=1)
         best = int(per_id.argmin())  # the first of the nearest, as a stable sort's

@@ -39,6 +39,10 @@ __all__ = [
 ]
 
 
+#: The erosion that trims a disc's anti-aliased rim before its rows are averaged.
+_RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+
+
 def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
     """Mean intensity of each sensor row inside a disc.
 
@@ -58,21 +62,26 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    m = mask.astype(np.uint8)
-    eroded = cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5)))
+    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
+    eroded = cv2.erode(m, _RIM_KERNEL)
     if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m):
         m = eroded
-    g = gray.astype(np.float32)
+    dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
-    counts = cv2.reduce(m, 1 if axis != "columns" else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    if axis == "columns":
-        g, m = g.T, m.T
+    counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
         return np.zeros(0), 0
     first, last = int(rows[0]), int(rows[-1]) + 1
     c = counts[first:last].astype(np.float64)
-    s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
+    if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
+        s = cv2.reduce(cv2.multiply(gray, m), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        s = s[first:last].astype(np.float64)
+    else:
+        g = gray.astype(np.float32)
+        if axis == "columns":
+            g, m = g.T, m.T
+        s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
     if np.isnan(prof).any():  # rows the mask skips: interpolate
         idx = np.arange(prof.size)
@@ -212,11 +221,17 @@ class StripeDecode:
 
 def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
     """Chip length in rows from same-polarity edge spacings (2, 3 or 4 chips each)."""
-    d = np.concatenate([np.diff(runs.edges[runs.rising]), np.diff(runs.edges[~runs.rising])])
+    # the crossings alternate, so same-polarity spacings are those two crossings apart:
+    # the rising edges' first, then the falling edges'
+    e = runs.edges
+    two = e[2:] - e[:-2]
+    first = 0 if runs.rising.size and runs.rising[0] else 1  # ``two``'s first rising spacing
+    d = np.concatenate([two[first::2], two[1 - first :: 2]])
     d = d[d > 0]
     if d.size < 2:
         return float("nan")
-    lo, hi = max(0.8, d.min() / 4.6), min(max_rows_per_chip, d.min() / 1.6)
+    shortest = d.min()
+    lo, hi = max(0.8, shortest / 4.6), min(max_rows_per_chip, shortest / 1.6)
     if hi <= lo:
         return float("nan")
     grid = np.arange(lo, hi, 0.01)
@@ -296,13 +311,11 @@ def decode_profile(
     t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)
     if not np.isfinite(t) or t <= 0:
         return fail("stripes too irregular to measure the chip length")
-    lengths, bright = runs.lengths, runs.bright
-    interior = np.arange(lengths.size)
-    interior = (interior > 0) & (interior < lengths.size - 1)
+    lengths, bright = runs.lengths, runs.bright  # four edges or more: three interior runs
     # bleeding: bright runs are b rows longer, dark ones b rows shorter, than n chips; the
     # b that makes every interior run closest to one or two chips (both kinds occur in
     # every frame, which pins b down)
-    li, bi = lengths[interior], bright[interior]
+    li, bi = lengths[1:-1], bright[1:-1]
     grid = _linspace(-0.95 * t, 0.95 * t, 191)
     xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
     n = np.round(xs)
@@ -314,14 +327,16 @@ def decode_profile(
     # runs cut by the disc's edge: count only the chips surely inside
     for k in (0, lengths.size - 1):
         counts[k] = min(max(math.floor(float(x[k]) + 0.25), 0), 2)
-    sure = ~(interior & ((counts < 1) | (counts > 2)))
-    counts[interior] = np.minimum(np.maximum(counts[interior], 1), 2)
+    sure = np.ones(counts.size, bool)
+    inner = counts[1:-1]
+    sure[1:-1] = (inner >= 1) & (inner <= 2)
+    np.minimum(np.maximum(inner, 1, out=inner), 2, out=inner)  # in counts itself
     chip_vals = np.repeat(bright.astype(np.uint8), counts)
     known = np.repeat(sure, counts)
     frames = chip_vals.size / frame.n_chips
     chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     res = frame.decode(chip_vals, known=known)
-    xi = x[interior]
+    xi = x[1:-1]
     worst = float(np.abs(xi - np.round(xi)).max()) if xi.size else 0.5
     margin = min(max(1.0 - 2.0 * worst, 0.0), 1.0)
     common = dict(rows_per_chip=t, bleed_rows=b, chips=chip_str, frames=frames)

@@ -10,12 +10,15 @@ disc and not from the stripes.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import math
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariance
+from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
 
 __all__ = [
     "Blob",
@@ -157,12 +160,33 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
     contrast : float
         Ratio of the larger to the smaller variance of the two mean profiles (>= 1).
     """
-    m = mask.astype(np.float32)
-    g = gray.astype(np.float32, copy=False) * m
-    n_rows, n_cols = m.sum(1), m.sum(0)
+    g = np.asarray(gray)
+    m = np.asarray(mask, dtype=bool).view(np.uint8)
+    if g.dtype == np.uint8:
+        return _axis_contrast(g, m)
+    m = m.astype(np.float32)
+    g = g.astype(np.float32, copy=False) * m
+    return _axis_from_sums(g.sum(1), m.sum(1), g.sum(0), m.sum(0))
+
+
+def _axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
+    """:func:`find_readout_axis` of a uint8 region and a uint8 mask of 0 and 1: the sums by
+    OpenCV, exact in float32 like NumPy's (whole levels, below 2**24)."""
+    g = cv2.multiply(gray8, mask01)
+    sums = [
+        cv2.reduce(a, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
+        for dim in (1, 0)
+        for a in (g, mask01)
+    ]
+    return _axis_from_sums(*sums)
+
+
+def _axis_from_sums(row_sums, n_rows, col_sums, n_cols) -> tuple[str, float]:
+    """The readout axis and contrast from a disc's gray sums and pixel counts per row and
+    per column (float32)."""
     keep_r, keep_c = n_rows >= 3, n_cols >= 3
-    rows = g.sum(1)[keep_r] / n_rows[keep_r]
-    cols = g.sum(0)[keep_c] / n_cols[keep_c]
+    rows = row_sums[keep_r] / n_rows[keep_r]
+    cols = col_sums[keep_c] / n_cols[keep_c]
     vr = _diff_var(rows) if rows.size > 2 else 0.0
     vc = _diff_var(cols) if cols.size > 2 else 0.0
     if vr >= vc:
@@ -254,7 +278,7 @@ def detect_fixtures(
         if cv2.contourArea(c) + r[2] + r[3] >= min_area
     ]
     comps.sort(key=lambda r: -r[2] * r[3])
-    blobs = []
+    found = []
     pad = kernel_px + 6 + 2 * s
     for x, y, w, h in comps[:max_blobs]:
         box = (
@@ -263,10 +287,12 @@ def detect_fixtures(
             min(width, (x + w) * s + pad),
             min(height, (y + h) * s + pad),
         )
-        blob = _refine(img, box, readout, kernel_px, min_diameter_px)
-        if blob is not None:
-            blobs.append(blob)
-    blobs = _drop_duplicates(blobs)
+        refined = _refine(img, box, readout, kernel_px, min_diameter_px)
+        if refined is not None:
+            found.append(refined)
+    fits = {id(b): fit for b, fit in found}
+    blobs = _drop_duplicates([b for b, _ in found])
+    blobs = _with_covariances(blobs, [fits[id(b)] for b in blobs])
     blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
     return Detection(tuple(blobs), s, binary, thr)
 
@@ -293,7 +319,7 @@ def _close_lit(binary: np.ndarray, k: int, max_boxes: int = 16) -> np.ndarray:
     stays 0, as the closing of the whole image leaves it.  A photo with many groups (noise)
     or large ones is closed whole.
     """
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    kernel = _kernel(cv2.MORPH_ELLIPSE, (k, k))
     h, w = binary.shape
     r = k // 2
     margin, gap = 2 * r + 1, 4 * r + 1
@@ -314,6 +340,20 @@ def _close_lit(binary: np.ndarray, k: int, max_boxes: int = 16) -> np.ndarray:
     return out
 
 
+def _with_covariances(blobs: list[Blob], fits: list) -> list[Blob]:
+    """The blobs with their centres' covariances, all worked at once
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`); ``fits`` holds each blob's
+    ellipse fit as :func:`_refine` gives it (None for a centroid: its covariance stays NaN)."""
+    k = [i for i, f in enumerate(fits) if f is not None]
+    if not k:
+        return blobs
+    covs = ellipse_centre_covariances([fits[i] for i in k])
+    out = list(blobs)
+    for i, cov in zip(k, covs, strict=True):
+        out[i] = dataclasses.replace(blobs[i], centre_cov_px2=cov)
+    return out
+
+
 def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
     """Two candidates whose refined discs are the same fixture: keep the larger."""
     keep: list[Blob] = []
@@ -330,7 +370,7 @@ def _refine(
     readout: str | None,
     kernel_px: int,
     min_diameter_px: float,
-) -> Blob | None:
+) -> tuple[Blob, tuple | None] | None:
     """One candidate region at full resolution: its disc, readout axis and centre.
 
     The region is thresholded at a quarter of the way from its background (10th percentile)
@@ -354,25 +394,31 @@ def _refine(
 
     Returns
     -------
-    Blob or None
-        None when the region holds no light large and bright enough.
+    blob : Blob
+        The disc, its centre's covariance not yet worked out (NaN).
+    fit : tuple or None
+        ``(points, centre, axes, angle_deg, groups)`` of the ellipse fit, in the region's
+        pixels, as :func:`~camvlp.geometry.disc.ellipse_centre_covariances` takes it; None
+        when the centroid was used.
+    None
+        When the region holds no light large and bright enough.
     """
     x0, y0, x1, y1 = box
     gray8 = to_gray(img[y0:y1, x0:x1])
     if gray8.shape[0] < 3 or gray8.shape[1] < 3:
         return None
     background, peak = _percentiles_u8(gray8, [10, 99.5])
-    gray = gray8.astype(np.float32)
     if peak - background < 10:
         return None
-    # a low threshold: real lights are often brighter in the middle than at the rim
-    lit = gray > background + 0.25 * (peak - background)
-    lit_u8 = lit.view(np.uint8)
+    # a low threshold: real lights are often brighter in the middle than at the rim; whole
+    # gray levels are above it when they are above its floor
+    thr = math.floor(background + 0.25 * (peak - background))
+    lit = cv2.threshold(gray8, thr, 1, cv2.THRESH_BINARY)[1]  # 0 and 1
     axis = readout
     if axis is None:
-        axis, contrast = find_readout_axis(gray, cv2.dilate(lit_u8, np.ones((3, 3), np.uint8)) > 0)
+        axis, contrast = _axis_contrast(gray8, cv2.dilate(lit, np.ones((3, 3), np.uint8)))
     else:
-        contrast = find_readout_axis(gray, lit)[1]
+        contrast = _axis_contrast(gray8, lit)[1]
     mask = _disc_mask(lit, axis, kernel_px)
     if mask is None:
         return None
@@ -386,21 +432,22 @@ def _refine(
         or (x1 == width and mask[:, -1].any())
         or (y1 == height and mask[-1].any())
     )
-    points = _edge_points(gray, mask, background, axis)
-    cov = np.full((2, 2), np.nan)
+    points = _edge_points(gray8, mask, background, axis)
+    fit = None
     if points.shape[0] >= 12:
         (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
         if not (0 <= cx < mask.shape[1] and 0 <= cy < mask.shape[0]):
             points = np.zeros((0, 2))
-        cov = _centre_covariance(points, (cx, cy), (a, b), angle, axis)
+        else:
+            fit = (points, (cx, cy), (a, b), angle, _row_groups(points, axis))
     if points.shape[0] < 12:
         m = cv2.moments(mask.astype(np.uint8), binaryImage=True)
         cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
         d = 2.0 * np.sqrt(area / np.pi)
         a = b = d
         angle = 0.0
-    axes = np.sort(np.array([a, b], dtype=float))[::-1]
-    return Blob(
+    axes = np.array(sorted((float(a), float(b)), reverse=True))
+    blob = Blob(
         pixel=np.array([x0 + cx, y0 + cy]),
         box=box,
         mask=mask,
@@ -410,22 +457,28 @@ def _refine(
         axis=axis,
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
-        centre_cov_px2=cov,
         gray=gray8,
     )
+    return blob, fit
 
 
-def _centre_covariance(points: np.ndarray, centre, axes, angle: float, axis: str) -> np.ndarray:
-    """Covariance (2, 2) of a fitted ellipse's centre, pixels squared: the edge points
-    grouped in runs of about sqrt(n) consecutive sensor rows out of the n they span (batch
-    means): a row's two ends share its exposure, and the stripes make neighbouring rows'
-    errors depend on each other, while runs far apart do not."""
-    if points.shape[0] == 0:
-        return np.full((2, 2), np.nan)
+def _row_groups(points: np.ndarray, axis: str) -> np.ndarray:
+    """The groups of edge points whose errors an ellipse's centre covariance takes as shared
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`): runs of about sqrt(n)
+    consecutive sensor rows out of the n they span (batch means).  A row's two ends share
+    its exposure, and the stripes make neighbouring rows' errors depend on each other, while
+    runs far apart do not."""
     rows = points[:, 1] if axis == "rows" else points[:, 0]
     span = float(np.ptp(rows)) + 1.0
-    groups = np.floor((rows - rows.min()) / max(1.0, np.sqrt(span))).astype(np.int64)
-    return ellipse_centre_covariance(points, centre, axes, angle, groups=groups)
+    return np.floor((rows - rows.min()) / max(1.0, np.sqrt(span))).astype(np.int64)
+
+
+@functools.lru_cache(maxsize=64)
+def _kernel(shape: int, ksize: tuple[int, int]) -> np.ndarray:
+    """``cv2.getStructuringElement(shape, ksize)``, made once per shape and size."""
+    k = cv2.getStructuringElement(shape, ksize)
+    k.flags.writeable = False
+    return k
 
 
 def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
@@ -435,7 +488,7 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     of the region (at least ``kernel_px``), a small round closing, and the largest outline
     with its holes filled.  Returns a bool mask (h, w), or None when nothing is lit.
     """
-    lit_u8 = lit.astype(np.uint8)
+    lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
     along = lit if axis == "rows" else lit.T
     centre_lines = along[
@@ -455,12 +508,8 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     # dilation brought to the edge, which would join a disc near the border to it.
     m = length // 2 + 3
     closed = cv2.copyMakeBorder(lit_u8, m, m, m, m, cv2.BORDER_REPLICATE)
-    closed = cv2.morphologyEx(
-        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
-    )
-    closed = cv2.morphologyEx(
-        closed, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
-    )
+    closed = cv2.morphologyEx(closed, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_RECT, ksize))
+    closed = cv2.morphologyEx(closed, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, (5, 5)))
     closed = np.ascontiguousarray(closed[m:-m, m:-m])
     # the largest outline, holes filled
     contours, _ = cv2.findContours(closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -524,35 +573,45 @@ def light_support(
     return support | m
 
 
+#: Dilation of a disc's mask that masks other lights out of its rows' crossings, per axis.
+_EDGE_KERNELS = {"rows": np.ones((3, 7), np.uint8), "columns": np.ones((7, 3), np.uint8)}
+
+
 def _edge_points(gray: np.ndarray, mask: np.ndarray, background: float, axis: str) -> np.ndarray:
     """Sub-pixel disc edge points along the lit sensor rows, shape (M, 2) as ``(x, y)``.
 
     Each lit sensor row crosses the disc once; its two ends are found where the row's
     intensity crosses half-way between the background and the row's own level inside the
     disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
+    ``gray`` is the region's uint8 gray levels (h, w), ``mask`` the disc (bool, h x w).
     """
-    g = gray if axis == "rows" else gray.T
-    m = mask if axis == "rows" else mask.T
-    counts = m.view(np.uint8).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        level = (g * m).sum(axis=1) / counts
-    top = np.fmax.reduce(level) if counts.any() else 0.0  # np.nanmax: rows with no disc are NaN
+    m8 = np.ascontiguousarray(mask).view(np.uint8)
+    dim = 1 if axis == "rows" else 0  # cv2.reduce to one value per sensor row
+    counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+    # whole levels: the float32 sums are exact (below 2**24)
+    sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
+    level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
+    top = level.max()
     rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
     if rows.size == 0:
         return np.zeros((0, 2))
-    dilated = cv2.dilate(np.ascontiguousarray(m).view(np.uint8), np.ones((3, 7), np.uint8))
-    dilated = dilated.view(bool)
-    sub = np.where(dilated[rows], g[rows], background)  # (k, w): other lights masked out
+    dilated = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
+    if axis == "rows":
+        g, near = gray[rows], dilated[rows]
+    else:
+        g, near = gray[:, rows].T, dilated[:, rows].T
     half = background + 0.5 * (level[rows] - background)
-    above = sub > half[:, None]
-    w = sub.shape[1]
+    # above half-way (other lights masked out: the background is below half-way)
+    above = near & (g > half[:, None])
+    w = g.shape[1]
     left = above.argmax(axis=1)  # 0 also when nothing is above: such a row is left out
     right = w - 1 - above[:, ::-1].argmax(axis=1)
     ok = (left > 0) & (right < w - 1) & (right - left >= 3)
-    rows, left, right, half, sub = rows[ok], left[ok], right[ok], half[ok], sub[ok]
-    j = np.arange(rows.size)
-    a0, a1 = sub[j, left - 1], sub[j, left]
-    b0, b1 = sub[j, right], sub[j, right + 1]
+    rows, left, right, half = rows[ok], left[ok], right[ok], half[ok]
+    j = np.flatnonzero(ok)
+    # the rows' levels either side of both crossings, other lights masked out
+    cols = np.stack([left - 1, left, right, right + 1])
+    a0, a1, b0, b1 = np.where(near[j, cols], g[j, cols], background).astype(np.float32)
     u = 0 if axis == "rows" else 1  # the column of pts that holds x
     pts = np.empty((2 * rows.size, 2))
     pts[: rows.size, u] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
