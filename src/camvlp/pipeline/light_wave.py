@@ -405,8 +405,10 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     start = min(starts, key=lambda p: fit(p, None, 6, every)[0])
     warm = fit(start, None, 8)[3]
 
+    unit = fit(start, warm, 2, every)[0] or 1.0  # costs relative to the start's
+
     def cost(p: np.ndarray) -> float:
-        return fit(p, warm, 2, every)[0]
+        return fit(p, warm, 2, every)[0] / unit
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
@@ -415,7 +417,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         cost,
         start,
         method="Nelder-Mead",
-        options={"xatol": 0.03, "fatol": 1e-6, "maxfev": 80, "initial_simplex": simplex},
+        options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
     _, s, weight, shape = fit(res.x, warm, 12)
     bound_lines = bounds = bound_weight = np.zeros(0)
