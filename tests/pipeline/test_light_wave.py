@@ -107,3 +107,93 @@ def test_lights_showing_one_and_a_half_periods_are_within_one_percent():
         old.append(abs(est.period_px / period_px - 1))
     assert np.median(errors) < 0.005 and np.mean(np.array(errors) < 0.01) >= 0.9, errors
     assert np.median(errors) < np.median(old)
+
+
+def _striped_disc(
+    period: float = 14.0, amp: float = 150.0, size: int = 80, ratio: float = 1.0, seed: int = 0
+):
+    """A synthetic light (a cone-shaped disc of radius 20 px, axis ratio ``ratio`` across the
+    readout) with stripes of ``period`` rows, on a background of 20; (gray, support, ellipse)."""
+    rng = np.random.default_rng(seed)
+    cx, cy, r = 0.5 * size + 0.3, 0.5 * size - 0.3, 20.0
+    yy, xx = np.mgrid[:size, :size].astype(float)
+    rr = np.hypot((xx - cx) / (r * ratio), (yy - cy) / r)
+    shape = np.clip(1.5 - rr, 0.0, 1.0) * (rr < 1)
+    wave = 0.1 + 0.9 * ((yy % period) < 0.5 * period)
+    gray = np.clip(20.0 + amp * shape * wave + rng.normal(0.0, 2.0, shape.shape), 0, 255)
+    return gray, rr < 1, ((cx, cy), (2 * r * ratio, 2 * r), 0.0)
+
+
+def test_a_synthetic_disc_is_measured_in_rows_and_in_columns():
+    gray, support, ((cx, cy), (aw, ah), _) = _striped_disc()
+    rows = light_wave(gray, support, ((cx, cy), (aw, ah), 0.0), "rows")
+    cols = light_wave(gray.T, support.T, ((cy, cx), (ah, aw), 90.0), "columns")
+    assert rows and cols
+    assert rows.period_px == pytest.approx(14.0, rel=0.01)
+    assert cols.period_px == pytest.approx(rows.period_px, rel=1e-6)
+    np.testing.assert_allclose(cols.centre, rows.centre[::-1], atol=1e-6)  # [x, y] of each
+    assert np.hypot(rows.centre[0] - cx, rows.centre[1] - cy) < 0.5
+
+
+@pytest.mark.parametrize("bad", ["centre", "axes", "angle"])
+def test_an_outline_that_is_not_finite_fails_with_a_message(bad):
+    gray, support, ((cx, cy), axes, angle) = _striped_disc()
+    ellipse = {
+        "centre": ((float("nan"), cy), axes, angle),
+        "axes": ((cx, cy), (float("nan"), axes[1]), angle),
+        "angle": ((cx, cy), axes, float("nan")),
+    }[bad]
+    wave = light_wave(gray, support, ellipse, "rows")
+    assert not wave and "not finite" in wave.message
+
+
+def test_a_degenerate_outline_costs_no_more_than_a_round_one():
+    # an outline with an axis of 0 (its ratio infinite) once stretched the radial bins to
+    # hundreds of thousands and took seconds and gigabytes
+    import tracemalloc
+
+    gray, support, (centre, axes, angle) = _striped_disc()
+    tracemalloc.start()
+    wave = light_wave(gray, support, (centre, (0.0, axes[1]), angle), "rows")
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert wave and wave.period_px == pytest.approx(14.0, rel=0.01)
+    assert peak < 30e6, peak
+
+
+def test_a_disc_clipped_all_over_fails_instead_of_fitting_the_background():
+    gray, support, ellipse = _striped_disc()
+    gray[support] = 255.0
+    wave = light_wave(gray, support, ellipse, "rows")
+    assert not wave and "clipped" in wave.message
+
+
+def test_a_steady_light_fails_instead_of_fitting_a_long_period():
+    gray, support, ellipse = _striped_disc(period=1e9)
+    wave = light_wave(gray, support, ellipse, "rows")
+    assert not wave and "under one" in wave.message and wave.conclusive
+
+
+def test_a_pixel_that_is_not_finite_is_left_out():
+    gray, support, ellipse = _striped_disc()
+    gray[2, 2] = np.nan  # in the background: its median was NaN, and every pixel with it
+    gray[40, 40] = np.inf
+    wave = light_wave(gray, support, ellipse, "rows")
+    assert wave and wave.period_px == pytest.approx(14.0, rel=0.01)
+
+
+def test_a_light_exposed_over_whole_periods_is_left_unidentified_with_its_reason():
+    # exposed over three whole periods the light looks steady: its waveform shows under one
+    # period, and the periodic fit over the disc must not be asked instead (it found 2892 Hz
+    # and named the map's 3000 Hz light)
+    photo, fmap, camera, _ = _one_light(3.0, exposure_s=3.0 / 2000.0, brightness=20.0, seed=0)
+    other = Fixture(
+        2, np.array([5.0, -2.7, 0.0]), 0.1, np.array([0.0, 1.0, 0.0]), frequency_hz=3000.0
+    )
+    fmap = FixtureMap((*fmap.fixtures, other), mode="frequency")
+    det = detect_fixtures(photo.image)
+    gray = to_gray(photo.image)
+    rois = [gray[b.box[1] : b.box[3], b.box[0] : b.box[2]] for b in det.blobs]
+    decodes, hz, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
+    assert len(decodes) == 1 and decodes[0].id is None and np.isnan(hz[0])
+    assert "under one" in decodes[0].reason

@@ -243,9 +243,10 @@ def _measure_light(blob, gray: np.ndarray, axis: str) -> tuple[float, float, np.
     background for a light that glows (its support covers :data:`_GLOW_RATIO` times the
     disc or more), the disc's own outline otherwise.  A glowing light is centred on its
     radial shape (the detected disc is only the part of it bright enough to clip); a plain
-    disc keeps the centre detection fitted to its edges.  When the wave fit fails, the
-    periodic fit over the disc (:func:`~camvlp.pipeline.stripes.estimate_stripe_period`)
-    is used instead.
+    disc keeps the centre detection fitted to its edges.  When the wave fit fails without
+    concluding that the light has no period to measure (clipped all over, steady, under one
+    period: the periodic fit would find a wrong one), the periodic fit over the disc
+    (:func:`~camvlp.pipeline.stripes.estimate_stripe_period`) is used instead.
     """
     centre = np.asarray(blob.pixel, dtype=float)
     support = light_support(gray, blob.mask, axis)
@@ -263,6 +264,8 @@ def _measure_light(blob, gray: np.ndarray, axis: str) -> tuple[float, float, np.
         if glow and inside and not blob.touches_border:
             centre = wave.centre + np.array([x0, y0], dtype=float)
         return wave.period_px, span, centre, ""
+    if wave.conclusive:
+        return float("nan"), span, centre, wave.message
     est = estimate_stripe_period(gray, support, axis)
     if est:
         return est.period_px, span, centre, ""

@@ -42,6 +42,12 @@ _CLIP = 235.0
 _MIN_WINDOW = 1.0
 #: Pixels (at most, every k-th) whose fit refines the light's outline.
 _GEOMETRY_PIXELS = 4000
+#: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
+#: of 0) would otherwise stretch the radial bins without end.
+_MAX_LOG_RATIO = float(np.log(20.0))
+#: Fewest stripe periods the lines with signal must span: a steady light (or one too small
+#: for a whole period) fits some long period, never the right one.
+_MIN_PERIODS = 1.0
 
 
 @dataclass(frozen=True)
@@ -66,6 +72,9 @@ class LightWave:
         How many periods the lines with signal span.
     message : str
         Why the fit failed ("" on success).
+    conclusive : bool
+        Whether a failure says the light has no period to measure (clipped all over, or
+        steady or too small to show a whole period), not only that this fit found none.
     """
 
     period_px: float
@@ -75,6 +84,7 @@ class LightWave:
     centre: np.ndarray
     periods_seen: float
     message: str = ""
+    conclusive: bool = False
 
     def __bool__(self) -> bool:
         return bool(np.isfinite(self.period_px)) and not self.message
@@ -342,6 +352,41 @@ def _shape_fit(agg, g0, iters: int):
     return rss, s, den, g
 
 
+def _pixels(g: np.ndarray, m: np.ndarray):
+    """The pixels within 2 px of the support ``m``: ``(ly, lx, value)`` of the unclipped ones
+    (``value`` above the background), ``(ly, lx)`` of the clipped ones, and the background
+    (the median gray level beyond 4 px of it; the region's least when it has too few pixels
+    there).  A pixel that is not finite is left out."""
+    finite = np.isfinite(g)
+    near = cv2.dilate(m.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & finite
+    outside = (cv2.dilate(m.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0) & finite
+    if outside.sum() >= 50:
+        background = float(np.median(g[outside]))
+    else:
+        background = float(g[finite].min()) if finite.any() else float("nan")
+    ly, lx = np.nonzero(near & (g < _CLIP))
+    return (ly, lx, g[ly, lx] - background), np.nonzero(near & (g >= _CLIP)), background
+
+
+def _clip_bounds(f: np.ndarray, line: np.ndarray, shape: np.ndarray, full: float, n_lines: int):
+    """Lower bounds on the waveform from the clipped pixels: (lines, bounds, weights).
+
+    ``f`` is each clipped pixel's radius in bins of the radial shape ``shape`` (knots),
+    ``line`` its line, ``full`` the clipping level above the background.  A line's bound is
+    ``full`` over the brightest shape among its clipped pixels; its weight the sum of their
+    shapes squared.
+    """
+    if not line.size:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    f = np.minimum(f, shape.size - 1.001)
+    j = np.floor(f).astype(np.intp)
+    env = shape[j] * (j + 1 - f) + shape[j + 1] * (f - j)
+    top = np.zeros(n_lines)
+    np.maximum.at(top, line, env)
+    bounds = np.where(top > 0, full / np.maximum(top, 1e-300), 0.0)
+    return np.arange(n_lines, dtype=float), bounds, np.bincount(line, env * env, minlength=n_lines)
+
+
 def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
     """A round light's waveform, free of its shape, and the square wave that fits it.
 
@@ -367,25 +412,26 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     g = np.asarray(gray, dtype=np.float64)
     m = np.asarray(support, dtype=bool)
     (cx, cy), (aw, ah), angle = ellipse
-    theta = np.deg2rad(float(angle))
+    cx, cy, aw, ah, angle = (float(v) for v in (cx, cy, aw, ah, angle))
+    if not np.all(np.isfinite([cx, cy, aw, ah, angle])):
+        return _failed(np.array([nan, nan]), "the light's outline is not finite")
+    theta = np.deg2rad(angle)
     if axis == "columns":  # work in readout coordinates: lines down axis 0
         g, m, cx, cy, theta = g.T, m.T, cy, cx, 0.5 * np.pi - theta
-    near = cv2.dilate(m.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
-    outside = cv2.dilate(m.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0
-    background = float(np.median(g[outside])) if outside.sum() >= 50 else float(g.min())
-    ly, lx = np.nonzero(near & (g < _CLIP))
-    value = g[ly, lx] - background
-    cy_, cx_ = np.nonzero(near & (g >= _CLIP))
-    radius = 0.25 * (float(aw) + float(ah))
-    if ly.size < 30 or not np.isfinite(radius) or radius <= 0:
-        return LightWave(nan, nan, nan, (nan, nan), np.array([nan, nan]), nan, "too few pixels")
+    (ly, lx, value), (cy_, cx_), background = _pixels(g, m)
+    radius = 0.25 * (aw + ah)
+    if ly.size < 30 or not np.isfinite(background) or radius <= 0:
+        return _failed(np.array([nan, nan]), "too few pixels")
+    if not (m[ly, lx]).any():  # only the background around a disc clipped all over
+        return _failed(np.array([nan, nan]), "the light is clipped all over", conclusive=True)
     c, s_ = np.cos(theta), np.sin(theta)
 
     def rho(x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
         """Elliptical radius about centre (p[0], p[1]), axis ratio exp(p[2]), pixels."""
         dx, dy = x - p[0], y - p[1]
         u, v = dx * c + dy * s_, dy * c - dx * s_
-        return np.hypot(u * np.exp(-0.5 * p[2]), v * np.exp(0.5 * p[2]))
+        r = np.clip(p[2], -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
+        return np.hypot(u * np.exp(-0.5 * r), v * np.exp(0.5 * r))
 
     n_lines = g.shape[0]
     bin_px = max(_BIN_PX, radius / _BINS_PER_RADIUS)
@@ -396,7 +442,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         return _shape_fit(_aggregate(rho(x, y, p), y, v, n_lines, bin_px), g0, iters)
 
     # starts: the given outline and the support's, each round and with the given axis ratio
-    ratio = np.log(max(float(aw), 1e-6) / max(float(ah), 1e-6))
+    ratio = np.clip(np.log(max(aw, 1e-6) / max(ah, 1e-6)), -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
     centres = [(cx, cy)]
     other = outline_ellipse(m, "rows")  # m is in readout coordinates already
     if other is not None:
@@ -420,26 +466,24 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
     _, s, weight, shape = fit(res.x, warm, 12)
-    bound_lines = bounds = bound_weight = np.zeros(0)
-    if cy_.size:  # clipped pixels: s reached at least what clips them
-        f = np.minimum(rho(cx_, cy_, res.x) / bin_px, shape.size - 1.001)
-        j = np.floor(f).astype(np.intp)
-        env = shape[j] * (j + 1 - f) + shape[j + 1] * (f - j)
-        top = np.zeros(n_lines)
-        np.maximum.at(top, cy_, env)
-        bound_weight = np.bincount(cy_, env * env, minlength=n_lines)
-        bound_lines = np.arange(n_lines, dtype=float)
-        bounds = np.where(top > 0, (_CLIP - background) / np.maximum(top, 1e-300), 0.0)
+    bounds = _clip_bounds(rho(cx_, cy_, res.x) / bin_px, cy_, shape, _CLIP - background, n_lines)
     weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
     lines = np.arange(n_lines, dtype=float)
-    period, phase, window, low, high = fit_square_wave(
-        lines, s, weight, bound_lines, bounds, bound_weight
-    )
+    period, phase, window, low, high = fit_square_wave(lines, s, weight, *bounds)
     centre = np.array(res.x[:2], dtype=float)
     if axis == "columns":
         centre = centre[::-1]
     used = np.flatnonzero(weight > 0)
     seen = (used[-1] - used[0] + 1) / period if used.size and np.isfinite(period) else nan
     if not np.isfinite(period):
-        return LightWave(nan, nan, nan, (nan, nan), centre, nan, "too few lines with signal")
+        return _failed(centre, "too few lines with signal")
+    if seen < _MIN_PERIODS:
+        why = f"the light shows {seen:.2f} stripe periods, under one (steady, or too small)"
+        return _failed(centre, why, conclusive=True)
     return LightWave(period, window, phase, (low, high), centre, float(seen))
+
+
+def _failed(centre: np.ndarray, message: str, conclusive: bool = False) -> LightWave:
+    """A failed :class:`LightWave` with its ``message``."""
+    nan = float("nan")
+    return LightWave(nan, nan, nan, (nan, nan), centre, nan, message, conclusive)
