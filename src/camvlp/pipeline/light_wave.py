@@ -199,6 +199,29 @@ def _binned(data, k: int):
     return tuple(out)
 
 
+def _seeds(per_period: np.ndarray, levels: np.ndarray) -> list[int]:
+    """Indices of the periods to search finer: the three best separate ones, and the best of
+    each binning level.
+
+    Binned lines hide the variance within their bins: a short period's wave averaged over
+    half its period looks flat, which a long period fits cheaply, so the costs of two levels
+    are not compared here, only after the finer search on every line.
+    """
+    seeds: list[int] = []
+    order = np.argsort(per_period)
+    for i in order:
+        if np.isfinite(per_period[i]) and all(abs(int(i) - j) > 2 for j in seeds):
+            seeds.append(int(i))
+        if len(seeds) == 3:
+            break
+    for level in np.unique(levels):
+        for i in order[levels[order] == level]:
+            if np.isfinite(per_period[i]) and all(abs(int(i) - j) > 2 for j in seeds):
+                seeds.append(int(i))
+            break
+    return seeds
+
+
 def fit_square_wave(
     lines,
     signal,
@@ -252,17 +275,14 @@ def fit_square_wave(
     # every period the lines could show at least 0.8 of; the longer ones on binned lines
     periods = np.exp(np.arange(np.log(2.5), np.log(span / 0.8), 0.03))
     per_period = np.empty(periods.size)
-    for k, lo, hi in _COARSE_BINS:
+    levels = np.zeros(periods.size, dtype=np.intp)
+    for level, (k, lo, hi) in enumerate(_COARSE_BINS):
         sel = (periods >= lo) & (periods < hi)
+        levels[sel] = level
         if sel.any():
             coarse = _grid(_binned(data, k), periods[sel], 12, (0.05, 0.25, 0.45))
             per_period[sel] = coarse.reshape(int(sel.sum()), -1).min(1)
-    seeds: list[int] = []
-    for i in np.argsort(per_period):
-        if np.isfinite(per_period[i]) and all(abs(int(i) - j) > 2 for j in seeds):
-            seeds.append(int(i))
-        if len(seeds) == 3:
-            break
+    seeds = _seeds(per_period, levels)
     if not seeds:
         return (float("nan"),) * 5
     fractions = np.linspace(0.02, 0.5, 8)
