@@ -71,6 +71,13 @@ def test_too_few_lines_give_nan():
     assert all(np.isnan(v) for v in out)
 
 
+def test_a_region_of_a_few_lines_gives_no_period():
+    # six lines of a light whose period is 14: a period of 2.5 fitted them as well as any
+    gray, support, _ = _striped_disc(size=80)
+    wave = light_wave(gray[37:43], support[37:43], ((40.3, 2.7), (40.0, 40.0), 0.0), "rows")
+    assert not wave and "too few lines" in wave.message
+
+
 def _one_light(periods: float, **style) -> tuple[np.ndarray, FixtureMap, Camera, object]:
     """One 2000 Hz light ``periods`` stripe periods across, seen straight up from 2.7 m."""
     period_px = 1.0 / (2000.0 * ROW_TIME_S)

@@ -45,6 +45,9 @@ _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
 #: of 0) would otherwise stretch the radial bins without end.
 _MAX_LOG_RATIO = float(np.log(20.0))
+#: Fewest lines with signal a square wave (five parameters) is fitted to: on fewer, some
+#: short period fits any profile.
+_MIN_LINES = 10
 #: Fewest stripe periods the lines with signal must span: a steady light (or one too small
 #: for a whole period) fits some long period, never the right one.
 _MIN_PERIODS = 1.0
@@ -254,11 +257,11 @@ def fit_square_wave(
     -------
     period, phase, window, low, high : float
         Period, phase (a rising edge's line, modulo the period) and window, lines; the levels
-        in ``signal``'s units.  NaN when fewer than 6 lines carry weight.
+        in ``signal``'s units.  NaN when fewer than :data:`_MIN_LINES` lines carry weight.
     """
     y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, signal, weight))
     keep = (w > 0) & np.isfinite(s)
-    if keep.sum() < 6:
+    if keep.sum() < _MIN_LINES:
         return (float("nan"),) * 5
     top = float(w[keep].max())
     if bound_lines is None:
