@@ -474,7 +474,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     start = min(starts, key=lambda p: fit(p, None, 6, every)[0])
     warm = fit(start, None, 8)[3]
 
-    unit = fit(start, warm, 2, every)[0] or 1.0  # costs relative to the start's
+    unit = max(fit(start, warm, 2, every)[0], 1e-12)  # costs relative to the start's
 
     def cost(p: np.ndarray) -> float:
         return fit(p, warm, 2, every)[0] / unit
