@@ -216,3 +216,14 @@ def test_a_light_exposed_over_whole_periods_is_left_unidentified_with_its_reason
     decodes, hz, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
     assert len(decodes) == 1 and decodes[0].id is None and np.isnan(hz[0])
     assert "under one" in decodes[0].reason
+
+
+@pytest.mark.parametrize(("period", "n_lines"), [(3.3, 400), (2.6, 200), (5.0, 300)])
+def test_a_short_period_over_many_periods(period, n_lines):
+    # over a hundred periods the coarse 3 % period steps lose the phase; the search also
+    # starts from the spectrum's peak (3.3 lines over 400 came out 3 times too long before)
+    rng = np.random.default_rng(7)
+    lines = np.arange(float(n_lines))
+    signal = 20.0 + 200.0 * _square(lines, period, 1.0, 1.0) + rng.normal(0.0, 3.0, n_lines)
+    p, *_ = fit_square_wave(lines, signal, np.ones(n_lines))
+    assert p == pytest.approx(period, rel=1e-3)

@@ -202,6 +202,35 @@ def _binned(data, k: int):
     return tuple(out)
 
 
+#: A profile showing this many periods or more (by its spectrum's peak) is also searched
+#: around that peak: the coarse 3 % steps would miss the phase over so many periods.
+_MANY_PERIODS = 12.0
+
+
+def _spectral_period(y: np.ndarray, s: np.ndarray, w: np.ndarray) -> float:
+    """The period (lines) of the weighted profile's highest spectral peak; inf if none.
+
+    Zero-padded FFT of the profile on its dense line grid (missing lines 0), the peak
+    refined by a parabola through the log spectrum.
+    """
+    y0 = float(y.min())
+    n = int(y.max() - y0 + 1)
+    dense = np.zeros(n)
+    dense[(y - y0).astype(np.intp)] = (s - np.average(s, weights=w)) * np.sqrt(w)
+    nfft = 1 << int(np.ceil(np.log2(max(16 * n, 1024))))
+    spec = np.abs(np.fft.rfft(dense * np.hanning(n), nfft))
+    freqs = np.fft.rfftfreq(nfft)
+    band = np.flatnonzero((freqs >= 2.0 / n) & (freqs <= 0.4))
+    if band.size < 3:
+        return float("inf")
+    k = int(band[np.argmax(spec[band])])
+    f = freqs[k]
+    a, b, c = np.log(spec[k - 1 : k + 2] + 1e-300)
+    if a - 2 * b + c < 0:
+        f += 0.5 * (a - c) / (a - 2 * b + c) * (freqs[1] - freqs[0])
+    return float(1.0 / f) if f > 0 else float("inf")
+
+
 def _seeds(per_period: np.ndarray, levels: np.ndarray) -> list[int]:
     """Indices of the periods to search finer: the three best separate ones, and the best of
     each binning level.
@@ -289,9 +318,13 @@ def fit_square_wave(
     if not seeds:
         return (float("nan"),) * 5
     fractions = np.linspace(0.02, 0.5, 8)
+    starts = [(periods[i], 0.03) for i in seeds]
+    peak = _spectral_period(data[0], data[1], data[2])
+    if span / peak >= _MANY_PERIODS:  # the coarse steps are too coarse for this many periods
+        starts.append((peak, 0.01))
     best = (np.inf, None)
-    for i in seeds:
-        fine = periods[i] * np.exp(np.linspace(-0.03, 0.03, 9))
+    for period, reach in starts:
+        fine = period * np.exp(np.linspace(-reach, reach, 9))
         cost = _grid(data, fine, 16, fractions)
         k = np.unravel_index(int(np.argmin(cost)), cost.shape)
         if cost[k] < best[0]:
