@@ -11,8 +11,9 @@ lights within 1 %) and the centre error (median and worst, px, against the proje
 centre), then per exposure, noise and readout, and overall, with how many lights showing 1.5
 periods or more came out within 1 %, and the time ``locate`` took per photo.
 
-Run: ``python benchmarks/bench_frequency.py [--quick]`` (about three minutes; ``--quick``, one
-exposure and one readout, takes a sixth of that).
+Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
+(about four minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
+``--plot`` draws each light's error against the periods it shows).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import argparse
 import itertools
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -124,6 +126,7 @@ def _line(label: str, rows: list) -> str:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one exposure, no readout sweep")
+    parser.add_argument("--plot", type=Path, help="save the errors against periods shown (PNG)")
     args = parser.parse_args(argv)
     exposures = (0.2,) if args.quick else EXPOSURES
     readouts = READOUTS[:1] if args.quick else READOUTS
@@ -160,6 +163,48 @@ def main(argv=None) -> None:
         f"locate per photo of four lights: median {1e3 * np.median(_LOCATE_S):.0f} ms, "
         f"90th percentile {1e3 * np.percentile(_LOCATE_S, 90):.0f} ms"
     )
+    if args.plot:
+        plot(by["style"], args.plot)
+        print(f"wrote {args.plot}")
+
+
+def plot(by_style: dict, path: Path) -> None:
+    """Each light's frequency error against the periods it shows, one panel per style, with
+    the 1 % line and the share within it per periods shown."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(by_style), figsize=(3.2 * len(by_style), 3.8), sharey=True)
+    rng = np.random.default_rng(0)  # horizontal jitter only, to show the points' density
+    for ax, (style, rows) in zip(np.atleast_1d(axes), by_style.items(), strict=True):
+        a = np.array(rows, dtype=float).reshape(-1, 3)
+        shown = np.round(a[:, 0] * 2) / 2
+        err = np.where(np.isfinite(a[:, 1]), a[:, 1], 100.0)  # a miss drawn at the top
+        ax.scatter(
+            shown * np.exp(rng.uniform(-0.06, 0.06, shown.size)),
+            np.maximum(err, 1e-3),
+            s=5,
+            alpha=0.35,
+            color=np.where(err < 1.0, "tab:green", "tab:red"),
+        )
+        ax.axhline(1.0, color="k", lw=0.8, ls="--")
+        for p in np.unique(shown):
+            sel = shown == p
+            ax.text(p, 40.0, f"{100 * np.mean(err[sel] < 1.0):.0f}", ha="center", fontsize=7)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xticks(PERIODS, [f"{p:g}" for p in PERIODS])
+        ax.minorticks_off()
+        ax.set_ylim(1e-3, 100)
+        ax.set_title(style, fontsize=10)
+        ax.set_xlabel("periods shown")
+    np.atleast_1d(axes)[0].set_ylabel("frequency error (%); top: % within 1 %")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 if __name__ == "__main__":
