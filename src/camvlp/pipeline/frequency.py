@@ -69,7 +69,7 @@ def period_uncertainty(periods_spanned) -> np.ndarray:
     0.09 % over 10).  It was set as the worst error of the periodic fit
     (``estimate_stripe_period``); for the waveform fit now used (``light_wave``) it lies well
     above the median errors of ``benchmarks/bench_frequency.py`` (0.1 to 0.7 % over 1.5
-    periods, 0.01 to 0.2 % over 4) but below the worst of saturated lights with edges
+    periods, 0.02 to 0.23 % over 4) but below the worst of saturated lights with edges
     sharper than a row (7 % over 1.5 periods, 1.3 % over 4).
     """
     n = np.maximum(np.asarray(periods_spanned, dtype=float), 1.0)
