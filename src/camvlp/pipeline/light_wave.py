@@ -30,6 +30,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.pipeline.stripes import spectral_peak
+
 __all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse"]
 
 #: Width of the bins of the light's radial shape ``g``: at least half a pixel, at most
@@ -212,24 +214,14 @@ _MANY_PERIODS = 12.0
 def _spectral_period(y: np.ndarray, s: np.ndarray, w: np.ndarray) -> float:
     """The period (lines) of the weighted profile's highest spectral peak; inf if none.
 
-    Zero-padded FFT of the profile on its dense line grid (missing lines 0), the peak
-    refined by a parabola through the log spectrum.
+    The profile on its dense line grid (missing lines 0), :func:`spectral_peak` over 2
+    cycles across it to 0.4 cycles per line.
     """
     y0 = float(y.min())
     n = int(y.max() - y0 + 1)
     dense = np.zeros(n)
     dense[(y - y0).astype(np.intp)] = (s - np.average(s, weights=w)) * np.sqrt(w)
-    nfft = 1 << int(np.ceil(np.log2(max(16 * n, 1024))))
-    spec = np.abs(np.fft.rfft(dense * np.hanning(n), nfft))
-    freqs = np.fft.rfftfreq(nfft)
-    band = np.flatnonzero((freqs >= 2.0 / n) & (freqs <= 0.4))
-    if band.size < 3:
-        return float("inf")
-    k = int(band[np.argmax(spec[band])])
-    f = freqs[k]
-    a, b, c = np.log(spec[k - 1 : k + 2] + 1e-300)
-    if a - 2 * b + c < 0:
-        f += 0.5 * (a - c) / (a - 2 * b + c) * (freqs[1] - freqs[0])
+    f = spectral_peak(dense, 2.0 / n, 0.4, pad=16, min_nfft=1024)
     return float(1.0 / f) if f > 0 else float("inf")
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from camvlp.pipeline.detect import gray_float
 
-__all__ = ["AXES", "StripePeriod", "estimate_stripe_period"]
+__all__ = ["AXES", "StripePeriod", "estimate_stripe_period", "spectral_peak"]
 
 
 #: Axis names: "rows" = stripes horizontal, the period is measured down the image rows
@@ -102,6 +102,47 @@ def _refine(x: np.ndarray, y: np.ndarray, w: np.ndarray, f0: float, n: int) -> f
     return float(res.x)
 
 
+def spectral_peak(
+    signal: np.ndarray, f_min: float, f_max: float, *, pad: int, min_nfft: int
+) -> float:
+    """Frequency of the highest peak of a profile's spectrum within ``[f_min, f_max]``.
+
+    The spectrum of ``signal`` (Hann-windowed, zero-padded to at least ``pad`` times its
+    length and ``min_nfft`` samples, a power of two); the peak refined by a parabola through
+    the log spectrum.
+
+    Parameters
+    ----------
+    signal : ndarray, shape (n,)
+        The profile, one sample per line (its mean or trend removed).
+    f_min, f_max : float
+        The band searched, cycles per sample.
+    pad, min_nfft : int, keyword-only
+        Zero padding: the FFT length is the power of two at or above ``max(pad * n,
+        min_nfft)``.
+
+    Returns
+    -------
+    float
+        Cycles per sample; NaN when the band holds no frequency.
+    """
+    n = signal.size
+    nfft = 1 << int(np.ceil(np.log2(max(pad * n, min_nfft))))
+    spec = np.abs(np.fft.rfft(signal * np.hanning(n), nfft))
+    freqs = np.fft.rfftfreq(nfft)
+    band = np.flatnonzero((freqs >= f_min) & (freqs <= f_max))
+    if not band.size:
+        return float("nan")
+    k = int(band[np.argmax(spec[band])])
+    f0 = float(freqs[k])
+    if 0 < k < len(spec) - 1:  # parabolic interpolation of the log spectrum's peak
+        a, b, c = np.log(spec[k - 1 : k + 2] + 1e-300)
+        den = a - 2 * b + c
+        if den < 0:
+            f0 = float(freqs[k] + 0.5 * (a - c) / den * (freqs[1] - freqs[0]))
+    return f0
+
+
 def _period_along(img: np.ndarray, mask: np.ndarray, axis: str, near: float | None) -> StripePeriod:
     nan = float("nan")
     counts, sums, sq = _line_sums(img, mask, axis)
@@ -137,19 +178,9 @@ def _period_along(img: np.ndarray, mask: np.ndarray, axis: str, near: float | No
     if near is not None and np.isfinite(near) and near > 0:
         f0 = min(1.0 / near, 0.48)
     else:
-        nfft = 1 << int(np.ceil(np.log2(max(64 * n, 4096))))
-        spec = np.abs(np.fft.rfft(resid * np.hanning(n), nfft))
-        freqs = np.fft.rfftfreq(nfft)
-        band = (freqs >= 1.5 / n) & (freqs <= 0.48)
-        if not band.any():
+        f0 = spectral_peak(resid, 1.5 / n, 0.48, pad=64, min_nfft=4096)
+        if not np.isfinite(f0):
             return StripePeriod(nan, axis, 0.0, message="the region is too short")
-        k = int(np.flatnonzero(band)[np.argmax(spec[band])])
-        f0 = freqs[k]
-        if 0 < k < len(spec) - 1:  # parabolic interpolation of the log spectrum's peak
-            a, b, cc = np.log(spec[k - 1 : k + 2] + 1e-300)
-            den = a - 2 * b + cc
-            if den < 0:
-                f0 = freqs[k] + 0.5 * (a - cc) / den * (freqs[1] - freqs[0])
 
     # Refine: least-squares fit of trend + harmonics, optimised over the frequency.
     f = _refine(x, y, w, f0, n)
