@@ -290,9 +290,7 @@ def detect_fixtures(
         refined = _refine(img, box, readout, kernel_px, min_diameter_px)
         if refined is not None:
             found.append(refined)
-    fits = {id(b): fit for b, fit in found}
-    blobs = _drop_duplicates([b for b, _ in found])
-    blobs = _with_covariances(blobs, [fits[id(b)] for b in blobs])
+    blobs = _with_covariances(_drop_duplicates(found))
     blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
     return Detection(tuple(blobs), s, binary, thr)
 
@@ -340,27 +338,28 @@ def _close_lit(binary: np.ndarray, k: int, max_boxes: int = 16) -> np.ndarray:
     return out
 
 
-def _with_covariances(blobs: list[Blob], fits: list) -> list[Blob]:
+def _with_covariances(found: list[tuple[Blob, tuple | None]]) -> list[Blob]:
     """The blobs with their centres' covariances, all worked at once
-    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`); ``fits`` holds each blob's
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`); each blob comes with its
     ellipse fit as :func:`_refine` gives it (None for a centroid: its covariance stays NaN)."""
-    k = [i for i, f in enumerate(fits) if f is not None]
+    blobs = [b for b, _ in found]
+    k = [i for i, (_, fit) in enumerate(found) if fit is not None]
     if not k:
         return blobs
-    covs = ellipse_centre_covariances([fits[i] for i in k])
-    out = list(blobs)
+    covs = ellipse_centre_covariances([found[i][1] for i in k])
     for i, cov in zip(k, covs, strict=True):
-        out[i] = dataclasses.replace(blobs[i], centre_cov_px2=cov)
-    return out
+        blobs[i] = dataclasses.replace(blobs[i], centre_cov_px2=cov)
+    return blobs
 
 
-def _drop_duplicates(blobs: list[Blob]) -> list[Blob]:
-    """Two candidates whose refined discs are the same fixture: keep the larger."""
-    keep: list[Blob] = []
-    for b in sorted(blobs, key=lambda b: -np.count_nonzero(b.mask)):
+def _drop_duplicates(found: list[tuple[Blob, tuple | None]]) -> list[tuple[Blob, tuple | None]]:
+    """Two candidates whose refined discs are the same fixture: keep the larger (each blob
+    with its ellipse fit)."""
+    keep: list[tuple[Blob, tuple | None]] = []
+    for b, fit in sorted(found, key=lambda bf: -np.count_nonzero(bf[0].mask)):
         r = 0.5 * float(b.axes_px[1])
-        if all(np.hypot(*(b.pixel - k.pixel)) > max(r, 0.5 * float(k.axes_px[1])) for k in keep):
-            keep.append(b)
+        if all(np.hypot(*(b.pixel - k.pixel)) > max(r, 0.5 * float(k.axes_px[1])) for k, _ in keep):
+            keep.append((b, fit))
     return keep
 
 
