@@ -10,9 +10,9 @@ from camvlp.io import load_camera, load_map
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.linecode import FrameFormat
+from camvlp.sim.light import on_fraction
 from camvlp.sim.render import (
     RenderSettings,
-    _on_fraction,
     all_fully_inside,
     fixture_truths,
     render,
@@ -149,7 +149,7 @@ def test_on_fraction_matches_numerical_integration():
     rng = np.random.default_rng(1)
     starts = rng.uniform(-0.01, 0.01, 50)
     for exposure in (3e-6, 37e-6, 250e-6, 5e-3):
-        got = _on_fraction(chips, chip_s, starts, exposure)
+        got = on_fraction(chips, chip_s, starts, exposure)
         tt = starts[:, None] + np.linspace(0, exposure, 20001)[None, :]
         state = chips[np.floor(tt / chip_s).astype(int) % chips.size]
         want = np.trapezoid(state, dx=1.0, axis=1) / 20000

@@ -46,6 +46,7 @@ from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.sim.light import coverage, on_fraction, pixel_box
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -488,89 +489,8 @@ def tilt_limit(
 # Rolling shutter
 
 
-def _on_fraction(
-    chips: np.ndarray, chip_s: float, t_start: np.ndarray, exposure_s: float
-) -> np.ndarray:
-    """Fraction of each exposure window ``[t, t + exposure]`` the LED is on.
-
-    Parameters
-    ----------
-    chips : ndarray of {0, 1}, shape (N,)
-        One period of the LED's chips (1 = on), each ``chip_s`` seconds long.
-    chip_s : float
-        Chip duration, s.
-    t_start : ndarray, shape (K,)
-        Window starts, s, in the LED's own time (chip 0 starts at 0).
-    exposure_s : float
-        Window length, s.
-
-    Returns
-    -------
-    ndarray of float64, shape (K,)
-        On fractions in [0, 1].
-    """
-    c = np.asarray(chips, dtype=np.float64)
-    period = c.size * chip_s
-    knots = np.arange(c.size + 1) * chip_s
-    cumulative = np.concatenate([[0.0], np.cumsum(c) * chip_s])  # on-time up to each knot
-
-    def on_time(t: np.ndarray) -> np.ndarray:
-        cycles = np.floor(t / period)
-        return cycles * cumulative[-1] + np.interp(t - cycles * period, knots, cumulative)
-
-    t = np.asarray(t_start, dtype=np.float64)
-    return np.clip((on_time(t + exposure_s) - on_time(t)) / exposure_s, 0.0, 1.0)
-
-
 # --------------------------------------------------------------------------------------------
 # Rendering
-
-
-def _box(rim_px: np.ndarray, width: int, height: int, margin: int):
-    """Pixel bounding box (u0, u1, v0, v1), end-exclusive, of a projected rim; None if empty."""
-    if np.all(np.isfinite(rim_px)):
-        u0 = math.floor(rim_px[:, 0].min()) - margin
-        u1 = math.ceil(rim_px[:, 0].max()) + margin + 1
-        v0 = math.floor(rim_px[:, 1].min()) - margin
-        v1 = math.ceil(rim_px[:, 1].max()) + margin + 1
-    else:  # the disc crosses the camera's plane: search the whole image
-        u0, u1, v0, v1 = 0, width, 0, height
-    u0, v0 = max(u0, 0), max(v0, 0)
-    u1, v1 = min(u1, width), min(v1, height)
-    if u1 <= u0 or v1 <= v0:
-        return None
-    return u0, u1, v0, v1
-
-
-def _coverage(
-    camera: Camera, pose: Pose, centre: np.ndarray, normal: np.ndarray, radius: float, box
-) -> tuple[np.ndarray, np.ndarray]:
-    """Anti-aliased disc coverage over a pixel box, float32 shape (v1 - v0, u1 - u0), and
-    each pixel's distance from the centre on the disc's plane in radii (same shape)."""
-    u0, u1, v0, v1 = box
-    uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
-    xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
-    rays = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1) @ pose.world_from_camera.T
-    denom = rays @ normal
-    offset = (centre - pose.position) @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = offset / denom
-    valid = np.isfinite(t) & (t > 0)
-    hit = pose.position + np.where(valid, t, 0.0)[:, None] * rays
-    rho = np.linalg.norm(hit - centre, axis=1)
-    far = 1e3 * radius + 1e3 * float(np.abs(pose.position - centre).max())
-    rho = np.where(valid, rho, far).reshape(uu.shape)
-    if rho.shape[0] > 1 and rho.shape[1] > 1:
-        gv, gu = np.gradient(rho)
-        scale = np.hypot(gu, gv)
-    elif rho.size > 1:
-        scale = np.abs(np.gradient(rho.ravel())).reshape(rho.shape)
-    else:
-        scale = np.full(rho.shape, radius)
-    scale = np.maximum(scale, 1e-12 * radius)
-    cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
-    cov[~valid.reshape(uu.shape)] = 0.0
-    return cov.astype(np.float32), (rho / radius).astype(np.float32)
 
 
 def _colours(settings: RenderSettings, n: int) -> np.ndarray:
@@ -589,6 +509,99 @@ def distinct_colours(n: int) -> tuple[tuple[float, float, float], ...]:
     hsv = np.stack([np.round(hues * 179).astype(np.uint8), full, full], axis=1).reshape(1, n, 3)
     bgr = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).reshape(n, 3) / 255.0
     return tuple(tuple(float(x) for x in c) for c in bgr)
+
+
+@dataclass(frozen=True)
+class LightPatch:
+    """One fixture's light on the sensor, before exposure and noise.
+
+    Attributes
+    ----------
+    index : int
+        The fixture's index in the map.
+    box : tuple of int
+        Pixel box ``(u0, u1, v0, v1)``, end-exclusive.
+    shape : ndarray of float32, shape (v1 - v0, u1 - u0)
+        The light's image when fully on, in units of ``brightness``: anti-aliased disc
+        coverage, with the hot core and halo, blurred.
+    lines : ndarray of int, shape (K,)
+        Sensor line (readout order) of each box row, or column for a readout along columns.
+    chips : ndarray of {0, 1}
+        One period of the LED's waveform, each chip ``chip_s`` seconds.
+    chip_s, phase_s, smooth_s : float
+        Chip length, the LED's phase and the slow driver's smoothing time, s.
+    colour : ndarray of float32, shape (3,)
+        BGR colour in 0..1.
+    rho : ndarray of float32, shape of ``shape``
+        Each pixel's distance from the disc's centre on its plane, in radii.
+    """
+
+    index: int
+    box: tuple[int, int, int, int]
+    shape: np.ndarray
+    lines: np.ndarray
+    chips: np.ndarray
+    chip_s: float
+    phase_s: float
+    smooth_s: float
+    colour: np.ndarray
+    rho: np.ndarray
+
+    def on_fraction(
+        self, row_time_s: float, exposure_s: float, off_level: float = 0.0
+    ) -> np.ndarray:
+        """Fraction of each line's exposure (s) the LED is on, float64 shape (K,); a soft
+        waveform is integrated over a longer, centred window; ``off_level`` is the light
+        an LED gives when off, fraction of on."""
+        on = on_fraction(
+            self.chips,
+            self.chip_s,
+            self.lines * row_time_s + self.phase_s - 0.5 * self.smooth_s,
+            exposure_s + self.smooth_s,
+        )
+        return off_level + (1.0 - off_level) * on if off_level > 0 else on
+
+
+def light_patches(
+    camera: Camera, fixture_map: FixtureMap, pose: Pose, settings: RenderSettings
+) -> list[LightPatch]:
+    """Each drawn fixture's light (:class:`LightPatch`): those in front of the camera, seen
+    from the front, and with a box in the image.  ``settings`` are resolved for ``camera``."""
+    s = settings.resolved(camera)
+    colours = _colours(s, len(fixture_map.fixtures))
+    truths, normals, rims = _truths(camera, fixture_map, pose, s)
+    w, h = camera.width, camera.height
+    margin = math.ceil(4.0 * s.blur_px) + 2
+    out = []
+    for i, (f, n, rim_px, truth) in enumerate(
+        zip(fixture_map.fixtures, normals, rims, truths, strict=True)
+    ):
+        if not truth.in_front or n @ (pose.position - f.position) <= 0:
+            continue  # behind the camera, or seen from the fixture's back
+        extra = 0
+        if s.halo > 0 and np.all(np.isfinite(rim_px)):  # room for the glow
+            extra = math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
+        box = pixel_box(rim_px, w, h, margin + extra)
+        if box is None:
+            continue
+        cov, rho = coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
+        if s.core > 0:  # brighter towards the centre
+            cov = cov * (1.0 + np.float32(s.core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
+        if s.halo > 0:  # a glow outside the rim
+            glow = np.float32(s.halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
+            cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
+        if s.blur_px > 0:
+            cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
+        u0, u1, v0, v1 = box
+        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        k = np.arange(v0, v1) if s.readout.by_rows else np.arange(u0, u1)
+        if s.readout.reversed:  # sensor row 0 is the last image row (column)
+            k = (h if s.readout.by_rows else w) - 1 - k
+        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
+        out.append(
+            LightPatch(i, box, cov, k, chips, chip_s, truth.phase_s, smooth, colours[i], rho)
+        )
+    return out
 
 
 def render(
@@ -624,45 +637,15 @@ def render(
     for f in fixture_map.fixtures:
         if f.diameter is None:
             raise ValueError(f"fixture {f.id} has no diameter (needed to render it)")
-    colours = _colours(s, len(fixture_map.fixtures))
-    truths, normals, rims = _truths(camera, fixture_map, pose, s)
-    w, h = camera.width, camera.height
-    margin = math.ceil(4.0 * s.blur_px) + 2
+    truths = _truths(camera, fixture_map, pose, s)[0]
     patches = []  # (v0, v1, u0, u1, signal float32 (bh, bw, 3))
-    for f, n, rim_px, truth, colour in zip(
-        fixture_map.fixtures, normals, rims, truths, colours, strict=True
-    ):
-        if not truth.in_front or n @ (pose.position - f.position) <= 0:
-            continue  # behind the camera, or seen from the fixture's back
-        extra = 0
-        if s.halo > 0 and np.all(np.isfinite(rim_px)):  # room for the glow
-            extra = math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
-        box = _box(rim_px, w, h, margin + extra)
-        if box is None:
-            continue
-        cov, rho = _coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
-        if s.core > 0:  # brighter towards the centre
-            cov = cov * (1.0 + np.float32(s.core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
-        if s.halo > 0:  # a glow outside the rim
-            glow = np.float32(s.halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
-            cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
-        if s.blur_px > 0:
-            cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
-        u0, u1, v0, v1 = box
-        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
-        by_rows = s.readout.by_rows
-        k = np.arange(v0, v1) if by_rows else np.arange(u0, u1)
-        if s.readout.reversed:  # sensor row 0 is the last image row (column)
-            k = (h if by_rows else w) - 1 - k
-        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
-        on = _on_fraction(  # a soft waveform: integrated over a longer, centred window
-            chips, chip_s, k * s.row_time_s + truth.phase_s - 0.5 * smooth, s.exposure_s + smooth
-        )
-        if s.off_level > 0:  # an LED that is not fully off
-            on = s.off_level + (1.0 - s.off_level) * on
-        on = on.astype(np.float32)
-        lit = cov * (on[:, None] if by_rows else on[None, :]) * np.float32(s.brightness)
-        patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
+    for light in light_patches(camera, fixture_map, pose, s):
+        on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level).astype(np.float32)
+        lit = light.shape * (on[:, None] if s.readout.by_rows else on[None, :])
+        lit *= np.float32(s.brightness)
+        u0, u1, v0, v1 = light.box
+        patches.append((v0, v1, u0, u1, lit[:, :, None] * light.colour[None, None, :]))
+    w, h = camera.width, camera.height
     image = _expose(patches, w, h, s)
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])

@@ -38,6 +38,7 @@ from camvlp.io.files import read_text_file
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
+from camvlp.sim.light import on_fraction, pixel_box
 from camvlp.sim.render import FixtureTruth, RenderSettings
 
 __all__ = [
@@ -294,7 +295,7 @@ def render_frame(
         rims = [_render._project_within_field(camera, p, rim, field)[0] for p in ends]
         if not all(np.all(np.isfinite(r)) for r in rims):
             continue
-        box = _render._box(np.concatenate(rims), w, h, margin + 2)
+        box = pixel_box(np.concatenate(rims), w, h, margin + 2)
         if box is None:
             continue
         u0, u1, v0, v1 = box
@@ -311,7 +312,7 @@ def render_frame(
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         chips, chip_s = _render._waveform(fixture_map, f, s.chip_rate_hz)
         start = row_t - 0.5 * s.exposure_s + truth.phase_s
-        on = _render._on_fraction(chips, chip_s, start, s.exposure_s).astype(np.float32)
+        on = on_fraction(chips, chip_s, start, s.exposure_s).astype(np.float32)
         lit = cov * (on[:, None] if s.readout.by_rows else on[None, :]) * np.float32(s.brightness)
         patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
     image = _render._expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
