@@ -11,6 +11,13 @@ lights within 1 %) and the centre error (median and worst, px, against the proje
 centre), then per exposure, noise and readout, and overall, with how many lights showing 1.5
 periods or more came out within 1 %, and the time ``locate`` took per photo.
 
+Each light is also measured against the best any method could do: the Cramer-Rao bound of
+its frequency from the renderer's own physics and noise, JPEG's error included
+(:func:`camvlp.sim.bound.frequency_bounds`).  The columns "bound" give its median standard
+deviation and the share of lights an unbiased measurement that reached it would bring within
+1 %; the last lines, how many that is over the whole sweep and the measured errors over the
+bound (an efficient measurement's median is 0.67).
+
 Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
 (about four minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
 ``--plot`` draws each light's error against the periods it shows).
@@ -30,6 +37,7 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.sim.bound import frequency_bounds, share_within
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 1.0 / 47_540.0
@@ -76,8 +84,10 @@ def _room(periods: float, style: str) -> tuple[FixtureMap, Camera]:
     return FixtureMap(fixtures, mode="frequency"), camera
 
 
-def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float, float, float]]:
-    """(periods shown, frequency error %, centre error px) per light; NaN errors if missed."""
+def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float, ...]]:
+    """(periods shown, frequency error %, centre error px, the bound %) per light: NaN errors
+    if missed; the bound is the Cramer-Rao bound of the frequency error's standard deviation
+    (:func:`camvlp.sim.bound.frequency_bounds`)."""
     fmap, camera = _room(periods, style)
     read_noise, quality = NOISES[noise]
     settings = RenderSettings(
@@ -90,36 +100,39 @@ def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float
     )
     pose = Pose.from_euler([0.01, 0.0, -0.02], [90.0, 0.0, 0.0])
     photo = render(camera, fmap, pose, settings)
-    image = photo.image
+    image, jpeg_error = photo.image, None
     if quality is not None:
         _, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
         image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        jpeg_error = image.astype(np.float32) - photo.image
+    bounds = 100.0 * frequency_bounds(camera, fmap, pose, settings, jpeg_error)
     t0 = time.perf_counter()
     res = locate(image, camera, fmap)
     _LOCATE_S.append(time.perf_counter() - t0)
     rows = []
-    for t in photo.fixtures:
+    for t, bound in zip(photo.fixtures, bounds, strict=True):
         near = [f for f in res.fixtures if np.hypot(*(f.pixel - t.pixel)) < 0.5 * t.rows_spanned]
         if not near or not np.isfinite(near[0].frequency_hz):
-            rows.append((t.frames_spanned, float("nan"), float("nan")))
+            rows.append((t.frames_spanned, float("nan"), float("nan"), bound))
             continue
         f = near[0]
         true_hz = fmap.get(t.id).frequency_hz
         err = 100.0 * abs(f.frequency_hz / true_hz - 1.0)
-        rows.append((t.frames_spanned, err, float(np.hypot(*(f.pixel - t.pixel)))))
+        rows.append((t.frames_spanned, err, float(np.hypot(*(f.pixel - t.pixel))), bound))
     return rows
 
 
 def _line(label: str, rows: list) -> str:
-    a = np.array(rows, dtype=float).reshape(-1, 3)
+    a = np.array(rows, dtype=float).reshape(-1, 4)
     got = np.isfinite(a[:, 1])
+    reach = f"{np.median(a[:, 3]):7.3f} {100.0 * np.nanmean(share_within(a[:, 3] / 100.0)):6.1f}"
     if not got.any():
-        return f"{label:<28} {a.shape[0]:5d} {a.shape[0]:5d}"
+        return f"{label:<28} {a.shape[0]:5d} {a.shape[0]:5d}   {'':>20}   {'':>13}   {reach}"
     fe, ce = a[got, 1], a[got, 2]
     within = 100.0 * np.mean(got & (a[:, 1] < 1.0))
     return (
         f"{label:<28} {a.shape[0]:5d} {int((~got).sum()):5d}   {np.median(fe):6.2f} "
-        f"{fe.max():6.2f} {within:6.1f}   {np.median(ce):6.2f} {ce.max():6.2f}"
+        f"{fe.max():6.2f} {within:6.1f}   {np.median(ce):6.2f} {ce.max():6.2f}   {reach}"
     )
 
 
@@ -142,10 +155,10 @@ def main(argv=None) -> None:
         by["exposure (of a 4000 Hz period)"][f"{exposure:.2f}"] += rows
         by["noise"][noise] += rows
         by["readout"][readout] += rows
-    head = f"{'':<28} {'n':>5} {'miss':>5}   {'freq err %':>20}   {'centre px':>13}"
+    head = f"{'':<28} {'n':>5} {'miss':>5}   {'freq err %':>20}   {'centre px':>13}   {'bound':>14}"
     sub = (
         f"{'':<28} {'':>5} {'':>5}   {'median':>6} {'worst':>6} {'<1 %':>6}   "
-        f"{'median':>6} {'worst':>6}"
+        f"{'median':>6} {'worst':>6}   {'sigma %':>7} {'<1 %':>6}"
     )
     for name, groups in by.items():
         print(f"\nby {name}\n{head}\n{sub}")
@@ -155,9 +168,13 @@ def main(argv=None) -> None:
     a = np.array(everything)
     shown = a[:, 0] >= 1.45  # 1.5 periods, to rounding
     within = shown & (a[:, 1] < 1.0)
+    reach = share_within(a[shown, 3] / 100.0)
+    ratio = a[shown, 1] / a[shown, 3]
     print(
         f"lights showing >= 1.5 periods within 1 %: {int(within.sum())} of {int(shown.sum())}"
-        f" ({time.perf_counter() - t0:.0f} s)"
+        f" (the bound expects {np.nansum(reach):.1f}; error / bound: median "
+        f"{np.nanmedian(ratio):.1f}, 90th percentile {np.nanpercentile(ratio, 90):.1f}) "
+        f"({time.perf_counter() - t0:.0f} s)"
     )
     print(
         f"locate per photo of four lights: median {1e3 * np.median(_LOCATE_S):.0f} ms, "
@@ -170,7 +187,8 @@ def main(argv=None) -> None:
 
 def plot(by_style: dict, path: Path) -> None:
     """Each light's frequency error against the periods it shows, one panel per style, with
-    the 1 % line and the share within it per periods shown."""
+    the 1 % line, the share within it per periods shown, and in grey each light's bound (the
+    smallest standard deviation any measurement could have)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -179,7 +197,7 @@ def plot(by_style: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, len(by_style), figsize=(3.2 * len(by_style), 3.8), sharey=True)
     rng = np.random.default_rng(0)  # horizontal jitter only, to show the points' density
     for ax, (style, rows) in zip(np.atleast_1d(axes), by_style.items(), strict=True):
-        a = np.array(rows, dtype=float).reshape(-1, 3)
+        a = np.array(rows, dtype=float).reshape(-1, 4)
         shown = np.round(a[:, 0] * 2) / 2
         err = np.where(np.isfinite(a[:, 1]), a[:, 1], 100.0)  # a miss drawn at the top
         ax.scatter(
@@ -188,6 +206,15 @@ def plot(by_style: dict, path: Path) -> None:
             s=5,
             alpha=0.35,
             color=np.where(err < 1.0, "tab:green", "tab:red"),
+        )
+        bound = a[:, 3]
+        ax.scatter(  # the best any method could do: the bound's standard deviation
+            shown * np.exp(rng.uniform(-0.06, 0.06, shown.size)),
+            np.clip(bound, 1e-3, 100.0),
+            s=14,
+            alpha=0.5,
+            color="0.35",
+            marker="_",
         )
         ax.axhline(1.0, color="k", lw=0.8, ls="--")
         for p in np.unique(shown):
@@ -200,7 +227,12 @@ def plot(by_style: dict, path: Path) -> None:
         ax.set_ylim(1e-3, 100)
         ax.set_title(style, fontsize=10)
         ax.set_xlabel("periods shown")
-    np.atleast_1d(axes)[0].set_ylabel("frequency error (%); top: % within 1 %")
+    np.atleast_1d(axes)[0].set_ylabel("frequency error (%)")
+    fig.suptitle(
+        "dots: each light's error (numbers: % within 1 %);  grey dashes: its bound, the "
+        "smallest standard deviation any measurement could have",
+        fontsize=9,
+    )
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
