@@ -60,16 +60,31 @@ def test_each_row_sees_the_pose_at_its_own_time():
         assert np.linalg.norm(at_mid[k] - c) > 2.0  # not where the middle row would
 
 
-def test_still_camera_matches_the_photo_renderer():
+@pytest.mark.parametrize(
+    "look",
+    [
+        {},
+        {"off_level": 0.3},
+        {"core": 3.0, "halo": 0.4},
+        {"soft": 0.3, "exposure_s": 17.7e-4, "blur_px": 1.2},  # soft: a window of 18 chips
+    ],
+)
+def test_still_camera_matches_the_photo_renderer(look):
+    # every look of a light (off level, hot core, halo, soft driver, blur) in videos too
+    import dataclasses
+
     from camvlp.sim.render import render
 
     pose = Pose.from_euler([0.1, 0.0, -0.05], [90.0, 1.0, 20.0])
     traj = Trajectory(
         np.array([0.0, 1.0]), np.tile(pose.position, (2, 1)), np.tile(pose.euler_deg, (2, 1))
     )
-    moving = render_frame(CAM, ROOM, traj, 0.5, STEADY).image.astype(int)
-    still = render(CAM, ROOM, pose, STEADY).image.astype(int)
+    settings = dataclasses.replace(STEADY, brightness=0.6, **look)
+    moving = render_frame(CAM, ROOM, traj, 0.5, settings).image.astype(int)
+    still = render(CAM, ROOM, pose, settings).image.astype(int)
     assert np.abs(moving - still).max() <= 1
+    plain = render(CAM, ROOM, pose, dataclasses.replace(STEADY, brightness=0.6)).image
+    assert (np.abs(still - plain.astype(int)).max() > 10) == bool(look)  # the look shows
 
 
 def test_trajectory_file_errors(tmp_path):

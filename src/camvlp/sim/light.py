@@ -12,15 +12,20 @@ import math
 
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera
 
-__all__ = ["coverage", "on_fraction", "pixel_box"]
+__all__ = ["coverage", "glow_margin", "on_fraction", "pixel_box", "shine"]
 
 
 def on_fraction(
-    chips: np.ndarray, chip_s: float, t_start: np.ndarray, exposure_s: float
+    chips: np.ndarray,
+    chip_s: float,
+    t_start: np.ndarray,
+    exposure_s: float,
+    off_level: float = 0.0,
 ) -> np.ndarray:
-    """Fraction of each exposure window ``[t, t + exposure]`` the LED is on.
+    """Fraction of each exposure window ``[t, t + exposure]`` the LED is on (its light over
+    its full light, for an LED that gives ``off_level`` of it when off).
 
     Parameters
     ----------
@@ -32,11 +37,13 @@ def on_fraction(
         Window starts, s, in the LED's own time (chip 0 starts at 0).
     exposure_s : float
         Window length, s.
+    off_level : float
+        Light the LED gives when off, fraction of on (0 to 1).
 
     Returns
     -------
     ndarray of float64, shape (K,)
-        On fractions in [0, 1].
+        On fractions in [off_level, 1].
     """
     c = np.asarray(chips, dtype=np.float64)
     period = c.size * chip_s
@@ -48,7 +55,8 @@ def on_fraction(
         return cycles * cumulative[-1] + np.interp(t - cycles * period, knots, cumulative)
 
     t = np.asarray(t_start, dtype=np.float64)
-    return np.clip((on_time(t + exposure_s) - on_time(t)) / exposure_s, 0.0, 1.0)
+    on = np.clip((on_time(t + exposure_s) - on_time(t)) / exposure_s, 0.0, 1.0)
+    return off_level + (1.0 - off_level) * on if off_level > 0 else on
 
 
 def pixel_box(rim_px: np.ndarray, width: int, height: int, margin: int):
@@ -68,22 +76,59 @@ def pixel_box(rim_px: np.ndarray, width: int, height: int, margin: int):
 
 
 def coverage(
-    camera: Camera, pose: Pose, centre: np.ndarray, normal: np.ndarray, radius: float, box
+    camera: Camera,
+    rotation: np.ndarray,
+    position: np.ndarray,
+    centre: np.ndarray,
+    normal: np.ndarray,
+    radius: float,
+    box,
+    sensor_row: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Anti-aliased disc coverage over a pixel box, float32 shape (v1 - v0, u1 - u0), and
-    each pixel's distance from the centre on the disc's plane in radii (same shape)."""
+    """Anti-aliased disc coverage over a pixel box, and each pixel's distance from the centre.
+
+    Each pixel's ray meets the disc's plane; its distance ``rho`` from the centre gives the
+    coverage ``clip(0.5 - (rho - radius) / |grad rho|, 0, 1)``.
+
+    Parameters
+    ----------
+    camera : Camera
+    rotation, position : ndarray
+        The camera's world-from-camera rotation (3, 3) and position (3,); or, for a moving
+        camera, one per sensor row, (M, 3, 3) and (M, 3), with ``sensor_row`` indexing them.
+    centre, normal : ndarray, shape (3,)
+        The disc's centre and unit normal, map units.
+    radius : float
+        The disc's radius, map units.
+    box : tuple of int
+        Pixel box ``(u0, u1, v0, v1)``, end-exclusive.
+    sensor_row : ndarray of int, shape (v1 - v0, u1 - u0), optional
+        Each pixel's index into ``rotation`` and ``position`` (a moving camera).
+
+    Returns
+    -------
+    coverage, rho : ndarray of float32, shape (v1 - v0, u1 - u0)
+        The coverage in 0..1 and the distance from the centre in radii.
+    """
     u0, u1, v0, v1 = box
     uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
     xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
-    rays = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1) @ pose.world_from_camera.T
+    rays = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
+    if sensor_row is None:
+        rays = rays @ rotation.T
+        origin = position
+    else:
+        idx = sensor_row.ravel()
+        rays = np.einsum("nij,nj->ni", rotation[idx], rays)
+        origin = position[idx]
     denom = rays @ normal
-    offset = (centre - pose.position) @ normal
+    offset = (centre - origin) @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
         t = offset / denom
     valid = np.isfinite(t) & (t > 0)
-    hit = pose.position + np.where(valid, t, 0.0)[:, None] * rays
+    hit = origin + np.where(valid, t, 0.0)[:, None] * rays
     rho = np.linalg.norm(hit - centre, axis=1)
-    far = 1e3 * radius + 1e3 * float(np.abs(pose.position - centre).max())
+    far = 1e3 * radius + 1e3 * float(np.abs(position - centre).max())
     rho = np.where(valid, rho, far).reshape(uu.shape)
     if rho.shape[0] > 1 and rho.shape[1] > 1:
         gv, gu = np.gradient(rho)
@@ -96,3 +141,24 @@ def coverage(
     cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
     cov[~valid.reshape(uu.shape)] = 0.0
     return cov.astype(np.float32), (rho / radius).astype(np.float32)
+
+
+def shine(cov: np.ndarray, rho: np.ndarray, core: float, halo: float) -> np.ndarray:
+    """A light's look from its disc coverage and distance from the centre (radii), both
+    float32 of one shape: a hot core ``1 + core`` times as bright at the centre as at the rim
+    (a Gaussian bump of sigma 0.4 radius), and a glow outside the rim, ``halo`` times the
+    disc's level just outside it, decaying over half a radius (see
+    :class:`camvlp.sim.render.RenderSettings`).  Returns float32 of the same shape."""
+    if core > 0:
+        cov = cov * (1.0 + np.float32(core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
+    if halo > 0:
+        glow = np.float32(halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
+        cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
+    return cov
+
+
+def glow_margin(rim_px: np.ndarray, halo: float) -> int:
+    """Extra pixels a light's box needs around its projected rim (N, 2) for its halo."""
+    if halo > 0 and np.all(np.isfinite(rim_px)):
+        return math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
+    return 0

@@ -46,7 +46,7 @@ from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.sim.light import coverage, on_fraction, pixel_box
+from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -553,13 +553,13 @@ class LightPatch:
         """Fraction of each line's exposure (s) the LED is on, float64 shape (K,); a soft
         waveform is integrated over a longer, centred window; ``off_level`` is the light
         an LED gives when off, fraction of on."""
-        on = on_fraction(
+        return on_fraction(
             self.chips,
             self.chip_s,
             self.lines * row_time_s + self.phase_s - 0.5 * self.smooth_s,
             exposure_s + self.smooth_s,
+            off_level,
         )
-        return off_level + (1.0 - off_level) * on if off_level > 0 else on
 
 
 def light_patches(
@@ -578,18 +578,13 @@ def light_patches(
     ):
         if not truth.in_front or n @ (pose.position - f.position) <= 0:
             continue  # behind the camera, or seen from the fixture's back
-        extra = 0
-        if s.halo > 0 and np.all(np.isfinite(rim_px)):  # room for the glow
-            extra = math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
-        box = pixel_box(rim_px, w, h, margin + extra)
+        box = pixel_box(rim_px, w, h, margin + glow_margin(rim_px, s.halo))
         if box is None:
             continue
-        cov, rho = coverage(camera, pose, f.position, n, 0.5 * f.diameter, box)
-        if s.core > 0:  # brighter towards the centre
-            cov = cov * (1.0 + np.float32(s.core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
-        if s.halo > 0:  # a glow outside the rim
-            glow = np.float32(s.halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
-            cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
+        cov, rho = coverage(
+            camera, pose.world_from_camera, pose.position, f.position, n, 0.5 * f.diameter, box
+        )
+        cov = shine(cov, rho, s.core, s.halo)
         if s.blur_px > 0:
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         u0, u1, v0, v1 = box

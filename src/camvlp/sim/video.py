@@ -38,7 +38,7 @@ from camvlp.io.files import read_text_file
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
-from camvlp.sim.light import on_fraction, pixel_box
+from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
 from camvlp.sim.render import FixtureTruth, RenderSettings
 
 __all__ = [
@@ -176,48 +176,6 @@ def _row_poses(
     return rot, pos
 
 
-def _moving_coverage(
-    camera: Camera,
-    rot: np.ndarray,
-    pos: np.ndarray,
-    sensor_row: np.ndarray,
-    centre: np.ndarray,
-    normal: np.ndarray,
-    radius: float,
-    box,
-) -> np.ndarray:
-    """Anti-aliased disc coverage over a pixel box, each pixel seen from its row's pose.
-
-    ``rot`` (M, 3, 3) and ``pos`` (M, 3) are the poses of the box's sensor rows, and
-    ``sensor_row`` (bh, bw) indexes them per pixel.  Returns float32 (bh, bw).
-    """
-    u0, u1, v0, v1 = box
-    uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
-    xy = camera.undistort_pixels(np.stack([uu.ravel(), vv.ravel()], axis=1))
-    rays_c = np.concatenate([xy, np.ones((xy.shape[0], 1))], axis=1)
-    idx = sensor_row.ravel()
-    rays = np.einsum("nij,nj->ni", rot[idx], rays_c)
-    origin = pos[idx]
-    denom = rays @ normal
-    offset = (centre - origin) @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = offset / denom
-    valid = np.isfinite(t) & (t > 0)
-    hit = origin + np.where(valid, t, 0.0)[:, None] * rays
-    rho = np.linalg.norm(hit - centre, axis=1)
-    far = 1e3 * radius + 1e3 * float(np.abs(pos - centre).max())
-    rho = np.where(valid, rho, far).reshape(uu.shape)
-    if rho.shape[0] > 1 and rho.shape[1] > 1:
-        gv, gu = np.gradient(rho)
-        scale = np.hypot(gu, gv)
-    else:
-        scale = np.full(rho.shape, radius)
-    scale = np.maximum(scale, 1e-12 * radius)
-    cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
-    cov[~valid.reshape(uu.shape)] = 0.0
-    return cov.astype(np.float32)
-
-
 def row_truths(
     camera: Camera,
     fixture_map: FixtureMap,
@@ -295,7 +253,8 @@ def render_frame(
         rims = [_render._project_within_field(camera, p, rim, field)[0] for p in ends]
         if not all(np.all(np.isfinite(r)) for r in rims):
             continue
-        box = pixel_box(np.concatenate(rims), w, h, margin + 2)
+        rim_all = np.concatenate(rims)
+        box = pixel_box(rim_all, w, h, margin + 2 + glow_margin(rim_all, s.halo))
         if box is None:
             continue
         u0, u1, v0, v1 = box
@@ -307,12 +266,15 @@ def render_frame(
             (np.arange(k.size)[:, None] if s.readout.by_rows else np.arange(k.size)[None, :]),
             (v1 - v0, u1 - u0),
         )
-        cov = _moving_coverage(camera, rot, pos, grid, f.position, n, 0.5 * f.diameter, box)
+        cov, rho = coverage(camera, rot, pos, f.position, n, 0.5 * f.diameter, box, grid)
+        cov = shine(cov, rho, s.core, s.halo)
         if s.blur_px > 0:
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         chips, chip_s = _render._waveform(fixture_map, f, s.chip_rate_hz)
-        start = row_t - 0.5 * s.exposure_s + truth.phase_s
-        on = on_fraction(chips, chip_s, start, s.exposure_s).astype(np.float32)
+        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
+        start = row_t - 0.5 * s.exposure_s + truth.phase_s - 0.5 * smooth
+        on = on_fraction(chips, chip_s, start, s.exposure_s + smooth, s.off_level)
+        on = on.astype(np.float32)
         lit = cov * (on[:, None] if s.readout.by_rows else on[None, :]) * np.float32(s.brightness)
         patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
     image = _render._expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
