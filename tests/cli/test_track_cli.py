@@ -132,3 +132,56 @@ def test_render_video_refuses_a_bad_suffix(scene, tmp_path):
     )
     assert result.exit_code == 2
     assert "--out must be" in one_error_line(result)
+
+
+def _render_video(scene, out, *extra):
+    return runner.invoke(
+        app,
+        [
+            "render-video",
+            "--camera",
+            str(scene / "cam.yaml"),
+            "--map",
+            str(scene / "room.yaml"),
+            "--trajectory",
+            str(scene / "traj.csv"),
+            "--out",
+            str(out),
+            "--frames",
+            "1",
+            *extra,
+        ],
+    )
+
+
+def test_render_video_draws_the_lights_look(scene, tmp_path):
+    # an LED never fully off, a glow, portrait readout: as in `camvlp render`
+    plain = _render_video(scene, tmp_path / "plain")
+    looks = _render_video(
+        scene, tmp_path / "looks", "--off-level", "0.5", "--halo", "0.4", "--readout", "columns"
+    )
+    assert plain.exit_code == 0 and looks.exit_code == 0, looks.output
+    a = cv2.imread(str(next((tmp_path / "plain").glob("*.png"))), cv2.IMREAD_GRAYSCALE)
+    b = cv2.imread(str(next((tmp_path / "looks").glob("*.png"))), cv2.IMREAD_GRAYSCALE)
+    lit = a > 128
+    # the glow lights the ceiling around each lamp
+    near = cv2.dilate(lit.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool) & ~lit
+    assert b[near].mean() > a[near].mean() + 10
+    # stripes along the columns: the rows of a lamp vary less than its columns
+    ys, xs = np.nonzero(b > 128)
+    box = b[ys.min() : ys.min() + 40, xs.min() : xs.min() + 40].astype(float)
+    assert box.std(axis=0).mean() < box.std(axis=1).mean()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (("--off-level", "2"), "--off-level must be a number from 0 to 1"),
+        (("--halo", "-1"), "--halo must be a non-negative number"),
+        (("--readout", "diagonal"), "--readout"),
+    ],
+)
+def test_render_video_refuses_bad_looks(scene, tmp_path, args, message):
+    result = _render_video(scene, tmp_path / "v", *args)
+    assert result.exit_code == 2
+    assert message in one_error_line(result)

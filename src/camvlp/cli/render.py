@@ -155,7 +155,7 @@ def render_command(
         )
         pose = Pose.from_euler(xyz, angles)
     except ValueError as exc:
-        fail(_option_names(str(exc)))
+        fail(option_names(str(exc)))
     result = _render_or_fail(camera, fixture_map, pose, settings, map_path)
     with StagedOutputs() as outputs:  # the photo and its truth JSON: both or neither
         staged = outputs.folder(out.parent)
@@ -240,7 +240,7 @@ _OPTIONS = {
 }
 
 
-def _option_names(message: str) -> str:
+def option_names(message: str) -> str:
     """Name the command-line option instead of the library's argument in a message."""
     for name, option in _OPTIONS.items():
         if message.startswith(name + " "):

@@ -30,6 +30,7 @@ from ._app import (
     handle_errors,
     parse_readout,
 )
+from .render import option_names
 
 
 @contextmanager
@@ -217,9 +218,32 @@ def render_video_command(
     ] = 10,
     frames: Annotated[int | None, typer.Option("--frames", help="At most N frames.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the LED phases and noise.")] = 0,
+    brightness: Annotated[
+        float, typer.Option("--brightness", help="LED level, in sensor full scales (>1 clips).")
+    ] = RenderSettings.brightness,
+    off_level: Annotated[
+        float, typer.Option("--off-level", help="LED light when off, fraction of on (0 to 1).")
+    ] = 0.0,
+    core: Annotated[
+        float, typer.Option("--core", help="Hot core: centre 1 + X times as bright as the rim.")
+    ] = 0.0,
+    halo: Annotated[
+        float, typer.Option("--halo", help="Glow around each lamp, fraction of its level.")
+    ] = 0.0,
+    soft: Annotated[
+        float, typer.Option("--soft", help="Soft stripes: waveform smoothed over X chips.")
+    ] = 0.0,
+    blur: Annotated[
+        float, typer.Option("--blur", help="Optical blur sigma, pixels.")
+    ] = RenderSettings.blur_px,
+    readout: Annotated[
+        str | None,
+        typer.Option("--readout", help="rows, columns, rows-reversed or columns-reversed."),
+    ] = None,
 ) -> None:
     """Render a rolling-shutter video of a camera moving along a trajectory, each sensor row
-    seen from the pose at its own time, with the true trajectory beside it."""
+    seen from the pose at its own time, with the true trajectory beside it; the lights look
+    as in ``camvlp render`` (off level, hot core, halo, soft stripes, blur, readout)."""
     check_positive(fps, "--fps")
     check_positive(chip_rate, "--chip-rate")
     check_positive(row_time, "--row-time")
@@ -237,10 +261,20 @@ def render_video_command(
     trajectory = load_trajectory(trajectory_path)
     try:
         settings = RenderSettings(
-            chip_rate_hz=chip_rate, row_time_s=row_time, exposure_s=exposure, seed=seed
+            chip_rate_hz=chip_rate,
+            row_time_s=row_time,
+            exposure_s=exposure,
+            seed=seed,
+            brightness=brightness,
+            off_level=off_level,
+            core=core,
+            halo=halo,
+            soft=soft,
+            blur_px=blur,
+            readout=parse_readout(readout) or camera.readout or "rows",
         )
     except ValueError as exc:
-        fail(str(exc))
+        fail(option_names(str(exc)))
     if any(f.diameter is None for f in fixture_map.fixtures):
         fail(f"every fixture needs a diameter to be rendered ({map_path})")
     n_total = int(trajectory.duration_s * fps + 1e-9) + 1
