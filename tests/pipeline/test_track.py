@@ -166,3 +166,30 @@ def test_filter_keeps_unseen_directions():
     flt.update_linearized([0.5], [[1.0, 0.0]], [1.0, 2.0], 0.01)
     assert flt.value[0] == pytest.approx(1.5, abs=0.01)
     assert flt.value[1] == pytest.approx(2.0)
+
+
+@pytest.mark.parametrize("readout", ["rows-reversed", "columns", "columns-reversed"])
+def test_the_readout_direction_is_found_never_guessed(readout):
+    # IDs 0/14 and 8/12 are each other's frames reversed: a direction guessed wrong would
+    # read every fixture as the other one of its pair; the camera file does not say
+    cam, _, traj = small_scene()
+    xz = ((0.35, 0.25), (0.35, -0.25), (-0.35, -0.25), (-0.35, 0.25))
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip((0, 14, 8, 12), xz, strict=True)
+        )
+    )
+    frames = list(iter_frames(cam, room, traj, FPS, RenderSettings(seed=3, readout=readout)))
+    tracker = Tracker(cam, room)
+    results = [tracker.update(f.image, f.t) for f in frames[:6]]
+    assert str(tracker.readout) == readout
+    given = [
+        (fx.id, nearest_true_id(f, fx.pixel))
+        for r, f in zip(results, frames, strict=False)
+        for fx in r.fixtures
+        if fx.id is not None
+    ]
+    assert len(given) >= 16 and all(a == b for a, b in given)
+    statuses = [r.status for r in results]
+    assert set(statuses) <= {"fix", "tracked"} and statuses[0] == "fix"

@@ -437,6 +437,40 @@ def _direction_by_pose(blobs, fixture_map: FixtureMap, man: Manchester, one: _De
     return man, decodes, _identify(blobs, decodes, fixture_map), None, reason
 
 
+def readout_direction(
+    img: np.ndarray,
+    blobs,
+    readout: Readout,
+    camera: Camera,
+    fixture_map: FixtureMap,
+    st: LocateSettings,
+    outlier_px: float,
+) -> Readout | None:
+    """The readout's direction as one photo decides it, for a camera that does not say.
+
+    As :func:`locate` decides it: by the stripes read both ways, else (when they fit both
+    about equally) by which direction's IDs give a pose.  ``readout`` is the axis the blobs'
+    stripes show; a frequency-coded map keeps it as is once a blob shows stripes (a frequency
+    reads the same either way).  Returns None when the photo does not decide (no ID read, or
+    the directions cannot be told apart).
+    """
+    if fixture_map.mode == "frequency":
+        return readout if any(b.stripe_contrast > 2.0 for b in blobs) else None
+    profiles = _profiles(img, blobs, readout)[2]
+    man = decode_manchester(profiles, readout, False, camera, fixture_map)
+    found = _identify(blobs, list(man.decodes), fixture_map)
+    if man.other is None:
+        return man.readout if found.usable else None
+
+    def solve(f: _Identified):
+        return _solve(camera, fixture_map, blobs, f, st, outlier_px, None)
+
+    est, reason = solve(found)
+    one = _Decided(list(man.decodes), found, est, reason)
+    man, _, _, est, _ = _direction_by_pose(blobs, fixture_map, man, one, solve)
+    return man.readout if est is not None else None
+
+
 def _gravity(gravity, camera: Camera, fixture_map: FixtureMap) -> tuple[np.ndarray, np.ndarray]:
     """The checked gravity direction (the camera's own frame: that of the photo unmirrored)
     and the map's up; InputError when the lights are out of the camera's view."""

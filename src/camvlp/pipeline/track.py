@@ -50,6 +50,7 @@ from camvlp.pipeline.locate import (
     _prepare,
     _profiles,
     _solve,
+    readout_direction,
 )
 from camvlp.pipeline.track_assoc import associate, known_blobs
 from camvlp.pipeline.track_filter import ConstantVelocityFilter
@@ -401,10 +402,13 @@ class Tracker:
         img, mirrored = _prepare(image, self.camera, st)
         detection, readout = _detect(img, self.readout, st)
         blobs = list(detection.blobs)
-        if self.readout is None and any(b.stripe_contrast > 2.0 for b in blobs):
-            self.readout = readout  # the readout of the first striped frame, from now on
+        if self.readout is None:  # the first frame that decides the direction, from now on
+            args = (self.camera, self.map, st, self._outlier_px)
+            self.readout = readout_direction(img, blobs, readout, *args)
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
-        decodes = self._decode(img, blobs, readout, self._known(blobs, predicted, from_pose))
+        undecided = self.readout is None and self.map.mode != "frequency"  # no ID read reversed
+        skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
+        decodes = self._decode(img, blobs, self.readout or readout, skip)
         found = _identify(blobs, decodes, self.map)
         t1 = time.perf_counter()
 
