@@ -30,6 +30,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import row_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
+from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
@@ -542,6 +543,8 @@ def locate(
     given = st.readout or camera.readout
     detection, readout = _detect(img, given, st)
     blobs = detection.blobs
+    if fixture_map.mode != "frequency":  # (a frequency-coded light is centred as it is measured)
+        blobs = centred_on_glow(img, blobs, readout.axis)
     t1 = time.perf_counter()
     gray_rois, extents, profiles = _profiles(img, blobs, readout)
     man: Manchester | None = None

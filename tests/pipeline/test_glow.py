@@ -1,0 +1,80 @@
+"""Lights that glow: told from plain discs, and centred on their radial shape."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from camvlp.locate import locate
+
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.detect import detect_fixtures
+from camvlp.pipeline.glow import GLOW_LEVEL, centred_on_glow, glow_level
+from camvlp.sim.render import RenderSettings, render
+
+CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
+ROOM = FixtureMap(
+    tuple(
+        Fixture(i, np.array([x, -2.7, z]), 0.3, np.array([0.0, 1.0, 0.0]))
+        for i, (x, z) in zip(
+            (5, 6, 9, 10), ((0.6, 0.45), (0.6, -0.45), (-0.6, -0.45), (-0.6, 0.45)), strict=True
+        )
+    )
+)
+
+
+def _photo(seed: int, **look):
+    pose = Pose.from_euler([0.02 * seed, -1.2, -0.01 * seed], [90.0 + seed, -0.5 * seed, 7.0])
+    return render(CAM, ROOM, pose, RenderSettings(seed=seed, **look)), pose
+
+
+@pytest.mark.parametrize(
+    "look", [{}, {"blur_px": 2.0}, {"blur_px": 2.0, "brightness": 8.0}, {"core": 2.0}]
+)
+def test_a_plain_disc_does_not_glow(look):
+    photo, _ = _photo(1, **look)
+    blobs = detect_fixtures(photo.image).blobs
+    assert len(blobs) == 4
+    assert all(abs(glow_level(photo.image, b)) < 0.01 for b in blobs)
+
+
+@pytest.mark.parametrize("halo", [0.05, 0.4])
+def test_a_glow_is_seen(halo):
+    photo, _ = _photo(2, halo=halo)
+    blobs = detect_fixtures(photo.image).blobs
+    assert len(blobs) == 4
+    assert all(glow_level(photo.image, b) > 1.5 * GLOW_LEVEL for b in blobs)
+
+
+def _centre_errors(photo, blobs) -> np.ndarray:
+    truth = np.array([t.pixel for t in photo.fixtures])
+    return np.array([np.min(np.linalg.norm(truth - b.pixel, axis=1)) for b in blobs])
+
+
+def test_a_glowing_light_is_centred_on_its_shape():
+    # a glow that blinks with the LED pulls the outline's ellipse about; the radial shape
+    # is centred (a light whose glow the border cuts is left as detected: not used)
+    before, after = [], []
+    for seed in range(3):
+        photo, _ = _photo(seed, halo=0.4, brightness=1.0)
+        blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
+        before += list(_centre_errors(photo, blobs))
+        after += list(_centre_errors(photo, centred_on_glow(photo.image, blobs, "rows")))
+    assert np.median(after) < 0.25 < np.median(before)
+    assert np.max(after) < 0.6
+
+
+def test_plain_discs_are_left_as_detected():
+    photo, _ = _photo(0)
+    blobs = detect_fixtures(photo.image).blobs
+    moved = centred_on_glow(photo.image, blobs, "rows")
+    assert all(a is b for a, b in zip(blobs, moved, strict=True))
+
+
+def test_locate_centres_glowing_lights():
+    photo, pose = _photo(1, halo=0.4, brightness=1.0)  # from the pose found too:
+    res = locate(photo.image, CAM, ROOM)
+    assert res, res.reason
+    errors = _centre_errors(photo, res.fixtures)
+    assert np.median(errors) < 0.25
+    assert np.linalg.norm(res.position - pose.position) < 2e-3  # 16 mm centred on outlines
