@@ -4,7 +4,9 @@ A grid over exposure (0.1 to 1 chip) x rows per chip (2 to 12); in every cell, p
 random conditions drawn from: LED off level 0 to 10 % of on, brightness 0.5 to 8 times the
 sensor's full scale, blur sigma 0.5 to 2 px, JPEG quality 70 to 95, lens distortion (none or
 barrel/pincushion), 4 to 16 fixtures, landscape or portrait turned either way (readout rows,
-rows-reversed, columns, columns-reversed), 1080p or 20 MP.  The map always holds IDs whose
+rows-reversed, columns, columns-reversed), 1080p or 20 MP, and lamps plain (half the photos),
+with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` renders the same
+photos with plain discs).  The map always holds IDs whose
 reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
 not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
 maps give the chip rate (``chip_rate_hz``), half do not.
@@ -23,6 +25,7 @@ over exposure x rows per chip.  Run::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -84,7 +87,16 @@ def make_scene(rng, camera: Camera, axis: int, rows_per_chip: float, n_wanted: i
     return out
 
 
-def one_photo(rng, exposure: float, rows_per_chip: float):
+def lamp_look(rng: np.random.Generator) -> dict[str, float]:
+    """A lamp's look: plain (half the photos), a hot core (1 to 3 times brighter at the
+    centre), a halo (0.05 to 0.4 of the lamp's level), or both."""
+    kind = int(rng.integers(6))
+    core = float(rng.uniform(1.0, 3.0)) if kind in (3, 5) else 0.0
+    halo = float(rng.uniform(0.05, 0.4)) if kind in (4, 5) else 0.0
+    return dict(core=core, halo=halo)
+
+
+def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True):
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
@@ -111,6 +123,8 @@ def one_photo(rng, exposure: float, rows_per_chip: float):
         readout=readout,
         seed=int(rng.integers(1 << 30)),
     )
+    if looks:  # drawn apart, so that every other condition is that of the plain sweep
+        settings = dataclasses.replace(settings, **lamp_look(np.random.default_rng(settings.seed)))
     photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
     quality = int(rng.integers(70, 96))
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
@@ -127,6 +141,8 @@ def one_photo(rng, exposure: float, rows_per_chip: float):
         brightness=round(settings.brightness, 2),
         off=round(settings.off_level, 3),
         blur=round(settings.blur_px, 2),
+        core=round(settings.core, 2),
+        halo=round(settings.halo, 2),
         chip_rate_given=given_rate,
     )
     return photo, res, cond, dt, fmap
@@ -177,6 +193,9 @@ def main() -> int:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--plot", type=Path, help="save the decode-rate map here (PNG)")
     ap.add_argument("--json", type=Path, help="write per-fixture results here")
+    ap.add_argument(
+        "--plain", action="store_true", help="plain discs only (no hot cores, no halos)"
+    )
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     cells = {}
@@ -187,7 +206,7 @@ def main() -> int:
         eligible = decoded = wrong = located = ambiguous = 0
         times = []
         for _ in range(args.per_cell):
-            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc)
+            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc, looks=not args.plain)
             times.append(dt)
             located += bool(res)
             truth = [t for t in photo.fixtures]
