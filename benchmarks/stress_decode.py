@@ -298,7 +298,8 @@ def main() -> int:
     )
     print(
         f"not identifiable from their stripes (even with the true chip length, exposure and "
-        f"blur, another ID of the map fits within a margin of {MIN_MARGIN:g}): "
+        f"blur, another ID of the map fits within a margin of {MIN_MARGIN:g}; the ideal decoder "
+        f"models plain discs, so for lamps with a hot core or a halo this is an upper count): "
         f"{tot['ambiguous']}; decoded of the identifiable: {tot['decoded']} / {ident} "
         f"({100 * tot['decoded'] / max(ident, 1):.2f} %), worst cell exposure "
         f"{worst_id[0][0]:g} chip, {worst_id[0][1]:g} rows per chip: {worst_id[1]['decoded']} / "
@@ -351,7 +352,7 @@ def plot(cells, path: Path) -> None:
         ax.set_yticks(range(len(EXPOSURES)), [f"{e:g}" for e in EXPOSURES])
         ax.set_xlabel("rows per chip")
         ax.set_title(
-            "decoded / identifiable from their stripes\n(even with the true parameters)"
+            "decoded / identifiable from their stripes\n(by an ideal plain-disc decoder)"
             if of_ident
             else "decoded / fixtures spanning >= 1.2 frames\n(all conditions drawn in the cell)",
             fontsize=10,
