@@ -23,7 +23,7 @@ from itertools import combinations
 import numpy as np
 
 from camvlp.geometry.pnp import check_solver, pnp_candidates
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera, Pose, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
 
@@ -92,6 +92,31 @@ def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> 
     return np.where(np.isfinite(r), r, np.inf)
 
 
+def _scores(
+    camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each candidate's reprojection RMS (pixels; inf with a fixture behind the camera),
+    whether every fixture is in front of it, and whether it is in front of every fixture
+    with a normal: all candidates in one projection."""
+    rot = np.stack([p.world_from_camera for p in poses])  # (B, 3, 3)
+    pos = np.stack([p.position for p in poses])  # (B, 3)
+    cam = (obj[None] - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
+    in_front = (cam[:, :, 2] > 0).all(axis=1)
+    facing = np.ones(len(poses), bool)
+    if normals is not None:
+        has = np.all(np.isfinite(normals), axis=1)
+        nrm, at = normals[has], obj[has]
+        facing = (np.einsum("ij,bij->bi", nrm, pos[:, None] - at) > 0).all(axis=1)
+    rms = np.full(len(poses), np.inf)  # behind the camera: neither valid nor a mirrored fit
+    if in_front.any():
+        uv = project_camera_points(camera, cam[in_front].reshape(-1, 3))
+        e = uv.reshape(-1, obj.shape[0], 2) - img
+        r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B', N)
+        ok = np.isfinite(r2).all(axis=1)
+        rms[in_front] = np.where(ok, np.sqrt(np.mean(r2, axis=1)), np.inf)
+    return rms, in_front, facing
+
+
 def _choose(
     camera: Camera,
     obj: np.ndarray,
@@ -101,21 +126,11 @@ def _choose(
     planar: bool,
 ) -> tuple[Pose | None, float, Pose | None, float, bool]:
     """Best valid candidate and the runner-up; flags a best fit that is behind the lights."""
+    poses = pnp_candidates(obj, img, camera, solver, planar=planar)
     scored = []
-    if normals is not None:
-        has = np.all(np.isfinite(normals), axis=1)
-        nrm, at = normals[has], obj[has]
-    for pose in pnp_candidates(obj, img, camera, solver, planar=planar):
-        depth = pose.to_camera(obj)[:, 2]
-        in_front = bool((depth > 0).all())
-        facing = True
-        if normals is not None:
-            facing = bool((np.einsum("ij,ij->i", nrm, pose.position - at) > 0).all())
-        rms = np.inf  # behind the camera: neither valid nor a mirrored fit, never chosen
-        if in_front:
-            r = _residuals(camera, pose, obj, img)
-            rms = float(np.sqrt(np.mean(r**2))) if np.isfinite(r).all() else np.inf
-        scored.append((rms, in_front, facing, pose))
+    if poses:
+        rms, in_front, facing = _scores(camera, poses, obj, img, normals)
+        scored = list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, strict=True))
     valid = sorted((s for s in scored if s[1] and s[2]), key=lambda s: s[0])
     behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
     mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
