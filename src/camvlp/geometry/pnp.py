@@ -185,7 +185,7 @@ def pnp_candidates(
         seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
     poses = []
     for rvec, tvec in seeds:
-        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+        if not (np.isfinite(rvec).all() and np.isfinite(tvec).all()):
             continue
         rvec, tvec = rvec.copy(), tvec.copy()
         if solver != "epnp" and solver != "ippe":

@@ -169,7 +169,13 @@ class Pose:
         """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
         r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
         t = np.asarray(tvec, dtype=float).reshape(3)
-        return cls(r_cw.T, -r_cw.T @ t)
+        if not (np.isfinite(r_cw).all() and np.isfinite(t).all()):
+            raise ValueError("rvec and tvec must be finite")
+        # a rotation by construction: the checks of __init__ are not needed
+        pose = object.__new__(cls)
+        object.__setattr__(pose, "world_from_camera", r_cw.T)
+        object.__setattr__(pose, "position", -r_cw.T @ t)
+        return pose
 
     @property
     def euler_deg(self) -> np.ndarray:
