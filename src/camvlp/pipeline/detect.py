@@ -132,6 +132,8 @@ def gray_float(image: np.ndarray) -> np.ndarray:
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.shape[2:] == (3,):
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)  # the usual photo: as _luma does it
     img = _luma(image)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
@@ -204,9 +206,10 @@ def _diff_var(v: np.ndarray) -> float:
 
 def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
     """Percentiles (0-100) of a uint8 image from its histogram (much faster than sorting)."""
-    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
-    cdf = np.cumsum(hist)
-    return [float(np.searchsorted(cdf, q / 100.0 * cdf[-1])) for q in qs]
+    cdf = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel().cumsum()
+    # each level where the count reaches q % of the pixels, in float32 as the counts are
+    at = np.array([q / 100.0 for q in qs], np.float32) * cdf[-1]
+    return np.searchsorted(cdf, at).astype(float).tolist()
 
 
 def _median_u8(gray: np.ndarray, max_steps: int = 4) -> float:

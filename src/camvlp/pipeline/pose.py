@@ -20,9 +20,10 @@ import math
 from dataclasses import dataclass, field
 from itertools import combinations
 
+import cv2
 import numpy as np
 
-from camvlp.geometry.pnp import check_solver, pnp_candidates
+from camvlp.geometry.pnp import candidate_methods, check_solver, pnp_candidates
 from camvlp.model.camera import Camera, Pose, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
@@ -117,6 +118,22 @@ def _scores(
     return rms, in_front, facing
 
 
+#: Reprojection RMS (pixels) within which the better of IPPE's two refined poses is taken as
+#: the right minimum without the other solvers' seeds.
+CLEAR_FIT_PX = 1.0
+
+
+def _scored(camera: Camera, obj, img, normals, solver: str, planar: bool, methods) -> list:
+    """``(rms, in_front, facing, pose)`` of the candidates from ``methods``."""
+    if not methods:
+        return []
+    poses = pnp_candidates(obj, img, camera, solver, planar=planar, methods=methods)
+    if not poses:
+        return []
+    rms, in_front, facing = _scores(camera, poses, obj, img, normals)
+    return list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, strict=True))
+
+
 def _choose(
     camera: Camera,
     obj: np.ndarray,
@@ -125,12 +142,26 @@ def _choose(
     solver: str,
     planar: bool,
 ) -> tuple[Pose | None, float, Pose | None, float, bool]:
-    """Best valid candidate and the runner-up; flags a best fit that is behind the lights."""
-    poses = pnp_candidates(obj, img, camera, solver, planar=planar)
-    scored = []
-    if poses:
-        rms, in_front, facing = _scores(camera, poses, obj, img, normals)
-        scored = list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, strict=True))
+    """Best valid candidate and the runner-up; flags a best fit that is behind the lights.
+
+    Coplanar fixtures with the default solver: IPPE's two poses (the planar ambiguity's two
+    minima, refined) first; when the better one is valid and reprojects within
+    :data:`CLEAR_FIT_PX`, the other solvers' seeds, which converge to one of the two, are
+    not tried (about a third of the time of the pose).
+    """
+    methods = candidate_methods(solver, planar, obj.shape[0])
+    if solver != "iterative" or cv2.SOLVEPNP_IPPE not in methods:
+        scored = _scored(camera, obj, img, normals, solver, planar, methods)
+    else:
+        k = methods.index(cv2.SOLVEPNP_IPPE)
+        scored = _scored(camera, obj, img, normals, solver, planar, methods[k : k + 1])
+        if not any(s[1] and s[2] and s[0] <= CLEAR_FIT_PX for s in scored):
+            # not clearly right: every candidate, in the order of candidate_methods
+            scored = (
+                _scored(camera, obj, img, normals, solver, planar, methods[:k])
+                + scored
+                + _scored(camera, obj, img, normals, solver, planar, methods[k + 1 :])
+            )
     valid = sorted((s for s in scored if s[1] and s[2]), key=lambda s: s[0])
     behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
     mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
