@@ -263,3 +263,17 @@ def test_from_focal_centres_the_principal_point_on_the_middle_pixel():
     np.testing.assert_allclose(cam.matrix[:2, 2], [2591.5, 1939.5])  # pixel centres at integers
     assert cam.focal_px == 3912.0
     assert cam.with_size(100, 80).size == (100, 80)
+
+
+@pytest.mark.parametrize("angle_rad", [0.0, 3e-7, 3e-6, 3e-5])
+def test_project_keeps_rotations_below_opencvs_rodrigues_rounding(angle_rad):
+    """A camera turned by less than 1e-5 rad projects as turned: cv2.Rodrigues rounds such
+    rotations to none, which moved points by up to 0.04 px at 20 MP."""
+    cam = Camera.from_focal(5184, 3880, 3912.0)
+    c, s = np.cos(angle_rad), np.sin(angle_rad)
+    turn = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+    pose = Pose(turn, np.array([0.01, -0.02, 0.0]))
+    world = np.array([[1.5, -0.8, 2.0], [-1.2, 0.9, 2.5], [0.3, 0.2, 1.8]])
+    local = (world - pose.position) @ turn  # the camera frame, by hand
+    pinhole = local[:, :2] / local[:, 2:] * 3912.0 + cam.matrix[:2, 2]
+    np.testing.assert_allclose(cam.project(pose, world), pinhole, rtol=0, atol=1e-9)

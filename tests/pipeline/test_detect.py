@@ -13,7 +13,13 @@ import numpy as np
 import pytest
 
 from camvlp.model.camera import Pose
-from camvlp.pipeline.detect import _close_lit, detect_fixtures, to_gray
+from camvlp.pipeline.detect import (
+    _close_lit,
+    _median_u8,
+    _percentiles_u8,
+    detect_fixtures,
+    to_gray,
+)
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -216,3 +222,26 @@ def test_closing_around_lit_pixels_equals_whole_image_closing():
         np.testing.assert_array_equal(_close_lit(binary, k), whole)
         boxed += np.count_nonzero(binary) > 0
     assert boxed > 200
+
+
+def test_median_by_counting_is_the_histograms():
+    """The reduced image's median, guessed from every fourth row and checked by counting, is
+    the level the whole histogram gives: noise, flat images, half-and-half images, a guess
+    far off (rows that differ), and the fallback after too many steps."""
+    rng = np.random.default_rng(8)
+    for k in range(400):
+        h, w = (int(v) for v in rng.integers(64, 400, 2))
+        kind = k % 4
+        if kind == 0:
+            g = np.clip(rng.normal(rng.uniform(0, 255), rng.uniform(0, 40), (h, w)), 0, 255)
+        elif kind == 1:
+            g = np.full((h, w), rng.integers(0, 256))
+        elif kind == 2:  # half bright, half dark: the median sits on the split
+            g = np.zeros((h, w))
+            g[: h // 2] = 255
+        else:  # every fourth row unlike the others: the guess is far off
+            g = rng.integers(100, 140, (h, w)).astype(float)
+            g[::4] = rng.integers(0, 20)
+        g = g.astype(np.uint8)
+        assert _median_u8(g) == _percentiles_u8(g, [50])[0]
+        assert _median_u8(g, max_steps=0) == _percentiles_u8(g, [50])[0]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -218,3 +219,50 @@ def test_alternative_is_another_pose_not_the_best_again():
             assert moved > 1e-3 or rotation_angle_deg(est.alternative, est.pose) > 0.1
             assert est.alternative_rms_px >= est.reprojection_rms_px
     assert reported >= 5  # the test sees the ambiguity
+
+
+def test_clear_ippe_fit_gives_the_pose_of_every_candidate(monkeypatch):
+    """Coplanar fixtures: when IPPE's better pose reprojects within CLEAR_FIT_PX, the other
+    solvers are not tried, and the pose and its alternative are those of every candidate;
+    when IPPE gives none (three of four fixtures on a line), every solver is tried."""
+    import camvlp.pipeline.pose as pose_mod
+
+    calls: list[tuple[int, ...]] = []
+    real = pose_mod.pnp_candidates
+
+    def spy(*args, methods=None, **kwargs):
+        calls.append(tuple(methods))
+        return real(*args, methods=methods, **kwargs)
+
+    monkeypatch.setattr(pose_mod, "pnp_candidates", spy)
+    every = {(cv2.SOLVEPNP_ITERATIVE,), (cv2.SOLVEPNP_IPPE,), (cv2.SOLVEPNP_SQPNP,)}
+    corners = GRID[[0, 1, 4, 5]]  # no three on a line
+    rng = np.random.default_rng(41)
+    for _ in range(12):
+        _, uv = visible_pose(rng, corners)
+        noisy = uv + rng.normal(0, 0.2, uv.shape)
+        calls.clear()
+        quick = estimate_pose(noisy, corners, CAMERA, normals=np.tile(UP, (4, 1)))
+        assert quick and quick.reprojection_rms_px <= pose_mod.CLEAR_FIT_PX
+        assert set(calls) == {(cv2.SOLVEPNP_IPPE,)}  # IPPE alone
+        monkeypatch.setattr(pose_mod, "CLEAR_FIT_PX", -1.0)  # never clear: every candidate
+        calls.clear()
+        full = estimate_pose(noisy, corners, CAMERA, normals=np.tile(UP, (4, 1)))
+        monkeypatch.setattr(pose_mod, "CLEAR_FIT_PX", 1.0)
+        assert set(calls) == every
+        # the same minimum, to the optimiser's tolerance (micrometres at metres)
+        assert_same_pose(quick.pose, full.pose, corners, 1e-5)
+        assert (quick.alternative is None) == (full.alternative is None)
+        if full.alternative is not None:
+            assert_same_pose(quick.alternative, full.alternative, corners, 1e-4)
+    # a row of three and one more, seen with noise: IPPE's homography degenerates (no
+    # candidate), and every solver is tried
+    line = GRID[[3, 4, 2, 0]]
+    fallbacks = 0
+    for _ in range(6):
+        truth, uv = visible_pose(rng, line)
+        calls.clear()
+        est = estimate_pose(uv + rng.normal(0, 0.1, uv.shape), line, CAMERA)
+        fallbacks += set(calls) == every
+        assert est and np.linalg.norm(est.pose.position - truth.position) < 0.05
+    assert fallbacks >= 1

@@ -37,6 +37,7 @@ __all__ = [
     "LOCATE_SOLVER",
     "SOLVERS",
     "PriorSolve",
+    "candidate_methods",
     "check_solver",
     "pnp_candidates",
     "project_batch",
@@ -144,8 +145,27 @@ def _solve_one(obj: np.ndarray, img: np.ndarray, k: np.ndarray, dist, flag: int)
     return None
 
 
+def candidate_methods(solver: str, planar: bool, n: int) -> list[int]:
+    """The OpenCV methods :func:`pnp_candidates` takes its seeds from, in order: the chosen
+    solver's, IPPE's when the object points are coplanar, SQPnP's (four points or more)."""
+    methods = [_solver_flag(solver)]
+    if planar:
+        methods.append(cv2.SOLVEPNP_IPPE)
+    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
+    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
+    if n >= 4:
+        methods.append(cv2.SOLVEPNP_SQPNP)
+    return list(dict.fromkeys(methods))
+
+
 def pnp_candidates(
-    object_points, image_points, camera: Camera, solver: str = "iterative", *, planar: bool
+    object_points,
+    image_points,
+    camera: Camera,
+    solver: str = "iterative",
+    *,
+    planar: bool,
+    methods: list[int] | None = None,
 ) -> list[Pose]:
     """Every candidate pose for the locator to choose from (no check of which is valid).
 
@@ -156,28 +176,23 @@ def pnp_candidates(
 
     ``object_points``, ``image_points``, ``camera`` and ``solver`` are as in
     :func:`solve_pnp`; ``planar`` says the object points are coplanar (add IPPE's two
-    candidates).
+    candidates); ``methods`` (OpenCV ``SOLVEPNP_*`` flags) takes the seeds from these only,
+    as a part of :func:`candidate_methods`.
 
     Returns
     -------
     list of Pose
         Possibly empty; non-finite solutions are left out.
     """
-    flag = _solver_flag(solver)
     obj = np.asarray(object_points, dtype=np.float64)
     img = np.asarray(image_points, dtype=np.float64)
     o = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3)
     i = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2)
     k, d = camera.matrix, camera.dist_or_none
+    if methods is None:
+        methods = candidate_methods(solver, planar, obj.shape[0])
     seeds: list[tuple[np.ndarray, np.ndarray]] = []
-    methods = [flag]
-    if planar:
-        methods.append(cv2.SOLVEPNP_IPPE)
-    # SQPnP as well, planar or not: IPPE's homography degenerates when three of four
-    # fixtures are on one line (a grid's diagonal) and then gives no candidate at all
-    if obj.shape[0] >= 4:
-        methods.append(cv2.SOLVEPNP_SQPNP)
-    for method in dict.fromkeys(methods):
+    for method in methods:
         try:
             n, rvecs, tvecs, _ = cv2.solvePnPGeneric(o, i, k, d, flags=method)
         except cv2.error:
@@ -185,7 +200,7 @@ def pnp_candidates(
         seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
     poses = []
     for rvec, tvec in seeds:
-        if not (np.all(np.isfinite(rvec)) and np.all(np.isfinite(tvec))):
+        if not (np.isfinite(rvec).all() and np.isfinite(tvec).all()):
             continue
         rvec, tvec = rvec.copy(), tvec.copy()
         if solver != "epnp" and solver != "ippe":

@@ -169,7 +169,13 @@ class Pose:
         """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
         r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
         t = np.asarray(tvec, dtype=float).reshape(3)
-        return cls(r_cw.T, -r_cw.T @ t)
+        if not (np.isfinite(r_cw).all() and np.isfinite(t).all()):
+            raise ValueError("rvec and tvec must be finite")
+        # a rotation by construction: the checks of __init__ are not needed
+        pose = object.__new__(cls)
+        object.__setattr__(pose, "world_from_camera", r_cw.T)
+        object.__setattr__(pose, "position", -r_cw.T @ t)
+        return pose
 
     @property
     def euler_deg(self) -> np.ndarray:
@@ -323,16 +329,43 @@ class Camera:
         )
 
 
+#: OpenCV's rotation and translation of points already in the camera frame.
+_ZERO3 = np.zeros(3)
+
+
+def project_camera_points(camera: Camera, points_camera) -> np.ndarray:
+    """Project points given in the camera's frame into the image, with lens distortion.
+
+    Parameters
+    ----------
+    camera : Camera
+        Intrinsics and distortion.
+    points_camera : array_like, shape (N, 3)
+        Points in camera coordinates (x right, y down, z forward), map units.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Pixel coordinates ``[u, v]``, also for points behind the camera (no check).
+    """
+    p = np.asarray(points_camera, dtype=float).reshape(-1, 3)
+    if p.shape[0] == 0:
+        return np.zeros((0, 2))
+    d = camera.distortion if camera.distortion.size else None
+    uv, _ = cv2.projectPoints(p, _ZERO3, _ZERO3, camera.matrix, d)
+    return uv.reshape(-1, 2)
+
+
 def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:
     """Project world points with a camera at a pose; see :meth:`Camera.project`."""
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
     if p.shape[0] == 0:
         return np.zeros((0, 2))
-    rvec, tvec = pose.rvec_tvec()
-    d = camera.distortion if camera.distortion.size else None
-    uv, _ = cv2.projectPoints(p, rvec, tvec, camera.matrix, d)
-    uv = uv.reshape(-1, 2)
-    behind = pose.to_camera(p)[:, 2] <= 0
+    # the points in the camera frame, projected as they are: through a Rodrigues vector,
+    # rotations below 1e-5 rad would come out as none (OpenCV's cv2.Rodrigues rounds them)
+    cam = pose.to_camera(p)
+    uv = project_camera_points(camera, cam)
+    behind = cam[:, 2] <= 0
     if behind.any():
         uv[behind] = np.nan
     return uv

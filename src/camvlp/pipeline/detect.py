@@ -132,6 +132,8 @@ def gray_float(image: np.ndarray) -> np.ndarray:
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.shape[2:] == (3,):
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)  # the usual photo: as _luma does it
     img = _luma(image)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
@@ -204,9 +206,41 @@ def _diff_var(v: np.ndarray) -> float:
 
 def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
     """Percentiles (0-100) of a uint8 image from its histogram (much faster than sorting)."""
-    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
-    cdf = np.cumsum(hist)
-    return [float(np.searchsorted(cdf, q / 100.0 * cdf[-1])) for q in qs]
+    cdf = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel().cumsum()
+    # each level where the count reaches q % of the pixels, in float32 as the counts are
+    at = np.array([q / 100.0 for q in qs], np.float32) * cdf[-1]
+    return np.searchsorted(cdf, at).astype(float).tolist()
+
+
+def _median_u8(gray: np.ndarray, max_steps: int = 4) -> float:
+    """``_percentiles_u8(gray, [50])`` of a large uint8 image without its whole histogram.
+
+    The median of every fourth row is a guess, checked (and moved level by level) by
+    counting the pixels at or below a level in the whole image: the smallest level with at
+    least half the pixels at or below it, as the histogram's cumulative sum finds it.  After
+    ``max_steps`` moves, the whole histogram is counted instead.
+    """
+    n = gray.size
+    if gray.ndim != 2 or n < 4096:
+        return _percentiles_u8(gray, [50])[0]
+    (level,) = _percentiles_u8(gray[::4], [50])
+    v = int(level)
+
+    def enough(v: int) -> bool:  # at least half the pixels at or below level v
+        above = cv2.countNonZero(cv2.threshold(gray, v, 255, cv2.THRESH_BINARY)[1])
+        return 2 * (n - above) >= n
+
+    step = -1 if enough(v) else 1
+    for _ in range(max_steps):
+        if step < 0:  # v is enough: is v - 1 too?
+            if v == 0 or not enough(v - 1):
+                return float(v)
+            v -= 1
+        else:  # v is not enough: v + 1?
+            v += 1
+            if enough(v):
+                return float(v)
+    return _percentiles_u8(gray, [50])[0]
 
 
 def _reduction(shape: tuple[int, ...]) -> int:
@@ -260,7 +294,7 @@ def detect_fixtures(
         size = (-(-width // s), -(-height // s))  # ceil: the pixels img[::s, ::s]
         small = cv2.resize(img, size, interpolation=cv2.INTER_NEAREST)
     small = to_gray(small)
-    (background,) = _percentiles_u8(small, [50])
+    background = _median_u8(small)
     peak = float(cv2.GaussianBlur(small, (3, 3), 0).max())
     if peak - background < 12:  # nothing stands out of the noise
         return Detection((), s, np.zeros_like(small), peak)
@@ -489,18 +523,19 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     """
     lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
-    along = lit if axis == "rows" else lit.T
-    centre_lines = along[
-        :, along.shape[1] // 3 : max(along.shape[1] // 3 + 1, 2 * along.shape[1] // 3)
-    ]
+    rows = axis == "rows"
+    n = lit_u8.shape[1 if rows else 0]  # pixels across the readout: its middle third
+    a, b = n // 3, max(n // 3 + 1, 2 * n // 3)
+    centre = lit_u8[:, a:b] if rows else lit_u8[a:b]
     gap = 0
-    if centre_lines.size:
-        # lines more than half lit; the widest dark run between two of them
-        lit_lines = np.flatnonzero(
-            np.count_nonzero(centre_lines, axis=1) * 2 > centre_lines.shape[1]
-        )
+    if centre.size:
+        # lines more than half lit (the lit pixels counted by OpenCV: any nonzero level
+        # counts as 1 through the threshold); the widest dark run between two of them
+        ones = cv2.threshold(centre, 0, 1, cv2.THRESH_BINARY)[1]
+        counts = cv2.reduce(ones, 1 if rows else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        lit_lines = np.flatnonzero(counts * 2 > min(n, b) - a)
         if lit_lines.size >= 2:
-            gap = int(np.diff(lit_lines).max()) - 1
+            gap = int((lit_lines[1:] - lit_lines[:-1]).max()) - 1
     length = max(kernel_px, gap + 3) | 1
     ksize = (1, length) if axis == "rows" else (length, 1)  # (width, height): across stripes
     # Close a copy padded by repeating its edge: OpenCV's own border keeps whatever the
