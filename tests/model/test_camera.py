@@ -277,3 +277,16 @@ def test_project_keeps_rotations_below_opencvs_rodrigues_rounding(angle_rad):
     local = (world - pose.position) @ turn  # the camera frame, by hand
     pinhole = local[:, :2] / local[:, 2:] * 3912.0 + cam.matrix[:2, 2]
     np.testing.assert_allclose(cam.project(pose, world), pinhole, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("angle", [3e-7, 3e-6, 1e-4, 0.5, 3.0])
+def test_rvec_of_a_small_rotation_is_exact(angle):
+    # OpenCV 5's Rodrigues turns rotations below about 1e-5 rad into none at all
+    rng = np.random.default_rng(4)
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    r_cw = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    rvec, tvec = Pose(r_cw.T, np.array([1.0, 2.0, 3.0])).rvec_tvec()
+    np.testing.assert_allclose(rvec, axis * angle, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(tvec, -r_cw @ [1.0, 2.0, 3.0], rtol=1e-12)

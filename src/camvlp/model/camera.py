@@ -14,6 +14,7 @@ Conventions (see ``docs/conventions.md``):
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import cv2
@@ -190,8 +191,15 @@ class Pose:
     def rvec_tvec(self) -> tuple[np.ndarray, np.ndarray]:
         """OpenCV's ``camera_from_world`` Rodrigues vector and translation, each shape (3,)."""
         r_cw = self.camera_from_world
-        rvec, _ = cv2.Rodrigues(r_cw)
-        return rvec.reshape(3), -r_cw @ self.position
+        skew = 0.5 * (r_cw - r_cw.T)
+        v = np.array([skew[2, 1], skew[0, 2], skew[1, 0]])
+        s, c = float(np.linalg.norm(v)), 0.5 * (float(np.trace(r_cw)) - 1.0)
+        angle = math.atan2(s, c)
+        if angle < math.pi - 1e-3:  # sin(angle) * axis = v: exact to the last bit near 0 too
+            rvec = v * (angle / s if s > 0 else 1.0)
+        else:  # near a half turn the axis is in the symmetric part: OpenCV's formula
+            rvec = cv2.Rodrigues(r_cw)[0].reshape(3)
+        return rvec, -r_cw @ self.position
 
     def to_camera(self, points_world) -> np.ndarray:
         """World points (N, 3) to camera coordinates (N, 3), same units."""
