@@ -13,8 +13,9 @@ maps give the chip rate (``chip_rate_hz``), half do not.
 
 Fixtures are discs on a ceiling 2 m above the camera, placed at random without overlap;
 each spans 1.0 to 2.6 frames of the code along the readout.  A fixture counts as eligible
-when its whole disc is in the photo and it spans 1.2 frames or more; it is decoded when
-``locate`` reports its true ID; a wrong ID is any other ID reported for it.
+when its whole disc is in the photo and it spans 1.2 frames or more (whether ``locate``
+detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
+other ID reported for it.
 
 Prints decode rate and wrong IDs per cell and overall, and saves a plot of the decode rate
 over exposure x rows per chip.  Run::
@@ -210,16 +211,21 @@ def main() -> int:
             times.append(dt)
             located += bool(res)
             truth = [t for t in photo.fixtures]
+            eligible_k = {
+                k for k, t in enumerate(truth) if t.fully_inside and t.frames_spanned >= 1.2
+            }
+            eligible += len(eligible_k)
+            reported: set[int] = set()
             for k_fr, fr in enumerate(res.fixtures):
                 d = [np.hypot(*(t.pixel - fr.pixel)) for t in truth]
                 k = int(np.argmin(d))
                 t = truth[k]
                 if d[k] > 0.25 * t.rows_spanned + 3:
                     continue  # not one of the discs (should not happen)
-                elig = t.fully_inside and t.frames_spanned >= 1.2
+                elig = k in eligible_k and k not in reported  # (a disc reported twice: once)
+                reported.add(k)
                 ok = fr.id == t.id
                 bad = fr.id is not None and fr.id != t.id
-                eligible += elig
                 decoded += elig and ok
                 wrong += bad
                 sep = None
@@ -249,6 +255,19 @@ def main() -> int:
                             **cond,
                         )
                     )
+            for k in sorted(eligible_k - reported):  # a disc no blob stands for: a miss
+                t = truth[k]
+                records.append(
+                    dict(
+                        exposure=exposure,
+                        rows_per_chip=rpc,
+                        id=t.id,
+                        got=None,
+                        frames=round(t.frames_spanned, 2),
+                        reason="not detected",
+                        **cond,
+                    )
+                )
         cells[(exposure, rpc)] = dict(
             eligible=eligible,
             decoded=decoded,
