@@ -9,7 +9,7 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures, light_support, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
-from camvlp.pipeline.light_wave import fit_square_wave, light_wave
+from camvlp.pipeline.light_wave import _integrated, fit_square_wave, light_wave
 from camvlp.pipeline.stripes import estimate_stripe_period
 from camvlp.sim.render import RenderSettings, render
 
@@ -21,6 +21,27 @@ def _square(lines, period, phase, window, n=4000):
     brute force (``n`` samples per window), independent of the module's closed form."""
     t = lines[:, None] - phase + window * (np.arange(n) / (n - 1) - 0.5)[None, :]
     return (np.mod(t, period) < 0.5 * period).mean(axis=1)
+
+
+def test_the_integrated_wave_is_the_brute_force_average():
+    # the closed form (a trapezoid around each edge) against the wave averaged by brute force,
+    # over periods, phases and windows up to half a period, the grids' shapes included
+    rng = np.random.default_rng(3)
+    lines = np.arange(-30.0, 90.0, 0.7)
+    for _ in range(20):
+        period = rng.uniform(2.5, 60.0)
+        phase = rng.uniform(-2.0 * period, 2.0 * period)
+        window = rng.uniform(0.02, 0.5) * period
+        exact = _square(lines, period, phase, window)
+        np.testing.assert_allclose(_integrated(lines, period, phase, window), exact, atol=1e-3)
+    periods = np.array([5.0, 13.0])[:, None, None, None]
+    windows = np.array([0.1, 0.5])[None, None, :, None] * periods
+    phases = np.array([0.0, 2.5, 7.0])[None, :, None, None]
+    grid = _integrated(lines, periods, phases, windows)
+    assert grid.shape == (2, 3, 2, lines.size)
+    for i, j, k in np.ndindex(2, 3, 2):
+        exact = _square(lines, periods[i, 0, 0, 0], phases[0, j, 0, 0], windows[i, 0, k, 0])
+        np.testing.assert_allclose(grid[i, j, k], exact, atol=1e-3)
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -26,6 +26,7 @@ half a line, and a clipped light shows its waveform only at its rim and in its d
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -135,63 +136,116 @@ def outline_ellipse(support: np.ndarray, axis: str):
 def _integrated(lines: np.ndarray, period, phase, window) -> np.ndarray:
     """A 50 % square wave (high first) integrated over a centred window, 0 to 1.
 
-    All arguments broadcast; ``lines``, ``phase`` and ``window`` in lines, ``period`` too.
+    All arguments broadcast; ``lines``, ``phase`` and ``window`` in lines, ``period`` too.  The
+    window is at most half a period, so that it spans one edge at most: the integral is then a
+    trapezoid, ramping over ``window`` lines centred on each edge.  The distances to the edges
+    broadcast over ``lines``, ``period`` and ``phase`` only (the window's axes, if it has its
+    own, are broadcast last).
     """
     window = np.maximum(window, 1e-3)
+    quarter = 0.25 * period
+    # distance from the middle of the nearest high half-period, 0 to period / 2
+    v = np.mod(lines - (phase - quarter), period)
+    v -= 2.0 * quarter
+    np.abs(v, out=v)
+    t = (quarter + 0.5 * window) - v
+    t *= 1.0 / window
+    np.maximum(t, 0.0, out=t)
+    return np.minimum(t, 1.0, out=t)
 
-    def on_time(t):  # time the wave is high in [0, t]
-        cycles = np.floor(t / period)
-        return cycles * 0.5 * period + np.minimum(t - cycles * period, 0.5 * period)
 
-    t = lines - phase
-    return (on_time(t + 0.5 * window) - on_time(t - 0.5 * window)) / window
+class _Profile(NamedTuple):
+    """A light's line profile for :func:`_cost`.
+
+    ``y``, ``s``, ``w``: the lines (shape (N,)), their signal and weights; ``bc``, ``wc``: the
+    bounds and weights of the clipped lines (shape (M,)); ``lines``: both sets of lines,
+    shape (N + M,), with ``wz`` the weights there and ``weights`` (shape (N + M, 2)) the
+    weights and the weights times the signal (0 on the clipped lines); ``s0``, ``b0``,
+    ``ss``: the sums of ``w``, ``w * s`` and ``w * s * s``.
+    """
+
+    y: np.ndarray
+    s: np.ndarray
+    w: np.ndarray
+    bc: np.ndarray
+    wc: np.ndarray
+    lines: np.ndarray
+    wz: np.ndarray
+    weights: np.ndarray
+    s0: float
+    b0: float
+    ss: float
+
+    @classmethod
+    def of(cls, y, s, w, yc, bc, wc) -> _Profile:
+        """The profile of these lines (shape (N,)) and clipped lines (shape (M,))."""
+        ws = w * s
+        zeros = np.zeros(yc.size)
+        lines, wz, wsz = (
+            np.concatenate([y, yc]),
+            np.concatenate([w, zeros]),
+            np.concatenate([ws, zeros]),
+        )
+        weights = np.stack([wz, wsz], axis=1)
+        return cls(
+            y, s, w, bc, wc, lines, wz, weights, float(w.sum()), float(ws.sum()), float(ws @ s)
+        )
 
 
-def _cost(data, period, phase, window) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _cost(data: _Profile, period, phase, window) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Weighted residual of the best low/high levels for each wave; (cost, low, high).
 
-    ``data`` = (lines, signal, weight, bound lines, bounds, bound weights).  The levels are
-    the weighted least squares over the unclipped lines; each clipped line whose bound the
-    wave does not reach adds its shortfall squared, weighted.  Shapes broadcast over the
-    leading axes of ``period``, ``phase``, ``window`` (lines on the last axis).
+    The levels are the weighted least squares over the unclipped lines; each clipped line
+    whose bound the wave does not reach adds its shortfall squared, weighted.  Shapes
+    broadcast over the leading axes of ``period``, ``phase``, ``window`` (lines on the last
+    axis); scalars give scalars.
     """
-    y, s, w, yc, bc, wc = data
-    t = _integrated(y, period, phase, window)
-    s0, s1, s2 = w.sum(), (w * t).sum(-1), (w * t * t).sum(-1)
-    b0, b1 = (w * s).sum(), (w * t * s).sum(-1)
+    t = _integrated(data.lines, period, phase, window)
+    s0, b0 = data.s0, data.b0
+    s1, b1 = np.moveaxis(t @ data.weights, -1, 0)
+    if data.bc.size:
+        tc = t[..., data.y.size :].copy()
+    np.square(t, out=t)
+    s2 = t @ data.wz
     det = s0 * s2 - s1 * s1
-    det = np.where(np.abs(det) < 1e-12 * s0 * s0, np.inf, det)
-    low = (s2 * b0 - s1 * b1) / det
-    amp = (s0 * b1 - s1 * b0) / det
-    r = s - low[..., None] - amp[..., None] * t
-    cost = (w * r * r).sum(-1)
-    if yc.size:
-        tc = _integrated(yc, period, phase, window)
-        short = np.maximum(bc - low[..., None] - amp[..., None] * tc, 0.0)
-        cost = cost + (wc * short * short).sum(-1)
-    cost = np.where(amp > 0, cost, np.inf)  # the light is brighter when on
-    return cost, low, low + amp
+    with np.errstate(divide="ignore", invalid="ignore"):  # a singular fit: masked below
+        low = (s2 * b0 - s1 * b1) / det
+        amp = (s0 * b1 - s1 * b0) / det
+        # the residual of the least squares, from the sums
+        cost = np.maximum(data.ss - low * b0 - amp * b1, 0.0)
+        if data.bc.size:
+            short = data.bc - low[..., None] - amp[..., None] * tc
+            np.maximum(short, 0.0, out=short)
+            cost = cost + (data.wc * short * short).sum(-1)
+        high = low + amp
+    # a singular fit (one level fits all) or a light darker when on fits nothing
+    bad = (np.abs(det) < 1e-12 * s0 * s0) | ~(amp > 0)
+    if np.ndim(cost):
+        cost[bad] = np.inf
+    elif bad:
+        return np.inf, 0.0, 0.0
+    return cost, low, high
 
 
-def _grid(data, periods: np.ndarray, n_phase: int, windows) -> np.ndarray:
+def _grid(data: _Profile, periods: np.ndarray, n_phase: int, windows) -> np.ndarray:
     """Cost over periods x phases (``n_phase`` per period) x windows (fractions of a period)."""
-    p = np.asarray(periods, dtype=float)[:, None, None]
-    phase = (np.arange(n_phase) / n_phase)[None, :, None] * p
-    window = np.maximum(np.asarray(windows, dtype=float)[None, None, :] * p, _MIN_WINDOW)
-    return _cost(data, p[..., None], phase[..., None], window[..., None])[0]
+    p = np.asarray(periods, dtype=float)[:, None, None, None]
+    phase = (np.arange(n_phase) / n_phase)[None, :, None, None] * p
+    window = np.maximum(np.asarray(windows, dtype=float)[None, None, :, None] * p, _MIN_WINDOW)
+    return _cost(data, p, phase, window)[0]
 
 
 #: The coarse period search's line binning: (lines per bin, shortest, longest period).
 _COARSE_BINS = ((1, 0.0, 16.0), (2, 16.0, 32.0), (4, 32.0, np.inf))
 
 
-def _binned(data, k: int):
+def _binned(data: _Profile, k: int) -> _Profile:
     """:func:`_cost`'s data with lines binned ``k`` at a time (weighted means; k = 1 as is)."""
     if k == 1:
         return data
-    y, s, w, yc, bc, wc = data
+    yc = data.lines[data.y.size :]
     out = []
-    for lines, values, weights in ((y, s, w), (yc, bc, wc)):
+    for lines, values, weights in ((data.y, data.s, data.w), (yc, data.bc, data.wc)):
         if lines.size == 0:
             out += [lines, values, weights]
             continue
@@ -203,7 +257,7 @@ def _binned(data, k: int):
             (np.bincount(b, weights * values)[ok] / tw[ok]),
             tw[ok],
         ]
-    return tuple(out)
+    return _Profile.of(*out)
 
 
 #: A profile showing this many periods or more (by its spectrum's peak) is also searched
@@ -294,7 +348,9 @@ def fit_square_wave(
     )
     kc = wc > 0
     scale = float(np.percentile(np.abs(s[keep]), 95)) or 1.0  # costs of order 1 per line
-    data = (y[keep], s[keep] / scale, w[keep] / top, yc[kc], bc[kc] / scale, wc[kc] / top)
+    data = _Profile.of(
+        y[keep], s[keep] / scale, w[keep] / top, yc[kc], bc[kc] / scale, wc[kc] / top
+    )
     span = float(data[0].max() - data[0].min() + 1)
     if span < 2.5 / 0.8:
         return (float("nan"),) * 5
@@ -349,24 +405,26 @@ def fit_square_wave(
 
 
 def _aggregate(rho: np.ndarray, line: np.ndarray, value: np.ndarray, n_lines: int, bin_px: float):
-    """Sums per (line, radial bin) for :func:`_shape_fit`, the bins interpolated linearly.
+    """Sums per (line, knot of the radial shape) for :func:`_shape_fit`.
 
-    Returns the bin count ``nb``, a tuple of arrays of shape (n_lines, nb): the sums of
-    ``value * (1 - t)``, ``value * t``, ``(1 - t) ** 2``, ``t * (1 - t)`` and ``t ** 2``
-    (``t`` the pixel's position between its bin's two knots), and the sum of ``value ** 2``.
+    The shape is piecewise linear over bins of ``bin_px``: a pixel at ``t`` (0 to 1) between
+    knots ``k`` and ``k + 1`` sees ``(1 - t) g[k] + t g[k + 1]``.  Returns the knot count
+    ``K`` (the bins plus one), an array of shape (3, n_lines, K) holding, per line and knot,
+    the sums ``A`` of ``value`` times the knot's weight, ``D`` of the weight squared, and
+    ``O`` of the product of the weights of the knot and the next one (0 at the last knot),
+    and the sum of ``value ** 2``.
     """
     f = rho / bin_px
     i0 = f.astype(np.intp)  # rho >= 0: truncation is the floor
     t = f - i0
-    nb = int(i0.max()) + 1
-    key = line * nb + i0
-    size = n_lines * nb
     u = 1.0 - t
-    sums = tuple(
-        np.bincount(key, w, minlength=size).reshape(n_lines, nb)
-        for w in (value * u, value * t, u * u, t * u, t * t)
-    )
-    return nb, sums, float(value @ value)
+    knots = int(i0.max()) + 2
+    size = n_lines * knots
+    key = line * knots + i0
+    keys = np.concatenate([key, key + 1, key + size, key + (size + 1), key + 2 * size])
+    weights = np.concatenate([value * u, value * t, u * u, t * t, t * u])
+    sums = np.bincount(keys, weights, minlength=3 * size).reshape(3, n_lines, knots)
+    return knots, sums, float(value @ value)
 
 
 def _shape_fit(agg, g0, iters: int):
@@ -375,28 +433,34 @@ def _shape_fit(agg, g0, iters: int):
     ``g`` is piecewise linear over the radial bins.  Returns (residual sum of squares, s per
     line, its weight, g per bin knot).
     """
-    nb, (v0, v1, q00, q01, q11), vv = agg
-    g = np.ones(nb + 1)
+    knots, sums, vv = agg
+    n_lines = sums.shape[1]
+    gv = np.zeros((3, knots, 1))  # g, g ** 2, and 2 g times the next knot's g
+    g = gv[0, :, 0]
+    g[:] = 1.0
     if g0 is not None:
-        k = min(nb + 1, g0.size)
+        k = min(knots, g0.size)
         g[:k] = g0[:k]
+    sv = np.empty((3, 1, n_lines))  # s, s ** 2, s ** 2
     for it in range(iters + 1):
-        ga, gb = g[:-1], g[1:]  # the two knots of each bin
-        num = v0 @ ga + v1 @ gb
-        den = q00 @ (ga * ga) + 2.0 * (q01 @ (ga * gb)) + q11 @ (gb * gb)
-        s = np.where(den > 0, num / np.maximum(den, 1e-300), 0.0)
+        np.multiply(g, g, out=gv[1, :, 0])
+        np.multiply(g[:-1], g[1:], out=gv[2, :-1, 0])
+        gv[2, :-1, 0] *= 2.0
+        # per line: num = sum of value * g(rho), den = sum of g(rho) ** 2
+        (num, den, den_o) = np.matmul(sums, gv)[:, :, 0]
+        den += den_o
+        s = np.divide(num, den, out=np.zeros(n_lines), where=den > 0)
         if it == iters:
             break
-        s2 = s * s
+        sv[0, 0] = s
+        np.multiply(s, s, out=sv[1, 0])
+        sv[2, 0] = sv[1, 0]
         # each knot: a Jacobi step of the normal equations (its bin below and above)
-        num_k = np.zeros(nb + 1)
-        den_k = np.zeros(nb + 1)
-        num_k[:-1] += s @ v0
-        num_k[1:] += s @ v1
-        q01s = s2 @ q01
-        den_k[:-1] += s2 @ q00 + q01s
-        den_k[1:] += s2 @ q11 + q01s
-        g = np.where(den_k > 0, num_k / np.maximum(den_k, 1e-300), 0.0)
+        num_k, den_k, o = np.matmul(sv, sums)[:, 0, :]
+        den_k += o
+        den_k[1:] += o[:-1]
+        np.divide(num_k, den_k, out=g, where=den_k > 0)
+        g[den_k <= 0] = 0.0
         g /= float(np.max(np.abs(g))) or 1.0
     rss = vv - 2.0 * float(s @ num) + float(s * s @ den)
     return rss, s, den, g
@@ -437,6 +501,26 @@ def _clip_bounds(f: np.ndarray, line: np.ndarray, shape: np.ndarray, full: float
     return np.arange(n_lines, dtype=float), bounds, np.bincount(line, env * env, minlength=n_lines)
 
 
+def _axes(x: np.ndarray, y: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
+    """Pixels ``(x, y)`` (shape (N,)) along the axes of an ellipse at angle ``cs`` = (cos, sin)
+    from the x axis, shape (2, N): for :func:`_radius`."""
+    c, s = cs
+    return np.stack([x * c + y * s, y * c - x * s])
+
+
+def _radius(uv: np.ndarray, p: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
+    """Elliptical radius of pixels ``uv`` (:func:`_axes`, shape (2, N)), pixels, shape (N,).
+
+    About the centre ``(p[0], p[1])`` (x, y), the axis ratio ``exp(p[2])`` (clipped to
+    :data:`_MAX_LOG_RATIO`), the ellipse's first axis along ``cs`` = (cos, sin) of its angle.
+    """
+    c, s = cs
+    u = uv[0] - (p[0] * c + p[1] * s)
+    v = uv[1] - (p[1] * c - p[0] * s)
+    r = float(np.clip(p[2], -_MAX_LOG_RATIO, _MAX_LOG_RATIO))
+    return np.hypot(u * np.exp(-0.5 * r), v * np.exp(0.5 * r))
+
+
 def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
     """A round light's waveform, free of its shape, and the square wave that fits it.
 
@@ -474,22 +558,19 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         return _failed(np.array([nan, nan]), "too few pixels")
     if not (m[ly, lx]).any():  # only the background around a disc clipped all over
         return _failed(np.array([nan, nan]), "the light is clipped all over", conclusive=True)
-    c, s_ = np.cos(theta), np.sin(theta)
-
-    def rho(x: np.ndarray, y: np.ndarray, p: np.ndarray) -> np.ndarray:
-        """Elliptical radius about centre (p[0], p[1]), axis ratio exp(p[2]), pixels."""
-        dx, dy = x - p[0], y - p[1]
-        u, v = dx * c + dy * s_, dy * c - dx * s_
-        r = np.clip(p[2], -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
-        return np.hypot(u * np.exp(-0.5 * r), v * np.exp(0.5 * r))
+    cs = (float(np.cos(theta)), float(np.sin(theta)))
 
     n_lines = g.shape[0]
     bin_px = max(_BIN_PX, radius / _BINS_PER_RADIUS)
     every = max(1, ly.size // _GEOMETRY_PIXELS)  # the geometry needs a few thousand pixels
 
+    uv = _axes(lx, ly, cs)
+
     def fit(p: np.ndarray, g0, iters: int, step: int = 1):
-        x, y, v = lx[::step], ly[::step], value[::step]
-        return _shape_fit(_aggregate(rho(x, y, p), y, v, n_lines, bin_px), g0, iters)
+        y, v = ly[::step], value[::step]
+        return _shape_fit(
+            _aggregate(_radius(uv[:, ::step], p, cs), y, v, n_lines, bin_px), g0, iters
+        )
 
     # starts: the given outline and the support's, each round and with the given axis ratio
     ratio = np.clip(np.log(max(aw, 1e-6) / max(ah, 1e-6)), -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
@@ -503,24 +584,24 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
 
     unit = max(fit(start, warm, 2, every)[0], 1e-12)  # costs relative to the start's
 
-    def cost(p: np.ndarray) -> float:
-        return fit(p, warm, 2, every)[0] / unit
-
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
     simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
     res = minimize(
-        cost,
+        lambda p: fit(p, warm, 2, every)[0] / unit,
         start,
         method="Nelder-Mead",
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
-    _, s, weight, shape = fit(res.x, warm, 12)
-    bounds = _clip_bounds(rho(cx_, cy_, res.x) / bin_px, cy_, shape, _CLIP - background, n_lines)
+    best = np.asarray(res.x, dtype=float)
+    _, s, weight, shape = fit(best, warm, 12)
+    bounds = _clip_bounds(
+        _radius(_axes(cx_, cy_, cs), best, cs) / bin_px, cy_, shape, _CLIP - background, n_lines
+    )
     weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
     lines = np.arange(n_lines, dtype=float)
     period, phase, window, low, high = fit_square_wave(lines, s, weight, *bounds)
-    centre = np.array(res.x[:2], dtype=float)
+    centre = np.array(best[:2], dtype=float)
     if axis == "columns":
         centre = centre[::-1]
     used = np.flatnonzero(weight > 0)
