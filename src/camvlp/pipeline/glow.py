@@ -21,7 +21,7 @@ import numpy as np
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.light_wave import light_wave
 
-__all__ = ["centred_on_glow", "glow_level"]
+__all__ = ["centred_on_glow", "glow_level", "glow_levels"]
 
 #: Glow level (see :func:`glow_level`) from which a light counts as glowing.
 GLOW_LEVEL = 0.02
@@ -30,48 +30,62 @@ GLOW_LEVEL = 0.02
 #: Where :func:`glow_level` samples a light, in radii of its outline ellipse: inside, the
 #: ring just beyond (past a plain disc's blur), and the background further out.
 _RADII = np.array([0.3, 0.5, 0.7, 1.15, 1.25, 1.35, 1.7, 1.9])[:, None]
+_IN, _RING, _OUT = slice(0, 3), slice(3, 6), slice(6, 8)
 _ANGLES = np.linspace(0.0, 2.0 * np.pi, 32, endpoint=False)
 _COS, _SIN = np.cos(_ANGLES), np.sin(_ANGLES)
 _LUMA = np.array([0.114, 0.587, 0.299])  # B, G, R
 
 
-def glow_level(img: np.ndarray, blob: Blob) -> float:
-    """How much a light glows beyond its outline, as a fraction of its level.
+def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
+    """How much each light glows beyond its outline, as a fraction of its level.
 
-    The photo is sampled along 32 directions from the outline ellipse's centre: within it
+    The photo is sampled along 32 directions from each outline ellipse's centre: within it
     (0.3 to 0.7 of its radii), in the ring just beyond it (1.15 to 1.35 radii) and further
     out (1.7 and 1.9 radii: the background, their median).  The ring's mean above the
     background, over the inside's, is about 0 for a plain disc, blurred or not (its blur ends
-    within the ring's inner edge), and a few per cent or more for a glow.  NaN when too few
-    samples fall in the photo to tell.
+    within the ring's inner edge), and a few per cent or more for a glow.
 
     Parameters
     ----------
     img : ndarray, shape (H, W, 3) or (H, W)
         The photo.
-    blob : Blob
-        The detected light (its centre, axes and angle).
+    blobs : sequence of Blob
+        The detected lights (their centres, axes and angles).
+
+    Returns
+    -------
+    ndarray, shape (len(blobs),)
+        The levels; NaN where too few samples fall in the photo to tell.
     """
+    if not len(blobs):
+        return np.zeros(0)
     h, w = img.shape[:2]
-    a, b = (max(float(v), 1.0) * 0.5 for v in blob.axes_px)
-    t = np.deg2rad(blob.angle_deg)
+    geo = np.array([(*b.pixel, *b.axes_px, b.angle_deg) for b in blobs], dtype=np.float64)
+    cx, cy = geo[:, 0, None, None], geo[:, 1, None, None]
+    a, b = (0.5 * np.maximum(geo[:, k], 1.0)[:, None, None] for k in (2, 3))
+    t = np.deg2rad(geo[:, 4])[:, None, None]
     ct, st = np.cos(t), np.sin(t)
-    x = blob.pixel[0] + _RADII * (a * ct * _COS - b * st * _SIN)
-    y = blob.pixel[1] + _RADII * (a * st * _COS + b * ct * _SIN)
+    x = cx + _RADII * (a * ct * _COS - b * st * _SIN)  # (n, radii, angles)
+    y = cy + _RADII * (a * st * _COS + b * ct * _SIN)
     ok = (x > -0.5) & (x < w - 0.5) & (y > -0.5) & (y < h - 0.5)
     xi = np.clip(np.rint(x), 0, w - 1).astype(np.intp)
     yi = np.clip(np.rint(y), 0, h - 1).astype(np.intp)
     px = img[yi, xi].astype(np.float64)
-    if px.ndim == 3:  # BGR(A): OpenCV's luma weights
+    if px.ndim == 4:  # BGR(A): OpenCV's luma weights
         px = px[..., :3] @ _LUMA
-    n_ring, n_out = int(ok[3:6].sum()), int(ok[6:].sum())
-    if n_ring < 16 or n_out < 16 or not ok[:3].any():
-        return float("nan")
-    inside = float(px[:3][ok[:3]].sum()) / int(ok[:3].sum())
-    ring = float(px[3:6][ok[3:6]].sum()) / n_ring
-    out = px[6:][ok[6:]]
-    background = float(np.partition(out, out.size // 2)[out.size // 2])
-    return (ring - background) / max(inside - background, 1.0)
+    px = np.where(ok, px, np.nan)
+    n_in, n_ring, n_out = (ok[:, k].sum(axis=(1, 2)) for k in (_IN, _RING, _OUT))
+    inside = np.nansum(px[:, _IN], axis=(1, 2)) / np.maximum(n_in, 1)
+    ring = np.nansum(px[:, _RING], axis=(1, 2)) / np.maximum(n_ring, 1)
+    out = np.sort(px[:, _OUT].reshape(len(blobs), -1), axis=1)  # NaNs last
+    background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]
+    level = (ring - background) / np.maximum(inside - background, 1.0)
+    return np.where((n_ring >= 16) & (n_out >= 16) & (n_in > 0), level, np.nan)
+
+
+def glow_level(img: np.ndarray, blob: Blob) -> float:
+    """:func:`glow_levels` of one light."""
+    return float(glow_levels(img, [blob])[0])
 
 
 def centred_on_glow(img: np.ndarray, blobs, axis: str) -> list[Blob]:
@@ -93,8 +107,9 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str) -> list[Blob]:
         The blobs; a moved one has its new ``pixel`` (all else as detected).
     """
     out = []
-    for b in blobs:
-        if b.touches_border or not glow_level(img, b) >= GLOW_LEVEL:
+    levels = glow_levels(img, blobs)
+    for b, level in zip(blobs, levels, strict=True):
+        if b.touches_border or not level >= GLOW_LEVEL:
             out.append(b)
             continue
         x0, y0, x1, y1 = b.box
