@@ -66,15 +66,28 @@ def _picture(result, caption: str) -> np.ndarray:
         y0 = 40
         panel[y0 : y0 + INSET, 8 : 8 + INSET] = crop
         cv2.rectangle(panel, (7, y0 - 1), (8 + INSET, y0 + INSET), (160, 160, 160), 1)
-        for i, text in enumerate((f"fixture {t.id} at full resolution",
-                                  f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames")):
-            cv2.putText(panel, text, (8, y0 + INSET + 22 + 20 * i), cv2.FONT_HERSHEY_SIMPLEX,
-                        0.45, (220, 220, 220), 1, cv2.LINE_AA)
+        for i, text in enumerate(
+            (
+                f"fixture {t.id} at full resolution",
+                f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames",
+            )
+        ):
+            cv2.putText(
+                panel,
+                text,
+                (8, y0 + INSET + 22 + 20 * i),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.45,
+                (220, 220, 220),
+                1,
+                cv2.LINE_AA,
+            )
     panel[:, :2] = 90  # separator
     body = np.hstack([small, panel])
     band = np.zeros((34, body.shape[1], 3), np.uint8)
-    cv2.putText(band, caption, (8, 23), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1,
-                cv2.LINE_AA)
+    cv2.putText(
+        band, caption, (8, 23), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1, cv2.LINE_AA
+    )
     return np.vstack([band, body])
 
 
@@ -97,15 +110,19 @@ def main() -> None:
         seconds = time.perf_counter() - t0
         n_inside = sum(t.fully_inside for t in result.fixtures)
         frames = min(t.frames_spanned for t in result.fixtures if t.in_front)
-        caption = (f"Fig. {figure}   C = {_fmt(position)} m   theta = {_fmt(euler)} deg   "
-                   f"{n_inside}/4 fully inside")
+        caption = (
+            f"Fig. {figure}   C = {_fmt(position)} m   theta = {_fmt(euler)} deg   "
+            f"{n_inside}/4 fully inside"
+        )
         picture = _picture(result, caption)
         if not colour:
             picture = cv2.cvtColor(picture, cv2.COLOR_BGR2GRAY)
         path = args.out / f"{stem}.png"
         cv2.imwrite(str(path), picture, [cv2.IMWRITE_PNG_COMPRESSION, 9])
-        print(f"{path.name}: rendered 5184 x 3880 in {seconds:.2f} s, {n_inside}/4 fully inside, "
-              f"{path.stat().st_size / 1024:.0f} KB")
+        print(
+            f"{path.name}: rendered 5184 x 3880 in {seconds:.2f} s, {n_inside}/4 fully inside, "
+            f"{path.stat().st_size / 1024:.0f} KB"
+        )
         rows.append((stem, figure, position, euler, n_inside, frames, colour))
     limits = {
         (c, axis, d): tilt_limit(camera, fixture_map, c, (90, 0, 0), axis, d)

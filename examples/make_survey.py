@@ -58,20 +58,40 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--camera", required=True, type=Path, help="camera file")
     parser.add_argument("--map", required=True, type=Path, help="map file")
-    parser.add_argument("--grid", required=True, type=_grid,
-                        help="x0:x1:step,z0:z1:step over the floor, map units (stop included)")
-    parser.add_argument("--height", type=float, default=0.0,
-                        help="camera height above the floor, map units (y = -height); default 0")
-    parser.add_argument("--euler", type=_triple, default=(90.0, 0.0, 0.0),
-                        help="the thesis' angles theta_x,theta_y,theta_z, degrees; default 90,0,0")
-    parser.add_argument("--jitter-deg", type=float, default=0.0,
-                        help="add a uniform random angle in [-J, J] to each of the three angles")
+    parser.add_argument(
+        "--grid",
+        required=True,
+        type=_grid,
+        help="x0:x1:step,z0:z1:step over the floor, map units (stop included)",
+    )
+    parser.add_argument(
+        "--height",
+        type=float,
+        default=0.0,
+        help="camera height above the floor, map units (y = -height); default 0",
+    )
+    parser.add_argument(
+        "--euler",
+        type=_triple,
+        default=(90.0, 0.0, 0.0),
+        help="the thesis' angles theta_x,theta_y,theta_z, degrees; default 90,0,0",
+    )
+    parser.add_argument(
+        "--jitter-deg",
+        type=float,
+        default=0.0,
+        help="add a uniform random angle in [-J, J] to each of the three angles",
+    )
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     parser.add_argument("--seed", type=int, default=0, help="seed of the jitter and the renders")
     parser.add_argument("--jobs", type=int, default=None, help="worker processes (default: all)")
     parser.add_argument("--quality", type=int, default=90, help="JPEG quality; default 90")
-    parser.add_argument("--chip-rate", type=float, default=10_000.0,
-                        help="Manchester chips per second; default 10000")
+    parser.add_argument(
+        "--chip-rate",
+        type=float,
+        default=10_000.0,
+        help="Manchester chips per second; default 10000",
+    )
     args = parser.parse_args(argv)
     if args.jitter_deg < 0:
         parser.error("--jitter-deg must not be negative")
@@ -94,18 +114,29 @@ def main(argv: list[str] | None = None) -> int:
         for p, e in zip(positions, euler, strict=True)
     )
     if outside:
-        print(f"note: {outside} of {len(positions)} poses do not see every fixture whole",
-              file=sys.stderr)
+        print(
+            f"note: {outside} of {len(positions)} poses do not see every fixture whole",
+            file=sys.stderr,
+        )
     jobs = args.jobs or default_jobs()
-    print(f"rendering {len(positions)} photos ({camera.width} x {camera.height}) with {jobs} "
-          f"jobs into {args.out}", file=sys.stderr)
+    print(
+        f"rendering {len(positions)} photos ({camera.width} x {camera.height}) with {jobs} "
+        f"jobs into {args.out}",
+        file=sys.stderr,
+    )
     t0 = time.perf_counter()
     try:
         csv_path = render_survey(
-            camera, fixture_map, positions, euler, args.out,
-            RenderSettings(chip_rate_hz=args.chip_rate, seed=args.seed,
-                           readout=camera.readout or "rows"),
-            jobs=jobs, jpeg_quality=args.quality,
+            camera,
+            fixture_map,
+            positions,
+            euler,
+            args.out,
+            RenderSettings(
+                chip_rate_hz=args.chip_rate, seed=args.seed, readout=camera.readout or "rows"
+            ),
+            jobs=jobs,
+            jpeg_quality=args.quality,
             progress=lambda done, total: print(f"\r{done}/{total}", end="", file=sys.stderr),
         )
     except ValueError as exc:

@@ -11,9 +11,17 @@ from camvlp.format import format_length, length_unit, mm_per_unit
 
 @pytest.mark.parametrize(
     ("value_m", "text"),
-    [(1.2345, "1.234 m"), (0.5, "0.500 m"), (0.4999, "49.99 cm"), (0.01, "1.00 cm"),
-     (0.00999, "9.99 mm"), (0.0, "0.00 mm"), (-0.02, "-2.00 cm"), (None, "n/a"),
-     (math.nan, "n/a")],
+    [
+        (1.2345, "1.234 m"),
+        (0.5, "0.500 m"),
+        (0.4999, "49.99 cm"),
+        (0.01, "1.00 cm"),
+        (0.00999, "9.99 mm"),
+        (0.0, "0.00 mm"),
+        (-0.02, "-2.00 cm"),
+        (None, "n/a"),
+        (math.nan, "n/a"),
+    ],
 )
 def test_the_unit_follows_the_size(value_m, text):
     assert format_length(value_m) == text

@@ -36,9 +36,10 @@ def _board_poses(camera: Camera, n: int, seed: int) -> list[Pose]:
     rng = np.random.default_rng(seed)
     cols, rows = BOARD
     centre = np.array([(cols - 1) / 2, (rows - 1) / 2, 0.0]) * SQUARE_M
-    outline = np.array(
-        [[-2, -2, 0], [cols + 1, -2, 0], [-2, rows + 1, 0], [cols + 1, rows + 1, 0]]
-    ) * SQUARE_M
+    outline = (
+        np.array([[-2, -2, 0], [cols + 1, -2, 0], [-2, rows + 1, 0], [cols + 1, rows + 1, 0]])
+        * SQUARE_M
+    )
     poses: list[Pose] = []
     while len(poses) < n:
         az, tilt, roll = rng.uniform(0, 360), rng.uniform(20, 40), rng.uniform(-30, 30)
@@ -63,8 +64,7 @@ def _photo(camera: Camera, pose: Pose, seed: int) -> np.ndarray:
 @cache
 def _photos(n: int = 10, seed: int = 7) -> tuple[np.ndarray, ...]:
     return tuple(
-        _photo(TRUE_CAMERA, p, seed + k)
-        for k, p in enumerate(_board_poses(TRUE_CAMERA, n, seed))
+        _photo(TRUE_CAMERA, p, seed + k) for k, p in enumerate(_board_poses(TRUE_CAMERA, n, seed))
     )
 
 
@@ -127,7 +127,11 @@ def test_calibration_recovers_focal_length_and_principal_point():
 
 def test_fix_aspect_and_zero_tangent_and_row_time():
     result = calibrate_camera(
-        list(_photos()[:6]), BOARD, SQUARE_M, fix_aspect=True, zero_tangent=True,
+        list(_photos()[:6]),
+        BOARD,
+        SQUARE_M,
+        fix_aspect=True,
+        zero_tangent=True,
         row_time_s=21e-6,
     )
     assert result
@@ -145,7 +149,9 @@ def test_rejected_photos_are_listed_with_reasons(tmp_path: Path):
     corrupt = tmp_path / "corrupt.png"
     corrupt.write_bytes(b"\x89PNG not really an image")
     result = calibrate_camera(
-        [*photos, blank, small, corrupt], BOARD, SQUARE_M,
+        [*photos, blank, small, corrupt],
+        BOARD,
+        SQUARE_M,
     )
     assert result
     assert len(result.used) == 4
@@ -303,8 +309,6 @@ def test_row_time_from_a_simulated_frequency_fixture():
 # Command line
 
 
-
-
 @pytest.fixture(scope="module")
 def photo_dir(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("boards")
@@ -318,8 +322,18 @@ def test_cli_calibrate_writes_a_loadable_camera_file(photo_dir: Path, tmp_path: 
     out = tmp_path / "camera.yaml"
     result = runner.invoke(
         app,
-        ["calibrate", str(photo_dir), "--board", "9x6", "--square", "0.03", "--out", str(out),
-         "--row-time", "2e-5"],
+        [
+            "calibrate",
+            str(photo_dir),
+            "--board",
+            "9x6",
+            "--square",
+            "0.03",
+            "--out",
+            str(out),
+            "--row-time",
+            "2e-5",
+        ],
     )
     assert result.exit_code == 0, result.output
     cam = load_camera(out)
@@ -335,8 +349,20 @@ def test_cli_calibrate_json(photo_dir: Path, tmp_path: Path):
     out = tmp_path / "camera.json"
     images = sorted(str(p) for p in photo_dir.glob("board_0[0-3].png"))
     result = runner.invoke(
-        app, ["calibrate", *images, "--board", "9x6", "--square", "0.03", "--out", str(out),
-              "--json", "--fix-aspect", "--zero-tangent"],
+        app,
+        [
+            "calibrate",
+            *images,
+            "--board",
+            "9x6",
+            "--square",
+            "0.03",
+            "--out",
+            str(out),
+            "--json",
+            "--fix-aspect",
+            "--zero-tangent",
+        ],
     )
     assert result.exit_code == 0, result.output
     summary = json.loads(result.stdout)
@@ -353,8 +379,10 @@ def test_cli_calibrate_json(photo_dir: Path, tmp_path: Path):
         ([], "no chessboard photos"),
         (["{dir}/board_00.png", "--board", "9by6", "--square", "0.03"], "9by6"),
         (["{dir}/board_00.png", "--board", "9x6"], "--square"),
-        (["{dir}/board_00.png", "{dir}/missing.png", "--board", "9x6", "--square", "0.03"],
-         "missing.png"),
+        (
+            ["{dir}/board_00.png", "{dir}/missing.png", "--board", "9x6", "--square", "0.03"],
+            "missing.png",
+        ),
     ],
 )
 def test_cli_calibrate_bad_input(photo_dir: Path, tmp_path: Path, args, word):
@@ -367,8 +395,18 @@ def test_cli_calibrate_bad_input(photo_dir: Path, tmp_path: Path, args, word):
 
 def test_cli_calibrate_too_few_photos_exits_1(photo_dir: Path, tmp_path: Path):
     result = runner.invoke(
-        app, ["calibrate", str(photo_dir / "board_00.png"), str(photo_dir / "blank.png"),
-              "--board", "9x6", "--square", "0.03", "--out", str(tmp_path / "c.yaml")],
+        app,
+        [
+            "calibrate",
+            str(photo_dir / "board_00.png"),
+            str(photo_dir / "blank.png"),
+            "--board",
+            "9x6",
+            "--square",
+            "0.03",
+            "--out",
+            str(tmp_path / "c.yaml"),
+        ],
     )
     assert result.exit_code == 1
     assert "need 3" in one_error_line(result)
@@ -386,16 +424,24 @@ def test_cli_calibrate_rows_writes_row_time(tmp_path: Path):
     save_camera(Camera.from_focal(120, 120, 100.0), cam_in)
     cam_out = tmp_path / "cam2.yaml"
     result = runner.invoke(
-        app, ["calibrate-rows", str(photo), "--frequency", f"{freq:.6f}", "--camera",
-              str(cam_in), "--out", str(cam_out)],
+        app,
+        [
+            "calibrate-rows",
+            str(photo),
+            "--frequency",
+            f"{freq:.6f}",
+            "--camera",
+            str(cam_in),
+            "--out",
+            str(cam_out),
+        ],
     )
     assert result.exit_code == 0, result.output
     assert "columns" in result.stdout and "row time" in result.stdout
     cam = load_camera(cam_out)
     assert cam.row_time_s == pytest.approx(row_time, rel=0.02)
     assert cam.focal_px == 100.0
-    result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", str(freq),
-                                 "--json"])
+    result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", str(freq), "--json"])
     assert result.exit_code == 0, result.output
     out = json.loads(result.stdout)
     assert out["axis"] == "columns"
@@ -410,16 +456,20 @@ def test_cli_calibrate_rows_errors(tmp_path: Path):
     assert "no bright light" in one_error_line(result)
     result = runner.invoke(app, ["calibrate-rows", str(photo)])
     assert result.exit_code == 2 and "--frequency" in one_error_line(result)
-    result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000", "--out",
-                                 str(tmp_path / "x.yaml")])
+    result = runner.invoke(
+        app,
+        ["calibrate-rows", str(photo), "--frequency", "1000", "--out", str(tmp_path / "x.yaml")],
+    )
     assert result.exit_code == 2 and "--camera" in one_error_line(result)
-    result = runner.invoke(app, ["calibrate-rows", str(tmp_path / "nope.png"), "--frequency",
-                                 "1000"])
+    result = runner.invoke(
+        app, ["calibrate-rows", str(tmp_path / "nope.png"), "--frequency", "1000"]
+    )
     assert result.exit_code == 2 and "nope.png" in one_error_line(result)
     cam = tmp_path / "cam.yaml"
     save_camera(Camera.from_focal(640, 480, 500.0), cam)
-    result = runner.invoke(app, ["calibrate-rows", str(photo), "--frequency", "1000",
-                                 "--camera", str(cam)])
+    result = runner.invoke(
+        app, ["calibrate-rows", str(photo), "--frequency", "1000", "--camera", str(cam)]
+    )
     assert result.exit_code == 2 and "640 x 480" in one_error_line(result)
 
 

@@ -32,8 +32,14 @@ runner = CliRunner()
 
 # Six floor positions, camera looking up; photo 2 becomes a non-image, photo 4 a black image.
 POSITIONS = np.array(
-    [[0.0, 0.0, 0.0], [0.2, 0.0, 0.1], [-0.2, 0.0, 0.1], [0.1, 0.0, -0.2], [-0.1, 0.0, -0.1],
-     [0.2, 0.0, -0.2]]
+    [
+        [0.0, 0.0, 0.0],
+        [0.2, 0.0, 0.1],
+        [-0.2, 0.0, 0.1],
+        [0.1, 0.0, -0.2],
+        [-0.1, 0.0, -0.1],
+        [0.2, 0.0, -0.2],
+    ]
 )
 NOT_AN_IMAGE, BLACK = 2, 4
 
@@ -61,9 +67,7 @@ def survey_dir(scene):
     rng = np.random.default_rng(7)
     euler = np.array([90.0, 0.0, 0.0]) + rng.uniform(-2, 2, size=(len(POSITIONS), 3))
     out = d / "survey"
-    csv_path = render_survey(
-        camera, room, POSITIONS, euler, out, RenderSettings(seed=11), jobs=2
-    )
+    csv_path = render_survey(camera, room, POSITIONS, euler, out, RenderSettings(seed=11), jobs=2)
     (out / f"photo_{NOT_AN_IMAGE:03d}.jpg").write_text("this is not a photograph\n")
     cv2.imwrite(str(out / f"photo_{BLACK:03d}.jpg"), np.zeros((960, 1280, 3), np.uint8))
     return csv_path, euler
@@ -71,11 +75,18 @@ def survey_dir(scene):
 
 def evaluate_cli(scene, survey_csv, out, *extra):
     d = scene[0]
-    args = ["evaluate", str(survey_csv), "--camera", str(d / "cam.yaml"), "--map",
-            str(d / "room.yaml"), "--out", str(out), *extra]
+    args = [
+        "evaluate",
+        str(survey_csv),
+        "--camera",
+        str(d / "cam.yaml"),
+        "--map",
+        str(d / "room.yaml"),
+        "--out",
+        str(out),
+        *extra,
+    ]
     return runner.invoke(app, args)
-
-
 
 
 # --------------------------------------------------------------------------------------------
@@ -121,8 +132,18 @@ def test_evaluate_counts_failures_and_writes_everything(scene, survey_dir, tmp_p
     assert "4 located, 2 failed" in result.stdout
 
     summary = json.loads((out / "summary.json").read_text())
-    for key in ("photos", "located", "mean_error", "median_error", "p95_error", "max_error",
-                "success_rate", "units", "failures", "abs_error_per_axis"):
+    for key in (
+        "photos",
+        "located",
+        "mean_error",
+        "median_error",
+        "p95_error",
+        "max_error",
+        "success_rate",
+        "units",
+        "failures",
+        "abs_error_per_axis",
+    ):
         assert key in summary
     assert summary["photos"] == 6 and summary["located"] == 4
     assert summary["success_rate"] == pytest.approx(4 / 6, abs=1e-5)
@@ -201,9 +222,19 @@ def test_bad_camera_or_map_exits_2(scene, survey_dir, tmp_path, which):
     bad = tmp_path / "bad.yaml"
     bad.write_text("just: [unclosed\n")
     files = {"--camera": d / "cam.yaml", "--map": d / "room.yaml"} | {which: bad}
-    result = runner.invoke(app, ["evaluate", str(survey_dir[0]), "--camera",
-                                 str(files["--camera"]), "--map", str(files["--map"]),
-                                 "--out", str(tmp_path / "out")])
+    result = runner.invoke(
+        app,
+        [
+            "evaluate",
+            str(survey_dir[0]),
+            "--camera",
+            str(files["--camera"]),
+            "--map",
+            str(files["--map"]),
+            "--out",
+            str(tmp_path / "out"),
+        ],
+    )
     assert result.exit_code == 2
     assert "bad.yaml" in one_error_line(result)
 
@@ -238,14 +269,24 @@ def test_summary_statistics_of_known_errors(tmp_path):
     true = np.zeros((4, 3))
     est = [np.array([3.0, 0, 0]), np.array([0, -4.0, 0]), np.array([0, 0, 5.0]), None]
     results = tuple(
-        PhotoResult(photo=f"p{i}", true_position=true[i], position=e,
-                    euler_deg=None if e is None else np.array([90.0, 0, 3.0 * i]),
-                    true_euler_deg=np.array([90.0, 0, 0]),
-                    reason="" if e is not None else "not located: none")
+        PhotoResult(
+            photo=f"p{i}",
+            true_position=true[i],
+            position=e,
+            euler_deg=None if e is None else np.array([90.0, 0, 3.0 * i]),
+            true_euler_deg=np.array([90.0, 0, 0]),
+            reason="" if e is not None else "not located: none",
+        )
         for i, e in enumerate(est)
     )
-    survey = Survey(tmp_path / "s.csv", tuple(r.photo for r in results), true,
-                    np.tile([90.0, 0, 0], (4, 1)), (), ((),) * 4)
+    survey = Survey(
+        tmp_path / "s.csv",
+        tuple(r.photo for r in results),
+        true,
+        np.tile([90.0, 0, 0], (4, 1)),
+        (),
+        ((),) * 4,
+    )
     assert [bool(r) for r in results] == [r.located for r in results] == [True] * 3 + [False]
     s = Evaluation(results, "m", survey, 1, 0.0).summary()
     assert (s["photos"], s["located"], s["failed"], s["success_rate"]) == (4, 3, 1, 0.75)
@@ -266,9 +307,23 @@ def test_make_survey_script(scene, examples_dir, tmp_path):
     spec = importlib.util.spec_from_file_location("make_survey", examples_dir / "make_survey.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    code = module.main(["--camera", str(d / "cam.yaml"), "--map", str(d / "room.yaml"),
-                        "--grid=-0.1:0.1:0.1,0:0.1:0.1", "--jitter-deg", "1", "--jobs", "1",
-                        "--seed", "3", "--out", str(tmp_path / "s")])
+    code = module.main(
+        [
+            "--camera",
+            str(d / "cam.yaml"),
+            "--map",
+            str(d / "room.yaml"),
+            "--grid=-0.1:0.1:0.1,0:0.1:0.1",
+            "--jitter-deg",
+            "1",
+            "--jobs",
+            "1",
+            "--seed",
+            "3",
+            "--out",
+            str(tmp_path / "s"),
+        ]
+    )
     assert code == 0
     survey = read_survey(tmp_path / "s" / "survey.csv")
     assert len(survey) == 6

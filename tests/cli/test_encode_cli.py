@@ -21,8 +21,6 @@ def _run(*args: str):
     return runner.invoke(app, ["encode", *args])
 
 
-
-
 def test_prints_bits_and_chips_of_id_5():
     result = _run("5")
     assert result.exit_code == 0, result.output

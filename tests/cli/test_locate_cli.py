@@ -27,12 +27,11 @@ CAMVLP = Path(sys.executable).with_name("camvlp")
 
 def run(capsys, photo, camera, fixture_map, *extra) -> tuple[int, str, str]:
     """``camvlp locate`` in this process: (exit code, stdout, stderr)."""
-    code = main(["locate", str(photo), "--camera", str(camera), "--map", str(fixture_map),
-                 *map(str, extra)])
+    code = main(
+        ["locate", str(photo), "--camera", str(camera), "--map", str(fixture_map), *map(str, extra)]
+    )
     out, err = capsys.readouterr()
     return code, out, err
-
-
 
 
 def no_position(out: str) -> None:
@@ -59,8 +58,9 @@ def three_fixture_files(tmp_path_factory, small_camera):
 def stranger_photo(tmp_path_factory, small_camera):
     """A photo of the small room's layout whose lights send IDs the small room's map lacks."""
     strangers = make_small_room(ids=(1, 2, 3, 4, 7))
-    r = render(small_camera, strangers, Pose.from_euler([0, 0, 0], LOOK_UP),
-               small_settings(seed=22))
+    r = render(
+        small_camera, strangers, Pose.from_euler([0, 0, 0], LOOK_UP), small_settings(seed=22)
+    )
     path = tmp_path_factory.mktemp("strangers") / "photo.png"
     cv2.imwrite(str(path), r.image)
     return path
@@ -81,8 +81,9 @@ def test_located_prints_the_position(capsys, small_files, small_render):
 
 
 def test_located_json(capsys, small_files, small_render):
-    code, out, err = run(capsys, small_files["photo"], small_files["camera"], small_files["map"],
-                         "--json")
+    code, out, err = run(
+        capsys, small_files["photo"], small_files["camera"], small_files["map"], "--json"
+    )
     assert code == 0, err
     d = json.loads(out)
     assert np.linalg.norm(np.array(d["position"]) - small_render.pose.position) < 3e-3
@@ -102,8 +103,14 @@ def test_jpeg_photo_is_located(capsys, tmp_path, small_files, small_render):
 
 def test_annotate_writes_a_picture(capsys, tmp_path, small_files, small_render):
     out_png = tmp_path / "annotated.png"
-    code, _, err = run(capsys, small_files["photo"], small_files["camera"], small_files["map"],
-                       "--annotate", out_png)
+    code, _, err = run(
+        capsys,
+        small_files["photo"],
+        small_files["camera"],
+        small_files["map"],
+        "--annotate",
+        out_png,
+    )
     assert code == 0, err
     assert out_png.stat().st_size > 0
     picture = cv2.imread(str(out_png))
@@ -116,8 +123,14 @@ def test_annotate_writes_a_picture(capsys, tmp_path, small_files, small_render):
 
 
 def test_annotate_with_a_bad_suffix_is_a_usage_error(capsys, tmp_path, small_files):
-    code, out, err = run(capsys, small_files["photo"], small_files["camera"], small_files["map"],
-                         "--annotate", tmp_path / "annotated.gif")
+    code, out, err = run(
+        capsys,
+        small_files["photo"],
+        small_files["camera"],
+        small_files["map"],
+        "--annotate",
+        tmp_path / "annotated.gif",
+    )
     assert code == 2
     assert "annotate" in one_error_line(err)
     no_position(out)
@@ -125,12 +138,21 @@ def test_annotate_with_a_bad_suffix_is_a_usage_error(capsys, tmp_path, small_fil
 
 def test_debug_dir_writes_the_stage_pictures(capsys, tmp_path, small_files):
     debug = tmp_path / "debug"
-    code, _, err = run(capsys, small_files["photo"], small_files["camera"], small_files["map"],
-                       "--debug-dir", debug)
+    code, _, err = run(
+        capsys,
+        small_files["photo"],
+        small_files["camera"],
+        small_files["map"],
+        "--debug-dir",
+        debug,
+    )
     assert code == 0, err
     names = sorted(p.name for p in debug.iterdir())
-    assert names == ["1_candidates.png", *(f"2_fixture_{k}.png" for k in range(5)),
-                     "3_profiles.png"]
+    assert names == [
+        "1_candidates.png",
+        *(f"2_fixture_{k}.png" for k in range(5)),
+        "3_profiles.png",
+    ]
     for p in debug.iterdir():
         img = cv2.imread(str(p))
         assert img is not None and img.size > 0 and img.max() > img.min(), p.name
@@ -174,8 +196,15 @@ def test_ids_not_in_the_map_are_not_located(capsys, small_files, stranger_photo)
 
 
 def test_not_located_json_lists_the_fixtures(capsys, small_files, stranger_photo):
-    code, out, err = run(capsys, stranger_photo, small_files["camera"], small_files["map"],
-                         "--json", "--readout", "rows")
+    code, out, err = run(
+        capsys,
+        stranger_photo,
+        small_files["camera"],
+        small_files["map"],
+        "--json",
+        "--readout",
+        "rows",
+    )
     assert code == 1
     assert "Traceback" not in err
     assert len(out.strip().splitlines()) == 1
@@ -187,8 +216,9 @@ def test_not_located_json_lists_the_fixtures(capsys, small_files, stranger_photo
         assert not f["used"]
         assert "not in the map" in f["reason"]
     # not told which way the sensor read, no light of the map to tell it: nothing is guessed
-    code, out, err = run(capsys, stranger_photo, small_files["camera"], small_files["map"],
-                         "--json")
+    code, out, err = run(
+        capsys, stranger_photo, small_files["camera"], small_files["map"], "--json"
+    )
     assert code == 1
     for f in json.loads(out)["fixtures"]:
         assert not f["used"]
@@ -210,8 +240,7 @@ def test_three_fixtures_json(capsys, small_files, three_fixture_files):
 
 
 def test_missing_photo(capsys, tmp_path, small_files):
-    code, out, err = run(capsys, tmp_path / "absent.jpg", small_files["camera"],
-                         small_files["map"])
+    code, out, err = run(capsys, tmp_path / "absent.jpg", small_files["camera"], small_files["map"])
     assert code == 2
     assert "absent.jpg" in one_error_line(err)
     no_position(out)
@@ -294,8 +323,9 @@ def test_missing_camera_file(capsys, tmp_path, small_files):
 
 @pytest.mark.parametrize("option", [["--solver", "magic"], ["--readout", "diagonal"]])
 def test_bad_option_values(capsys, small_files, option):
-    code, out, err = run(capsys, small_files["photo"], small_files["camera"], small_files["map"],
-                         *option)
+    code, out, err = run(
+        capsys, small_files["photo"], small_files["camera"], small_files["map"], *option
+    )
     assert code == 2
     assert option[0].lstrip("-") in one_error_line(err)
     no_position(out)
@@ -308,13 +338,23 @@ def test_bad_option_values(capsys, small_files, option):
 @pytest.mark.skipif(not CAMVLP.exists(), reason="console script not installed")
 def test_console_script_exit_codes(tmp_path, small_files, stranger_photo):
     base = ["--camera", str(small_files["camera"]), "--map", str(small_files["map"])]
-    done = subprocess.run([str(CAMVLP), "locate", str(tmp_path / "absent.png"), *base],
-                          capture_output=True, text=True, timeout=120, check=False)
+    done = subprocess.run(
+        [str(CAMVLP), "locate", str(tmp_path / "absent.png"), *base],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 2
     one_error_line(done.stderr)
     assert done.stdout == ""
-    done = subprocess.run([str(CAMVLP), "locate", str(stranger_photo), *base, "--json"],
-                          capture_output=True, text=True, timeout=120, check=False)
+    done = subprocess.run(
+        [str(CAMVLP), "locate", str(stranger_photo), *base, "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 1
     assert "Traceback" not in done.stderr
     assert json.loads(done.stdout)["position"] is None

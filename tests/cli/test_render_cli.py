@@ -26,11 +26,21 @@ def small_camera_path(tmp_path):
 
 
 def run(camera, room, out, *extra):
-    args = ["render", "--camera", str(camera), "--map", str(room), "--position", "0,0,0",
-            "--euler", "90,0,0", "--out", str(out), *extra]
+    args = [
+        "render",
+        "--camera",
+        str(camera),
+        "--map",
+        str(room),
+        "--position",
+        "0,0,0",
+        "--euler",
+        "90,0,0",
+        "--out",
+        str(out),
+        *extra,
+    ]
     return runner.invoke(app, args)
-
-
 
 
 @pytest.mark.parametrize("suffix", [".png", ".jpg"])
@@ -49,8 +59,15 @@ def test_render_writes_image_and_truth(tmp_path, small_camera_path, thesis_room_
     assert truth["settings"]["seed"] == 3
     assert [f["id"] for f in truth["fixtures"]] == [5, 6, 9, 10]
     for f in truth["fixtures"]:
-        assert set(f) >= {"id", "pixel", "in_front", "fully_inside", "rows_spanned",
-                          "frames_spanned", "phase_s"}
+        assert set(f) >= {
+            "id",
+            "pixel",
+            "in_front",
+            "fully_inside",
+            "rows_spanned",
+            "frames_spanned",
+            "phase_s",
+        }
         assert f["fully_inside"] is True
         u, v = np.round(f["pixel"]).astype(int)
         assert image[v - 2 : v + 3, u - 2 : u + 3].max() > 128  # a lit fixture there
@@ -60,10 +77,28 @@ def test_render_writes_image_and_truth(tmp_path, small_camera_path, thesis_room_
 
 def test_render_options_reach_the_settings(tmp_path, small_camera_path, thesis_room_path):
     out = tmp_path / "p.png"
-    result = run(small_camera_path, thesis_room_path, out, "--chip-rate", "5000",
-                 "--row-time", "1e-5", "--exposure", "3e-5", "--brightness", "2",
-                 "--ambient", "0", "--blur", "0", "--noise", "0", "--readout", "columns",
-                 "--colour")
+    result = run(
+        small_camera_path,
+        thesis_room_path,
+        out,
+        "--chip-rate",
+        "5000",
+        "--row-time",
+        "1e-5",
+        "--exposure",
+        "3e-5",
+        "--brightness",
+        "2",
+        "--ambient",
+        "0",
+        "--blur",
+        "0",
+        "--noise",
+        "0",
+        "--readout",
+        "columns",
+        "--colour",
+    )
     assert result.exit_code == 0, result.output
     s = json.loads((tmp_path / "p.json").read_text())["settings"]
     assert (s["chip_rate_hz"], s["row_time_s"], s["exposure_s"]) == (5000, 1e-5, 3e-5)

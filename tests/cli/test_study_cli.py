@@ -20,14 +20,26 @@ runner = CliRunner()
 # --------------------------------------------------------------------------------- CLI
 
 
-
-
 def test_cli_rounding_json_and_outputs(tmp_path, thesis_camera_path, thesis_room_path):
     out = tmp_path / "r"
-    result = runner.invoke(app, [
-        "study", "rounding", "--camera", str(thesis_camera_path), "--map", str(thesis_room_path),
-        "--step", "0.5", "--euler", "70,20,0", "--out", str(out), "--json",
-    ])
+    result = runner.invoke(
+        app,
+        [
+            "study",
+            "rounding",
+            "--camera",
+            str(thesis_camera_path),
+            "--map",
+            str(thesis_room_path),
+            "--step",
+            "0.5",
+            "--euler",
+            "70,20,0",
+            "--out",
+            str(out),
+            "--json",
+        ],
+    )
     assert result.exit_code == 0, result.output
     summary = json.loads(result.stdout)
     assert summary["poses"] == 25 and summary["euler_deg"] == [70, 20, 0]
@@ -39,29 +51,64 @@ def test_cli_rounding_json_and_outputs(tmp_path, thesis_camera_path, thesis_room
 
 
 def test_cli_forced_and_monte_carlo(tmp_path):
-    result = runner.invoke(app, [
-        "study", "world-error", "--figure", "4.5", "--axis", "z", "--range", "-1,1",
-        "--step", "0.5", "--json", "--out", str(tmp_path / "w"),
-    ])
+    result = runner.invoke(
+        app,
+        [
+            "study",
+            "world-error",
+            "--figure",
+            "4.5",
+            "--axis",
+            "z",
+            "--range",
+            "-1,1",
+            "--step",
+            "0.5",
+            "--json",
+            "--out",
+            str(tmp_path / "w"),
+        ],
+    )
     assert result.exit_code == 0, result.output
     s = json.loads(result.stdout)
     assert len(s["series"]) == 4
     assert all(ser["position_m"] == [0, -1, 0] for ser in s["series"])  # 1 m up, y down
     assert (tmp_path / "w" / "world-error.csv").exists()
-    result = runner.invoke(app, [
-        "study", "image-error", "--positions", "0,0,0", "--noise-px", "0.5", "--trials", "20",
-        "--json",
-    ])
+    result = runner.invoke(
+        app,
+        [
+            "study",
+            "image-error",
+            "--positions",
+            "0,0,0",
+            "--noise-px",
+            "0.5",
+            "--trials",
+            "20",
+            "--json",
+        ],
+    )
     assert result.exit_code == 0, result.output
     s = json.loads(result.stdout)
     assert s["study"] == "monte-carlo" and s["trials"] == 20 and s["poses"] == 20
 
 
 def test_cli_coverage_text(tmp_path):
-    result = runner.invoke(app, [
-        "study", "coverage", "--step", "1", "--tilt-max", "5", "--tilt-step", "5",
-        "--out", str(tmp_path),
-    ])
+    result = runner.invoke(
+        app,
+        [
+            "study",
+            "coverage",
+            "--step",
+            "1",
+            "--tilt-max",
+            "5",
+            "--tilt-step",
+            "5",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert result.exit_code == 0, result.output
     assert "fix possible" in result.stdout
     assert (tmp_path / "coverage.png").exists() and (tmp_path / "coverage.csv").exists()
@@ -87,10 +134,8 @@ def test_cli_bad_input(args, needle):
     assert needle in one_error_line(result)
 
 
-
 def test_study_cli_accepts_the_locate_solver_and_refuses_others():
-    res = runner.invoke(app, ["study", "rounding", "--step", "0.5", "--solver", "locate",
-                              "--json"])
+    res = runner.invoke(app, ["study", "rounding", "--step", "0.5", "--solver", "locate", "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["solver"] == "locate"
     bad = runner.invoke(app, ["study", "rounding", "--solver", "dlt"])

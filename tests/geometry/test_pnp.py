@@ -12,8 +12,12 @@ from camvlp.model.camera import Camera, Pose, euler_to_matrix
 CAM = Camera.from_focal(640, 480, 500.0)
 THESIS_CAM = Camera.from_focal(5184, 3880, 3912.0, principal_point=(2592.0, 1940.0))
 THESIS_ROOM = np.array(
-    [[0.7935, -2.7, 0.5935], [0.7935, -2.7, -0.5935], [-0.7935, -2.7, -0.5935],
-     [-0.7935, -2.7, 0.5935]]
+    [
+        [0.7935, -2.7, 0.5935],
+        [0.7935, -2.7, -0.5935],
+        [-0.7935, -2.7, -0.5935],
+        [-0.7935, -2.7, 0.5935],
+    ]
 )
 
 
@@ -120,8 +124,9 @@ def test_project_batch_matches_opencv():
     cams = [
         CAM,
         Camera(640, 480, CAM.matrix, np.array([0.1, -0.05, 0.001, -0.002, 0.01])),
-        Camera(640, 480, CAM.matrix,
-               np.array([0.1, -0.05, 0.001, -0.002, 0.01, 0.02, -0.01, 0.005])),
+        Camera(
+            640, 480, CAM.matrix, np.array([0.1, -0.05, 0.001, -0.002, 0.01, 0.02, -0.01, 0.005])
+        ),
     ]
     poses = [_random_scene(rng)[0] for _ in range(5)]
     world = _random_scene(rng)[1]
@@ -131,8 +136,9 @@ def test_project_batch_matches_opencv():
         got = project_batch(cam, r, c, world, distort=True)
         for b, p in enumerate(poses):
             rvec, tvec = p.rvec_tvec()
-            ref, _ = cv2.projectPoints(world, rvec, tvec, cam.matrix,
-                                       cam.distortion if cam.distortion.size else None)
+            ref, _ = cv2.projectPoints(
+                world, rvec, tvec, cam.matrix, cam.distortion if cam.distortion.size else None
+            )
             ref = ref.reshape(-1, 2)
             ref[p.to_camera(world)[:, 2] <= 0] = np.nan
             np.testing.assert_allclose(got[b], ref, atol=1e-6)

@@ -11,8 +11,9 @@ from camvlp.io.survey_csv import SURVEY_COLUMNS, read_survey, write_survey
 
 def test_read_survey_keeps_extra_columns_and_resolves_paths(tmp_path):
     path = tmp_path / "s.csv"
-    path.write_text("# a comment\nphoto, x, y, z, note\nsub/a.jpg,1,2,3,first\n\n"
-                    "/abs/b.jpg,4,5,6,second\n")
+    path.write_text(
+        "# a comment\nphoto, x, y, z, note\nsub/a.jpg,1,2,3,first\n\n/abs/b.jpg,4,5,6,second\n"
+    )
     survey = read_survey(path)
     assert survey.photos == ("sub/a.jpg", "/abs/b.jpg")
     assert survey.positions.tolist() == [[1, 2, 3], [4, 5, 6]]

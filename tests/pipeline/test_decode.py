@@ -139,8 +139,9 @@ def test_less_than_one_frame_gives_no_id_with_a_reason():
     rng = np.random.default_rng(3)
     for fid in range(16):
         rpc = rng.uniform(3.0, 8.0)
-        p = synth_profile(FRAME.chips(fid), int(0.8 * FRAME.n_chips * rpc), rpc,
-                          rng.uniform(0, FRAME.n_chips))
+        p = synth_profile(
+            FRAME.chips(fid), int(0.8 * FRAME.n_chips * rpc), rpc, rng.uniform(0, FRAME.n_chips)
+        )
         dec = decode_profile(p, FRAME)
         assert dec.id is None, (fid, dec)
         assert dec.reason
@@ -162,8 +163,16 @@ def test_copies_that_disagree_are_refused(a):
             continue
         rpc = rng.uniform(3.0, 8.0)
         chips = np.concatenate([FRAME.chips(a), FRAME.chips(b)])
-        p = synth_profile(chips, int(2 * FRAME.n_chips * rpc) - 1, rpc, 0.0, repeat=False,
-                          bleed_rows=rng.uniform(0, 0.3 * rpc), noise=2.0, rng=rng)
+        p = synth_profile(
+            chips,
+            int(2 * FRAME.n_chips * rpc) - 1,
+            rpc,
+            0.0,
+            repeat=False,
+            bleed_rows=rng.uniform(0, 0.3 * rpc),
+            noise=2.0,
+            rng=rng,
+        )
         dec = decode_profile(p, FRAME)
         assert dec.id is None, (a, b, dec)
         assert dec.reason

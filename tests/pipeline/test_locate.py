@@ -29,25 +29,34 @@ MAX_ERROR_M = 3e-3
 #        row time s (rows per chip at 10 kHz), seed)
 CASES = {
     "floor-up-rows": ((0.0, 0.0, 0.0), LOOK_UP, "rows", None, 25e-6, 1),
-    "floor-tilt-rows-short-exposure": ((0.1, 0.0, -0.1), (94.0, 4.0, 137.0), "rows", 1e-5,
-                                       25e-6, 2),
-    "floor-tilt-columns-one-chip-exposure": ((0.1, 0.0, 0.1), (93.0, -3.0, 215.0), "columns",
-                                             1e-4, 1 / 55_000, 3),
+    "floor-tilt-rows-short-exposure": (
+        (0.1, 0.0, -0.1),
+        (94.0, 4.0, 137.0),
+        "rows",
+        1e-5,
+        25e-6,
+        2,
+    ),
+    "floor-tilt-columns-one-chip-exposure": (
+        (0.1, 0.0, 0.1),
+        (93.0, -3.0, 215.0),
+        "columns",
+        1e-4,
+        1 / 55_000,
+        3,
+    ),
     "floor-tilt-columns": ((0.3, 0.0, -0.2), (88.0, -4.0, 10.0), "columns", 2e-5, 25e-6, 4),
     "1m-up-roll180-rows": ((0.0, -1.0, 0.0), (90.0, 0.0, 180.0), "rows", 5e-5, 30e-6, 5),
-    "half-m-up-roll270-columns": ((0.0, -0.5, 0.0), (91.0, 1.0, 270.0), "columns", 1e-4,
-                                  20e-6, 6),
+    "half-m-up-roll270-columns": ((0.0, -0.5, 0.0), (91.0, 1.0, 270.0), "columns", 1e-4, 20e-6, 6),
     "floor-roll320-few-frames": ((0.0, 0.0, 0.0), (90.0, 0.0, 320.0), "rows", None, 15e-6, 7),
-    "floor-tilt-three-rows-per-chip": ((0.1, 0.0, 0.1), (92.0, 3.0, 30.0), "rows", 7e-5,
-                                       33e-6, 8),
+    "floor-tilt-three-rows-per-chip": ((0.1, 0.0, 0.1), (92.0, 3.0, 30.0), "rows", 7e-5, 33e-6, 8),
 }
 
 
 def render_case(camera, room, case):
     position, euler, readout, exposure, row_time, seed = case
     pose = Pose.from_euler(position, euler)
-    settings = small_settings(readout=readout, exposure_s=exposure, row_time_s=row_time,
-                              seed=seed)
+    settings = small_settings(readout=readout, exposure_s=exposure, row_time_s=row_time, seed=seed)
     return render(camera, room, pose, settings)
 
 
@@ -99,8 +108,9 @@ def test_pixel_rounding_would_not_meet_the_bound(renders, small_camera, small_ro
     rng = np.random.default_rng(0)
     errors = []
     for _ in range(50):
-        est = estimate_pose(pixels + rng.uniform(-0.5, 0.5, pixels.shape), small_room.positions,
-                            small_camera)
+        est = estimate_pose(
+            pixels + rng.uniform(-0.5, 0.5, pixels.shape), small_room.positions, small_camera
+        )
         errors.append(np.linalg.norm(est.pose.position - r.pose.position))
     assert np.mean(errors) > 2 * MAX_ERROR_M
 
@@ -109,8 +119,14 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     res = locate(small_render.image, small_camera, small_room)
     d = res.to_dict()
     json.dumps(d)  # JSON-ready
-    for key in ("position", "rotation", "euler_deg", "reprojection_rms_px", "fixtures",
-                "timing_ms"):
+    for key in (
+        "position",
+        "rotation",
+        "euler_deg",
+        "reprojection_rms_px",
+        "fixtures",
+        "timing_ms",
+    ):
         assert key in d
     assert len(d["position"]) == 3
     assert np.array(d["rotation"]).shape == (3, 3)
@@ -133,8 +149,9 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
 
 
 def test_fixture_not_in_the_map_is_reported_and_not_used(small_render, small_camera):
-    room4 = make_small_room(ids=(5, 6, 9, 10), xz=((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6),
-                                                   (-0.8, 0.6)))
+    room4 = make_small_room(
+        ids=(5, 6, 9, 10), xz=((0.8, 0.6), (0.8, -0.6), (-0.8, -0.6), (-0.8, 0.6))
+    )
     res = locate(small_render.image, small_camera, room4)
     assert res, res.error
     assert np.linalg.norm(res.position - small_render.pose.position) < MAX_ERROR_M

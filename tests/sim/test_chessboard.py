@@ -15,8 +15,11 @@ SQUARE_M = 0.04
 def test_board_points_run_row_by_row_in_the_board_plane():
     pts = board_object_points(BOARD, SQUARE_M)
     assert pts.shape == (20, 3) and pts.dtype == np.float32
-    np.testing.assert_allclose(pts[:6], [[0, 0, 0], [0.04, 0, 0], [0.08, 0, 0], [0.12, 0, 0],
-                                         [0.16, 0, 0], [0, 0.04, 0]], atol=1e-7)
+    np.testing.assert_allclose(
+        pts[:6],
+        [[0, 0, 0], [0.04, 0, 0], [0.08, 0, 0], [0.12, 0, 0], [0.16, 0, 0], [0, 0.04, 0]],
+        atol=1e-7,
+    )
     with pytest.raises(ValueError, match="2 x 2"):
         parse_board((1, 4))
     with pytest.raises(ValueError, match="square_m"):

@@ -28,8 +28,6 @@ def test_grid_helpers(room):
     np.testing.assert_allclose(pos, [[0.5, -1.0, 0.0]])
 
 
-
-
 def test_grid_points_include_stop_and_level():
     grid = grid_points((-0.4, 0.4, 0.1), (-0.4, 0.4, 0.1), -1.0)
     assert grid.shape == (81, 3)
@@ -42,8 +40,9 @@ def test_grid_points_include_stop_and_level():
 
 def test_the_study_and_the_survey_grids_are_the_same_points(room):
     # the study's grid at 1 m (y down in the thesis' room) against the survey's list
-    _, _, pos = floor_grid(room.positions, u_range_m=(-0.5, 0.5), v_range_m=(0, 1),
-                           step_m=0.25, height_m=1.0)
+    _, _, pos = floor_grid(
+        room.positions, u_range_m=(-0.5, 0.5), v_range_m=(0, 1), step_m=0.25, height_m=1.0
+    )
     listed = grid_points((-0.5, 0.5, 0.25), (0, 1, 0.25), -1.0)
     assert pos.shape == (5, 5, 3)
     np.testing.assert_allclose(np.sort(pos.reshape(-1, 3), axis=0), np.sort(listed, axis=0))

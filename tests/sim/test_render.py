@@ -161,8 +161,12 @@ def sharp_stripes():
     """Exposure << chip, brightness 1: no bleeding.  Disc of 300 rows (3.3 frames)."""
     camera = small_camera()
     fmap = one_fixture()
-    result = render(camera, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-                    quiet(exposure_s=2e-6, brightness=1.0, seed=3))
+    result = render(
+        camera,
+        fmap,
+        Pose.from_euler([0, 0, 0], LOOK_UP),
+        quiet(exposure_s=2e-6, brightness=1.0, seed=3),
+    )
     return camera, fmap, result
 
 
@@ -191,9 +195,12 @@ def test_stripe_widths_match_row_time(sharp_stripes):
 def test_saturation_makes_bright_stripes_wider(sharp_stripes):
     """The thesis' bleeding (section 5.3): long exposure and a bright LED widen white stripes."""
     camera, fmap, _ = sharp_stripes
-    result = render(camera, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-                    RenderSettings(chip_rate_hz=CHIP_RATE, exposure_s=0.8 / CHIP_RATE,
-                                   brightness=4.0, seed=3))
+    result = render(
+        camera,
+        fmap,
+        Pose.from_euler([0, 0, 0], LOOK_UP),
+        RenderSettings(chip_rate_hz=CHIP_RATE, exposure_s=0.8 / CHIP_RATE, brightness=4.0, seed=3),
+    )
     _, g = disc_column(result, camera)
     _, lengths, values = runs(g > 0.5 * 255)
     bright, dark = lengths[values].mean(), lengths[~values].mean()
@@ -207,8 +214,12 @@ def test_rows_decode_to_the_fixture_id(fid, seed):
     camera = small_camera()
     fmap = one_fixture(fid)
     exposure = 2e-6
-    result = render(camera, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-                    quiet(exposure_s=exposure, brightness=1.0, seed=seed))
+    result = render(
+        camera,
+        fmap,
+        Pose.from_euler([0, 0, 0], LOOK_UP),
+        quiet(exposure_s=exposure, brightness=1.0, seed=seed),
+    )
     rows, g = disc_column(result, camera)
     truth = result.fixtures[0]
     chip_s = 1 / CHIP_RATE
@@ -233,8 +244,9 @@ def test_frequency_mode_stripe_period():
         (Fixture(0, np.array([0, -1.0, 0]), 0.6, np.array([0, 1.0, 0]), frequency_hz=f_hz),),
         mode="frequency",
     )
-    result = render(camera, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-                    quiet(exposure_s=2e-6, brightness=1.0))
+    result = render(
+        camera, fmap, Pose.from_euler([0, 0, 0], LOOK_UP), quiet(exposure_s=2e-6, brightness=1.0)
+    )
     _, g = disc_column(result, camera)
     starts, _, values = runs(g > 0.5 * 255)
     rising = starts[values.astype(bool)]
@@ -246,8 +258,12 @@ def test_frequency_mode_stripe_period():
 
 def test_columns_readout_gives_vertical_stripes():
     camera = small_camera()
-    result = render(camera, one_fixture(), Pose.from_euler([0, 0, 0], LOOK_UP),
-                    quiet(exposure_s=2e-6, brightness=1.0, readout="columns"))
+    result = render(
+        camera,
+        one_fixture(),
+        Pose.from_euler([0, 0, 0], LOOK_UP),
+        quiet(exposure_s=2e-6, brightness=1.0, readout="columns"),
+    )
     t = result.fixtures[0]
     g = gray(result.image)
     u, v = round(t.pixel[0]), round(t.pixel[1])
@@ -268,8 +284,9 @@ def test_distortion_moves_disc_as_projectpoints_says():
     fmap = one_fixture(position=centre, diameter=0.04)  # 20 px disc, far off-axis
     pose = Pose.from_euler([0, 0, 0], LOOK_UP)
     frame_s = 18 / CHIP_RATE
-    result = render(camera, fmap, pose,
-                    quiet(exposure_s=frame_s, brightness=1.0, ambient=0.0))  # unstriped
+    result = render(
+        camera, fmap, pose, quiet(exposure_s=frame_s, brightness=1.0, ambient=0.0)
+    )  # unstriped
     g = gray(result.image)
     assert g.max() == pytest.approx(0.5 * 255, abs=1)  # half the frame's chips are on
     vv, uu = np.mgrid[0 : g.shape[0], 0 : g.shape[1]]
@@ -336,15 +353,21 @@ def test_colours_per_fixture(thesis):
     _, fmap = thesis
     small = Camera.from_focal(1296, 970, 3912 / 4, row_time_s=ROW_TIME * 4)
     colours = ((0, 0, 1.0), (0, 1.0, 0), (1.0, 0, 0), (0, 1.0, 1.0))
-    result = render(small, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-                    quiet(colours=colours, exposure_s=18 / CHIP_RATE, brightness=1.0))
+    result = render(
+        small,
+        fmap,
+        Pose.from_euler([0, 0, 0], LOOK_UP),
+        quiet(colours=colours, exposure_s=18 / CHIP_RATE, brightness=1.0),
+    )
     for t, colour in zip(result.fixtures, colours, strict=True):
         u, v = np.round(t.pixel).astype(int)
-        np.testing.assert_allclose(result.image[v, u], np.array(colour) * 0.5 * 255 + 0.03 * 255,
-                                   atol=1.5)
+        np.testing.assert_allclose(
+            result.image[v, u], np.array(colour) * 0.5 * 255 + 0.03 * 255, atol=1.5
+        )
     with pytest.raises(ValueError, match="colours"):
-        render(small, fmap, Pose.from_euler([0, 0, 0], LOOK_UP),
-               RenderSettings(colours=colours[:2]))
+        render(
+            small, fmap, Pose.from_euler([0, 0, 0], LOOK_UP), RenderSettings(colours=colours[:2])
+        )
 
 
 def test_truth_dict_fields():
@@ -356,8 +379,15 @@ def test_truth_dict_fields():
     assert d["settings"]["row_time_s"] == ROW_TIME
     assert d["settings"]["exposure_s"] == pytest.approx(0.5 / CHIP_RATE)
     (f,) = d["fixtures"]
-    assert set(f) == {"id", "pixel", "in_front", "fully_inside", "rows_spanned",
-                      "frames_spanned", "phase_s"}
+    assert set(f) == {
+        "id",
+        "pixel",
+        "in_front",
+        "fully_inside",
+        "rows_spanned",
+        "frames_spanned",
+        "phase_s",
+    }
     assert f["pixel"] == pytest.approx([319.5, 239.5])
     assert 0 <= f["phase_s"] < 18 / CHIP_RATE
 

@@ -29,7 +29,13 @@ def test_no_module_sets_the_backend_or_uses_pyplot():
     offenders = [
         p.relative_to(SRC).as_posix()
         for p in SRC.rglob("*.py")
-        if any(s in p.read_text() for s in ("matplotlib.use(", "import matplotlib.pyplot",
-                                             "from matplotlib import pyplot"))
+        if any(
+            s in p.read_text()
+            for s in (
+                "matplotlib.use(",
+                "import matplotlib.pyplot",
+                "from matplotlib import pyplot",
+            )
+        )
     ]
     assert offenders == []

@@ -28,8 +28,7 @@ def _max_tilts(res):
 
 
 def test_coverage_tilt_limits_match_thesis_chapter_3(cam, room):
-    kw = dict(u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=18, tilt_step_deg=1,
-              min_frames=0)
+    kw = dict(u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=18, tilt_step_deg=1, min_frames=0)
     # thesis fig. 3.8: from the floor about 12 deg about x and 15 about y
     tx, ty = _max_tilts(coverage_study(cam, room, height_m=0.0, **kw))
     assert 10 <= tx <= 14 and 13 <= ty <= 17
@@ -52,10 +51,15 @@ def test_coverage_needs_enough_rows_to_decode(cam, room):
 
 
 def test_coverage_rejects_collinear_fixtures(cam):
-    line = FixtureMap(tuple(Fixture(i, [x, -2.7, 0.0], 0.15) for i, x in
-                            zip((1, 2, 3, 4), (-0.3, -0.1, 0.1, 0.3), strict=True)))
-    res = coverage_study(cam, line, u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=0,
-                         tilt_step_deg=1)
+    line = FixtureMap(
+        tuple(
+            Fixture(i, [x, -2.7, 0.0], 0.15)
+            for i, x in zip((1, 2, 3, 4), (-0.3, -0.1, 0.1, 0.3), strict=True)
+        )
+    )
+    res = coverage_study(
+        cam, line, u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=0, tilt_step_deg=1
+    )
     assert res.usable[0, 0, 0] == 4 and not res.fix.any()
 
 
@@ -69,9 +73,16 @@ def test_coverage_map_shape_and_summary(cam, room):
 
 
 def test_coverage_needs_diameters(cam):
-    bare = FixtureMap(tuple(Fixture(i, p) for i, p in
-                            zip((1, 2, 3, 4), [(1, -2.7, 1), (1, -2.7, -1), (-1, -2.7, -1),
-                                               (-1, -2.7, 1)], strict=True)))
+    bare = FixtureMap(
+        tuple(
+            Fixture(i, p)
+            for i, p in zip(
+                (1, 2, 3, 4),
+                [(1, -2.7, 1), (1, -2.7, -1), (-1, -2.7, -1), (-1, -2.7, 1)],
+                strict=True,
+            )
+        )
+    )
     kw = dict(u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=0, tilt_step_deg=1)
     with pytest.raises(ValueError, match="fixture 1 has no diameter"):
         coverage_study(cam, bare, **kw)
@@ -84,13 +95,10 @@ def test_coverage_reads_a_reversed_readout_along_the_same_axis(cam, room, axis):
     # frames are 135 rows (18 chips at 10 kHz, 20 us rows), so the readout's axis decides
     k = cam.matrix.copy()
     k[1, 1] = 0.5 * k[0, 0]
-    kw = dict(u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=0, tilt_step_deg=1,
-              min_frames=1.5)
+    kw = dict(u_range_m=(0, 0), v_range_m=(0, 0), tilt_max_deg=0, tilt_step_deg=1, min_frames=1.5)
     usable = {}
     for readout in (axis, f"{axis}-reversed"):
         wide = dataclasses.replace(cam, matrix=k, readout=readout)
         usable[readout] = int(coverage_study(wide, room, **kw).usable.max())
     assert usable[axis] == usable[f"{axis}-reversed"]
     assert usable[axis] == (4 if axis == "columns" else 0)
-
-

@@ -24,8 +24,16 @@ def test_image_error_grows_linearly(cam, room):
     positions = [(-1, 0, 0), (-0.5, 0, 0), (0, 0, 0), (0.5, 0, 0), (1, 0, 0)]  # fig. 4.3
     offsets = np.arange(-20, 21, 2)
     for axis in "xy":
-        res = forced_error_study(cam, room, kind="image", axis=axis, offsets=offsets,
-                                 positions_m=positions, euler_deg=(90, 0, 0), fixture_id=5)
+        res = forced_error_study(
+            cam,
+            room,
+            kind="image",
+            axis=axis,
+            offsets=offsets,
+            positions_m=positions,
+            euler_deg=(90, 0, 0),
+            fixture_id=5,
+        )
         x = np.abs(offsets)
         for e in res.errors_m:
             slope, icpt = np.polyfit(x, e, 1)
@@ -41,9 +49,16 @@ def _world_errors(cam, room, height_m):
     """Errors for +-0.5 m and +-1 m on fixture 5's world x and z, fig. 4.4 / 4.5 poses."""
     out = {}
     for axis in "xz":
-        res = forced_error_study(cam, room, kind="world", axis=axis,
-                                 offsets=[-1.0, -0.5, 0.5, 1.0], positions_m=(0, -height_m, 0),
-                                 euler_deg=FIG_4_4_EULERS, fixture_id=5)
+        res = forced_error_study(
+            cam,
+            room,
+            kind="world",
+            axis=axis,
+            offsets=[-1.0, -0.5, 0.5, 1.0],
+            positions_m=(0, -height_m, 0),
+            euler_deg=FIG_4_4_EULERS,
+            fixture_id=5,
+        )
         out[axis] = res.errors_m
     return out
 
@@ -78,7 +93,12 @@ def test_forced_error_study_bad_input(cam, room):
     with pytest.raises(ValueError, match="solver"):
         forced_error_study(cam, room, kind="image", axis="x", solver="dls", **kw)
     with pytest.raises(ValueError, match="euler_deg 3"):
-        forced_error_study(cam, room, kind="image", axis="x", offsets=[1.0],
-                           positions_m=[(0, 0, 0), (1, 0, 0)], euler_deg=[(90, 0, 0)] * 3)
-
-
+        forced_error_study(
+            cam,
+            room,
+            kind="image",
+            axis="x",
+            offsets=[1.0],
+            positions_m=[(0, 0, 0), (1, 0, 0)],
+            euler_deg=[(90, 0, 0)] * 3,
+        )

@@ -17,8 +17,7 @@ from camvlp.analysis.study import (
 
 def test_monte_carlo_error_scales_with_noise(cam, room):
     # small noise propagates linearly: twice the pixel noise, twice the position error
-    kw = dict(positions_m=(0.3, 0, -0.2), euler_deg=(85, 5, 0), trials=400, seed=3,
-              rounding=False)
+    kw = dict(positions_m=(0.3, 0, -0.2), euler_deg=(85, 5, 0), trials=400, seed=3, rounding=False)
     a = monte_carlo_study(cam, room, noise_px=0.5, **kw).summary()
     b = monte_carlo_study(cam, room, noise_px=1.0, **kw).summary()
     assert a["failures"] == b["failures"] == 0
@@ -29,10 +28,14 @@ def test_monte_carlo_error_scales_with_noise(cam, room):
 
 
 def test_monte_carlo_per_pose_summary(cam, room):
-    res = monte_carlo_study(cam, room, positions_m=[(0, 0, 0), (0.5, 0, 0)],
-                            euler_deg=(90, 0, 0), noise_px=0.5, trials=10)
+    res = monte_carlo_study(
+        cam,
+        room,
+        positions_m=[(0, 0, 0), (0.5, 0, 0)],
+        euler_deg=(90, 0, 0),
+        noise_px=0.5,
+        trials=10,
+    )
     s = res.summary()
     assert res.errors_m.shape == (2, 10)
     assert [p["position_m"] for p in s["per_pose"]] == [[0, 0, 0], [0.5, 0, 0]]
-
-

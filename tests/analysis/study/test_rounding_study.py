@@ -18,8 +18,9 @@ from camvlp.model.fixtures import Fixture, FixtureMap
 
 def _scaled_map(fmap: FixtureMap, units: str, factor: float) -> FixtureMap:
     return FixtureMap(
-        tuple(Fixture(f.id, f.position * factor, f.diameter * factor, f.normal)
-              for f in fmap.fixtures),
+        tuple(
+            Fixture(f.id, f.position * factor, f.diameter * factor, f.normal) for f in fmap.fixtures
+        ),
         units=units,
     )
 
@@ -61,13 +62,15 @@ def test_without_rounding_the_error_vanishes(cam, room):
 
 def test_rounding_same_in_cm_map_and_z_up_frame(cam, room):
     ref = rounding_study(cam, room, euler_deg=(90, 0, 0), step_m=0.25, height_m=0.5)
-    in_cm = rounding_study(cam, _scaled_map(room, "cm", 100.0), euler_deg=(90, 0, 0),
-                           step_m=0.25, height_m=0.5)
+    in_cm = rounding_study(
+        cam, _scaled_map(room, "cm", 100.0), euler_deg=(90, 0, 0), step_m=0.25, height_m=0.5
+    )
     np.testing.assert_allclose(in_cm.errors_m, ref.errors_m, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(in_cm.positions_m, ref.positions_m)
     # same room, z up: the camera looking up (+z) is theta = (0, 0, 0); floor plane xy
-    z_up = rounding_study(cam, _z_up_map(room), euler_deg=(0, 0, 0), plane="xy",
-                          step_m=0.25, height_m=0.5)
+    z_up = rounding_study(
+        cam, _z_up_map(room), euler_deg=(0, 0, 0), plane="xy", step_m=0.25, height_m=0.5
+    )
     # same pixels; the solver's convergence depends slightly on the frame (microns)
     np.testing.assert_allclose(z_up.errors_m, ref.errors_m, rtol=0, atol=2e-5)
     assert np.allclose(z_up.positions_m[..., 2], 0.5)  # up is +z here
@@ -100,4 +103,3 @@ def test_rounding_study_runs_the_locators_own_pose_path(cam, room):
     # both reach the rounding floor (about a millimetre), not the same numbers
     assert np.nanmean(ours.errors_m) < 0.005 and np.nanmean(opencv.errors_m) < 0.005
     assert ours.summary()["solver"] == "locate"
-

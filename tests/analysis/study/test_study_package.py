@@ -35,6 +35,8 @@ def test_moved_names_still_import_with_a_warning_naming_their_home(old, name, ho
 
 
 def test_the_study_does_not_import_matplotlib_until_a_plot_is_made():
-    code = ("import sys, camvlp.analysis.study, camvlp.analysis.evaluate, camvlp.viz.study_plots\n"
-            "assert 'matplotlib' not in sys.modules\n")
+    code = (
+        "import sys, camvlp.analysis.study, camvlp.analysis.evaluate, camvlp.viz.study_plots\n"
+        "assert 'matplotlib' not in sys.modules\n"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)
