@@ -277,3 +277,16 @@ def test_a_profile_fits_a_frame_as_well_read_backwards_as_its_reversed_id():
         assert a.id == i and b.id == {0: 14, 14: 0, 2: 6, 6: 2}[i]
         lr = abs(a.frame_rss - b.frame_rss) / (2 * min(a.noise_var, b.noise_var)) / np.log(10)
         assert lr < 0.1, (k, a.frame_rss, b.frame_rss)
+
+
+def test_a_clipped_profile_whose_refined_fit_loses_is_refused_not_a_crash():
+    # a lamp clipped but for one dark run of three rows (a 1080p halo lamp's inner rows): the
+    # refined fits of the leading IDs came out above an unrefined one, and picking that one
+    # raised a KeyError
+    profile = np.full(44, 255.0)
+    profile[25:30] = [253.8, 82.8, 81.4, 80.3, 254.2]
+    profile[30:33] = [254.6, 255.0, 254.6]
+    ids = [4, 1, 5, 6, 12, 2, 13, 14, 3, 9, 10, 8, 0, 15, 7]
+    res = decode_photo([profile], FRAME, ids, rows_per_chip=3.0036623250111454)
+    (d,) = res.decodes
+    assert d.id is None and "fit almost equally" in d.reason

@@ -293,7 +293,10 @@ def _decide(
     per_id = leaders.per_id
     map_rows = np.flatnonzero(in_map)
     order = map_rows[np.argsort(per_id[map_rows], kind="stable")]
-    k1 = int(order[0])
+    # the best is the best refined one: a refined fit can come out above an unrefined (coarse)
+    # one, which then stays in the ranking as the runner-up, a margin below 0: refused
+    k1 = int(next(k for k in order if k in leaders.fine))
+    order = np.concatenate([[k1], order[order != k1]])
     j1 = float(leaders.phase[k1])
     tf = leaders.fine[k1]
     xs = (fit.x + j1) * FINE_PHASE % tf.size
