@@ -116,20 +116,7 @@ def test_bad_input_is_one_line(scene, tmp_path, args, message):
 
 
 def test_render_video_refuses_a_bad_suffix(scene, tmp_path):
-    result = runner.invoke(
-        app,
-        [
-            "render-video",
-            "--camera",
-            str(scene / "cam.yaml"),
-            "--map",
-            str(scene / "room.yaml"),
-            "--trajectory",
-            str(scene / "traj.csv"),
-            "--out",
-            str(tmp_path / "v.avi"),
-        ],
-    )
+    result = _render_video(scene, tmp_path / "v.avi")
     assert result.exit_code == 2
     assert "--out must be" in one_error_line(result)
 

@@ -3,13 +3,13 @@
 A real lamp often glows around its disc (light scattered in the diffuser or the lens), and the
 glow blinks with the LED.  In the bright stripes it lifts the disc's outline far out (it may
 clip there too), in the dark ones not at all, so an ellipse fitted to the outline is pulled
-about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on the renders of
-``tests/pipeline/test_glow.py``, where a plain disc's is 0.02 px.  The light's shape, glow
-included, is radially symmetric about its centre, so a glowing light is centred on its
-radial shape instead (:func:`camvlp.pipeline.light_wave.light_wave`, which separates the
-shape from the stripes over the light's whole striped area).  That costs a tenth of a second
-or more per glowing light; a light without a glow (its ring beyond the outline at the
-background) is left as detected, at the cost of a few small image operations.
+about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on 1080p renders, where a
+plain disc's is 0.02 px.  The light's shape, glow included, is radially symmetric about its
+centre, so a glowing light is centred on its radial shape instead
+(:func:`camvlp.pipeline.light_wave.light_wave`, which separates the shape from the stripes
+over the light's whole striped area).  That costs 0.2 to 0.4 s per glowing light at 1080p; a
+light without a glow (its ring beyond the outline at the background) is left as detected, at
+the cost of some 250 pixels sampled (:func:`glow_levels`).
 """
 
 from __future__ import annotations

@@ -438,6 +438,20 @@ def _direction_by_pose(blobs, fixture_map: FixtureMap, man: Manchester, one: _De
     return man, decodes, _identify(blobs, decodes, fixture_map), None, reason
 
 
+def _decided(blobs, fixture_map: FixtureMap, man: Manchester | None, decodes: list, solve):
+    """Stages 4 and 5: the IDs looked up and the pose solved (``solve``); when the stripes fit
+    both readout directions about equally (``man.other``: IDs whose reversed frames are other
+    IDs'), the direction whose IDs give a pose decides, else the photo is refused.  Returns
+    ``man, decodes, found, est, reason`` (``man.readout`` the direction kept)."""
+    found = _identify(blobs, decodes, fixture_map)
+    est, reason = solve(found)
+    if man is not None and man.other is not None:
+        return _direction_by_pose(
+            blobs, fixture_map, man, _Decided(decodes, found, est, reason), solve
+        )
+    return man, decodes, found, est, reason
+
+
 def readout_direction(
     img: np.ndarray,
     blobs,
@@ -459,16 +473,14 @@ def readout_direction(
         return readout if any(b.stripe_contrast > 2.0 for b in blobs) else None
     profiles = _profiles(img, blobs, readout)[2]
     man = decode_manchester(profiles, readout, False, camera, fixture_map)
-    found = _identify(blobs, list(man.decodes), fixture_map)
     if man.other is None:
+        found = _identify(blobs, list(man.decodes), fixture_map)
         return man.readout if found.usable else None
 
     def solve(f: _Identified):
         return _solve(camera, fixture_map, blobs, f, st, outlier_px, None)
 
-    est, reason = solve(found)
-    one = _Decided(list(man.decodes), found, est, reason)
-    man, _, _, est, _ = _direction_by_pose(blobs, fixture_map, man, one, solve)
+    man, _, _, est, _ = _decided(blobs, fixture_map, man, list(man.decodes), solve)
     return man.readout if est is not None else None
 
 
@@ -555,22 +567,14 @@ def locate(
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map)
         decodes, frequencies, notes = list(man.decodes), np.full(len(blobs), np.nan), []
-        if man.readout != readout:  # read the other way: keep the profiles in sensor order
-            profiles = [p[::-1] for p in profiles]
-        readout = man.readout
     t2 = time.perf_counter()
-    found = _identify(blobs, decodes, fixture_map)
-    est, reason = _solve(camera, fixture_map, blobs, found, st, outlier_px, down)
-    if man is not None and man.other is not None:
-        # the stripes fit both directions about equally (IDs whose reversed frames are
-        # other IDs'): the direction whose IDs give a pose decides, else the photo is refused
-        def solve(f: _Identified):
-            return _solve(camera, fixture_map, blobs, f, st, outlier_px, down)
 
-        man, decodes, found, est, reason = _direction_by_pose(
-            blobs, fixture_map, man, _Decided(decodes, found, est, reason), solve
-        )
-        if man.readout != readout:
+    def solve(f: _Identified):
+        return _solve(camera, fixture_map, blobs, f, st, outlier_px, down)
+
+    man, decodes, found, est, reason = _decided(blobs, fixture_map, man, decodes, solve)
+    if man is not None:
+        if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
     t3 = time.perf_counter()

@@ -116,12 +116,9 @@ def share_within(sigma: np.ndarray, tolerance: float = 0.01) -> np.ndarray:
     """Probability that a Gaussian, unbiased error of standard deviation ``sigma`` (a
     fraction, any shape) stays within ``tolerance``; NaN where ``sigma`` is NaN."""
     sigma = np.asarray(sigma, dtype=np.float64)
-    out = np.full(sigma.shape, np.nan)
-    ok = np.isfinite(sigma) | np.isinf(sigma)
     with np.errstate(divide="ignore"):
-        z = tolerance / (np.sqrt(2.0) * sigma[ok])
-    out[ok] = [math.erf(x) for x in z.ravel()]
-    return out
+        z = tolerance / (np.sqrt(2.0) * sigma)  # 0 for an infinite sigma
+    return np.vectorize(math.erf, otypes=[np.float64])(z)
 
 
 def _bound(

@@ -567,7 +567,11 @@ def light_patches(
 ) -> list[LightPatch]:
     """Each drawn fixture's light (:class:`LightPatch`): those in front of the camera, seen
     from the front, and with a box in the image.  ``settings`` are resolved for ``camera``."""
-    s = settings.resolved(camera)
+    return _lights(camera, fixture_map, pose, settings.resolved(camera))[1]
+
+
+def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettings):
+    """The fixtures' truths and their lights (:func:`light_patches`), ``s`` resolved."""
     colours = _colours(s, len(fixture_map.fixtures))
     truths, normals, rims = _truths(camera, fixture_map, pose, s)
     w, h = camera.width, camera.height
@@ -596,7 +600,7 @@ def light_patches(
         out.append(
             LightPatch(i, box, cov, k, chips, chip_s, truth.phase_s, smooth, colours[i], rho)
         )
-    return out
+    return truths, out
 
 
 def render(
@@ -632,9 +636,9 @@ def render(
     for f in fixture_map.fixtures:
         if f.diameter is None:
             raise ValueError(f"fixture {f.id} has no diameter (needed to render it)")
-    truths = _truths(camera, fixture_map, pose, s)[0]
+    truths, lights = _lights(camera, fixture_map, pose, s)
     patches = []  # (v0, v1, u0, u1, signal float32 (bh, bw, 3))
-    for light in light_patches(camera, fixture_map, pose, s):
+    for light in lights:
         on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level).astype(np.float32)
         lit = light.shape * (on[:, None] if s.readout.by_rows else on[None, :])
         lit *= np.float32(s.brightness)
