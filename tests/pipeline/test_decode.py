@@ -13,7 +13,7 @@ import pytest
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.decode import decode_profile, find_runs, row_profile
+from camvlp.pipeline.decode import decode_profile, find_runs, row_profile, shape_profile
 
 FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
 SUB = 20  # time samples per row
@@ -213,3 +213,47 @@ def test_row_profile_rows_and_columns():
     prof_t, first_t = row_profile(striped.T, disc.T, "columns")
     assert first_t == first
     assert prof_t == pytest.approx(prof)
+
+
+def _lamp(shape_of_rho, stripes: np.ndarray, radius: float = 30.0, clip: float = 255.0):
+    """A lamp (72 x 72) whose radial shape times each row's on-fraction, clipped, in uint8;
+    with its mask (the lit area down to 2 % of its level) and its outline ellipse."""
+    yy, xx = np.mgrid[0:72, 0:72].astype(float)
+    rho = np.hypot(xx - 35.5, yy - 36.2) / radius
+    shape = shape_of_rho(rho)
+    img = np.clip(shape * stripes[:, None], 0, clip)
+    mask = shape > 0.02 * shape.max()
+    return np.round(img).astype(np.uint8), mask, np.array([35.5, 36.2]), np.full(2, 2 * radius)
+
+
+@pytest.mark.parametrize("axis", ["rows", "columns"])
+def test_shape_profile_follows_the_led_not_the_lamps_glow(axis):
+    rng = np.random.default_rng(5)
+    on = np.repeat(rng.integers(0, 2, 12), 6)[:72] * 0.9 + 0.1  # 6 rows per chip, off at 10 %
+
+    def glowing(rho):  # a hot core, a disc, and a glow decaying beyond it
+        disc = np.clip(1.0 + 1.0 * np.exp(-((rho / 0.4) ** 2)), 0, None) * (rho <= 1)
+        return 120.0 * np.where(rho <= 1, disc, 0.35 * np.exp(-(rho - 1) / 0.5))
+
+    img, mask, centre, axes = _lamp(glowing, on)
+    if axis == "columns":
+        img, mask, centre = img.T, mask.T, centre[::-1]
+    shaped, first = shape_profile(img, mask, axis, centre, axes, 0.0)
+    plain, first2 = row_profile(img, mask, axis)
+    assert first == first2 and shaped.size == plain.size
+    truth = on[first : first + shaped.size]
+    # the shaped profile is the on-fraction times one level; the row mean is not
+    for prof, ok in ((shaped, True), (plain, False)):
+        scale = float(prof @ truth / (truth @ truth))
+        err = np.sqrt(np.mean((prof / scale - truth) ** 2))  # RMS, in on-fractions
+        assert (err < 0.03) == ok, (err, ok)
+
+
+def test_shape_profile_of_a_plain_disc_is_its_row_mean():
+    rng = np.random.default_rng(6)
+    on = np.repeat(rng.integers(0, 2, 12), 6)[:72] * 0.95 + 0.05
+    img, mask, centre, axes = _lamp(lambda rho: 240.0 * (rho <= 1), on)
+    img = np.clip(img + rng.normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+    shaped, _ = shape_profile(img, mask, "rows", centre, axes, 0.0)
+    plain, _ = row_profile(img, mask, "rows")
+    assert np.abs(shaped - plain).max() < 0.03 * plain.max()

@@ -455,3 +455,18 @@ def test_hot_core_halo_and_soft_stripes():
         return float(np.mean((x > 0.1 * x.max()) & (x < 0.9 * x.max())))
 
     assert between(a) < 0.1 and between(b) > 0.3
+
+
+def test_a_bright_glow_fades_out_without_an_edge():
+    """A glow far brighter than full scale fades to the background; its box must not cut it
+    off in a straight edge (a step of several gray levels no camera shows)."""
+    camera, fmap = small_camera(), one_fixture(diameter=0.1)
+    steady = dict(exposure_s=18 / CHIP_RATE, brightness=8.0, ambient=0.0)
+    img = gray(render(camera, fmap, _up(), quiet(halo=0.4, **steady)).image).astype(float)
+    t = render(camera, fmap, _up(), quiet(**steady)).fixtures[0]
+    u, v = np.round(t.pixel).astype(int)
+    r = t.rows_spanned / 2
+    right = img[v, u + int(1.2 * r) : u + int(7.0 * r)]  # the row through the centre, beyond
+    assert right.size > 3 * r and right[0] > 50  # the glow is bright near the rim
+    gone = int(np.argmax(right < 1))  # the first pixel at the dark background
+    assert gone > 0 and right[gone - 1] <= 2  # reached by fading, not by a cut

@@ -34,6 +34,7 @@ __all__ = [
     "decode_profile",
     "find_runs",
     "row_profile",
+    "shape_profile",
     "stripe_levels",
     "stripe_threshold",
 ]
@@ -41,6 +42,14 @@ __all__ = [
 
 #: The erosion that trims a disc's anti-aliased rim before its rows are averaged.
 _RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+
+
+def _trimmed(mask: np.ndarray) -> np.ndarray:
+    """A disc's mask (uint8 0/1) with its anti-aliased rim trimmed by a small erosion, unless
+    that would leave less than 30 % of it."""
+    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
+    eroded = cv2.erode(m, _RIM_KERNEL)
+    return eroded if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m) else m
 
 
 def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
@@ -62,10 +71,7 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
-    eroded = cv2.erode(m, _RIM_KERNEL)
-    if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m):
-        m = eroded
+    m = _trimmed(mask)
     dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
     counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
@@ -83,6 +89,103 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
+    if np.isnan(prof).any():  # rows the mask skips: interpolate
+        idx = np.arange(prof.size)
+        good = ~np.isnan(prof)
+        prof = np.interp(idx, idx[good], prof[good])
+    return prof, first
+
+
+#: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256), and
+#: the quantile of a ring's pixels taken as the light's level there when its LED is on.
+_RING_PIXELS = 150
+_ENVELOPE_QUANTILE = 0.9
+
+
+def _radial_envelope(values: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Each pixel's on-level: the upper quantile of the pixels at about its radius.
+
+    The pixels are cut into rings of equal area (so that each holds pixels of many sensor
+    rows, the middle one too, and the rings are thin where the rim's step is), about
+    ``_RING_PIXELS`` pixels each.  ``values`` (n,) uint8 and ``rho`` (n,) radii (any unit,
+    >= 0); returns float64 (n,), linear in radius between the rings' mean radii.
+    """
+    bins = int(np.clip(values.size // _RING_PIXELS, 16, 256))
+    r2 = rho * rho
+    top = float(r2.max()) or 1.0
+    k = np.minimum((r2 * (bins / top)).astype(np.intp), bins - 1)
+    order = np.sort(k * 256 + values.astype(np.intp))  # by ring, then by level
+    counts = np.bincount(k, minlength=bins)
+    full = np.flatnonzero(counts)
+    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))[full]
+    picks = starts + np.floor(_ENVELOPE_QUANTILE * (counts[full] - 1)).astype(np.intp)
+    level = (order[picks] - full * 256).astype(np.float64)
+    middle = np.bincount(k, weights=rho, minlength=bins)[full] / counts[full]
+    return np.interp(rho, middle, level)
+
+
+def shape_profile(
+    gray: np.ndarray,
+    mask: np.ndarray,
+    axis: str,
+    centre: np.ndarray,
+    axes: np.ndarray,
+    angle_deg: float,
+) -> tuple[np.ndarray, int]:
+    """The row profile of a light whose level varies across it (a hot core, a glow): each
+    sensor row's sum over the disc, over the sum of the light's on-level at the same pixels.
+
+    A light's image is its shape (the same whatever its LED does) times the LED's on-fraction
+    during each row's exposure.  The mean of a row (:func:`row_profile`) mixes the two: rows
+    that cross only the rim of a glow come out dim whatever the LED did.  Here each pixel is
+    set against the light's level at its distance from the centre when the LED is on (the
+    upper tenth of the pixels at about that distance, in rings of the outline ellipse), so
+    the profile follows the on-fraction alone (through the sensor's clipping).  For a plain
+    disc the level is the same everywhere and the profile is the row mean.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (h, w)
+        The region of interest.
+    mask : ndarray of bool, shape (h, w)
+        The light's area; its rim is trimmed as in :func:`row_profile`.
+    axis : {"rows", "columns"}
+        Readout axis.
+    centre : ndarray, shape (2,)
+        The light's centre ``[x, y]`` in the region's pixels.
+    axes : ndarray, shape (2,)
+        Full lengths of its outline ellipse's axes, pixels.
+    angle_deg : float
+        Orientation of the ellipse (OpenCV's convention), degrees.
+
+    Returns
+    -------
+    profile : ndarray of float, shape (n,)
+        One value per sensor row that crosses the disc, in the image's order, in gray levels
+        (the on-fraction times the brightest ring's level).
+    first : int
+        Index, in the region of interest, of the first row of the profile.
+    """
+    m = _trimmed(mask)
+    ys, xs = np.nonzero(m)
+    if ys.size == 0:
+        return np.zeros(0), 0
+    t = math.radians(angle_deg)
+    dx, dy = xs - float(centre[0]), ys - float(centre[1])
+    a, b = 0.5 * max(float(axes[0]), 1.0), 0.5 * max(float(axes[1]), 1.0)
+    u, v = dx * math.cos(t) + dy * math.sin(t), dy * math.cos(t) - dx * math.sin(t)
+    rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
+    values = gray[ys, xs]
+    level = np.maximum(_radial_envelope(values, rho), 1.0)
+    line = ys if axis != "columns" else xs
+    counts = np.bincount(line)
+    rows = np.flatnonzero(counts >= 2)
+    if rows.size == 0:
+        return np.zeros(0), 0
+    first, last = int(rows[0]), int(rows[-1]) + 1
+    num = np.bincount(line, weights=values, minlength=last)[first:last]
+    den = np.bincount(line, weights=level, minlength=last)[first:last]
+    prof = num / np.where(den > 0, den, np.nan) * float(level.max())
     if np.isnan(prof).any():  # rows the mask skips: interpolate
         idx = np.arange(prof.size)
         good = ~np.isnan(prof)

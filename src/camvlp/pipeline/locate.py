@@ -27,7 +27,7 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import row_profile
+from camvlp.pipeline.decode import shape_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
@@ -191,7 +191,9 @@ def _profiles(
     extents = np.array([_extent(b, readout.axis) for b in blobs])
     step = -1 if readout.reversed else 1
     profiles = [
-        row_profile(g, b.mask, readout.axis)[0][::step]
+        shape_profile(g, b.mask, readout.axis, b.pixel - b.box[:2], b.axes_px, b.angle_deg)[0][
+            ::step
+        ]
         for b, g in zip(blobs, gray_rois, strict=True)
     ]
     return gray_rois, extents, profiles

@@ -157,8 +157,13 @@ def shine(cov: np.ndarray, rho: np.ndarray, core: float, halo: float) -> np.ndar
     return cov
 
 
-def glow_margin(rim_px: np.ndarray, halo: float) -> int:
-    """Extra pixels a light's box needs around its projected rim (N, 2) for its halo."""
-    if halo > 0 and np.all(np.isfinite(rim_px)):
-        return math.ceil(1.5 * 0.5 * float(np.ptp(rim_px, axis=0).max()))
+def glow_margin(rim_px: np.ndarray, halo: float, brightness: float = 1.0) -> int:
+    """Extra pixels a light's box needs around its projected rim (N, 2) for its halo: as far
+    as the glow (``halo * brightness`` full scale at the rim, decaying over half a radius, see
+    :func:`shine`) is brighter than half an 8-bit step.  A box that ended sooner would draw
+    the glow's cut as a straight edge, which no camera sees."""
+    level = 510.0 * halo * brightness  # the glow at the rim, in half 8-bit steps
+    if level > 1.0 and np.all(np.isfinite(rim_px)):
+        radii = 0.5 * math.log(level)
+        return math.ceil(radii * 0.5 * float(np.ptp(rim_px, axis=0).max()))
     return 0

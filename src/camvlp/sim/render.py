@@ -582,7 +582,7 @@ def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettin
     ):
         if not truth.in_front or n @ (pose.position - f.position) <= 0:
             continue  # behind the camera, or seen from the fixture's back
-        box = pixel_box(rim_px, w, h, margin + glow_margin(rim_px, s.halo))
+        box = pixel_box(rim_px, w, h, margin + glow_margin(rim_px, s.halo, s.brightness))
         if box is None:
             continue
         cov, rho = coverage(

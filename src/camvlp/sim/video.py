@@ -254,7 +254,7 @@ def render_frame(
         if not all(np.all(np.isfinite(r)) for r in rims):
             continue
         rim_all = np.concatenate(rims)
-        box = pixel_box(rim_all, w, h, margin + 2 + glow_margin(rim_all, s.halo))
+        box = pixel_box(rim_all, w, h, margin + 2 + glow_margin(rim_all, s.halo, s.brightness))
         if box is None:
             continue
         u0, u1, v0, v1 = box
