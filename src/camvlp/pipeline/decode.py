@@ -71,7 +71,11 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    m = _trimmed(mask)
+    return _mean_profile(gray, _trimmed(mask), axis)
+
+
+def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int]:
+    """:func:`row_profile` of a mask already trimmed (uint8 0/1)."""
     dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
     counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
@@ -96,32 +100,48 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     return prof, first
 
 
-#: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256), and
-#: the quantile of a ring's pixels taken as the light's level there when its LED is on.
+#: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
+#: quantile of a ring's pixels taken as the light's level there when its LED is on; the pixels
+#: sampled to tell a flat light (every k-th row and column), and to measure a shaped one.
 _RING_PIXELS = 150
 _ENVELOPE_QUANTILE = 0.9
+_FLAT_SAMPLE, _SHAPE_SAMPLE = 1000, 20000
+#: A light whose rings' levels all lie within this fraction of the brightest is flat.
+_FLAT = 0.05
 
 
-def _radial_envelope(values: np.ndarray, rho: np.ndarray) -> np.ndarray:
-    """Each pixel's on-level: the upper quantile of the pixels at about its radius.
+def _radial_envelope(values: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A light's on-level against radius: the upper quantile of the pixels at about it.
 
     The pixels are cut into rings of equal area (so that each holds pixels of many sensor
     rows, the middle one too, and the rings are thin where the rim's step is), about
     ``_RING_PIXELS`` pixels each.  ``values`` (n,) uint8 and ``rho`` (n,) radii (any unit,
-    >= 0); returns float64 (n,), linear in radius between the rings' mean radii.
+    >= 0); returns the rings' mean radii and their levels, float64 (k,) each.
     """
-    bins = int(np.clip(values.size // _RING_PIXELS, 16, 256))
+    bins = min(max(values.size // _RING_PIXELS, 16), 256)
     r2 = rho * rho
-    top = float(r2.max()) or 1.0
-    k = np.minimum((r2 * (bins / top)).astype(np.intp), bins - 1)
-    order = np.sort(k * 256 + values.astype(np.intp))  # by ring, then by level
+    k = (r2 * (bins / (float(r2.max()) or 1.0))).astype(np.intp)
+    np.minimum(k, bins - 1, out=k)
+    key = k * 256 + values  # by ring, then by level
+    key.sort()
     counts = np.bincount(k, minlength=bins)
-    full = np.flatnonzero(counts)
-    starts = np.concatenate(([0], np.cumsum(counts)[:-1]))[full]
-    picks = starts + np.floor(_ENVELOPE_QUANTILE * (counts[full] - 1)).astype(np.intp)
-    level = (order[picks] - full * 256).astype(np.float64)
+    full = counts > 0
+    picks = np.cumsum(counts) - counts + ((counts - 1) * _ENVELOPE_QUANTILE).astype(np.intp)
+    level = (key[picks[full]] & 255).astype(np.float64)
     middle = np.bincount(k, weights=rho, minlength=bins)[full] / counts[full]
-    return np.interp(rho, middle, level)
+    return middle, level
+
+
+def _radii(m: np.ndarray, step: int, centre, axes, angle_deg: float):
+    """The pixels of mask ``m`` on every ``step``-th row and column: rows, columns, and
+    radii in the outline ellipse's units."""
+    ys, xs = np.nonzero(m[::step, ::step])
+    ys, xs = ys * step, xs * step
+    t = math.radians(angle_deg)
+    dx, dy = xs - float(centre[0]), ys - float(centre[1])
+    a, b = 0.5 * max(float(axes[0]), 1.0), 0.5 * max(float(axes[1]), 1.0)
+    u, v = dx * math.cos(t) + dy * math.sin(t), dy * math.cos(t) - dx * math.sin(t)
+    return ys, xs, np.sqrt((u / a) ** 2 + (v / b) ** 2)
 
 
 def shape_profile(
@@ -167,16 +187,19 @@ def shape_profile(
         Index, in the region of interest, of the first row of the profile.
     """
     m = _trimmed(mask)
-    ys, xs = np.nonzero(m)
-    if ys.size == 0:
+    n = cv2.countNonZero(m)
+    if n == 0:
         return np.zeros(0), 0
-    t = math.radians(angle_deg)
-    dx, dy = xs - float(centre[0]), ys - float(centre[1])
-    a, b = 0.5 * max(float(axes[0]), 1.0), 0.5 * max(float(axes[1]), 1.0)
-    u, v = dx * math.cos(t) + dy * math.sin(t), dy * math.cos(t) - dx * math.sin(t)
-    rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
+    ys, xs, rho = _radii(m, math.ceil(math.sqrt(n / _FLAT_SAMPLE)), centre, axes, angle_deg)
+    middle, level = _radial_envelope(gray[ys, xs], rho)
+    if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
+        return _mean_profile(gray, m, axis)
+    if n > _FLAT_SAMPLE:
+        ys, xs, rho = _radii(m, math.ceil(math.sqrt(n / _SHAPE_SAMPLE)), centre, axes, angle_deg)
+        middle, level = _radial_envelope(gray[ys, xs], rho)
+    ys, xs, rho = _radii(m, 1, centre, axes, angle_deg)
     values = gray[ys, xs]
-    level = np.maximum(_radial_envelope(values, rho), 1.0)
+    level = np.maximum(np.interp(rho, middle, level), 1.0)
     line = ys if axis != "columns" else xs
     counts = np.bincount(line)
     rows = np.flatnonzero(counts >= 2)

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
+from camvlp.pipeline.touching import one_per_light, power_cell
 
 __all__ = [
     "Blob",
@@ -63,6 +64,9 @@ class Blob:
     gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
         The region of interest in gray levels (:func:`to_gray`), kept so that later stages
         need not convert it again.
+    cell : ndarray of bool, shape (y1 - y0, x1 - x0), or None
+        The part of the region that is this light's when its glow joins other lights'
+        (:mod:`camvlp.pipeline.touching`); None when the region is all its own.
     """
 
     pixel: np.ndarray
@@ -77,6 +81,7 @@ class Blob:
     centre_cov_px2: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
 
     gray: np.ndarray | None = field(default=None, repr=False, compare=False)
+    cell: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
     def centre_sigma_px(self) -> float:
@@ -314,14 +319,25 @@ def detect_fixtures(
     comps.sort(key=lambda r: -r[2] * r[3])
     found = []
     pad = kernel_px + 6 + 2 * s
-    for x, y, w, h in comps[:max_blobs]:
+    # the lights' brighter parts, where glows that join at ``thr`` stay apart
+    high = cv2.threshold(small, background + 0.6 * (peak - background), 255, cv2.THRESH_BINARY)[1]
+    high = _close_lit(high, k)
+
+    def axis_of(inside: np.ndarray, box: tuple[int, int, int, int]) -> str:
+        x, y, w, h = box
+        return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
+
+    lights = one_per_light(comps[:max_blobs], binary, high, 0.25 * min_diameter_px / s, axis_of)
+    for (x, y, w, h), cell in lights:
         box = (
             max(0, x * s - pad),
             max(0, y * s - pad),
             min(width, (x + w) * s + pad),
             min(height, (y + h) * s + pad),
         )
-        refined = _refine(img, box, readout, kernel_px, min_diameter_px)
+        seeds = None if cell is None else cell[0] * np.array([s, s, s], dtype=np.float64)
+        own = None if seeds is None else power_cell(box, seeds, cell[1])
+        refined = _refine(img, box, readout, kernel_px, min_diameter_px, own)
         if refined is not None:
             found.append(refined)
     blobs = _with_covariances(_drop_duplicates(found))
@@ -403,6 +419,7 @@ def _refine(
     readout: str | None,
     kernel_px: int,
     min_diameter_px: float,
+    cell: np.ndarray | None = None,
 ) -> tuple[Blob, tuple | None] | None:
     """One candidate region at full resolution: its disc, readout axis and centre.
 
@@ -447,6 +464,10 @@ def _refine(
     # gray levels are above it when they are above its floor
     thr = math.floor(background + 0.25 * (peak - background))
     lit = cv2.threshold(gray8, thr, 1, cv2.THRESH_BINARY)[1]  # 0 and 1
+    beyond = None
+    if cell is not None:  # a light whose glow joins others': its own cell only
+        beyond = lit & ~cell
+        lit = lit & cell
     axis = readout
     if axis is None:
         axis, contrast = _axis_contrast(gray8, cv2.dilate(lit, np.ones((3, 3), np.uint8)))
@@ -466,6 +487,11 @@ def _refine(
         or (y1 == height and mask[-1].any())
     )
     points = _edge_points(gray8, mask, background, axis)
+    if beyond is not None and points.size:  # not where the cell cuts it off from another
+        near = cv2.dilate(beyond, np.ones((5, 5), np.uint8))
+        xy = np.rint(points).astype(np.intp)
+        h0, w0 = near.shape
+        points = points[near[xy[:, 1].clip(0, h0 - 1), xy[:, 0].clip(0, w0 - 1)] == 0]
     fit = None
     if points.shape[0] >= 12:
         (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
@@ -491,6 +517,7 @@ def _refine(
         stripe_contrast=float(contrast),
         edge_points=int(points.shape[0]),
         gray=gray8,
+        cell=cell,
     )
     return blob, fit
 
@@ -555,7 +582,12 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
 
 
 def light_support(
-    gray: np.ndarray, mask: np.ndarray, axis: str, kernel_px: int = 16, k_sigma: float = 8.0
+    gray: np.ndarray,
+    mask: np.ndarray,
+    axis: str,
+    kernel_px: int = 16,
+    k_sigma: float = 8.0,
+    cell: np.ndarray | None = None,
 ) -> np.ndarray:
     """A light's whole striped area, down to the background, inside its region of interest.
 
@@ -580,6 +612,8 @@ def light_support(
         Smallest closing length bridging the dark stripes, pixels.
     k_sigma : float
         Threshold above the background, in noise standard deviations.
+    cell : ndarray of bool, shape (h, w), optional
+        The light's own part of the region (:attr:`Blob.cell`): the support stays within it.
 
     Returns
     -------
@@ -601,6 +635,8 @@ def light_support(
     noise = 1.4826 * float(np.median(np.abs(dd - np.median(dd)))) / np.sqrt(2.0)
     lit = cv2.GaussianBlur(g, (0, 0), 1.0) > background + max(k_sigma * noise, 2.0)
     lit |= m
+    if cell is not None:
+        lit &= cell
     support = _disc_mask(lit, axis, kernel_px)
     if support is None or not (support & m).any():
         return m

@@ -253,7 +253,7 @@ def _measure_light(blob, gray: np.ndarray, axis: str) -> tuple[float, float, np.
     (:func:`~camvlp.pipeline.stripes.estimate_stripe_period`) is used instead.
     """
     centre = np.asarray(blob.pixel, dtype=float)
-    support = light_support(gray, blob.mask, axis)
+    support = light_support(gray, blob.mask, axis, cell=blob.cell)
     glow = bool(support.sum() >= _GLOW_RATIO * blob.mask.sum())
     if not glow:  # a plain disc: its own outline is its striped area, dark ends included
         support = _disc_support(blob)

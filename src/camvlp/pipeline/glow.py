@@ -114,7 +114,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str) -> list[Blob]:
             continue
         x0, y0, x1, y1 = b.box
         gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
-        support = light_support(gray, b.mask, axis)
+        support = light_support(gray, b.mask, axis, cell=b.cell)
         ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
         centre = light_wave(gray, support, ellipse, axis).centre
         h, w = b.mask.shape

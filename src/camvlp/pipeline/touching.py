@@ -1,0 +1,180 @@
+"""Lights whose glows touch: one lit region, split into one cell per light.
+
+Lamps that glow (or sit close in the photo) can join into one lit region at the detection's
+threshold.  The region is then two or more round shapes joined by narrow necks: its distance
+transform (each pixel's distance to the region's edge) has one peak per light, about the
+light's radius, and dips between them.  Each light's cell is its part of the power diagram
+of those peaks (a pixel goes to the light ``i`` with the least ``|p - c_i|^2 - r_i^2``): for
+two overlapping circles the cut is the line through their crossing points, where their
+outlines meet.  An elongated single light (a disc seen at a slant) has one peak on a ridge
+that falls towards its ends, with no neck, and stays whole.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import cv2
+import numpy as np
+
+__all__ = ["NECK", "light_seeds", "one_per_light", "power_cell"]
+
+#: A peak is a light of its own when the distance transform along the line to a larger
+#: peak dips below this fraction of the smaller of the two (a neck between them).
+NECK = 0.75
+
+
+def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """The least distance-transform value on the segment between two peaks ``[x, y, r]``,
+    sampled at every pixel along it."""
+    n = int(np.ceil(np.hypot(*(b[:2] - a[:2])))) + 1
+    t = np.linspace(0.0, 1.0, max(n, 2))
+    x = np.rint(a[0] + t * (b[0] - a[0])).astype(np.intp)
+    y = np.rint(a[1] + t * (b[1] - a[1])).astype(np.intp)
+    return float(dist[y, x].min())
+
+
+def _along(a: np.ndarray, b: np.ndarray, axis: str) -> bool:
+    """Whether two points ``[x, y, ...]`` lie apart mostly along the readout axis (across
+    the stripes)."""
+    dx, dy = abs(b[0] - a[0]), abs(b[1] - a[1])
+    return dy > dx if axis == "rows" else dx > dy
+
+
+def light_seeds(
+    region: np.ndarray,
+    min_radius: float = 2.0,
+    outline: np.ndarray | None = None,
+    axis: str = "rows",
+) -> np.ndarray:
+    """The lights in one lit region: the peaks of its distance transform.
+
+    Peaks are taken largest first; one becomes a light of its own when it lies outside the
+    inscribed circle of every light taken so far (its centre farther from theirs than either
+    radius) and a neck (:data:`NECK`) separates it from each in ``region``.  Two peaks
+    apart mostly along the readout (``axis``) may be the halves of one light cut by a wide
+    dark stripe: they must be necked in ``outline`` too, when given (the same lights at a
+    lower threshold, their stripes bridged, where one light has no neck).
+
+    Parameters
+    ----------
+    region : ndarray of uint8, shape (h, w)
+        The region, nonzero inside, its stripes bridged.
+    min_radius : float
+        Peaks lower than this (pixels) are not lights.
+    outline : ndarray of uint8, shape (h, w), optional
+        The region's outline at a lower threshold (nonzero inside, holding ``region``).
+    axis : {"rows", "columns"}
+        The readout axis: ``"rows"`` when the stripes are horizontal.
+
+    Returns
+    -------
+    ndarray, shape (k, 3)
+        ``[x, y, r]`` of each light: its peak (pixels of ``region``) and radius (pixels),
+        largest first; one row at least when the region has a peak of ``min_radius``.
+    """
+    dist = cv2.distanceTransform((region > 0).astype(np.uint8), cv2.DIST_L2, 5)
+    wide = None if outline is None else cv2.distanceTransform(outline, cv2.DIST_L2, 5)
+    peak = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (dist >= min_radius)
+    ys, xs = np.nonzero(peak)
+    order = np.argsort(-dist[ys, xs], kind="stable")
+    cands = np.stack([xs[order], ys[order], dist[ys, xs][order]], axis=1).astype(np.float64)
+
+    def necked(d: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+        ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
+        return _neck(d, a, b) < NECK * min(ra, rb)
+
+    seeds: list[np.ndarray] = []
+    for c in cands:
+        apart = all(
+            np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
+            and necked(dist, s, c)
+            and (wide is None or not _along(s, c, axis) or necked(wide, s, c))
+            for s in seeds
+        )
+        if apart:
+            seeds.append(c)
+    return np.array(seeds, dtype=np.float64).reshape(-1, 3)
+
+
+def power_cell(box: tuple[int, int, int, int], seeds: np.ndarray, i: int) -> np.ndarray:
+    """Light ``i``'s cell of the seeds' power diagram, inside a box.
+
+    Parameters
+    ----------
+    box : tuple of int
+        ``(x0, y0, x1, y1)``, pixels (end exclusive), in the seeds' frame.
+    seeds : ndarray, shape (k, 3)
+        ``[x, y, r]`` of each light, pixels.
+    i : int
+        The light.
+
+    Returns
+    -------
+    ndarray of bool, shape (y1 - y0, x1 - x0)
+        The pixels nearer light ``i`` than any other in power distance.
+    """
+    x0, y0, x1, y1 = box
+    x = np.arange(x0, x1, dtype=np.float32)[None, :]
+    y = np.arange(y0, y1, dtype=np.float32)[:, None]
+    s = seeds.astype(np.float32)
+    own = (x - s[i, 0]) ** 2 + (y - s[i, 1]) ** 2 - s[i, 2] ** 2
+    cell = np.ones(own.shape, dtype=bool)
+    for j in range(len(s)):
+        if j != i:
+            cell &= own <= (x - s[j, 0]) ** 2 + (y - s[j, 1]) ** 2 - s[j, 2] ** 2
+    return cell
+
+
+def one_per_light(
+    comps, binary: np.ndarray, high: np.ndarray, min_radius: float, axis_of: Callable
+):
+    """The lights of the detection's candidate regions.
+
+    Parameters
+    ----------
+    comps : iterable of tuple
+        Each candidate region's bounding box ``(x, y, w, h)`` in ``binary``'s pixels.
+    binary : ndarray of uint8, shape (h, w)
+        The candidate regions (nonzero), their stripes bridged.
+    high : ndarray of uint8, shape (h, w)
+        The same at a higher threshold: where glows that join in ``binary`` stay apart.
+    min_radius : float
+        Smallest radius of a light, pixels.
+    axis_of : callable
+        ``axis_of(inside, (x, y, w, h))``: the readout axis (``"rows"`` or ``"columns"``)
+        of a region, from its pixels ``inside`` (uint8 0/1 of the box).
+
+    Yields
+    ------
+    box : tuple of int
+        ``(x, y, w, h)``: a region's box, or one light's part of it.
+    cell : tuple or None
+        None for a region that holds one light; else ``(seeds, i)``: the region's lights'
+        ``[x, y, r]`` (k, 3) in ``binary``'s pixels (:func:`light_seeds` of its part of
+        ``high``), and which of them the box is.
+    """
+    for x, y, w, h in comps:
+        region = binary[y : y + h, x : x + w]
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(region, connectivity=8)
+        if n < 2:
+            yield (x, y, w, h), None
+            continue
+        main = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+        inside = (labels == main).astype(np.uint8)
+        axis = axis_of(inside, (x, y, w, h))
+        seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis)
+        if len(seeds) < 2:
+            yield (x, y, w, h), None
+            continue
+        seeds = seeds + np.array([x, y, 0.0])
+        for i in range(len(seeds)):
+            ys, xs = np.nonzero(inside & power_cell((x, y, x + w, y + h), seeds, i))
+            if ys.size:
+                box = (
+                    x + int(xs.min()),
+                    y + int(ys.min()),
+                    int(np.ptp(xs)) + 1,
+                    int(np.ptp(ys)) + 1,
+                )
+                yield box, (seeds, i)

@@ -1,0 +1,90 @@
+"""Lights whose glows join into one lit region: split, one cell per light."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from camvlp.locate import locate
+
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.detect import detect_fixtures
+from camvlp.pipeline.touching import light_seeds, power_cell
+from camvlp.sim.render import RenderSettings, render
+
+
+def _circles(*circles, shape=(120, 200)) -> np.ndarray:
+    img = np.zeros(shape, np.uint8)
+    for x, y, r in circles:
+        cv2.circle(img, (x, y), r, 1, -1)
+    return img
+
+
+@pytest.mark.parametrize("gap", [-12, -4, 0, 6])
+def test_two_joined_discs_are_two_lights(gap):
+    # two discs of radii 30 and 22 overlapping by 12 px ... joined by a bridge 6 px long
+    a, b = (60, 60, 30), (60 + 30 + 22 + gap, 62, 22)
+    region = _circles(a, b)
+    if gap > 0:
+        cv2.line(region, (90, 61), (90 + gap, 61), 1, 5)
+    seeds = light_seeds(region)
+    assert len(seeds) == 2
+    for seed, (x, y, r) in zip(seeds, (a, b), strict=True):
+        assert np.hypot(seed[0] - x, seed[1] - y) < max(2.0, -0.35 * gap)
+        assert abs(seed[2] - r) < 2.0 + 0.5 * max(0, -gap)
+    # each disc's centre lies in its own cell, and the cells share out the region
+    cells = [power_cell((0, 0, 200, 120), seeds, i) for i in range(2)]
+    assert cells[0][a[1], a[0]] and cells[1][b[1], b[0]]
+    assert not (cells[0] & cells[1] & (region > 0)).sum() > 200
+
+
+@pytest.mark.parametrize("axes", [(40, 40), (60, 25), (80, 30)])
+def test_one_disc_seen_at_a_slant_is_one_light(axes):
+    region = np.zeros((120, 200), np.uint8)
+    cv2.ellipse(region, (100, 60), axes, 20.0, 0, 360, 1, -1)
+    assert len(light_seeds(region)) == 1
+
+
+def test_a_light_cut_by_a_wide_dark_stripe_stays_one():
+    # at a high threshold a light with a dark stripe (rows readout) across its middle is two
+    # halves; at the detection's threshold (stripes bridged) it is one disc, without a neck
+    outline = _circles((100, 60, 40))
+    high = outline.copy()
+    high[52:68] = 0
+    assert len(light_seeds(high, outline=outline, axis="rows")) == 1
+    # the same halves apart across the readout could be two lights: split
+    assert len(light_seeds(high, outline=outline, axis="columns")) == 2
+
+
+CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
+
+
+def _room(apart: float) -> FixtureMap:
+    xs = (-apart / 2, apart / 2, -apart / 2, apart / 2)
+    zs = (-0.35, -0.35, 0.35, 0.35)
+    return FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.0, z]), 0.3, np.array([0.0, 1.0, 0.0]))
+            for i, x, z in zip((5, 6, 9, 10), xs, zs, strict=True)
+        )
+    )
+
+
+def test_lamps_whose_glows_join_are_each_found_and_decoded():
+    # four lamps 0.4 m apart (edge to edge 0.1 m, a third of their diameter) whose glows
+    # join into one lit region: each is found and decoded, near its centre
+    room = _room(0.4)
+    pose = Pose.from_euler([0.01, 0.0, 0.02], [90.0, 0.0, 0.0])
+    decoded = 0
+    for seed in range(3):
+        settings = RenderSettings(seed=seed, halo=0.25, brightness=2.0, exposure_s=3e-5)
+        photo = render(CAM, room, pose, settings)
+        truth = {t.id: t.pixel for t in photo.fixtures}
+        assert len(detect_fixtures(photo.image).blobs) == 4
+        res = locate(photo.image, CAM, room)
+        for f in res.fixtures:
+            if f.id is not None:
+                assert f.id in truth and np.linalg.norm(f.pixel - truth[f.id]) < 1.0
+                decoded += 1
+    assert decoded >= 11
