@@ -8,6 +8,8 @@ expected centre is then the centre of an ellipse fitted to the projected rim.
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -245,3 +247,18 @@ def test_median_by_counting_is_the_histograms():
         g = g.astype(np.uint8)
         assert _median_u8(g) == _percentiles_u8(g, [50])[0]
         assert _median_u8(g, max_steps=0) == _percentiles_u8(g, [50])[0]
+
+
+@pytest.mark.parametrize(("side_m", "cut"), [(0.7, False), (0.8, True)])
+def test_a_glow_at_the_border_is_not_a_cut_disc(small_camera, small_room, side_m, cut):
+    # 0.7 m to the side the discs at x = -0.8 m end 10 px from the image's edge and their
+    # glow reaches it; 0.8 m to the side the discs themselves are cut
+    pose = Pose.from_euler([side_m, 0.0, 0.0], LOOK_UP)
+    settings = dataclasses.replace(small_settings(seed=9), halo=0.3, brightness=2.0)
+    r = render(small_camera, small_room, pose, settings)
+    det = detect_fixtures(r.image)
+    near = [t for t in r.fixtures if t.id in (9, 10)]
+    assert all(t.fully_inside != cut for t in near)  # the scene is as intended
+    for t in near:
+        found = match(det.blobs, t.pixel, radius_px(small_camera, 2.7))
+        assert len(found) == 1 and found[0].touches_border == cut, t.id

@@ -327,7 +327,8 @@ def detect_fixtures(
         x, y, w, h = box
         return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
-    lights = one_per_light(comps[:max_blobs], binary, high, 0.25 * min_diameter_px / s, axis_of)
+    # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
+    lights = one_per_light(comps[:max_blobs], binary, high, 3.0, axis_of)
     for (x, y, w, h), cell in lights:
         box = (
             max(0, x * s - pad),
@@ -480,11 +481,15 @@ def _refine(
     if area < 0.5 * min_diameter_px**2:
         return None
     height, width = img.shape[:2]
-    touches = bool(  # the disc reaches an edge of its region that is the image's
-        (x0 == 0 and mask[:, 0].any())
-        or (y0 == 0 and mask[0].any())
-        or (x1 == width and mask[:, -1].any())
-        or (y1 == height and mask[-1].any())
+    # the disc reaches an edge of its region that is the image's: its bright part, for a
+    # glow beyond the disc may reach the border where the disc does not (the rows the
+    # border cuts give no edge points, the rest are whole)
+    disc = mask & (gray8 > background + 0.6 * (peak - background))
+    touches = bool(
+        (x0 == 0 and disc[:, 0].any())
+        or (y0 == 0 and disc[0].any())
+        or (x1 == width and disc[:, -1].any())
+        or (y1 == height and disc[-1].any())
     )
     points = _edge_points(gray8, mask, background, axis)
     if beyond is not None and points.size:  # not where the cell cuts it off from another

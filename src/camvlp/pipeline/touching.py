@@ -51,7 +51,8 @@ def light_seeds(
 
     Peaks are taken largest first; one becomes a light of its own when it lies outside the
     inscribed circle of every light taken so far (its centre farther from theirs than either
-    radius) and a neck (:data:`NECK`) separates it from each in ``region``.  Two peaks
+    radius, in ``region`` and in ``outline``: pieces of one striped light lie within its
+    outline's) and a neck (:data:`NECK`) separates it from each in ``region``.  Two peaks
     apart mostly along the readout (``axis``) may be the halves of one light cut by a wide
     dark stripe: they must be necked in ``outline`` too, when given (the same lights at a
     lower threshold, their stripes bridged, where one light has no neck).
@@ -84,10 +85,18 @@ def light_seeds(
         ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
         return _neck(d, a, b) < NECK * min(ra, rb)
 
+    def outside(d: np.ndarray | None, a: np.ndarray, b: np.ndarray) -> bool:
+        """Each centre outside the other's inscribed circle in ``d``."""
+        if d is None:
+            return True
+        ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
+        return bool(np.hypot(*(b[:2] - a[:2])) > max(ra, rb))
+
     seeds: list[np.ndarray] = []
     for c in cands:
         apart = all(
             np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
+            and outside(wide, s, c)
             and necked(dist, s, c)
             and (wide is None or not _along(s, c, axis) or necked(wide, s, c))
             for s in seeds
