@@ -50,8 +50,10 @@ EX = ROOT / "examples"
 VIDEOS = {"robot": "thesis_room.yaml", "walk": "corridor_room.yaml"}
 
 
-def _video(name: str, cache: Path, crf: int, halo: float = 0.0) -> Path:
-    stem = name if halo == 0 else f"{name}_halo{halo:g}"
+def _video(name: str, cache: Path, crf: int, halo: float = 0.0, brightness: float = 4.0) -> Path:
+    look = RenderSettings(seed=1, halo=halo, brightness=brightness)
+    stem = name + (f"_halo{halo:g}" if halo else "")
+    stem += f"_bright{brightness:g}" if brightness != RenderSettings.brightness else ""
     path = cache / f"{stem}.mp4"
     if not path.exists() or not (cache / f"{stem}_truth.csv").exists():
         cache.mkdir(parents=True, exist_ok=True)
@@ -62,7 +64,7 @@ def _video(name: str, cache: Path, crf: int, halo: float = 0.0) -> Path:
             load_trajectory(EX / "trajectories" / f"{name}.csv"),
             path,
             fps=30.0,
-            settings=RenderSettings(seed=1, halo=halo),
+            settings=look,
             crf=crf,
         )
         print(f"rendered {path}: {n} frames in {time.perf_counter() - t0:.0f} s")
@@ -170,6 +172,12 @@ def main() -> None:
         default=0.0,
         help="Lamps that glow: the halo of `camvlp render-video --halo` (0: plain discs).",
     )
+    ap.add_argument(
+        "--brightness",
+        type=float,
+        default=RenderSettings.brightness,
+        help="The lamps' brightness, in full scales (`camvlp render-video --brightness`).",
+    )
     ap.add_argument("--videos", nargs="+", choices=sorted(VIDEOS), default=list(VIDEOS))
     args = ap.parse_args()
     cv2.setNumThreads(1)
@@ -177,7 +185,7 @@ def main() -> None:
     results = {}
     for name in args.videos:
         room_file = VIDEOS[name]
-        video = _video(name, args.cache, args.crf, args.halo)
+        video = _video(name, args.cache, args.crf, args.halo, args.brightness)
         room = camvlp.load_map(EX / room_file)
         rs = _track(video, room, camera, args.cache / f"track_{video.stem}", True)
         plain = _track(video, room, camera, args.cache / f"track_{video.stem}_no_rs", False)

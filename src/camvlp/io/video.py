@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from camvlp.errors import InputError
@@ -150,13 +151,23 @@ class FrameSource:
             container.close()
 
 
+#: A limited-range ("TV") luma level (black 16, white 235) on the full range 0..255 of a
+#: photo, as FFmpeg's colour conversion gives it: a clipped light reads 255 either way.
+_FULL_RANGE = np.clip(np.round((np.arange(256) - 16.0) * (255.0 / 219.0)), 0, 255).astype(np.uint8)
+
+
 def _luma(frame) -> np.ndarray:
-    """A decoded video frame's brightness (H, W) uint8: its luma plane, without a colour
-    conversion (8-bit YUV formats); other formats through FFmpeg's gray conversion."""
-    if frame.format.name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
+    """A decoded video frame's brightness (H, W) uint8, 0..255: its luma plane, without a
+    colour conversion (8-bit YUV formats; a limited-range one, most videos', stretched from
+    16..235 by a look-up); other formats through FFmpeg's gray conversion."""
+    name = frame.format.name
+    if name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
         plane = frame.planes[0]
         rows = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
-        return rows[:, : plane.width].copy()
+        luma = rows[:, : plane.width]
+        if name.startswith("yuvj") or frame.color_range == 2:  # full range (JPEG's)
+            return luma.copy()
+        return cv2.LUT(luma, _FULL_RANGE)
     return frame.to_ndarray(format="gray")
 
 
@@ -202,7 +213,8 @@ def open_frames(
         Decoder threads for a video (1: one core; 0: FFmpeg's choice).
     gray : bool
         Give a video's frames as their luma plane (H, W) instead of BGR (H, W, 3): no colour
-        conversion, which is what locating needs (folders are read as their files are).
+        conversion, which is what locating needs; 0..255 like a photo's gray, a limited-range
+        video's 16..235 stretched (folders are read as their files are).
 
     Returns
     -------

@@ -41,6 +41,7 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profile
+from camvlp.pipeline.glow import centred_on_glow, glowing
 from camvlp.pipeline.locate import (
     _decode,
     _detect,
@@ -114,6 +115,7 @@ class Tracker:
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
         self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
+        self._glows: dict[int, bool] = {}  # whether each fixture glows, told once
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -217,6 +219,27 @@ class Tracker:
             decodes[k], blobs[k] = d, b
         return decodes
 
+    def _centre_glowing(self, img, blobs, ids, usable: list[int], axis: str) -> None:
+        """Centre the usable blobs of glowing fixtures on their radial shape, in place (as
+        :func:`camvlp.locate` does; a frequency-coded light is centred as it is decoded).
+
+        Whether a fixture glows is told once, at its first sighting that can tell it (the
+        glow is the lamp's own): only a glowing lamp's frames pay for the centring.
+        """
+        if self.map.mode == "frequency" or not usable:
+            return
+        new = [k for k in usable if ids[k] not in self._glows]
+        if new:
+            glows, told = glowing(img, [blobs[k] for k in new])
+            for k, g, t in zip(new, glows, told, strict=True):
+                if t:
+                    self._glows[ids[k]] = bool(g)
+        which = [self._glows.get(ids[k], False) for k in usable]
+        if any(which):
+            moved = centred_on_glow(img, [blobs[k] for k in usable], axis, which)
+            for k, b in zip(usable, moved, strict=True):
+                blobs[k] = b
+
     def update(self, image: np.ndarray, t: float) -> TrackFrame:
         """Process the next frame.
 
@@ -258,6 +281,7 @@ class Tracker:
             if src == "decoded":
                 self._verified[ids[k]] = index
         usable = [k for k in range(len(blobs)) if ids[k] is not None and not reasons[k]]
+        self._centre_glowing(img, blobs, ids, usable, (self.readout or readout).axis)
         state = self._predicted_state(t)
         fresh = from_pose and state is not None
 

@@ -150,7 +150,8 @@ class TrackFrame:
     reason : str
         Why there is no solve ("" for fix and tracked).
     timing_ms : dict
-        ``locate`` (detection and decoding), ``track`` (association, solve, filter), ``total``.
+        ``locate`` (detection and decoding), ``track`` (association, glowing lights centred,
+        solve, filter), ``total``.
     """
 
     index: int
