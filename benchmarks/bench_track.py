@@ -19,7 +19,9 @@ where a phone records 1080p at 10 to 20).  Then for each video it prints:
   not wall time, is counted), and ``camvlp.locate``'s time on ``bench_locate.py``'s 1080p
   photo as a reference of the machine's load.
 
-Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``.
+Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``;
+``--halo 0.4 --brightness 1`` renders (and tracks) the lamps glowing, as
+``camvlp render-video --halo --brightness`` does; ``--videos robot`` takes one of the two.
 """
 
 from __future__ import annotations

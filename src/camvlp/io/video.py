@@ -151,15 +151,15 @@ class FrameSource:
             container.close()
 
 
-#: A limited-range ("TV") luma level (black 16, white 235) on the full range 0..255 of a
-#: photo, as FFmpeg's colour conversion gives it: a clipped light reads 255 either way.
-_FULL_RANGE = np.clip(np.round((np.arange(256) - 16.0) * (255.0 / 219.0)), 0, 255).astype(np.uint8)
+#: A limited-range ("TV") luma plane's black and white (8-bit): stretched to 0 and 255, as
+#: FFmpeg's colour conversion does, so that a clipped light reads 255 as in a photo.
+_BLACK, _WHITE = 16, 235
 
 
 def _luma(frame) -> np.ndarray:
     """A decoded video frame's brightness (H, W) uint8, 0..255: its luma plane, without a
     colour conversion (8-bit YUV formats; a limited-range one, most videos', stretched from
-    16..235 by a look-up); other formats through FFmpeg's gray conversion."""
+    16..235); other formats through FFmpeg's gray conversion."""
     name = frame.format.name
     if name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
         plane = frame.planes[0]
@@ -167,7 +167,8 @@ def _luma(frame) -> np.ndarray:
         luma = rows[:, : plane.width]
         if name.startswith("yuvj") or frame.color_range == 2:  # full range (JPEG's)
             return luma.copy()
-        return cv2.LUT(luma, _FULL_RANGE)
+        gain = 255.0 / (_WHITE - _BLACK)  # rounded and saturated to 0..255 (OpenCV's)
+        return cv2.addWeighted(luma, gain, luma, 0.0, -_BLACK * gain)
     return frame.to_ndarray(format="gray")
 
 
