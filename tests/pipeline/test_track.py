@@ -75,8 +75,8 @@ def test_tracker_follows_the_camera(video):
 
 def test_glowing_lamps_are_centred_on_their_shape():
     # a glow blinking with the LED pulls each outline about: on their outlines, the first
-    # three frames of this video (seeds 1 to 5) track to 13 to 28 mm (RMSE; centres 0.5 to
-    # 1.3 px off, median), centred on their radial shape to 1.4 to 2.4 mm (0.06 to 0.1 px)
+    # three frames of this video (seeds 1 to 5) track to 13 to 26 mm (RMSE; centres 0.5 to
+    # 1.2 px off, median), centred on their radial shape to 1.1 to 2.8 mm (0.05 to 0.09 px)
     cam = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
     _, room, _ = small_scene()
     traj = Trajectory(
