@@ -19,7 +19,9 @@ where a phone records 1080p at 10 to 20).  Then for each video it prints:
   not wall time, is counted), and ``camvlp.locate``'s time on ``bench_locate.py``'s 1080p
   photo as a reference of the machine's load.
 
-Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``.
+Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``;
+``--halo 0.4 --brightness 1`` renders (and tracks) the lamps glowing, as
+``camvlp render-video --halo --brightness`` does; ``--videos robot`` takes one of the two.
 """
 
 from __future__ import annotations
@@ -50,9 +52,12 @@ EX = ROOT / "examples"
 VIDEOS = {"robot": "thesis_room.yaml", "walk": "corridor_room.yaml"}
 
 
-def _video(name: str, cache: Path, crf: int) -> Path:
-    path = cache / f"{name}.mp4"
-    if not path.exists() or not (cache / f"{name}_truth.csv").exists():
+def _video(name: str, cache: Path, crf: int, halo: float = 0.0, brightness: float = 4.0) -> Path:
+    look = RenderSettings(seed=1, halo=halo, brightness=brightness)
+    stem = name + (f"_halo{halo:g}" if halo else "")
+    stem += f"_bright{brightness:g}" if brightness != RenderSettings.brightness else ""
+    path = cache / f"{stem}.mp4"
+    if not path.exists() or not (cache / f"{stem}_truth.csv").exists():
         cache.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
         n = render_video(
@@ -61,7 +66,7 @@ def _video(name: str, cache: Path, crf: int) -> Path:
             load_trajectory(EX / "trajectories" / f"{name}.csv"),
             path,
             fps=30.0,
-            settings=RenderSettings(seed=1),
+            settings=look,
             crf=crf,
         )
         print(f"rendered {path}: {n} frames in {time.perf_counter() - t0:.0f} s")
@@ -163,15 +168,29 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=ROOT / "out" / "bench_track")
     ap.add_argument("--crf", type=int, default=10, help="x264 quality of the videos rendered.")
     ap.add_argument("--json", type=Path, default=None, help="Also write the figures here.")
+    ap.add_argument(
+        "--halo",
+        type=float,
+        default=0.0,
+        help="Lamps that glow: the halo of `camvlp render-video --halo` (0: plain discs).",
+    )
+    ap.add_argument(
+        "--brightness",
+        type=float,
+        default=RenderSettings.brightness,
+        help="The lamps' brightness, in full scales (`camvlp render-video --brightness`).",
+    )
+    ap.add_argument("--videos", nargs="+", choices=sorted(VIDEOS), default=list(VIDEOS))
     args = ap.parse_args()
     cv2.setNumThreads(1)
     camera = camvlp.load_camera(EX / "video_camera.yaml")
     results = {}
-    for name, room_file in VIDEOS.items():
-        video = _video(name, args.cache, args.crf)
+    for name in args.videos:
+        room_file = VIDEOS[name]
+        video = _video(name, args.cache, args.crf, args.halo, args.brightness)
         room = camvlp.load_map(EX / room_file)
-        rs = _track(video, room, camera, args.cache / f"track_{name}", True)
-        plain = _track(video, room, camera, args.cache / f"track_{name}_no_rs", False)
+        rs = _track(video, room, camera, args.cache / f"track_{video.stem}", True)
+        plain = _track(video, room, camera, args.cache / f"track_{video.stem}_no_rs", False)
         alone = _locate_alone(video, room, camera)
         speed = _speed(video, room, camera, args.runs)
         results[name] = {"track": rs, "no_rolling_shutter": plain, "locate": alone, "speed": speed}

@@ -110,5 +110,9 @@ def test_video_frames_as_luma(tmp_path):
     bgr = [f.image for f in open_frames(tmp_path / "ramp.mkv")]
     luma = [f.image for f in open_frames(tmp_path / "ramp.mkv", gray=True)]
     assert luma[0].shape == (48, 64) and bgr[0].shape == (48, 64, 3)
-    # video luma is 16..235 for black..white
-    assert np.abs(luma[0].astype(float) - (16 + ramp.astype(float) * 219 / 255)).max() <= 2
+    # black..white is 0..255 as in a photo (the video's luma 16..235 stretched, as the BGR
+    # conversion does): a clipped light reads 255 in either
+    assert luma[0].dtype == np.uint8
+    assert np.abs(luma[0].astype(float) - ramp).max() <= 2
+    gray = cv2.cvtColor(bgr[0], cv2.COLOR_BGR2GRAY).astype(float)
+    assert np.abs(luma[0].astype(float) - gray).max() <= 2

@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from camvlp.errors import InputError
@@ -150,13 +151,24 @@ class FrameSource:
             container.close()
 
 
+#: A limited-range ("TV") luma plane's black and white (8-bit): stretched to 0 and 255, as
+#: FFmpeg's colour conversion does, so that a clipped light reads 255 as in a photo.
+_BLACK, _WHITE = 16, 235
+
+
 def _luma(frame) -> np.ndarray:
-    """A decoded video frame's brightness (H, W) uint8: its luma plane, without a colour
-    conversion (8-bit YUV formats); other formats through FFmpeg's gray conversion."""
-    if frame.format.name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
+    """A decoded video frame's brightness (H, W) uint8, 0..255: its luma plane, without a
+    colour conversion (8-bit YUV formats; a limited-range one, most videos', stretched from
+    16..235); other formats through FFmpeg's gray conversion."""
+    name = frame.format.name
+    if name in ("yuv420p", "yuvj420p", "yuv422p", "yuvj422p", "yuv444p", "nv12"):
         plane = frame.planes[0]
         rows = np.frombuffer(plane, np.uint8).reshape(plane.height, plane.line_size)
-        return rows[:, : plane.width].copy()
+        luma = rows[:, : plane.width]
+        if name.startswith("yuvj") or frame.color_range == 2:  # full range (JPEG's)
+            return luma.copy()
+        gain = 255.0 / (_WHITE - _BLACK)  # rounded and saturated to 0..255 (OpenCV's)
+        return cv2.addWeighted(luma, gain, luma, 0.0, -_BLACK * gain)
     return frame.to_ndarray(format="gray")
 
 
@@ -202,7 +214,8 @@ def open_frames(
         Decoder threads for a video (1: one core; 0: FFmpeg's choice).
     gray : bool
         Give a video's frames as their luma plane (H, W) instead of BGR (H, W, 3): no colour
-        conversion, which is what locating needs (folders are read as their files are).
+        conversion, which is what locating needs; 0..255 like a photo's gray, a limited-range
+        video's 16..235 stretched (folders are read as their files are).
 
     Returns
     -------

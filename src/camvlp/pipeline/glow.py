@@ -6,10 +6,13 @@ clip there too), in the dark ones not at all, so an ellipse fitted to the outlin
 about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on 1080p renders, where a
 plain disc's is 0.02 px.  The light's shape, glow included, is radially symmetric about its
 centre, so a glowing light is centred on its radial shape instead
-(:func:`camvlp.pipeline.light_wave.light_wave`, which separates the shape from the stripes
-over the light's whole striped area).  That costs 0.2 to 0.4 s per glowing light at 1080p; a
-light without a glow (its ring beyond the outline at the background) is left as detected, at
-the cost of some 250 pixels sampled (:func:`glow_levels`).
+(:func:`camvlp.pipeline.light_wave.radial_centre`, which separates the shape from the stripes
+over the light's whole striped area; the square wave is not fitted).  That costs 40 to 60 ms
+per glowing light on 1080p video frames (median, one core; discs of 85 px, halo 0.4); a light
+without a glow (its ring beyond the outline at the background) is left as detected, at the
+cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
+centres every light of a photo; :class:`camvlp.pipeline.track.Tracker` tells each fixture's
+glow once and centres the glowing ones it uses, frame after frame.
 """
 
 from __future__ import annotations
@@ -19,9 +22,9 @@ import dataclasses
 import numpy as np
 
 from camvlp.pipeline.detect import Blob, light_support, to_gray
-from camvlp.pipeline.light_wave import light_wave
+from camvlp.pipeline.light_wave import radial_centre
 
-__all__ = ["centred_on_glow", "glow_level", "glow_levels"]
+__all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
 #: Glow level (see :func:`glow_level`) from which a light counts as glowing.
 GLOW_LEVEL = 0.02
@@ -88,9 +91,33 @@ def glow_level(img: np.ndarray, blob: Blob) -> float:
     return float(glow_levels(img, [blob])[0])
 
 
-def centred_on_glow(img: np.ndarray, blobs, axis: str) -> list[Blob]:
-    """The blobs, each glowing one (:func:`glow_level` at least :data:`GLOW_LEVEL`, not
-    touching the image's border) moved to the centre of its radial shape.
+def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
+    """Which lights glow (:func:`glow_levels` at least :data:`GLOW_LEVEL`), and which could
+    be told.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, 3) or (H, W)
+        The photo.
+    blobs : sequence of Blob
+        The detected lights.
+
+    Returns
+    -------
+    glows : ndarray of bool, shape (len(blobs),)
+        The lights that glow (never one that could not be told).
+    told : ndarray of bool, shape (len(blobs),)
+        The lights that could be told: enough of their ring and background in the photo, and
+        not touching its border (a light the border cuts is not centred on its shape).
+    """
+    levels = glow_levels(img, blobs)
+    border = np.array([b.touches_border for b in blobs], dtype=bool)
+    told = np.isfinite(levels) & ~border
+    return told & (np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL), told
+
+
+def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]:
+    """The blobs, each glowing one (:func:`glowing`) moved to the centre of its radial shape.
 
     Parameters
     ----------
@@ -100,25 +127,29 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str) -> list[Blob]:
         The detected lights.
     axis : {"rows", "columns"}
         The readout axis.
+    which : array_like of bool, shape (len(blobs),), optional
+        The blobs to centre, when already told (e.g. once per light along a video); None:
+        those :func:`glowing` tells.
 
     Returns
     -------
     list of Blob
         The blobs; a moved one has its new ``pixel`` (all else as detected).
     """
-    out = []
-    levels = glow_levels(img, blobs)
-    for b, level in zip(blobs, levels, strict=True):
-        if b.touches_border or not level >= GLOW_LEVEL:
-            out.append(b)
-            continue
-        x0, y0, x1, y1 = b.box
-        gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
-        support = light_support(gray, b.mask, axis, cell=b.cell)
-        ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
-        centre = light_wave(gray, support, ellipse, axis).centre
-        h, w = b.mask.shape
-        if np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h:
-            b = dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))
-        out.append(b)
-    return out
+    which = glowing(img, blobs)[0] if which is None else np.asarray(which, dtype=bool)
+    if which.shape != (len(blobs),):
+        raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
+    return [_centred(img, b, axis) if w else b for b, w in zip(blobs, which, strict=True)]
+
+
+def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
+    """The blob moved to the centre of its radial shape (as detected when that fails)."""
+    x0, y0, x1, y1 = b.box
+    gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
+    support = light_support(gray, b.mask, axis, cell=b.cell)
+    ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
+    centre = radial_centre(gray, support, ellipse, axis)
+    h, w = b.mask.shape
+    if np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h:
+        return dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))
+    return b

@@ -25,6 +25,7 @@ half a line, and a clipped light shows its waveform only at its rim and in its d
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -33,7 +34,7 @@ import numpy as np
 
 from camvlp.pipeline.stripes import spectral_peak
 
-__all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse"]
+__all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse", "radial_centre"]
 
 #: Width of the bins of the light's radial shape ``g``: at least half a pixel, at most
 #: 1/40 of its radius (a big light needs no finer shape).
@@ -521,27 +522,22 @@ def _radius(uv: np.ndarray, p: np.ndarray, cs: tuple[float, float]) -> np.ndarra
     return np.hypot(u * np.exp(-0.5 * r), v * np.exp(0.5 * r))
 
 
-def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
-    """A round light's waveform, free of its shape, and the square wave that fits it.
+class _Radial(NamedTuple):
+    """The light's radial fit (:func:`_radial`), in readout coordinates (lines down axis 0)."""
 
-    Parameters
-    ----------
-    gray : ndarray, shape (h, w)
-        The light's region of interest, gray levels 0-255 (any real dtype).
-    support : ndarray of bool, shape (h, w)
-        The light's whole striped area (:func:`camvlp.pipeline.detect.light_support`); the
-        pixels within 2 px of it are used.
-    ellipse : tuple
-        A first outline of the light in the region, as :func:`cv2.fitEllipse` gives it:
-        ``((cx, cy), (width, height), angle_deg)``; its centre and axis ratio are refined.
-    axis : {"rows", "columns"}
-        The readout axis.
+    best: np.ndarray  # centre x, y (pixels) and log axis ratio
+    warm: np.ndarray  # the radial shape fitted at the start, per bin knot
+    fit: Callable  # fit(p, g0, iters, step=1) -> (rss, s per line, its weight, g per knot)
+    clipped: tuple[np.ndarray, np.ndarray]  # (lines, x) of the clipped pixels
+    cs: tuple[float, float]  # cos, sin of the outline's angle
+    bin_px: float
+    background: float
+    n_lines: int
 
-    Returns
-    -------
-    LightWave
-        Falsy, with a message, when the region has too few lines with signal.
-    """
+
+def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radial | LightWave:
+    """The light's radial shape and its centre fitted (see :func:`light_wave`), or a failed
+    :class:`LightWave`."""
     nan = float("nan")
     g = np.asarray(gray, dtype=np.float64)
     m = np.asarray(support, dtype=bool)
@@ -552,7 +548,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     theta = np.deg2rad(angle)
     if axis == "columns":  # work in readout coordinates: lines down axis 0
         g, m, cx, cy, theta = g.T, m.T, cy, cx, 0.5 * np.pi - theta
-    (ly, lx, value), (cy_, cx_), background = _pixels(g, m)
+    (ly, lx, value), clipped, background = _pixels(g, m)
     radius = 0.25 * (aw + ah)
     if ly.size < 30 or not np.isfinite(background) or radius <= 0:
         return _failed(np.array([nan, nan]), "too few pixels")
@@ -594,9 +590,62 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
     best = np.asarray(res.x, dtype=float)
-    _, s, weight, shape = fit(best, warm, 12)
+    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines)
+
+
+def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
+    """The centre of a round light's radial shape (core, disc and glow), separated from its
+    stripes: :func:`light_wave`'s ``centre`` without the square wave's fit (half its time).
+
+    Parameters are :func:`light_wave`'s.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        Centre ``[x, y]`` in the region, pixels; NaN when the region has too few pixels with
+        signal.
+    """
+    fitted = _radial(gray, support, ellipse, axis)
+    if isinstance(fitted, LightWave):
+        return fitted.centre
+    centre = np.array(fitted.best[:2], dtype=float)
+    return centre[::-1] if axis == "columns" else centre
+
+
+def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
+    """A round light's waveform, free of its shape, and the square wave that fits it.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The light's region of interest, gray levels 0-255 (any real dtype).
+    support : ndarray of bool, shape (h, w)
+        The light's whole striped area (:func:`camvlp.pipeline.detect.light_support`); the
+        pixels within 2 px of it are used.
+    ellipse : tuple
+        A first outline of the light in the region, as :func:`cv2.fitEllipse` gives it:
+        ``((cx, cy), (width, height), angle_deg)``; its centre and axis ratio are refined.
+    axis : {"rows", "columns"}
+        The readout axis.
+
+    Returns
+    -------
+    LightWave
+        Falsy, with a message, when the region has too few lines with signal.
+    """
+    fitted = _radial(gray, support, ellipse, axis)
+    if isinstance(fitted, LightWave):
+        return fitted
+    nan = float("nan")
+    best, cs, bin_px, n_lines = fitted.best, fitted.cs, fitted.bin_px, fitted.n_lines
+    cy_, cx_ = fitted.clipped
+    _, s, weight, shape = fitted.fit(best, fitted.warm, 12)
     bounds = _clip_bounds(
-        _radius(_axes(cx_, cy_, cs), best, cs) / bin_px, cy_, shape, _CLIP - background, n_lines
+        _radius(_axes(cx_, cy_, cs), best, cs) / bin_px,
+        cy_,
+        shape,
+        _CLIP - fitted.background,
+        n_lines,
     )
     weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
     lines = np.arange(n_lines, dtype=float)

@@ -11,6 +11,9 @@ previous frames established and uses it in the next one:
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
   no other prediction is nearly as close; a decoded ID that lands far from where the track
   predicts that fixture is refused (IDs are never swapped between fixtures);
+* **each fixture's glow**: told once (:func:`camvlp.pipeline.glow.glowing`); a glowing lamp is
+  centred on its radial shape in every frame that uses it, as :func:`camvlp.locate` centres
+  it, and a plain one is left as detected;
 * **the pose**: with a pose prior, two or three identified fixtures give a ``tracked`` pose
   (:func:`camvlp.geometry.pnp.refine_pose`); four or more give a ``fix`` as in
   :func:`camvlp.locate`;
@@ -31,7 +34,7 @@ import copy
 import dataclasses
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -41,8 +44,8 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profile
+from camvlp.pipeline.glow import centred_on_glow, glowing
 from camvlp.pipeline.locate import (
-    LocateSettings,
     _decode,
     _detect,
     _Identified,
@@ -54,6 +57,7 @@ from camvlp.pipeline.locate import (
 )
 from camvlp.pipeline.track_assoc import associate, known_blobs
 from camvlp.pipeline.track_filter import ConstantVelocityFilter
+from camvlp.pipeline.track_types import STATUSES, TrackedFixture, TrackFrame, TrackSettings
 
 __all__ = [
     "STATUSES",
@@ -67,165 +71,6 @@ __all__ = [
 _NOT_DECODED = StripeDecode(
     None, "not decoded: its ID comes from the track", -1, 0.0, math.nan, math.nan, "", 0.0
 )
-
-#: Per-frame statuses, best first.
-STATUSES = ("fix", "tracked", "predicted", "lost")
-
-
-@dataclass(frozen=True, kw_only=True)
-class TrackSettings:
-    """Tuning of :class:`Tracker`.
-
-    Attributes
-    ----------
-    locate : LocateSettings
-        The locator's settings (solver, outlier tolerance, detector sizes, readout).
-    gate_px : float or None
-        Largest distance (pixels) between a blob and a fixture's predicted position for the
-        blob to keep that fixture's ID; None: 3 % of the focal length.
-    ambiguity : float
-        A blob keeps an ID only when every other prediction is this many times farther.
-    min_tracked : int
-        Fewest identified fixtures for a ``tracked`` pose (with the track's prior).
-    max_gap_s : float
-        Longest prediction without a measurement before the track is ``lost``, s.
-    accel_sigma : float
-        Process noise of the filter: acceleration, map units per s^2.
-    angular_accel_sigma_deg : float
-        Process noise of the angles: degrees per s^2.
-    fix_sigma : float
-        Uncertainty of the first fix's position (the filter's start), map units.
-    fix_sigma_deg : float
-        Uncertainty of the first fix's angles, degrees.
-    pixel_sigma : float
-        Uncertainty of a fixture's centre in the image, pixels: every later fix or tracked
-        pose enters the filter as its fixtures' pixels (an iterated extended Kalman update,
-        so that what two or three fixtures leave open keeps the track's prediction).
-    tilt_window : int
-        Fixes whose tilts (theta_x, theta_y) give a tracked pose its tilt prior: their mean,
-        with their spread (at least ``min_tilt_sigma_deg``) as its uncertainty.
-    min_tilt_sigma_deg : float
-        Smallest uncertainty of that tilt prior, degrees.
-    rolling_shutter : bool
-        Correct each fixture's pixel for the camera's motion between its row and the frame's
-        middle row (needs the camera's ``row_time_s``).
-    carry_chip_length : bool
-        Pass the chip length measured in earlier frames to the decoder.
-    verify_every : int
-        A blob that the track's pose identifies without doubt (the only prediction within the
-        gate) is not decoded again while its fixture's stripes were decoded in the last
-        ``verify_every`` frames (1: decode every blob in every frame).
-    """
-
-    locate: LocateSettings = field(default_factory=LocateSettings)
-    gate_px: float | None = None
-    ambiguity: float = 2.0
-    min_tracked: int = 2
-    max_gap_s: float = 0.5
-    accel_sigma: float = 3.0
-    angular_accel_sigma_deg: float = 250.0
-    fix_sigma: float = 0.002
-    fix_sigma_deg: float = 0.05
-    pixel_sigma: float = 0.5
-    tilt_window: int = 90
-    min_tilt_sigma_deg: float = 0.02
-    rolling_shutter: bool = True
-    carry_chip_length: bool = True
-    verify_every: int = 10
-
-    def __post_init__(self) -> None:
-        for name in (
-            "ambiguity",
-            "max_gap_s",
-            "accel_sigma",
-            "angular_accel_sigma_deg",
-            "fix_sigma",
-            "fix_sigma_deg",
-            "pixel_sigma",
-        ):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"{name} must be a positive number, got {v!r}")
-        if self.gate_px is not None and not self.gate_px > 0:
-            raise ValueError(f"gate_px must be a positive number, got {self.gate_px!r}")
-        if self.ambiguity < 1:
-            raise ValueError(f"ambiguity must be at least 1, got {self.ambiguity!r}")
-        if self.min_tracked < 1:
-            raise ValueError(f"min_tracked must be at least 1, got {self.min_tracked!r}")
-
-
-@dataclass(frozen=True)
-class TrackedFixture:
-    """One blob of a frame, as the tracker saw it.
-
-    Attributes
-    ----------
-    id : int or None
-        Its fixture's ID, or None.
-    pixel : ndarray, shape (2,)
-        Centre of its disc in the frame as given, pixels.
-    source : str
-        Where its ID came from: ``"decoded"`` (its stripes), ``"carried"`` (the track), or
-        ``""`` (no ID).
-    used : bool
-        Whether the frame's pose uses it.
-    reason : str
-        Why it is not used ("" when used).
-    """
-
-    id: int | None
-    pixel: np.ndarray
-    source: str
-    used: bool
-    reason: str
-
-
-@dataclass(frozen=True)
-class TrackFrame:
-    """The tracker's answer for one frame.
-
-    Attributes
-    ----------
-    index : int
-        Frame number, from 0.
-    t : float
-        The frame's time, s.
-    status : str
-        ``fix`` (four or more fixtures), ``tracked`` (fewer, with the track's prior),
-        ``predicted`` (the filter's prediction, no usable fixture), ``lost`` (no track).
-    position, euler_deg : ndarray, shape (3,), or None
-        The filtered camera centre (map units) and thesis angles (degrees); None when lost.
-    raw_position, raw_euler_deg : ndarray, shape (3,), or None
-        This frame's own solve (fix or tracked), before filtering; None otherwise.
-    fixtures_used : tuple of int
-        IDs of the fixtures the solve used.
-    reprojection_rms_px : float
-        RMS reprojection error of the solve, pixels (NaN without one).
-    fixtures : tuple of TrackedFixture
-        Every blob detected.
-    reason : str
-        Why there is no solve ("" for fix and tracked).
-    timing_ms : dict
-        ``locate`` (detection and decoding), ``track`` (association, solve, filter), ``total``.
-    """
-
-    index: int
-    t: float
-    status: str
-    position: np.ndarray | None
-    euler_deg: np.ndarray | None
-    raw_position: np.ndarray | None
-    raw_euler_deg: np.ndarray | None
-    fixtures_used: tuple[int, ...]
-    reprojection_rms_px: float
-    fixtures: tuple[TrackedFixture, ...]
-    reason: str
-    timing_ms: dict[str, float]
-
-    @classmethod
-    def lost(cls, index: int, t: float, reason: str) -> TrackFrame:
-        """A frame with nothing known (unreadable, or before the first fix)."""
-        return cls(index, t, "lost", None, None, None, None, (), math.nan, (), reason, {})
 
 
 @dataclass
@@ -273,6 +118,7 @@ class Tracker:
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
         self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
+        self._glows: dict[int, bool] = {}  # whether each fixture glows, told once
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -376,6 +222,27 @@ class Tracker:
             decodes[k], blobs[k] = d, b
         return decodes
 
+    def _centre_glowing(self, img, blobs, ids, usable: list[int], axis: str) -> None:
+        """Centre the usable blobs of glowing fixtures on their radial shape, in place (as
+        :func:`camvlp.locate` does; a frequency-coded light is centred as it is decoded).
+
+        Whether a fixture glows is told once, at its first sighting that can tell it (the
+        glow is the lamp's own): only a glowing lamp's frames pay for the centring.
+        """
+        if self.map.mode == "frequency" or not usable:
+            return
+        new = [k for k in usable if ids[k] not in self._glows]
+        if new:
+            glows, told = glowing(img, [blobs[k] for k in new])
+            for k, g, t in zip(new, glows, told, strict=True):
+                if t:
+                    self._glows[ids[k]] = bool(g)
+        which = [self._glows.get(ids[k], False) for k in usable]
+        if any(which):
+            moved = centred_on_glow(img, [blobs[k] for k in usable], axis, which)
+            for k, b in zip(usable, moved, strict=True):
+                blobs[k] = b
+
     def update(self, image: np.ndarray, t: float) -> TrackFrame:
         """Process the next frame.
 
@@ -417,6 +284,7 @@ class Tracker:
             if src == "decoded":
                 self._verified[ids[k]] = index
         usable = [k for k in range(len(blobs)) if ids[k] is not None and not reasons[k]]
+        self._centre_glowing(img, blobs, ids, usable, (self.readout or readout).axis)
         state = self._predicted_state(t)
         fresh = from_pose and state is not None
 
