@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
-from camvlp.pipeline.touching import one_per_light, power_cell
+from camvlp.pipeline.touching import not_convex, one_per_light, power_cell
 
 __all__ = [
     "Blob",
@@ -311,24 +311,29 @@ def detect_fixtures(
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     min_area = 0.5 * (min_diameter_px / s) ** 2
     rects = [cv2.boundingRect(c) for c in contours]
-    comps = [
-        r
-        for r, c in zip(rects, contours, strict=True)
-        if cv2.contourArea(c) + r[2] + r[3] >= min_area
+    areas = [cv2.contourArea(c) for c in contours]
+    kept = [
+        (r, c, a)
+        for r, c, a in zip(rects, contours, areas, strict=True)
+        if a + r[2] + r[3] >= min_area
     ]
-    comps.sort(key=lambda r: -r[2] * r[3])
+    kept.sort(key=lambda rca: -rca[0][2] * rca[0][3])
+    kept = kept[:max_blobs]
+    comps = [r for r, _, _ in kept]
+    several = [not_convex(c, a) for _, c, a in kept]  # may hold lights whose glows join
     found = []
     pad = kernel_px + 6 + 2 * s
-    # the lights' brighter parts, where glows that join at ``thr`` stay apart
-    high = cv2.threshold(small, background + 0.6 * (peak - background), 255, cv2.THRESH_BINARY)[1]
-    high = _close_lit(high, k)
+    high = None  # the lights' brighter parts, where glows that join at ``thr`` stay apart
+    if any(several):
+        high = cv2.threshold(small, background + 0.6 * (peak - background), 255, 0)[1]
+        high = _close_lit(high, k)
 
     def axis_of(inside: np.ndarray, box: tuple[int, int, int, int]) -> str:
         x, y, w, h = box
         return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(comps[:max_blobs], binary, high, 3.0, axis_of)
+    lights = one_per_light(comps, several, binary, high, 3.0, axis_of)
     for (x, y, w, h), cell in lights:
         box = (
             max(0, x * s - pad),

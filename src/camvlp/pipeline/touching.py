@@ -17,11 +17,22 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-__all__ = ["NECK", "light_seeds", "one_per_light", "power_cell"]
+__all__ = ["NECK", "SOLIDITY", "light_seeds", "not_convex", "one_per_light", "power_cell"]
 
 #: A peak is a light of its own when the distance transform along the line to a larger
 #: peak dips below this fraction of the smaller of the two (a neck between them).
 NECK = 0.75
+
+
+#: A candidate region less solid than this (its area over its convex hull's) may hold several
+#: lights (two discs that just touch: 0.88).
+SOLIDITY = 0.95
+
+
+def not_convex(contour: np.ndarray, area: float) -> bool:
+    """Whether a region's outline (OpenCV contour) of ``area`` (pixels) is less solid than
+    :data:`SOLIDITY`: one that may hold several lights."""
+    return area < SOLIDITY * cv2.contourArea(cv2.convexHull(contour))
 
 
 def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
@@ -136,7 +147,12 @@ def power_cell(box: tuple[int, int, int, int], seeds: np.ndarray, i: int) -> np.
 
 
 def one_per_light(
-    comps, binary: np.ndarray, high: np.ndarray, min_radius: float, axis_of: Callable
+    comps,
+    several,
+    binary: np.ndarray,
+    high: np.ndarray | None,
+    min_radius: float,
+    axis_of: Callable,
 ):
     """The lights of the detection's candidate regions.
 
@@ -144,10 +160,13 @@ def one_per_light(
     ----------
     comps : iterable of tuple
         Each candidate region's bounding box ``(x, y, w, h)`` in ``binary``'s pixels.
+    several : iterable of bool
+        Whether each region may hold several lights (is looked at); the others are one.
     binary : ndarray of uint8, shape (h, w)
         The candidate regions (nonzero), their stripes bridged.
-    high : ndarray of uint8, shape (h, w)
-        The same at a higher threshold: where glows that join in ``binary`` stay apart.
+    high : ndarray of uint8, shape (h, w), or None
+        The same at a higher threshold: where glows that join in ``binary`` stay apart
+        (needed when any region is looked at).
     min_radius : float
         Smallest radius of a light, pixels.
     axis_of : callable
@@ -163,7 +182,10 @@ def one_per_light(
         ``[x, y, r]`` (k, 3) in ``binary``'s pixels (:func:`light_seeds` of its part of
         ``high``), and which of them the box is.
     """
-    for x, y, w, h in comps:
+    for (x, y, w, h), look in zip(comps, several, strict=True):
+        if not look or high is None:
+            yield (x, y, w, h), None
+            continue
         region = binary[y : y + h, x : x + w]
         n, labels, stats, _ = cv2.connectedComponentsWithStats(region, connectivity=8)
         if n < 2:
