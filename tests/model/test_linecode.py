@@ -305,3 +305,37 @@ def test_max_errors_only_tightens_the_radius():
     # asking for more than the guarantee gives no more
     one_frame = _flipped(_window(6, 4, 18), [3])
     assert FMT.decode(one_frame, max_errors=5).id is None
+
+
+def test_decode_many_gives_the_distances_counted_chip_by_chip():
+    # stretches of every length, with flips and erasures, decoded together: each one's
+    # nearest ID, distance, runner-up and offset as counted against every rotation by hand
+    rng = np.random.default_rng(8)
+    stretches = []
+    for _ in range(80):
+        length = int(rng.integers(0, 70))
+        chips = _flipped(_window(int(rng.integers(16)), int(rng.integers(18)), length), [])
+        chips[rng.random(length) < 0.1] ^= 1
+        known = None if rng.random() < 0.3 else rng.random(length) > 0.15
+        stretches.append((chips, known))
+    got = FMT.decode_many(stretches)
+    for (chips, known), res in zip(stretches, got, strict=True):
+        k = np.ones(chips.size, bool) if known is None else known
+        cols = np.arange(chips.size) % N_CHIPS
+        dist = np.array(
+            [
+                [int(np.sum(k & (FMT.chips(i)[(cols + r) % N_CHIPS] != chips))) for r in range(18)]
+                for i in range(16)
+            ]
+        )
+        coverage = int(np.bincount(cols[k], minlength=N_CHIPS).min()) if k.any() else 0
+        if coverage == 0:
+            assert res.id is None and res.distance == -1
+            continue
+        best = int(dist.min(axis=1).argmin())
+        second = int(np.delete(dist.min(axis=1), best).min())
+        assert (res.distance, res.runner_up_distance) == (int(dist[best].min()), second)
+        assert res.offset == int(dist[best].argmin())
+        ok = second > dist[best].min() and dist[best].min() <= _radius(coverage)
+        assert res.id == (best if ok else None)
+        assert FMT.decode(chips, known=known) == res

@@ -13,7 +13,13 @@ import pytest
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.decode import decode_profile, find_runs, row_profile, shape_profile
+from camvlp.pipeline.decode import (
+    decode_profile,
+    decode_profiles,
+    find_runs,
+    row_profile,
+    shape_profile,
+)
 
 FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
 SUB = 20  # time samples per row
@@ -257,3 +263,21 @@ def test_shape_profile_of_a_plain_disc_is_its_row_mean():
     shaped, _ = shape_profile(img, mask, "rows", centre, axes, 0.0)
     plain, _ = row_profile(img, mask, "rows")
     assert np.abs(shaped - plain).max() < 0.03 * plain.max()
+
+
+def test_profiles_decoded_together_as_one_by_one():
+    # every refusal and every ID, profiles of all lengths (a steady light, too small, too few
+    # stripes, noisy ones): the batch gives each profile's own decode, field for field
+    rng = np.random.default_rng(21)
+    profiles = [np.full(20, 90.0), np.array([1.0, 2.0, 3.0]), np.array([10.0, 200] * 3)]
+    for _ in range(60):
+        case = random_case(rng)
+        case["n_rows"] = int(rng.integers(8, 300))
+        case["noise"] = rng.uniform(0.0, 30.0)
+        profiles.append(synth_profile(FRAME.chips(int(rng.integers(16))), rng=rng, **case))
+    for rpc in (None, 4.2):
+        together = decode_profiles(profiles, FRAME, rows_per_chip=rpc)
+        alone = [decode_profiles([p], FRAME, rows_per_chip=rpc)[0] for p in profiles]
+        assert [repr(d) for d in together] == [repr(d) for d in alone]
+    reasons = {d.reason.split(" (")[0] for d in together}
+    assert {"", "too small to decode", "no stripes"} <= reasons

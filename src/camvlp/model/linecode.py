@@ -186,21 +186,6 @@ class FrameFormat:
         return self.codebook[:, idx]
 
     @cached_property
-    def _expected_by_length(self) -> dict[int, np.ndarray]:
-        return {}
-
-    def _expected_all(self, length: int) -> np.ndarray:
-        """Every rotation of every ID over ``length`` consecutive chips, shape (n_ids,
-        n_chips, length): kept per length (the lengths a photo's fixtures give recur)."""
-        out = self._expected_by_length.get(length)
-        if out is None:
-            out = self._rotations[:, :, np.arange(length) % self.n_chips]
-            out.flags.writeable = False
-            if len(self._expected_by_length) < 256:
-                self._expected_by_length[length] = out
-        return out
-
-    @cached_property
     def min_distance(self) -> int:
         """Least Hamming distance between any rotations of two different IDs' frames.
 
@@ -256,41 +241,97 @@ class FrameFormat:
                 raise ValueError("bits must be 0 or 1")
         else:
             c = _bits_array(chips)
-        n = self.n_chips
         mask = None if known is None else np.asarray(known, bool).reshape(-1)
         if mask is not None and mask.shape != c.shape:
             raise ValueError("known must have the same length as chips")
-        if mask is not None and not mask.all():
-            cols = np.arange(c.size) % n
-            cols, c = cols[mask], c[mask]
-            coverage = int(np.bincount(cols, minlength=n).min()) if c.size else 0
-            expected = None
-        else:  # every chip known: each frame position seen size // n times
-            expected, coverage = self._expected_all(c.size), c.size // n
-        if coverage == 0:
-            return ChipDecode(None, -1, -1, 0, f"{c.size} chips seen, not one whole frame of {n}")
+        return self.decode_many([(c, mask)], max_errors=max_errors)[0]
+
+    def decode_many(self, stretches, *, max_errors: int | None = None) -> list[ChipDecode]:
+        """:meth:`decode` of several stretches at once.
+
+        Each chip position's mismatches with every rotation of every ID are counted in one
+        matrix product for all stretches: a stretch's known chips are summed per position
+        of the frame (a chip ``j`` meets chip ``j mod n`` of each rotation), so the cost
+        does not grow with the stretches' lengths.
+
+        Parameters
+        ----------
+        stretches : sequence of (chips, known)
+            ``chips`` a uint8 array of 0 and 1, shape (L,); ``known`` a bool array of the same
+            shape, or None when every chip is known.
+        max_errors : int, optional
+            As in :meth:`decode`, for every stretch.
+
+        Returns
+        -------
+        list of ChipDecode
+            One per stretch, as :meth:`decode` gives it.
+        """
+        n, n_ids = self.n_chips, self.n_ids
+        m = len(stretches)
+        if m == 0:
+            return []
+        sizes = np.array([c.size for c, _ in stretches], dtype=np.int64)
+        width = -(-int(sizes.max()) // n) * n if sizes.max() > 0 else n  # whole frames
+        c = np.zeros((m, width), np.float32)
+        k = np.zeros((m, width), bool)
+        real = np.arange(width)[None, :] < sizes[:, None]
+        k[real] = np.concatenate(
+            [np.ones(ch.size, bool) if kn is None else kn for ch, kn in stretches]
+        )
+        c[real] = np.concatenate([ch for ch, _ in stretches])
+        # per stretch and frame position: known chips, known ones, and what a rotation's chip
+        # 1 adds to the distance (one chip 0 more that disagrees, one chip 1 fewer)
+        seen = k.reshape(m, -1, n).sum(axis=1)  # (m, n)
+        ones = (c * k).reshape(m, -1, n).sum(axis=1)
+        weight = (k * (1.0 - 2.0 * c)).reshape(m, -1, n).sum(axis=1, dtype=np.float32)
+        coverage = seen.min(axis=1)
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
-            limit = min(limit, int(max_errors))
-        if expected is None:
-            expected = self._rotations[:, :, cols]  # (ids, rotations, known chips)
-        dist = (expected != c).sum(axis=2)  # (ids, rotations)
-        per_id = dist.min(axis=1)
-        best = int(per_id.argmin())  # the first of the nearest, as a stable sort's
-        d_best = int(per_id[best])
-        offset = int(dist[best].argmin())
-        d_second = c.size + 1
-        if self.n_ids > 1:
-            per_id[best] = d_second
-            d_second = int(per_id.min())
-        if d_best == d_second:
-            return ChipDecode(None, d_best, d_second, offset, "two IDs fit equally well")
-        if d_best > limit:
-            return ChipDecode(
-                None,
-                d_best,
-                d_second,
-                offset,
-                f"{d_best} chips disagree with the nearest ID (at most {limit} correctable)",
+            limit = np.minimum(limit, int(max_errors))
+        # distances (m, n_ids, n): exact, every sum a whole number below 2**24
+        dist = (weight @ self._rotations_f32.reshape(-1, n).T).reshape(m, n_ids, n)
+        dist = np.rint(dist + ones.sum(axis=1)[:, None, None]).astype(np.int64)
+        per_id = dist.min(axis=2)
+        best = per_id.argmin(axis=1)  # the first of the nearest, as a stable sort's
+        rows = np.arange(m)
+        d_best = per_id[rows, best]
+        offset = dist[rows, best].argmin(axis=1)
+        n_seen = seen.sum(axis=1)
+        d_second = n_seen + 1
+        if n_ids > 1:
+            per_id[rows, best] = d_second
+            d_second = per_id.min(axis=1)
+        return [
+            _chip_decode(*v, n)
+            for v in zip(
+                *(a.tolist() for a in (best, d_best, d_second, offset, coverage, limit, n_seen)),
+                strict=True,
             )
-        return ChipDecode(best, d_best, d_second, offset)
+        ]
+
+    @cached_property
+    def _rotations_f32(self) -> np.ndarray:
+        """:attr:`_rotations` as float32 (for :meth:`decode_many`'s matrix product)."""
+        r = self._rotations.astype(np.float32)
+        r.flags.writeable = False
+        return r
+
+
+def _chip_decode(
+    best: int, d_best: int, d_second: int, offset: int, coverage: int, limit: int, seen: int, n: int
+) -> ChipDecode:
+    """One stretch's :class:`ChipDecode` from its distances (see :meth:`FrameFormat.decode`)."""
+    if coverage == 0:
+        return ChipDecode(None, -1, -1, 0, f"{seen} chips seen, not one whole frame of {n}")
+    if d_best == d_second:
+        return ChipDecode(None, d_best, d_second, offset, "two IDs fit equally well")
+    if d_best > limit:
+        return ChipDecode(
+            None,
+            d_best,
+            d_second,
+            offset,
+            f"{d_best} chips disagree with the nearest ID (at most {limit} correctable)",
+        )
+    return ChipDecode(best, d_best, d_second, offset)

@@ -19,7 +19,6 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -232,13 +231,40 @@ def _otsu(values: np.ndarray) -> float:
 
 def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
     """Dark and bright levels of a row profile: its 2nd and 98th percentiles."""
-    v = np.sort(np.asarray(profile, dtype=float).reshape(-1))
-    last = v.size - 1
+    lo, hi = _levels([np.asarray(profile, dtype=float).reshape(-1)])
+    return float(lo[0]), float(hi[0])
+
+
+def _padded(flat: np.ndarray, counts: np.ndarray, fill: float) -> np.ndarray:
+    """Values given one group after another (``counts`` each) as rows of a (groups, longest)
+    array, each row's tail filled with ``fill``."""
+    out = np.full((counts.size, int(counts.max()) if counts.size else 0), fill, flat.dtype)
+    out[np.arange(out.shape[1])[None, :] < counts[:, None]] = flat
+    return out
+
+
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """Where each group begins in values given one group after another (``counts`` each)."""
+    out = np.zeros(counts.size, np.int64)
+    np.cumsum(counts[:-1], out=out[1:])
+    return out
+
+
+def _levels(profiles: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`stripe_levels` of several non-empty 1-D profiles: (dark, bright) arrays.
+
+    NumPy's default (linear) percentiles, each profile sorted in a row of its own (NaN
+    after its values, where NaN sorts)."""
+    sizes = np.array([p.size for p in profiles], dtype=np.int64)
+    v = _padded(np.concatenate(profiles), sizes, np.nan)
+    v.sort(axis=1)
+    last = sizes - 1
+    rows = np.arange(sizes.size)
     out = []
-    for q in (0.02, 0.98):  # NumPy's default (linear) percentiles, in Python floats
+    for q in (0.02, 0.98):
         x = q * last
-        i = min(math.floor(x), last)
-        a, b = float(v[i]), float(v[min(i + 1, last)])
+        i = np.minimum(np.floor(x).astype(np.int64), last)
+        a, b = v[rows, i], v[rows, np.minimum(i + 1, last)]
         out.append(a + (x - i) * (b - a))
     return out[0], out[1]
 
@@ -292,18 +318,63 @@ def find_runs(profile: np.ndarray, threshold: float | None = None) -> Runs:
     -------
     Runs
     """
-    p = np.asarray(profile, dtype=float)
+    p = np.asarray(profile, dtype=float).reshape(-1)
     thr = _otsu(p) if threshold is None else float(threshold)
-    above = p > thr
-    i = np.flatnonzero(above[1:] != above[:-1])  # crossing between i and i+1
-    a, b = p[i], p[i + 1]
-    edges = i + (thr - a) / np.where(b != a, b - a, 1.0)
-    bounds = np.concatenate([[-0.5], edges, [p.size - 0.5]])
-    lengths = np.diff(bounds)
-    bright = np.empty(edges.size + 1, bool)
-    bright[0] = above[0]
-    bright[1:] = above[i + 1]
-    return Runs(edges, above[i + 1], lengths, bright, thr)
+    r = _flat_runs([p], np.array([thr]))
+    return Runs(r.edges, r.rising, r.lengths, r.bright, thr)
+
+
+@dataclass(frozen=True)
+class _FlatRuns:
+    """The runs of several profiles, one profile's after another's (internal).
+
+    ``edges``, ``rising`` and ``edge_of`` (the profile) per threshold crossing; ``lengths``,
+    ``bright`` and ``run_of`` per run (``n_edges + 1`` a profile, the first and last cut by
+    the disc's edge)."""
+
+    edges: np.ndarray
+    rising: np.ndarray
+    edge_of: np.ndarray
+    n_edges: np.ndarray
+    lengths: np.ndarray
+    bright: np.ndarray
+    run_of: np.ndarray
+
+    @property
+    def run_starts(self) -> np.ndarray:
+        """Each profile's first run."""
+        return _starts(self.n_edges + 1)
+
+
+def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
+    """:func:`find_runs` of several non-empty 1-D profiles at given thresholds, worked on
+    the profiles laid end to end (no crossing between two profiles)."""
+    n = len(profiles)
+    sizes = np.array([p.size for p in profiles], dtype=np.int64)
+    flat = np.concatenate(profiles)
+    of = np.repeat(np.arange(n), sizes)
+    start = _starts(sizes)
+    above = flat > thresholds[of]
+    i = np.flatnonzero((above[1:] != above[:-1]) & (of[1:] == of[:-1]))  # between i, i+1
+    eo = of[i]
+    a, b = flat[i], flat[i + 1]
+    edges = (i - start[eo]) + (thresholds[eo] - a) / np.where(b != a, b - a, 1.0)
+    n_e = np.bincount(eo, minlength=n)
+    # each profile's bounds: -0.5, its edges, its size - 0.5; the runs between them
+    first = _starts(n_e) + 2 * np.arange(n)
+    bounds = np.empty(edges.size + 2 * n)
+    bounds[np.arange(edges.size) + 2 * eo + 1] = edges
+    bounds[first] = -0.5
+    bounds[first + n_e + 1] = sizes - 0.5
+    steps = bounds[1:] - bounds[:-1]
+    keep = np.ones(steps.size, bool)
+    keep[(first + n_e + 1)[:-1]] = False  # from one profile's last bound to the next's first
+    bright = np.empty(edges.size + n, bool)
+    bright[_starts(n_e + 1)] = above[start]
+    bright[np.arange(edges.size) + eo + 1] = above[i + 1]
+    return _FlatRuns(
+        edges, above[i + 1], eo, n_e, steps[keep], bright, np.repeat(np.arange(n), n_e + 1)
+    )
 
 
 @dataclass(frozen=True)
@@ -345,47 +416,201 @@ class StripeDecode:
         return self.id is not None
 
 
-def _chip_length(runs: Runs, max_rows_per_chip: float) -> float:
-    """Chip length in rows from same-polarity edge spacings (2, 3 or 4 chips each)."""
-    # the crossings alternate, so same-polarity spacings are those two crossings apart:
-    # the rising edges' first, then the falling edges'
-    e = runs.edges
-    two = e[2:] - e[:-2]
-    first = 0 if runs.rising.size and runs.rising[0] else 1  # ``two``'s first rising spacing
-    d = np.concatenate([two[first::2], two[1 - first :: 2]])
-    d = d[d > 0]
-    if d.size < 2:
-        return float("nan")
-    shortest = d.min()
-    lo, hi = max(0.8, shortest / 4.6), min(max_rows_per_chip, shortest / 1.6)
-    if hi <= lo:
-        return float("nan")
-    grid = np.arange(lo, hi, 0.01)
-    x = d[None, :] / grid[:, None]
-    n = np.round(x)
-    np.minimum(np.maximum(n, 2, out=n), 4, out=n)  # np.clip, without its overhead
-    x -= n
-    x *= grid[:, None]
-    cost = np.square(x, out=x).sum(axis=1)  # squared residual in rows
-    t = float(grid[int(np.argmin(cost))])
-    n = np.minimum(np.maximum(np.round(d / t), 2), 4)
-    return float((d * n).sum() / (n * n).sum())  # least squares refinement
+#: Most values of a padded (profiles, grid, values) array worked at once.
+_BATCH_VALUES = 1 << 20
 
 
-@functools.lru_cache(maxsize=4)
-def _counting(num: int) -> np.ndarray:
-    a = np.arange(num, dtype=float)
-    a.flags.writeable = False
-    return a
+def _groups(grid_sizes: np.ndarray, value_sizes: np.ndarray):
+    """Consecutive profiles in groups whose padded (grid x values) arrays stay within
+    :data:`_BATCH_VALUES` values (one profile at least)."""
+    group: list[int] = []
+    g = v = 0
+    for k, (gs, vs) in enumerate(zip(grid_sizes.tolist(), value_sizes.tolist(), strict=True)):
+        g2, v2 = max(g, gs), max(v, vs)
+        if group and (len(group) + 1) * g2 * v2 > _BATCH_VALUES:
+            yield group
+            group, g2, v2 = [], gs, vs
+        group.append(k)
+        g, v = g2, v2
+    if group:
+        yield group
 
 
-def _linspace(start: float, stop: float, num: int) -> np.ndarray:
-    """``np.linspace(start, stop, num)`` for Python floats, the same arithmetic without its
-    set-up (steps of ``(stop - start) / (num - 1)`` from ``start``, ``stop`` itself last)."""
-    y = _counting(num) * ((stop - start) / (num - 1))
-    y += start
-    y[-1] = stop
+def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
+    """Each profile's same-polarity edge spacings, as :func:`_chip_length` takes them: the
+    rising edges' first, then the falling edges' (crossings alternate, so those are two
+    crossings apart), the positive ones; returns the spacings and their profiles."""
+    e_start = _starts(r.n_edges)
+    k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])
+    two = r.edges[k + 2] - r.edges[k]
+    p = r.edge_of[k]
+    j = k - e_start[p]
+    first = np.where(r.rising[np.minimum(e_start, max(r.edges.size - 1, 0))], 0, 1)
+    order = np.lexsort((j, (j - first[p]) % 2, p))
+    d, p = two[order], p[order]
+    keep = d > 0
+    return d[keep], p[keep]
+
+
+def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
+    """Chip length in rows of each profile from same-polarity edge spacings (2, 3 or 4
+    chips each): the grid's best, refined by least squares; NaN where it cannot be told."""
+    n = r.n_edges.size
+    d, p = _spacings(r)
+    counts = np.bincount(p, minlength=n)
+    out = np.full(n, np.nan)
+    ok = np.flatnonzero(counts >= 2)
+    if ok.size == 0:
+        return out
+    shortest = _padded(d, counts, np.inf).min(axis=1)[ok]
+    lo, hi = np.maximum(0.8, shortest / 4.6), np.minimum(max_rows_per_chip, shortest / 1.6)
+    ok, lo, hi = ok[hi > lo], lo[hi > lo], hi[hi > lo]
+    if ok.size == 0:
+        return out
+    grids = [np.arange(a, b, 0.01) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
+    dd = _padded(d, counts, 1.0)[ok]
+    for group in _groups(np.array([g.size for g in grids]), counts[ok]):
+        grid = _padded(
+            np.concatenate([grids[q] for q in group]), np.array([grids[q].size for q in group]), 1.0
+        )
+        x = dd[group][:, None, :] / grid[:, :, None]
+        m = np.round(x)
+        np.minimum(np.maximum(m, 2, out=m), 4, out=m)  # np.clip, without its overhead
+        x -= m
+        x *= grid[:, :, None]
+        np.square(x, out=x)  # squared residual in rows
+        for row, q in enumerate(group):
+            cost = x[row, : grids[q].size, : counts[ok[q]]].sum(axis=1)
+            t = float(grids[q][int(np.argmin(cost))])
+            v = dd[q, : counts[ok[q]]]
+            m = np.minimum(np.maximum(np.round(v / t), 2), 4)
+            out[ok[q]] = float((v * m).sum() / (m * m).sum())  # least squares refinement
+    return out
+
+
+#: Bleeding values tried per profile (-0.95 to 0.95 chip).
+_BLEED_STEPS = 191
+
+
+def _bleed_grids(t: np.ndarray) -> np.ndarray:
+    """``np.linspace(-0.95 t, 0.95 t, 191)`` of each chip length ``t`` (rows), one row each:
+    steps of ``(stop - start) / 190`` from ``start``, ``stop`` itself last."""
+    start, stop = -0.95 * t, 0.95 * t
+    y = (
+        np.arange(_BLEED_STEPS, dtype=float)[None, :]
+        * ((stop - start) / (_BLEED_STEPS - 1))[:, None]
+    )
+    y += start[:, None]
+    y[:, -1] = stop
     return y
+
+
+def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
+    """Bleeding of the profiles ``which`` (four edges or more), rows: bright runs are b rows
+    longer, dark ones b rows shorter, than n chips; the b of the grid that makes every
+    interior run closest to one or two chips (both kinds occur in every frame, which pins b
+    down)."""
+    starts = r.run_starts
+    interior = np.ones(r.lengths.size, bool)
+    interior[starts] = False
+    interior[starts + r.n_edges] = False
+    counts = np.maximum(r.n_edges - 1, 0)
+    li = _padded(r.lengths[interior], counts, 1.0)[which]
+    bi = _padded(r.bright[interior], counts, False)[which]
+    tt = t[which]
+    grid = _bleed_grids(tt)
+    out = np.empty(which.size)
+    for group in _groups(np.full(which.size, _BLEED_STEPS), counts[which]):
+        g = grid[group][:, :, None]
+        lg, bg = li[group][:, None, :], bi[group][:, None, :]
+        xs = np.where(bg, lg - g, lg + g) / tt[group][:, None, None]
+        m = np.round(xs)
+        xs -= np.minimum(np.maximum(m, 1, out=m), 2, out=m)
+        np.square(xs, out=xs)
+        for row, q in enumerate(group):
+            cost = xs[row, :, : counts[which[q]]].sum(axis=1)
+            out[q] = grid[q, int(np.argmin(cost))]
+    return out
+
+
+def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
+    """The chips read from the runs of the profiles ``which`` (chip length ``t`` and
+    bleeding ``b`` each, rows): per profile its chips (uint8), which of them are sure, the
+    chips as text (``?`` where unsure) and its run margin."""
+    n = r.n_edges.size
+    tt, bb = np.ones(n), np.zeros(n)
+    tt[which], bb[which] = t, b
+    x = np.where(r.bright, r.lengths - bb[r.run_of], r.lengths + bb[r.run_of]) / tt[r.run_of]
+    counts = np.round(x).astype(int)
+    # runs cut by the disc's edge: count only the chips surely inside
+    starts = r.run_starts
+    ends = np.concatenate([starts, starts + r.n_edges])
+    counts[ends] = np.minimum(np.maximum(np.floor(x[ends] + 0.25), 0), 2)
+    sure = (counts >= 1) & (counts <= 2)
+    sure[ends] = True
+    inner = np.ones(counts.size, bool)
+    inner[ends] = False
+    counts[inner] = np.minimum(np.maximum(counts[inner], 1), 2)
+    dev = np.abs(x - np.round(x))
+    dev[ends] = -1.0
+    worst = np.maximum.reduceat(dev, starts)[which]
+    chosen = np.zeros(n, bool)
+    chosen[which] = True
+    kept = chosen[r.run_of]
+    chip_vals = np.repeat(r.bright[kept].astype(np.uint8), counts[kept])
+    known = np.repeat(sure[kept], counts[kept])
+    text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
+    bounds = np.concatenate([[0], np.cumsum(np.add.reduceat(counts, starts)[which])]).tolist()
+    return [
+        (
+            chip_vals[c0:c1],
+            known[c0:c1],
+            text[c0:c1],
+            min(max(1.0 - 2.0 * w, 0.0), 1.0),
+        )
+        for c0, c1, w in zip(bounds[:-1], bounds[1:], worst.tolist(), strict=True)
+    ]
+
+
+def _refused(reason: str, **kw) -> StripeDecode:
+    fields = dict(
+        hamming=-1,
+        margin=0.0,
+        rows_per_chip=float("nan"),
+        bleed_rows=float("nan"),
+        chips="",
+        frames=0.0,
+    )
+    fields.update(kw)
+    return StripeDecode(None, reason, **fields)
+
+
+def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[StripeDecode]:
+    """Each profile's decode from its chips (``read`` as :func:`_chips` gives them): the
+    ID of the whole stretch, which every whole copy of the frame must agree with."""
+    n = frame.n_chips
+    stretches, copies = [], []
+    for chips, known, _, _ in read:
+        stretches.append((chips, known))
+        starts = range(0, chips.size - n + 1, n)
+        copies.append(len(starts))
+        stretches += [(chips[k : k + n], known[k : k + n]) for k in starts]
+    decoded = iter(frame.decode_many(stretches))
+    out = []
+    for (chips, _, text, margin), rpc, bleed, m in zip(
+        read, t.tolist(), b.tolist(), copies, strict=True
+    ):
+        res, subs = next(decoded), [next(decoded) for _ in range(m)]
+        common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=chips.size / n)
+        other = next((s.id for s in subs if s.id is not None and s.id != res.id), None)
+        if not res:
+            out.append(_refused(res.reason, hamming=res.distance, **common))
+        elif other is not None:
+            reason = f"copies of the frame disagree ({res.id} and {other})"
+            out.append(_refused(reason, hamming=res.distance, **common))
+        else:
+            out.append(StripeDecode(res.id, "", res.distance, margin, **common))
+    return out
 
 
 def decode_profile(
@@ -416,66 +641,59 @@ def decode_profile(
     StripeDecode
         Falsy, with a reason, when the stripes do not give one ID with confidence.
     """
-    p = np.asarray(profile, dtype=float)
-    nan = float("nan")
+    return decode_profiles(
+        [profile],
+        frame,
+        rows_per_chip=rows_per_chip,
+        max_rows_per_chip=max_rows_per_chip,
+        threshold_level=threshold_level,
+    )[0]
 
-    def fail(reason: str, **kw) -> StripeDecode:
-        fields = dict(
-            hamming=-1, margin=0.0, rows_per_chip=nan, bleed_rows=nan, chips="", frames=0.0
+
+def decode_profiles(
+    profiles,
+    frame: FrameFormat,
+    *,
+    rows_per_chip: float | None = None,
+    max_rows_per_chip: float = 64.0,
+    threshold_level: float = 0.6,
+) -> list[StripeDecode]:
+    """:func:`decode_profile` of several profiles (sequence of 1-D arrays), the same
+    decodes, each step worked for all of them at once."""
+    ps = [np.asarray(p, dtype=float).reshape(-1) for p in profiles]
+    out: list[StripeDecode | None] = [None] * len(ps)
+    live = [k for k, p in enumerate(ps) if p.size >= 8]
+    for k, p in enumerate(ps):
+        if p.size < 8:
+            out[k] = _refused(f"too small to decode ({p.size} rows)")
+    if live:
+        lo, hi = _levels([ps[k] for k in live])
+        flat = hi - lo < 8
+        for k in np.flatnonzero(flat).tolist():
+            out[live[k]] = _refused("no stripes (a steady light, or too little contrast)")
+        live, lo, hi = (
+            [k for k, f in zip(live, flat.tolist(), strict=True) if not f],
+            lo[~flat],
+            hi[~flat],
         )
-        fields.update(kw)
-        return StripeDecode(None, reason, **fields)
-
-    if p.size < 8:
-        return fail(f"too small to decode ({p.size} rows)")
-    lo, hi = stripe_levels(p)
-    if hi - lo < 8:
-        return fail("no stripes (a steady light, or too little contrast)")
-    runs = find_runs(p, lo + threshold_level * (hi - lo))  # stripe_threshold's
-    if runs.edges.size < 4:
-        return fail("no stripes (a steady light, or too few stripes)")
-    t = float(rows_per_chip) if rows_per_chip else _chip_length(runs, max_rows_per_chip)
-    if not np.isfinite(t) or t <= 0:
-        return fail("stripes too irregular to measure the chip length")
-    lengths, bright = runs.lengths, runs.bright  # four edges or more: three interior runs
-    # bleeding: bright runs are b rows longer, dark ones b rows shorter, than n chips; the
-    # b that makes every interior run closest to one or two chips (both kinds occur in
-    # every frame, which pins b down)
-    li, bi = lengths[1:-1], bright[1:-1]
-    grid = _linspace(-0.95 * t, 0.95 * t, 191)
-    xs = np.where(bi[None, :], li[None, :] - grid[:, None], li[None, :] + grid[:, None]) / t
-    n = np.round(xs)
-    xs -= np.minimum(np.maximum(n, 1, out=n), 2, out=n)
-    cost = np.square(xs, out=xs).sum(axis=1)
-    b = float(grid[int(np.argmin(cost))])
-    x = np.where(bright, lengths - b, lengths + b) / t
-    counts = np.round(x).astype(int)
-    # runs cut by the disc's edge: count only the chips surely inside
-    for k in (0, lengths.size - 1):
-        counts[k] = min(max(math.floor(float(x[k]) + 0.25), 0), 2)
-    sure = np.ones(counts.size, bool)
-    inner = counts[1:-1]
-    sure[1:-1] = (inner >= 1) & (inner <= 2)
-    np.minimum(np.maximum(inner, 1, out=inner), 2, out=inner)  # in counts itself
-    chip_vals = np.repeat(bright.astype(np.uint8), counts)
-    known = np.repeat(sure, counts)
-    frames = chip_vals.size / frame.n_chips
-    chip_str = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    res = frame.decode(chip_vals, known=known)
-    xi = x[1:-1]
-    worst = float(np.abs(xi - np.round(xi)).max()) if xi.size else 0.5
-    margin = min(max(1.0 - 2.0 * worst, 0.0), 1.0)
-    common = dict(rows_per_chip=t, bleed_rows=b, chips=chip_str, frames=frames)
-    if not res:
-        return fail(res.reason, hamming=res.distance, **common)
-    # every whole copy of the frame must agree: none may decode to another ID
-    n = frame.n_chips
-    for start in range(0, chip_vals.size - n + 1, n):
-        sub = frame.decode(chip_vals[start : start + n], known=known[start : start + n])
-        if sub.id is not None and sub.id != res.id:
-            return fail(
-                f"copies of the frame disagree ({res.id} and {sub.id})",
-                hamming=res.distance,
-                **common,
-            )
-    return StripeDecode(res.id, "", res.distance, margin, **common)
+    if not live:
+        return out
+    r = _flat_runs([ps[k] for k in live], lo + threshold_level * (hi - lo))
+    if rows_per_chip:
+        t = np.full(len(live), float(rows_per_chip))
+    else:
+        t = _chip_lengths(r, max_rows_per_chip)
+    few = r.n_edges < 4
+    irregular = ~few & ~(np.isfinite(t) & (t > 0))
+    for q, k in enumerate(live):
+        if few[q]:
+            out[k] = _refused("no stripes (a steady light, or too few stripes)")
+        elif irregular[q]:
+            out[k] = _refused("stripes too irregular to measure the chip length")
+    which = np.flatnonzero(~few & ~irregular)
+    if which.size:
+        b = _bleeds(r, t, which)
+        read = _chips(r, t[which], b, which)
+        for q, d in zip(which.tolist(), _verdicts(read, t[which], b, frame), strict=True):
+            out[live[q]] = d
+    return out

@@ -1,6 +1,6 @@
 """Manchester IDs of a photo's fixtures, and the readout direction when it is not known.
 
-First the run-length decoder (:func:`camvlp.pipeline.decode.decode_profile`, a few
+First the run-length decoder (:func:`camvlp.pipeline.decode.decode_profiles`, a few
 milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
 agreeing, a clear run margin, and a chip length that agrees with the other fixtures' (and with
 the camera's row time and the map's chip rate when both are known) is taken as it is.  The
@@ -26,7 +26,7 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, decode_profile
+from camvlp.pipeline.decode import StripeDecode, decode_profiles
 from camvlp.pipeline.model_decode import (
     MIN_MARGIN,
     ModelDecode,
@@ -95,15 +95,12 @@ def _reversed_ids(frame: FrameFormat) -> np.ndarray:
 def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     """The run-length decodes that may be taken as they are (None for the others, and for
     the profiles ``skip`` flags), and the chip lengths it measured (NaN where it could not)."""
-    out: list[StripeDecode | None] = []
+    out: list[StripeDecode | None] = [None] * len(profiles)
     lengths = np.full(len(profiles), np.nan)
-    for k, p in enumerate(profiles):
-        if k < len(skip) and skip[k]:
-            out.append(None)
-            continue
-        d = decode_profile(p, frame)
+    todo = [k for k in range(len(profiles)) if not (k < len(skip) and skip[k])]
+    for k, d in zip(todo, decode_profiles([profiles[k] for k in todo], frame), strict=True):
         sure = d.id is not None and d.id in map_ids and d.hamming == 0
-        out.append(d if sure and d.margin >= MIN_FAST_MARGIN else None)
+        out[k] = d if sure and d.margin >= MIN_FAST_MARGIN else None
         if d:
             lengths[k] = d.rows_per_chip
     return out, lengths

@@ -43,7 +43,7 @@ from camvlp.geometry.pnp import PriorSolve, project_moving, refine_pose
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, decode_profile
+from camvlp.pipeline.decode import StripeDecode, decode_profiles
 from camvlp.pipeline.glow import centred_on_glow, glowing
 from camvlp.pipeline.locate import (
     _decode,
@@ -210,7 +210,7 @@ class Tracker:
         carry = self.settings.carry_chip_length and self.map.mode != "frequency"
         if carry and len(self._chip_rows) >= 3:
             rpc = float(np.median(self._chip_rows[-50:]))
-            done = [decode_profile(p, self.map.frame, rows_per_chip=rpc) for p in profiles]
+            done = decode_profiles(profiles, self.map.frame, rows_per_chip=rpc)
         else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
             done, _, _, sub = _decode(sub, gray_rois, profiles, readout, self.camera, self.map)
         for d in done:
