@@ -17,11 +17,13 @@ import pytest
 from camvlp.model.camera import Pose
 from camvlp.pipeline.detect import (
     _close_lit,
+    _decimated,
     _median_u8,
     _percentiles_u8,
     detect_fixtures,
     to_gray,
 )
+from camvlp.pipeline.refine import _bridged
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -262,3 +264,57 @@ def test_a_glow_at_the_border_is_not_a_cut_disc(small_camera, small_room, side_m
     for t in near:
         found = match(det.blobs, t.pixel, radius_px(small_camera, 2.7))
         assert len(found) == 1 and found[0].touches_border == cut, t.id
+
+
+def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
+    """A disc's closings, done on the box of its lit pixels and the closings' reach, give the
+    whole padded region's: striped discs of both axes anywhere (near the edge or not),
+    specks, several discs, both closing lengths."""
+    rng = np.random.default_rng(12)
+    cropped = 0
+    for case in range(400):
+        h, w = (int(v) for v in rng.integers(20, 160, 2))
+        lit = np.zeros((h, w), np.uint8)
+        yy, xx = np.mgrid[:h, :w]
+        rows = case % 2 == 0
+        edge = case % 4 < 2  # anywhere, else well inside the region
+        for _ in range(int(rng.integers(1, 4))):
+            if edge:
+                cy, cx, ry, rx = (
+                    rng.uniform(-5, h + 5),
+                    rng.uniform(-5, w + 5),
+                    *rng.uniform(2, 50, 2),
+                )
+            else:
+                cy, cx = rng.uniform(0.4, 0.6) * h, rng.uniform(0.4, 0.6) * w
+                ry, rx = rng.uniform(0.05, 0.2) * h, rng.uniform(0.05, 0.2) * w
+            period = int(rng.integers(3, 20))
+            stripes = ((yy if rows else xx) % period) < period // 2
+            lit |= ((((yy - cy) / ry) ** 2 + ((xx - cx) / rx) ** 2 <= 1) & stripes).view(np.uint8)
+        if case % 3 == 0:
+            specks = rng.random((h, w)) < 0.005
+            specks[:20], specks[-20:], specks[:, :20], specks[:, -20:] = False, False, False, False
+            lit[specks] = 1
+        length = int(rng.choice([5, 17, 25]))
+        whole, at = _bridged(lit, length, rows, crop=False)
+        part, (x, y) = _bridged(lit, length, rows)
+        full = np.zeros_like(lit)
+        full[y : y + part.shape[0], x : x + part.shape[1]] = part
+        assert at == (0, 0)
+        np.testing.assert_array_equal(full, whole)
+        cropped += (x, y) != (0, 0)
+    assert cropped > 100
+
+
+@pytest.mark.parametrize("channels", [0, 3, 4])
+def test_decimated_photo_is_the_resizes_pick(channels):
+    """Every s-th pixel of every s-th row, as cv2.resize's nearest neighbour picks them: sides
+    that s divides (taken as runs of s pixels), sides it does not, mirrored views, 16 bits."""
+    rng = np.random.default_rng(channels)
+    for s, (h, w) in [(3, (1080, 1920)), (8, (3880, 5184)), (6, (3024, 4032)), (3, (1081, 1920))]:
+        shape = (h, w, channels) if channels else (h, w)
+        img = rng.integers(0, 4096, shape).astype(np.uint16 if s == 6 else np.uint8)
+        for view in (img, img[:, ::-1]):
+            size = (-(-w // s), -(-h // s))
+            want = cv2.resize(view, size, interpolation=cv2.INTER_NEAREST)
+            np.testing.assert_array_equal(_decimated(view, s), want)

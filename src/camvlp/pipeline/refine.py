@@ -1,0 +1,657 @@
+"""Stage 1 at full resolution: each candidate region's disc, readout axis and centre.
+
+A candidate of :func:`camvlp.pipeline.detect.detect_fixtures` is worked inside its region of
+interest only: a threshold of its own, a closing along the sensor's readout axis that fills the
+dark stripes, and the disc's outline.  The centre is the centre of an ellipse fitted to
+sub-pixel edge points of the lit rows, so it comes from the disc and not from the stripes; its
+covariance comes from the fit's residuals.  OpenCV's work is done region by region, NumPy's
+for all the regions of a photo at once.
+
+Also here: what a detected fixture is (:class:`Blob`), gray levels of a photo, the readout
+axis a disc's stripes show, and a light's whole striped area (:func:`light_support`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
+
+__all__ = [
+    "Blob",
+    "find_readout_axis",
+    "gray_float",
+    "light_support",
+    "refine_regions",
+    "to_gray",
+]
+
+
+@dataclass(frozen=True)
+class Blob:
+    """One detected fixture.
+
+    Attributes
+    ----------
+    pixel : ndarray, shape (2,)
+        Centre of the disc ``[u, v]`` in full-resolution pixels (sub-pixel).
+    box : tuple of int
+        Region of interest ``(x0, y0, x1, y1)``, full resolution, end exclusive.
+    mask : ndarray of bool, shape (y1 - y0, x1 - x0)
+        The disc, stripes filled, inside the region of interest.
+    axes_px : ndarray, shape (2,)
+        Full lengths of the fitted ellipse's axes, pixels (major first).
+    angle_deg : float
+        Orientation of the fitted ellipse (OpenCV's convention), degrees.
+    touches_border : bool
+        The disc is cut by the image border (its centre would be biased).
+    axis : str
+        Readout axis seen in this blob: ``"rows"`` (horizontal stripes) or ``"columns"``.
+    stripe_contrast : float
+        Variance ratio of the profile along the readout axis to the profile across it; high
+        for a striped disc, near 1 for a steady light.
+    edge_points : int
+        Edge points the ellipse was fitted to (0 when the centroid was used instead).
+    centre_cov_px2 : ndarray, shape (2, 2)
+        Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared
+        (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`); NaN when the centroid was
+        used or the fit cannot tell.
+    gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
+        The region of interest in gray levels (:func:`to_gray`), kept so that later stages
+        need not convert it again.
+    cell : ndarray of bool, shape (y1 - y0, x1 - x0), or None
+        The part of the region that is this light's when its glow joins other lights'
+        (:mod:`camvlp.pipeline.touching`); None when the region is all its own.
+    """
+
+    pixel: np.ndarray
+    box: tuple[int, int, int, int]
+    mask: np.ndarray
+    axes_px: np.ndarray
+    angle_deg: float
+    touches_border: bool
+    axis: str
+    stripe_contrast: float
+    edge_points: int
+    centre_cov_px2: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+
+    gray: np.ndarray | None = field(default=None, repr=False, compare=False)
+    cell: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def centre_sigma_px(self) -> float:
+        """The centre's uncertainty, pixels (1-sigma per axis, the RMS of the two): from
+        :attr:`centre_cov_px2`, at least
+        :data:`~camvlp.geometry.disc.CENTRE_SIGMA_FLOOR_PX`; NaN when unknown."""
+        return centre_sigma(self.centre_cov_px2)
+
+
+def _luma(image: np.ndarray, dtype=None) -> np.ndarray:
+    """One channel (H, W) from gray or BGR(A) pixels, OpenCV's luma weights (0.299 R +
+    0.587 G + 0.114 B), optionally converted to ``dtype`` first."""
+    img = np.asarray(image)
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if dtype is not None:
+        img = img.astype(dtype, copy=False)
+    if img.ndim == 3 and img.shape[2] in (3, 4):
+        code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        img = cv2.cvtColor(img, code)
+    if img.ndim != 2:
+        raise ValueError(f"image must be (H, W) or (H, W, 3), got shape {np.shape(image)}")
+    return img
+
+
+def gray_float(image: np.ndarray) -> np.ndarray:
+    """Gray ``float64`` (H, W) from a BGR (H, W, 3) or gray image, in its own units (no
+    rescaling): the same weights as :func:`to_gray`, for measurements on raw levels."""
+    return _luma(image, np.float32).astype(np.float64)
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
+    if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.shape[2:] == (3,):
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)  # the usual photo: as _luma does it
+    img = _luma(image)
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype != np.uint8:
+        f = img.astype(np.float32)
+        hi = float(f.max()) if f.size else 1.0
+        img = np.clip(f * (255.0 / hi if hi > 1.0 else 255.0), 0, 255).astype(np.uint8)
+    return img
+
+
+def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
+    """Which way the stripes run inside a disc.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The region of interest.
+    mask : ndarray of bool, shape (h, w)
+        The disc.
+
+    Returns
+    -------
+    axis : str
+        ``"rows"`` when intensity changes from row to row (horizontal stripes, sensor rows
+        are image rows), ``"columns"`` when it changes from column to column.
+    contrast : float
+        Ratio of the larger to the smaller variance of the two mean profiles (>= 1).
+    """
+    g = np.asarray(gray)
+    m = np.asarray(mask, dtype=bool).view(np.uint8)
+    if g.dtype == np.uint8:
+        return _axis_contrast(g, m)
+    m = m.astype(np.float32)
+    g = g.astype(np.float32, copy=False) * m
+    return _axis_from_sums(g.sum(1), m.sum(1), g.sum(0), m.sum(0))
+
+
+def _axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
+    """:func:`find_readout_axis` of a uint8 region and a uint8 mask of 0 and 1: the sums by
+    OpenCV, exact in float32 like NumPy's (whole levels, below 2**24)."""
+    g = cv2.multiply(gray8, mask01)
+    sums = [
+        cv2.reduce(a, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
+        for dim in (1, 0)
+        for a in (g, mask01)
+    ]
+    return _axis_from_sums(*sums)
+
+
+def _axis_from_sums(row_sums, n_rows, col_sums, n_cols) -> tuple[str, float]:
+    """The readout axis and contrast from a disc's gray sums and pixel counts per row and
+    per column (float32)."""
+    keep_r, keep_c = n_rows >= 3, n_cols >= 3
+    rows = row_sums[keep_r] / n_rows[keep_r]
+    cols = col_sums[keep_c] / n_cols[keep_c]
+    vr = _diff_var(rows) if rows.size > 2 else 0.0
+    vc = _diff_var(cols) if cols.size > 2 else 0.0
+    if vr >= vc:
+        return "rows", vr / max(vc, 1e-9)
+    return "columns", vc / max(vr, 1e-9)
+
+
+def _diff_var(v: np.ndarray) -> float:
+    """``np.var(np.diff(v))`` with NumPy's own steps (mean, squared deviations, mean), in
+    the array's dtype, without ``np.var``'s set-up."""
+    d = v[1:] - v[:-1]
+    x = d - np.add.reduce(d, keepdims=True) / d.size
+    return float(np.add.reduce(x * x) / d.size)
+
+
+def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
+    """Percentiles (0-100) of a uint8 image from its histogram (much faster than sorting)."""
+    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).reshape(1, 256)
+    return _hist_percentiles(hist, qs)[0].tolist()
+
+
+def _hist_percentiles(hists: np.ndarray, qs) -> np.ndarray:
+    """Percentiles (0-100) of uint8 images from their histograms (K, 256) (float32 counts, as
+    ``cv2.calcHist`` gives them): per image and ``q``, the level where its cumulative count
+    reaches ``q`` % of its pixels (in float32, as the counts are).  Returns (K, len(qs))."""
+    cdf = hists.cumsum(axis=1)
+    at = np.array([q / 100.0 for q in qs], np.float32)[None, :] * cdf[:, -1:]
+    # np.searchsorted(cdf, at) per image: the levels whose cumulative count is below
+    return (cdf[:, None, :] < at[:, :, None]).sum(axis=2).astype(float)
+
+
+@functools.lru_cache(maxsize=64)
+def _kernel(shape: int, ksize: tuple[int, int]) -> np.ndarray:
+    """``cv2.getStructuringElement(shape, ksize)``, made once per shape and size."""
+    k = cv2.getStructuringElement(shape, ksize)
+    k.flags.writeable = False
+    return k
+
+
+def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
+    """The disc under a striped light: lit pixels with the dark stripes bridged.
+
+    A closing along the readout axis as long as the widest dark gap across the middle third
+    of the region (at least ``kernel_px``), a small round closing, and the largest outline
+    with its holes filled.  Returns a bool mask (h, w), or None when nothing is lit.
+    """
+    lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
+    # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
+    rows = axis == "rows"
+    n = lit_u8.shape[1 if rows else 0]  # pixels across the readout: its middle third
+    a, b = n // 3, max(n // 3 + 1, 2 * n // 3)
+    centre = lit_u8[:, a:b] if rows else lit_u8[a:b]
+    gap = 0
+    if centre.size:
+        # lines more than half lit (the lit pixels counted by OpenCV: any nonzero level
+        # counts as 1 through the threshold); the widest dark run between two of them
+        ones = cv2.threshold(centre, 0, 1, cv2.THRESH_BINARY)[1]
+        counts = cv2.reduce(ones, 1 if rows else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        lit_lines = np.flatnonzero(counts * 2 > min(n, b) - a)
+        if lit_lines.size >= 2:
+            gap = int((lit_lines[1:] - lit_lines[:-1]).max()) - 1
+    length = max(kernel_px, gap + 3) | 1
+    closed, offset = _bridged(lit_u8, length, rows)
+    # the largest outline, holes filled
+    contours, _ = cv2.findContours(
+        closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE, offset=offset
+    )
+    if not contours:
+        return None
+    filled = np.zeros(lit_u8.shape, np.uint8)
+    cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
+    return filled.view(bool)
+
+
+def _bridged(
+    lit: np.ndarray, length: int, rows: bool, crop: bool = True
+) -> tuple[np.ndarray, tuple[int, int]]:
+    """The lit pixels closed along the readout axis (``length`` pixels), then by a 5 x 5
+    ellipse; returns the closed part and its offset ``(x, y)`` in ``lit``, zero elsewhere.
+
+    The whole region is closed as a copy padded by repeating its edge: OpenCV's own border
+    keeps whatever the dilation brought to the edge, which would join a disc near the border
+    to it.  When the lit pixels stay far enough from the region's edge (so that edge is dark
+    and its padding too), only their bounding box is closed, with the margin that the two
+    closings reach (twice the radius of each, along and across): the same values, where
+    the closing of the whole region is zero outside that box (``crop``: allowed).
+    """
+    r = length // 2
+    ksize = (1, length) if rows else (length, 1)  # (width, height): across the stripes
+    x, y, w, h = cv2.boundingRect(lit)
+    along, across = max(2 * r, r + 4), 4
+    my, mx = (along, across) if rows else (across, along)
+    height, width = lit.shape
+    inside = y >= my and x >= mx and y + h + my <= height and x + w + mx <= width
+    if crop and w and inside:
+        part, offset = lit[y - my : y + h + my, x - mx : x + w + mx], (x - mx, y - my)
+    else:
+        m = r + 3
+        part, offset = cv2.copyMakeBorder(lit, m, m, m, m, cv2.BORDER_REPLICATE), (-m, -m)
+    closed = cv2.morphologyEx(part, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_RECT, ksize))
+    closed = cv2.morphologyEx(closed, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, (5, 5)))
+    if offset[0] < 0:  # the padding cut off again
+        return np.ascontiguousarray(closed[-offset[1] : offset[1], -offset[0] : offset[0]]), (0, 0)
+    return closed, offset
+
+
+def light_support(
+    gray: np.ndarray,
+    mask: np.ndarray,
+    axis: str,
+    kernel_px: int = 16,
+    k_sigma: float = 8.0,
+    cell: np.ndarray | None = None,
+) -> np.ndarray:
+    """A light's whole striped area, down to the background, inside its region of interest.
+
+    A detected disc's mask is thresholded well up its brightness; a real light with a hot
+    core, a glow and soft stripes shows its stripes further out, down to where they sink into
+    the background.  Here the region's background is its 10th percentile outside the disc
+    (dilated), its noise the spread of neighbouring pixels' differences there (so that a
+    smooth glow does not count as noise); the pixels (lightly smoothed) more than
+    ``k_sigma`` noise levels above the background, with the dark stripes bridged as in
+    detection, form the support.  Its outline that overlaps ``mask`` is kept (filled), joined
+    with ``mask``.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The region of interest, gray levels (any real dtype).
+    mask : ndarray of bool, shape (h, w)
+        The detected disc (:attr:`Blob.mask`).
+    axis : {"rows", "columns"}
+        The readout axis (stripes across it).
+    kernel_px : int
+        Smallest closing length bridging the dark stripes, pixels.
+    k_sigma : float
+        Threshold above the background, in noise standard deviations.
+    cell : ndarray of bool, shape (h, w), optional
+        The light's own part of the region (:attr:`Blob.cell`): the support stays within it.
+
+    Returns
+    -------
+    ndarray of bool, shape (h, w)
+        The support; ``mask`` itself when the region has too little background to tell.
+    """
+    g = np.asarray(gray, dtype=np.float32)
+    m = np.asarray(mask, dtype=bool)
+    if g.shape != m.shape or not m.any():
+        return m
+    outside = cv2.dilate(m.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0
+    if outside.sum() < 50:
+        return m
+    background = float(np.percentile(g[outside], 10))
+    # noise: neighbouring pixels across the readout axis see the same stripe phase
+    d = np.diff(g, axis=1) if axis == "rows" else np.diff(g, axis=0)
+    both = outside[:, 1:] & outside[:, :-1] if axis == "rows" else outside[1:] & outside[:-1]
+    dd = d[both]
+    noise = 1.4826 * float(np.median(np.abs(dd - np.median(dd)))) / np.sqrt(2.0)
+    lit = cv2.GaussianBlur(g, (0, 0), 1.0) > background + max(k_sigma * noise, 2.0)
+    lit |= m
+    if cell is not None:
+        lit &= cell
+    support = _disc_mask(lit, axis, kernel_px)
+    if support is None or not (support & m).any():
+        return m
+    return support | m
+
+
+#: Dilation of a disc's mask that masks other lights out of its rows' crossings, per axis.
+_EDGE_KERNELS = {"rows": np.ones((3, 7), np.uint8), "columns": np.ones((7, 3), np.uint8)}
+#: The dilation of a region's lit pixels whose stripes say the readout axis.
+_AXIS_KERNEL = np.ones((3, 3), np.uint8)
+
+
+@dataclass(frozen=True)
+class _Region:
+    """A candidate region's disc, and its sensor rows lit enough for edge points (internal).
+
+    ``rows`` are those rows (image rows or columns), ``half`` each one's half-way level,
+    ``gray`` and ``near`` their pixels along the row (gray levels; near the disc), one row
+    each."""
+
+    box: tuple[int, int, int, int]
+    gray8: np.ndarray
+    mask: np.ndarray
+    area: float
+    axis: str
+    contrast: float
+    touches: bool
+    background: float
+    rows: np.ndarray
+    half: np.ndarray
+    gray: np.ndarray
+    near: np.ndarray
+    cell: np.ndarray | None
+    beyond: np.ndarray | None
+
+
+def refine_regions(
+    img: np.ndarray,
+    boxes: list[tuple[int, int, int, int]],
+    readout: str | None,
+    kernel_px: int,
+    min_diameter_px: float,
+    cells: list[np.ndarray | None] | None = None,
+) -> list[Blob]:
+    """The candidate regions at full resolution: each one's disc, readout axis and centre.
+
+    A region is thresholded at a quarter of the way from its background (10th percentile)
+    to its peak (99.5th): real lights are brighter in the middle than at the rim.  The dark
+    stripes are bridged by :func:`_disc_mask`; the centre is an ellipse fitted to sub-pixel
+    edge points of the lit sensor rows (:func:`_edge_points`), or the mask's centroid when
+    fewer than 12 edge points are found.  Of two regions whose discs are the same fixture the
+    larger is kept; each ellipse's centre comes with its covariance
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`).
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W) or (H, W, 3)
+        The whole photo.
+    boxes : list of tuple of int
+        The regions, ``(x0, y0, x1, y1)`` in full-resolution pixels (x1, y1 exclusive).
+    readout : {"rows", "columns", None}
+        The readout axis, or None to find it from each region's stripes.
+    kernel_px : int
+        Smallest closing length, pixels.
+    min_diameter_px : float
+        Smallest disc kept, pixels.
+    cells : list of (ndarray of bool or None), optional
+        Per region, the part of it that is its light's when lights' glows join
+        (:func:`~camvlp.pipeline.touching.power_cell`; None: all of it): the disc is found
+        within it, and no edge point is taken where it cuts the light off from another.
+
+    Returns
+    -------
+    list of Blob
+        The discs found, the larger first; regions holding no light large and bright enough
+        give none.
+    """
+    grays = [to_gray(img[y0:y1, x0:x1]) for x0, y0, x1, y1 in boxes]
+    usable = [k for k, g in enumerate(grays) if g.shape[0] >= 3 and g.shape[1] >= 3]
+    if not usable:
+        return []
+    cells = cells or [None] * len(boxes)
+    hists = np.stack([cv2.calcHist([grays[k]], [0], None, [256], [0, 256]).ravel() for k in usable])
+    regions = []
+    min_area = 0.5 * min_diameter_px**2
+    levels = _hist_percentiles(hists, [10, 99.5]).tolist()
+    for k, (background, peak) in zip(usable, levels, strict=True):
+        if peak - background >= 10:
+            levels_k = (background, peak)
+            r = _region(img, boxes[k], grays[k], levels_k, readout, kernel_px, min_area, cells[k])
+            if r is not None:
+                regions.append(r)
+    found = [_fitted(r, p) for r, p in zip(regions, _edge_points(regions), strict=True)]
+    return _blobs(_drop_duplicates(found))
+
+
+def _region(
+    img: np.ndarray,
+    box: tuple[int, int, int, int],
+    gray8: np.ndarray,
+    levels: tuple[float, float],
+    readout: str | None,
+    kernel_px: int,
+    min_area: float,
+    cell: np.ndarray | None,
+) -> _Region | None:
+    """A region's disc and its rows for edge points, from its gray levels and its background
+    and peak levels, within its light's ``cell`` when it has one; None when its disc is
+    smaller than ``min_area`` pixels or none is lit."""
+    background, peak = levels
+    # a low threshold: real lights are often brighter in the middle than at the rim; whole
+    # gray levels are above it when they are above its floor
+    thr = math.floor(background + 0.25 * (peak - background))
+    lit = cv2.threshold(gray8, thr, 1, cv2.THRESH_BINARY)[1]  # 0 and 1
+    beyond = None
+    if cell is not None:  # a light whose glow joins others': its own cell only
+        beyond = lit & ~cell
+        lit = lit & cell
+    axis = readout
+    if axis is None:
+        axis, contrast = _axis_contrast(gray8, cv2.dilate(lit, _AXIS_KERNEL))
+    else:
+        contrast = _axis_contrast(gray8, lit)[1]
+    mask = _disc_mask(lit, axis, kernel_px)
+    if mask is None:
+        return None
+    area = float(np.count_nonzero(mask))
+    if area < min_area:
+        return None
+    x0, y0, x1, y1 = box
+    height, width = img.shape[:2]
+    # the disc reaches an edge of its region that is the image's: its bright part, for a
+    # glow beyond the disc may reach the border where the disc does not (the rows the
+    # border cuts give no edge points, the rest are whole)
+    bright = background + 0.6 * (peak - background)
+
+    def lit_at(edge: tuple) -> bool:  # the disc's bright part on one edge of the region
+        return bool((mask[edge] & (gray8[edge] > bright)).any())
+
+    touches = (
+        (x0 == 0 and lit_at((slice(None), 0)))
+        or (y0 == 0 and lit_at((0,)))
+        or (x1 == width and lit_at((slice(None), -1)))
+        or (y1 == height and lit_at((-1,)))
+    )
+    return _Region(
+        box,
+        gray8,
+        mask,
+        area,
+        axis,
+        contrast,
+        touches,
+        background,
+        *_edge_rows(gray8, mask, background, axis),
+        cell,
+        beyond,
+    )
+
+
+def _edge_rows(gray: np.ndarray, mask: np.ndarray, background: float, axis: str):
+    """The sensor rows whose edge points :func:`_edge_points` looks for: those crossing the
+    disc (four pixels or more) whose level inside it is more than 0.35 of the way from the
+    background to the brightest row's; returns them, their half-way levels, and their gray
+    levels and pixels near the disc (the mask dilated), one row each."""
+    m8 = mask.view(np.uint8)
+    dim = 1 if axis == "rows" else 0  # cv2.reduce to one value per sensor row
+    counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+    # whole levels: the float32 sums are exact (below 2**24)
+    sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
+    level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
+    top = level.max()
+    rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
+    half = background + 0.5 * (level[rows] - background)
+    near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
+    if axis == "rows":
+        return rows, half, gray[rows], near[rows]
+    return rows, half, gray[:, rows].T, near[:, rows].T
+
+
+def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
+    """Sub-pixel disc edge points along each region's lit sensor rows, each (M, 2) as (x, y).
+
+    Each lit sensor row crosses the disc once; its two ends are found where the row's
+    intensity crosses half-way between the background and the row's own level inside the
+    disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
+    Pixels away from the disc (other lights) are left out.  The rows of all regions are
+    worked as one stack; each region's points are its rows' left ends, then their right
+    ends.
+    """
+    counts = np.array([r.rows.size for r in regions], dtype=np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return [np.zeros((0, 2)) for _ in regions]
+    width = max(r.gray.shape[1] for r in regions)
+    g = np.zeros((total, width), np.uint8)
+    near = np.zeros((total, width), bool)
+    at = 0
+    for r, n in zip(regions, counts.tolist(), strict=True):
+        g[at : at + n, : r.gray.shape[1]] = r.gray
+        near[at : at + n, : r.gray.shape[1]] = r.near
+        at += n
+    of = np.repeat(np.arange(len(regions)), counts)
+    half = np.concatenate([r.half for r in regions])
+    rows = np.concatenate([r.rows for r in regions])
+    w = np.array([r.gray.shape[1] for r in regions])[of]
+    background = np.array([r.background for r in regions])[of]
+    # above half-way (other lights masked out: the background is below half-way)
+    above = near & (g > half[:, None])
+    left = above.argmax(axis=1)  # 0 also when nothing is above: such a row is left out
+    right = width - 1 - above[:, ::-1].argmax(axis=1)  # the last above
+    j = np.flatnonzero((left > 0) & (right < w - 1) & (right - left >= 3))
+    left, right, half, rows, of = left[j], right[j], half[j], rows[j], of[j]
+    # the rows' levels either side of both crossings, other lights masked out
+    cols = np.stack([left - 1, left, right, right + 1])
+    a0, a1, b0, b1 = np.where(near[j, cols], g[j, cols], background[j]).astype(np.float32)
+    # each region's left ends, then its right ends; x in the column its axis says
+    kept = np.bincount(of, minlength=len(regions))
+    start = np.zeros(len(regions), np.int64)
+    np.cumsum(kept[:-1], out=start[1:])
+    at = 2 * start[of] + np.arange(of.size) - start[of]
+    u = np.array([0 if r.axis == "rows" else 1 for r in regions])[of]
+    pts = np.empty((2 * of.size, 2))
+    pts[at, u] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
+    pts[at + kept[of], u] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
+    pts[at, 1 - u] = rows
+    pts[at + kept[of], 1 - u] = rows
+    return np.split(pts, 2 * np.cumsum(kept)[:-1])
+
+
+def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
+    """A region's blob (its fields, the centre's covariance still to come) and its ellipse
+    fit ``(points, centre, axes, angle_deg)`` in the region's pixels (None for a centroid)."""
+    if r.beyond is not None and points.size:  # not where the cell cuts it off from another
+        near = cv2.dilate(r.beyond, np.ones((5, 5), np.uint8))
+        xy = np.rint(points).astype(np.intp)
+        h0, w0 = near.shape
+        points = points[near[xy[:, 1].clip(0, h0 - 1), xy[:, 0].clip(0, w0 - 1)] == 0]
+    fit = None
+    h, w = r.mask.shape
+    if points.shape[0] >= 12:
+        (cx, cy), (a, b), angle = cv2.fitEllipse(points.astype(np.float32))
+        if not (0 <= cx < w and 0 <= cy < h):
+            points = np.zeros((0, 2))
+        else:
+            fit = (points, (cx, cy), (a, b), angle)
+    if points.shape[0] < 12:
+        m = cv2.moments(r.mask.view(np.uint8), binaryImage=True)
+        cx, cy = m["m10"] / m["m00"], m["m01"] / m["m00"]
+        a = b = 2.0 * np.sqrt(r.area / np.pi)
+        angle = 0.0
+    x0, y0 = r.box[:2]
+    fields = dict(
+        pixel=np.array([x0 + cx, y0 + cy]),
+        box=r.box,
+        mask=r.mask,
+        axes_px=np.array(sorted((float(a), float(b)), reverse=True)),
+        angle_deg=float(angle),
+        touches_border=r.touches,
+        axis=r.axis,
+        stripe_contrast=float(r.contrast),
+        edge_points=int(points.shape[0]),
+        gray=r.gray8,
+        cell=r.cell,
+    )
+    return fields, fit
+
+
+def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict, tuple | None]]:
+    """Two candidates whose refined discs are the same fixture: keep the larger (each blob's
+    fields with its ellipse fit), the larger first."""
+    keep: list[tuple[dict, tuple | None]] = []
+    for b, fit in sorted(found, key=lambda bf: -np.count_nonzero(bf[0]["mask"])):
+        r = 0.5 * float(b["axes_px"][1])
+        if all(
+            np.hypot(*(b["pixel"] - k["pixel"])) > max(r, 0.5 * float(k["axes_px"][1]))
+            for k, _ in keep
+        ):
+            keep.append((b, fit))
+    return keep
+
+
+def _blobs(found: list[tuple[dict, tuple | None]]) -> list[Blob]:
+    """The blobs with their centres' covariances, all worked at once
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`, the edge points in groups of
+    :func:`_row_groups`); a centroid's stays NaN."""
+    k = [i for i, (_, fit) in enumerate(found) if fit is not None]
+    covs = {}
+    if k:
+        fits = [found[i][1] for i in k]
+        groups = _row_groups([f[0] for f in fits], [found[i][0]["axis"] for i in k])
+        covs = dict(
+            zip(
+                k,
+                ellipse_centre_covariances([(*f, g) for f, g in zip(fits, groups, strict=True)]),
+                strict=True,
+            )
+        )
+    return [
+        Blob(**b, centre_cov_px2=covs[i]) if i in covs else Blob(**b)
+        for i, (b, _) in enumerate(found)
+    ]
+
+
+def _row_groups(points: list[np.ndarray], axes: list[str]) -> list[np.ndarray]:
+    """The groups of edge points whose errors an ellipse's centre covariance takes as shared
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`): runs of about sqrt(n)
+    consecutive sensor rows out of the n they span (batch means).  A row's two ends share
+    its exposure, and the stripes make neighbouring rows' errors depend on each other, while
+    runs far apart do not.  Each fit's points (non-empty) and readout axis; one label each."""
+    sizes = np.array([p.shape[0] for p in points])
+    rows = np.concatenate(
+        [p[:, 1] if ax == "rows" else p[:, 0] for p, ax in zip(points, axes, strict=True)]
+    )
+    starts = np.zeros(sizes.size, np.int64)
+    np.cumsum(sizes[:-1], out=starts[1:])
+    low = np.minimum.reduceat(rows, starts)
+    span = np.maximum.reduceat(rows, starts) - low + 1.0
+    step = np.maximum(1.0, np.sqrt(span))
+    groups = np.floor((rows - np.repeat(low, sizes)) / np.repeat(step, sizes)).astype(np.int64)
+    return np.split(groups, starts[1:])
