@@ -2,7 +2,8 @@
 
 Per fixture:
 
-1. reduce each sensor row inside the disc to one value (the row profile);
+1. reduce each sensor row inside the disc to one value (the row profile,
+   :mod:`camvlp.pipeline.profile`);
 2. binarise it with a threshold of the fixture's own (Otsu's two-class split of the profile,
    the principled form of the thesis' "two peaks of the histogram");
 3. find the stripe edges to a fraction of a row, and the run lengths between them;
@@ -19,13 +20,12 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline.profile import row_profile, shape_profile
 
 __all__ = [
     "Runs",
@@ -37,182 +37,6 @@ __all__ = [
     "stripe_levels",
     "stripe_threshold",
 ]
-
-
-#: The erosion that trims a disc's anti-aliased rim before its rows are averaged.
-_RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
-
-
-def _trimmed(mask: np.ndarray) -> np.ndarray:
-    """A disc's mask (uint8 0/1) with its anti-aliased rim trimmed by a small erosion, unless
-    that would leave less than 30 % of it."""
-    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
-    eroded = cv2.erode(m, _RIM_KERNEL)
-    return eroded if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m) else m
-
-
-def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
-    """Mean intensity of each sensor row inside a disc.
-
-    Parameters
-    ----------
-    gray : ndarray, shape (h, w)
-        The region of interest (any real dtype).
-    mask : ndarray of bool, shape (h, w)
-        The disc; its anti-aliased rim is trimmed by a small erosion first.
-    axis : {"rows", "columns"}
-        Readout axis: ``"rows"`` averages each image row, ``"columns"`` each column.
-
-    Returns
-    -------
-    profile : ndarray of float, shape (n,)
-        One value per sensor row that crosses the disc, in readout order.
-    first : int
-        Index, in the region of interest, of the first row of the profile.
-    """
-    return _mean_profile(gray, _trimmed(mask), axis)
-
-
-def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int]:
-    """:func:`row_profile` of a mask already trimmed (uint8 0/1)."""
-    dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
-    # pixels of the disc in each sensor row (an image row, or column)
-    counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    rows = np.flatnonzero(counts >= 2)
-    if rows.size == 0:
-        return np.zeros(0), 0
-    first, last = int(rows[0]), int(rows[-1]) + 1
-    c = counts[first:last].astype(np.float64)
-    if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
-        s = cv2.reduce(cv2.multiply(gray, m), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-        s = s[first:last].astype(np.float64)
-    else:
-        g = gray.astype(np.float32)
-        if axis == "columns":
-            g, m = g.T, m.T
-        s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
-    prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
-    if np.isnan(prof).any():  # rows the mask skips: interpolate
-        idx = np.arange(prof.size)
-        good = ~np.isnan(prof)
-        prof = np.interp(idx, idx[good], prof[good])
-    return prof, first
-
-
-#: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
-#: quantile of a ring's pixels taken as the light's level there when its LED is on; the pixels
-#: sampled to tell a flat light (every k-th row and column), and to measure a shaped one.
-_RING_PIXELS = 150
-_ENVELOPE_QUANTILE = 0.9
-_FLAT_SAMPLE, _SHAPE_SAMPLE = 1000, 20000
-#: A light whose rings' levels all lie within this fraction of the brightest is flat.
-_FLAT = 0.05
-
-
-def _radial_envelope(values: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A light's on-level against radius: the upper quantile of the pixels at about it.
-
-    The pixels are cut into rings of equal area (so that each holds pixels of many sensor
-    rows, the middle one too, and the rings are thin where the rim's step is), about
-    ``_RING_PIXELS`` pixels each.  ``values`` (n,) uint8 and ``rho`` (n,) radii (any unit,
-    >= 0); returns the rings' mean radii and their levels, float64 (k,) each.
-    """
-    bins = min(max(values.size // _RING_PIXELS, 16), 256)
-    r2 = rho * rho
-    k = (r2 * (bins / (float(r2.max()) or 1.0))).astype(np.intp)
-    np.minimum(k, bins - 1, out=k)
-    key = k * 256 + values  # by ring, then by level
-    key.sort()
-    counts = np.bincount(k, minlength=bins)
-    full = counts > 0
-    picks = np.cumsum(counts) - counts + ((counts - 1) * _ENVELOPE_QUANTILE).astype(np.intp)
-    level = (key[picks[full]] & 255).astype(np.float64)
-    middle = np.bincount(k, weights=rho, minlength=bins)[full] / counts[full]
-    return middle, level
-
-
-def _radii(m: np.ndarray, step: int, centre, axes, angle_deg: float):
-    """The pixels of mask ``m`` on every ``step``-th row and column: rows, columns, and
-    radii in the outline ellipse's units."""
-    ys, xs = np.nonzero(m[::step, ::step])
-    ys, xs = ys * step, xs * step
-    t = math.radians(angle_deg)
-    dx, dy = xs - float(centre[0]), ys - float(centre[1])
-    a, b = 0.5 * max(float(axes[0]), 1.0), 0.5 * max(float(axes[1]), 1.0)
-    u, v = dx * math.cos(t) + dy * math.sin(t), dy * math.cos(t) - dx * math.sin(t)
-    return ys, xs, np.sqrt((u / a) ** 2 + (v / b) ** 2)
-
-
-def shape_profile(
-    gray: np.ndarray,
-    mask: np.ndarray,
-    axis: str,
-    centre: np.ndarray,
-    axes: np.ndarray,
-    angle_deg: float,
-) -> tuple[np.ndarray, int]:
-    """The row profile of a light whose level varies across it (a hot core, a glow): each
-    sensor row's sum over the disc, over the sum of the light's on-level at the same pixels.
-
-    A light's image is its shape (the same whatever its LED does) times the LED's on-fraction
-    during each row's exposure.  The mean of a row (:func:`row_profile`) mixes the two: rows
-    that cross only the rim of a glow come out dim whatever the LED did.  Here each pixel is
-    set against the light's level at its distance from the centre when the LED is on (the
-    upper tenth of the pixels at about that distance, in rings of the outline ellipse), so
-    the profile follows the on-fraction alone (through the sensor's clipping).  For a plain
-    disc the level is the same everywhere and the profile is the row mean.
-
-    Parameters
-    ----------
-    gray : ndarray of uint8, shape (h, w)
-        The region of interest.
-    mask : ndarray of bool, shape (h, w)
-        The light's area; its rim is trimmed as in :func:`row_profile`.
-    axis : {"rows", "columns"}
-        Readout axis.
-    centre : ndarray, shape (2,)
-        The light's centre ``[x, y]`` in the region's pixels.
-    axes : ndarray, shape (2,)
-        Full lengths of its outline ellipse's axes, pixels.
-    angle_deg : float
-        Orientation of the ellipse (OpenCV's convention), degrees.
-
-    Returns
-    -------
-    profile : ndarray of float, shape (n,)
-        One value per sensor row that crosses the disc, in the image's order, in gray levels
-        (the on-fraction times the brightest ring's level).
-    first : int
-        Index, in the region of interest, of the first row of the profile.
-    """
-    m = _trimmed(mask)
-    n = cv2.countNonZero(m)
-    if n == 0:
-        return np.zeros(0), 0
-    ys, xs, rho = _radii(m, math.ceil(math.sqrt(n / _FLAT_SAMPLE)), centre, axes, angle_deg)
-    middle, level = _radial_envelope(gray[ys, xs], rho)
-    if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
-        return _mean_profile(gray, m, axis)
-    if n > _FLAT_SAMPLE:
-        ys, xs, rho = _radii(m, math.ceil(math.sqrt(n / _SHAPE_SAMPLE)), centre, axes, angle_deg)
-        middle, level = _radial_envelope(gray[ys, xs], rho)
-    ys, xs, rho = _radii(m, 1, centre, axes, angle_deg)
-    values = gray[ys, xs]
-    level = np.maximum(np.interp(rho, middle, level), 1.0)
-    line = ys if axis != "columns" else xs
-    counts = np.bincount(line)
-    rows = np.flatnonzero(counts >= 2)
-    if rows.size == 0:
-        return np.zeros(0), 0
-    first, last = int(rows[0]), int(rows[-1]) + 1
-    num = np.bincount(line, weights=values, minlength=last)[first:last]
-    den = np.bincount(line, weights=level, minlength=last)[first:last]
-    prof = num / np.where(den > 0, den, np.nan) * float(level.max())
-    if np.isnan(prof).any():  # rows the mask skips: interpolate
-        idx = np.arange(prof.size)
-        good = ~np.isnan(prof)
-        prof = np.interp(idx, idx[good], prof[good])
-    return prof, first
 
 
 def _otsu(values: np.ndarray) -> float:

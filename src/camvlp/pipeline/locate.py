@@ -11,6 +11,7 @@ import dataclasses
 import time
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from camvlp.errors import InputError
@@ -27,12 +28,12 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import shape_profile
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
+from camvlp.pipeline.profile import shape_profiles
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
@@ -137,9 +138,10 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
 
 
 def _extent(blob: Blob, axis: str) -> float:
-    """Sensor rows a detected disc spans along the readout axis ("rows" or "columns")."""
-    r = np.flatnonzero(blob.mask.any(axis=1 if axis == "rows" else 0))
-    return float(r[-1] - r[0] + 1) if r.size else 0.0
+    """Sensor rows a detected disc spans along the readout axis ("rows" or "columns"): the
+    side of its mask's bounding box (0 for an empty mask)."""
+    _, _, w, h = cv2.boundingRect(blob.mask.view(np.uint8))
+    return float(h if axis == "rows" else w)
 
 
 @dataclass(frozen=True)
@@ -190,13 +192,15 @@ def _profiles(
     ]
     extents = np.array([_extent(b, readout.axis) for b in blobs])
     step = -1 if readout.reversed else 1
-    profiles = [
-        shape_profile(g, b.mask, readout.axis, b.pixel - b.box[:2], b.axes_px, b.angle_deg)[0][
-            ::step
-        ]
-        for b, g in zip(blobs, gray_rois, strict=True)
-    ]
-    return gray_rois, extents, profiles
+    shaped = shape_profiles(
+        gray_rois,
+        [b.mask for b in blobs],
+        readout.axis,
+        [b.pixel - b.box[:2] for b in blobs],
+        [b.axes_px for b in blobs],
+        [b.angle_deg for b in blobs],
+    )
+    return gray_rois, extents, [p[::step] for p, _ in shaped]
 
 
 def _decode(

@@ -12,6 +12,7 @@ that falls towards its ends, with no neck, and stays whole.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import cv2
@@ -56,7 +57,7 @@ def light_seeds(
     region: np.ndarray,
     min_radius: float = 2.0,
     outline: np.ndarray | None = None,
-    axis: str = "rows",
+    axis: str | Callable[[], str] = "rows",
 ) -> np.ndarray:
     """The lights in one lit region: the peaks of its distance transform.
 
@@ -76,8 +77,9 @@ def light_seeds(
         Peaks lower than this (pixels) are not lights.
     outline : ndarray of uint8, shape (h, w), optional
         The region's outline at a lower threshold (nonzero inside, holding ``region``).
-    axis : {"rows", "columns"}
-        The readout axis: ``"rows"`` when the stripes are horizontal.
+    axis : {"rows", "columns"} or callable
+        The readout axis: ``"rows"`` when the stripes are horizontal; or a function giving
+        it, called (once) only when two peaks could be apart along it.
 
     Returns
     -------
@@ -86,11 +88,26 @@ def light_seeds(
         largest first; one row at least when the region has a peak of ``min_radius``.
     """
     dist = cv2.distanceTransform((region > 0).astype(np.uint8), cv2.DIST_L2, 5)
-    wide = None if outline is None else cv2.distanceTransform(outline, cv2.DIST_L2, 5)
     peak = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (dist >= min_radius)
     ys, xs = np.nonzero(peak)
     order = np.argsort(-dist[ys, xs], kind="stable")
     cands = np.stack([xs[order], ys[order], dist[ys, xs][order]], axis=1).astype(np.float64)
+    if len(cands) > 1:  # within the largest peak's circle (or it within theirs): never lights
+        top, rest = cands[0], cands[1:]
+        far = np.hypot(rest[:, 0] - top[0], rest[:, 1] - top[1]) > np.maximum(top[2], rest[:, 2])
+        cands = np.concatenate([cands[:1], rest[far]])
+    # the outline's distance transform and the axis only when two peaks may be one light
+    memo: dict = {}
+
+    def wide() -> np.ndarray:
+        if "wide" not in memo:
+            memo["wide"] = cv2.distanceTransform(outline, cv2.DIST_L2, 5)
+        return memo["wide"]
+
+    def readout() -> str:
+        if "axis" not in memo:
+            memo["axis"] = axis() if callable(axis) else axis
+        return memo["axis"]
 
     def necked(d: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
         ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
@@ -107,9 +124,9 @@ def light_seeds(
     for c in cands:
         apart = all(
             np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
-            and outside(wide, s, c)
+            and outside(None if outline is None else wide(), s, c)
             and necked(dist, s, c)
-            and (wide is None or not _along(s, c, axis) or necked(wide, s, c))
+            and (outline is None or not _along(s, c, readout()) or necked(wide(), s, c))
             for s in seeds
         )
         if apart:
@@ -193,7 +210,7 @@ def one_per_light(
             continue
         main = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         inside = (labels == main).astype(np.uint8)
-        axis = axis_of(inside, (x, y, w, h))
+        axis = functools.partial(axis_of, inside, (x, y, w, h))  # when needed
         seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis)
         if len(seeds) < 2:
             yield (x, y, w, h), None

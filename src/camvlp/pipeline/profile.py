@@ -1,0 +1,252 @@
+"""Stage 2: each fixture's row profile, one value per sensor row across its disc.
+
+The plain profile is the mean of each row inside the disc (its anti-aliased rim trimmed); a
+lamp whose level varies across it (a hot core, a glow) is measured against its own radial
+shape instead (:func:`shape_profile`).  A photo's lights are worked together where NumPy
+can (:func:`shape_profiles`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+__all__ = ["row_profile", "shape_profile", "shape_profiles"]
+
+
+#: The erosion that trims a disc's anti-aliased rim before its rows are averaged.
+_RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
+
+
+def _trimmed(mask: np.ndarray) -> np.ndarray:
+    """A disc's mask (uint8 0/1) with its anti-aliased rim trimmed by a small erosion, unless
+    that would leave less than 30 % of it."""
+    m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
+    eroded = cv2.erode(m, _RIM_KERNEL)
+    return eroded if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m) else m
+
+
+def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
+    """Mean intensity of each sensor row inside a disc.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The region of interest (any real dtype).
+    mask : ndarray of bool, shape (h, w)
+        The disc; its anti-aliased rim is trimmed by a small erosion first.
+    axis : {"rows", "columns"}
+        Readout axis: ``"rows"`` averages each image row, ``"columns"`` each column.
+
+    Returns
+    -------
+    profile : ndarray of float, shape (n,)
+        One value per sensor row that crosses the disc, in readout order.
+    first : int
+        Index, in the region of interest, of the first row of the profile.
+    """
+    return _mean_profile(gray, _trimmed(mask), axis)
+
+
+def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int]:
+    """:func:`row_profile` of a mask already trimmed (uint8 0/1)."""
+    dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
+    # pixels of the disc in each sensor row (an image row, or column)
+    counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+    rows = np.flatnonzero(counts >= 2)
+    if rows.size == 0:
+        return np.zeros(0), 0
+    first, last = int(rows[0]), int(rows[-1]) + 1
+    c = counts[first:last].astype(np.float64)
+    if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
+        s = cv2.reduce(cv2.multiply(gray, m), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        s = s[first:last].astype(np.float64)
+    else:
+        g = gray.astype(np.float32)
+        if axis == "columns":
+            g, m = g.T, m.T
+        s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
+    prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
+    if np.isnan(prof).any():  # rows the mask skips: interpolate
+        idx = np.arange(prof.size)
+        good = ~np.isnan(prof)
+        prof = np.interp(idx, idx[good], prof[good])
+    return prof, first
+
+
+#: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
+#: quantile of a ring's pixels taken as the light's level there when its LED is on; the pixels
+#: sampled to tell a flat light (every k-th row and column), and to measure a shaped one.
+_RING_PIXELS = 150
+_ENVELOPE_QUANTILE = 0.9
+_FLAT_SAMPLE, _SHAPE_SAMPLE = 1000, 20000
+#: A light whose rings' levels all lie within this fraction of the brightest is flat.
+_FLAT = 0.05
+
+
+def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each light's on-level against radius: the upper quantile of its pixels at about it.
+
+    A light's pixels are cut into rings of equal area (so that each holds pixels of many
+    sensor rows, the middle one too, and the rings are thin where the rim's step is), about
+    ``_RING_PIXELS`` pixels each.  Per light ``values`` (n,) uint8 and ``rho`` (n,) radii (any
+    unit, >= 0; n >= 1); returns per light its rings' mean radii and their levels, float64
+    (k,) each.  All the lights' rings are sorted and counted at once (each light's after the
+    previous lights').
+    """
+    sizes = np.array([v.size for v in values], dtype=np.intp)
+    bins = np.minimum(np.maximum(sizes // _RING_PIXELS, 16), 256)
+    of = np.repeat(np.arange(sizes.size), sizes)
+    r = np.concatenate(rho)
+    r2 = r * r
+    top = np.maximum.reduceat(r2, _starts(sizes))
+    k = (r2 * (bins / np.where(top != 0.0, top, 1.0))[of]).astype(np.intp)
+    np.minimum(k, (bins - 1)[of], out=k)
+    k += _starts(bins)[of]  # each light's rings after the previous lights'
+    key = k * 256 + np.concatenate(values)  # by ring, then by level
+    key.sort()
+    counts = np.bincount(k, minlength=int(bins.sum()))
+    full = counts > 0
+    picks = np.cumsum(counts) - counts + ((counts - 1) * _ENVELOPE_QUANTILE).astype(np.intp)
+    level = (key[picks[full]] & 255).astype(np.float64)
+    middle = np.bincount(k, weights=r, minlength=counts.size)[full] / counts[full]
+    cut = np.cumsum(np.add.reduceat(full.astype(np.intp), _starts(bins)))[:-1]
+    return list(zip(np.split(middle, cut), np.split(level, cut), strict=True))
+
+
+def _starts(counts: np.ndarray) -> np.ndarray:
+    """Where each group begins in values given one group after another (``counts`` each)."""
+    out = np.zeros(counts.size, np.intp)
+    np.cumsum(counts[:-1], out=out[1:])
+    return out
+
+
+def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
+    """Each mask's pixels on every ``step``-th row and column: rows, columns, and radii in
+    its outline ellipse's units (centre, full axes and angle in degrees as OpenCV gives
+    them); worked for all the masks at once."""
+    found = [np.nonzero(m[::st, ::st]) for m, st in zip(masks, steps, strict=True)]
+    sizes = np.array([ys.size for ys, _ in found], dtype=np.intp)
+    of = np.repeat(np.arange(sizes.size), sizes)
+    step = np.repeat(np.array(steps, dtype=np.intp), sizes)
+    ys = np.concatenate([ys for ys, _ in found]) * step
+    xs = np.concatenate([xs for _, xs in found]) * step
+    t = [math.radians(a) for a in angles]
+    cos, sin = np.array([math.cos(x) for x in t])[of], np.array([math.sin(x) for x in t])[of]
+    dx = xs - np.array([float(c[0]) for c in centres])[of]
+    dy = ys - np.array([float(c[1]) for c in centres])[of]
+    a = np.array([0.5 * max(float(ax[0]), 1.0) for ax in axes])[of]
+    b = np.array([0.5 * max(float(ax[1]), 1.0) for ax in axes])[of]
+    u, v = dx * cos + dy * sin, dy * cos - dx * sin
+    rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
+    cut = np.cumsum(sizes)[:-1]
+    return list(zip(np.split(ys, cut), np.split(xs, cut), np.split(rho, cut), strict=True))
+
+
+def shape_profile(
+    gray: np.ndarray,
+    mask: np.ndarray,
+    axis: str,
+    centre: np.ndarray,
+    axes: np.ndarray,
+    angle_deg: float,
+) -> tuple[np.ndarray, int]:
+    """The row profile of a light whose level varies across it (a hot core, a glow): each
+    sensor row's sum over the disc, over the sum of the light's on-level at the same pixels.
+
+    A light's image is its shape (the same whatever its LED does) times the LED's on-fraction
+    during each row's exposure.  The mean of a row (:func:`row_profile`) mixes the two: rows
+    that cross only the rim of a glow come out dim whatever the LED did.  Here each pixel is
+    set against the light's level at its distance from the centre when the LED is on (the
+    upper tenth of the pixels at about that distance, in rings of the outline ellipse), so
+    the profile follows the on-fraction alone (through the sensor's clipping).  For a plain
+    disc the level is the same everywhere and the profile is the row mean.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (h, w)
+        The region of interest.
+    mask : ndarray of bool, shape (h, w)
+        The light's area; its rim is trimmed as in :func:`row_profile`.
+    axis : {"rows", "columns"}
+        Readout axis.
+    centre : ndarray, shape (2,)
+        The light's centre ``[x, y]`` in the region's pixels.
+    axes : ndarray, shape (2,)
+        Full lengths of its outline ellipse's axes, pixels.
+    angle_deg : float
+        Orientation of the ellipse (OpenCV's convention), degrees.
+
+    Returns
+    -------
+    profile : ndarray of float, shape (n,)
+        One value per sensor row that crosses the disc, in the image's order, in gray levels
+        (the on-fraction times the brightest ring's level).
+    first : int
+        Index, in the region of interest, of the first row of the profile.
+    """
+    return shape_profiles([gray], [mask], axis, [centre], [axes], [angle_deg])[0]
+
+
+def shape_profiles(
+    grays: list, masks: list, axis: str, centres: list, axes: list, angles: list
+) -> list[tuple[np.ndarray, int]]:
+    """:func:`shape_profile` of several lights (one entry each in every list): whether each
+    light is flat is told for all of them at once."""
+    trimmed = [_trimmed(m) for m in masks]
+    counts = [cv2.countNonZero(m) for m in trimmed]
+    out: list[tuple[np.ndarray, int]] = [(np.zeros(0), 0)] * len(masks)
+    live = [k for k, n in enumerate(counts) if n]
+    if not live:
+        return out
+    steps = [math.ceil(math.sqrt(counts[k] / _FLAT_SAMPLE)) for k in live]
+    where = [centres[k] for k in live], [axes[k] for k in live], [angles[k] for k in live]
+    sampled = _radii([trimmed[k] for k in live], steps, *where)
+    envelopes = _radial_envelopes(
+        [grays[k][ys, xs] for k, (ys, xs, _) in zip(live, sampled, strict=True)],
+        [rho for _, _, rho in sampled],
+    )
+    for k, (middle, level) in zip(live, envelopes, strict=True):
+        if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
+            out[k] = _mean_profile(grays[k], trimmed[k], axis)
+        else:
+            out[k] = _shaped(
+                grays[k],
+                trimmed[k],
+                counts[k],
+                axis,
+                centres[k],
+                axes[k],
+                angles[k],
+                (middle, level),
+            )
+    return out
+
+
+def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.ndarray, int]:
+    """:func:`shape_profile` of a light that is not flat (its trimmed mask ``m`` of ``n``
+    pixels, its envelope from the flat test's sample)."""
+    middle, level = envelope
+    if n > _FLAT_SAMPLE:
+        step = math.ceil(math.sqrt(n / _SHAPE_SAMPLE))
+        ((ys, xs, rho),) = _radii([m], [step], [centre], [axes], [angle_deg])
+        ((middle, level),) = _radial_envelopes([gray[ys, xs]], [rho])
+    ((ys, xs, rho),) = _radii([m], [1], [centre], [axes], [angle_deg])
+    values = gray[ys, xs]
+    level = np.maximum(np.interp(rho, middle, level), 1.0)
+    line = ys if axis != "columns" else xs
+    counts = np.bincount(line)
+    rows = np.flatnonzero(counts >= 2)
+    if rows.size == 0:
+        return np.zeros(0), 0
+    first, last = int(rows[0]), int(rows[-1]) + 1
+    num = np.bincount(line, weights=values, minlength=last)[first:last]
+    den = np.bincount(line, weights=level, minlength=last)[first:last]
+    prof = num / np.where(den > 0, den, np.nan) * float(level.max())
+    if np.isnan(prof).any():  # rows the mask skips: interpolate
+        idx = np.arange(prof.size)
+        good = ~np.isnan(prof)
+        prof = np.interp(idx, idx[good], prof[good])
+    return prof, first
