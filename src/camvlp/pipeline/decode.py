@@ -26,6 +26,7 @@ import numpy as np
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.profile import row_profile, shape_profile
+from camvlp.pipeline.ragged import padded, starts
 
 __all__ = [
     "Runs",
@@ -59,28 +60,13 @@ def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
     return float(lo[0]), float(hi[0])
 
 
-def _padded(flat: np.ndarray, counts: np.ndarray, fill: float) -> np.ndarray:
-    """Values given one group after another (``counts`` each) as rows of a (groups, longest)
-    array, each row's tail filled with ``fill``."""
-    out = np.full((counts.size, int(counts.max()) if counts.size else 0), fill, flat.dtype)
-    out[np.arange(out.shape[1])[None, :] < counts[:, None]] = flat
-    return out
-
-
-def _starts(counts: np.ndarray) -> np.ndarray:
-    """Where each group begins in values given one group after another (``counts`` each)."""
-    out = np.zeros(counts.size, np.int64)
-    np.cumsum(counts[:-1], out=out[1:])
-    return out
-
-
 def _levels(profiles: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """:func:`stripe_levels` of several non-empty 1-D profiles: (dark, bright) arrays.
 
     NumPy's default (linear) percentiles, each profile sorted in a row of its own (NaN
     after its values, where NaN sorts)."""
     sizes = np.array([p.size for p in profiles], dtype=np.int64)
-    v = _padded(np.concatenate(profiles), sizes, np.nan)
+    v = padded(np.concatenate(profiles), sizes, np.nan)
     v.sort(axis=1)
     last = sizes - 1
     rows = np.arange(sizes.size)
@@ -167,7 +153,7 @@ class _FlatRuns:
     @property
     def run_starts(self) -> np.ndarray:
         """Each profile's first run."""
-        return _starts(self.n_edges + 1)
+        return starts(self.n_edges + 1)
 
 
 def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
@@ -177,7 +163,7 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     sizes = np.array([p.size for p in profiles], dtype=np.int64)
     flat = np.concatenate(profiles)
     of = np.repeat(np.arange(n), sizes)
-    start = _starts(sizes)
+    start = starts(sizes)
     above = flat > thresholds[of]
     i = np.flatnonzero((above[1:] != above[:-1]) & (of[1:] == of[:-1]))  # between i, i+1
     eo = of[i]
@@ -185,7 +171,7 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     edges = (i - start[eo]) + (thresholds[eo] - a) / np.where(b != a, b - a, 1.0)
     n_e = np.bincount(eo, minlength=n)
     # each profile's bounds: -0.5, its edges, its size - 0.5; the runs between them
-    first = _starts(n_e) + 2 * np.arange(n)
+    first = starts(n_e) + 2 * np.arange(n)
     bounds = np.empty(edges.size + 2 * n)
     bounds[np.arange(edges.size) + 2 * eo + 1] = edges
     bounds[first] = -0.5
@@ -194,7 +180,7 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     keep = np.ones(steps.size, bool)
     keep[(first + n_e + 1)[:-1]] = False  # from one profile's last bound to the next's first
     bright = np.empty(edges.size + n, bool)
-    bright[_starts(n_e + 1)] = above[start]
+    bright[starts(n_e + 1)] = above[start]
     bright[np.arange(edges.size) + eo + 1] = above[i + 1]
     return _FlatRuns(
         edges, above[i + 1], eo, n_e, steps[keep], bright, np.repeat(np.arange(n), n_e + 1)
@@ -264,7 +250,7 @@ def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
     """Each profile's same-polarity edge spacings, as :func:`_chip_length` takes them: the
     rising edges' first, then the falling edges' (crossings alternate, so those are two
     crossings apart), the positive ones; returns the spacings and their profiles."""
-    e_start = _starts(r.n_edges)
+    e_start = starts(r.n_edges)
     k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])
     two = r.edges[k + 2] - r.edges[k]
     p = r.edge_of[k]
@@ -286,15 +272,15 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     ok = np.flatnonzero(counts >= 2)
     if ok.size == 0:
         return out
-    shortest = _padded(d, counts, np.inf).min(axis=1)[ok]
+    shortest = padded(d, counts, np.inf).min(axis=1)[ok]
     lo, hi = np.maximum(0.8, shortest / 4.6), np.minimum(max_rows_per_chip, shortest / 1.6)
     ok, lo, hi = ok[hi > lo], lo[hi > lo], hi[hi > lo]
     if ok.size == 0:
         return out
     grids = [np.arange(a, b, 0.01) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
-    dd = _padded(d, counts, 1.0)[ok]
+    dd = padded(d, counts, 1.0)[ok]
     for group in _groups(np.array([g.size for g in grids]), counts[ok]):
-        grid = _padded(
+        grid = padded(
             np.concatenate([grids[q] for q in group]), np.array([grids[q].size for q in group]), 1.0
         )
         x = dd[group][:, None, :] / grid[:, :, None]
@@ -336,13 +322,13 @@ def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
     longer, dark ones b rows shorter, than n chips; the b of the grid that makes every
     interior run closest to one or two chips (both kinds occur in every frame, which pins b
     down)."""
-    starts = r.run_starts
+    first = r.run_starts
     interior = np.ones(r.lengths.size, bool)
-    interior[starts] = False
-    interior[starts + r.n_edges] = False
+    interior[first] = False
+    interior[first + r.n_edges] = False
     counts = np.maximum(r.n_edges - 1, 0)
-    li = _padded(r.lengths[interior], counts, 1.0)[which]
-    bi = _padded(r.bright[interior], counts, False)[which]
+    li = padded(r.lengths[interior], counts, 1.0)[which]
+    bi = padded(r.bright[interior], counts, False)[which]
     tt = t[which]
     grid = _bleed_grids(tt)
     out = np.empty(which.size)
@@ -369,8 +355,8 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     x = np.where(r.bright, r.lengths - bb[r.run_of], r.lengths + bb[r.run_of]) / tt[r.run_of]
     counts = np.round(x).astype(int)
     # runs cut by the disc's edge: count only the chips surely inside
-    starts = r.run_starts
-    ends = np.concatenate([starts, starts + r.n_edges])
+    first = r.run_starts
+    ends = np.concatenate([first, first + r.n_edges])
     counts[ends] = np.minimum(np.maximum(np.floor(x[ends] + 0.25), 0), 2)
     sure = (counts >= 1) & (counts <= 2)
     sure[ends] = True
@@ -379,14 +365,14 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     counts[inner] = np.minimum(np.maximum(counts[inner], 1), 2)
     dev = np.abs(x - np.round(x))
     dev[ends] = -1.0
-    worst = np.maximum.reduceat(dev, starts)[which]
+    worst = np.maximum.reduceat(dev, first)[which]
     chosen = np.zeros(n, bool)
     chosen[which] = True
     kept = chosen[r.run_of]
     chip_vals = np.repeat(r.bright[kept].astype(np.uint8), counts[kept])
     known = np.repeat(sure[kept], counts[kept])
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    bounds = np.concatenate([[0], np.cumsum(np.add.reduceat(counts, starts)[which])]).tolist()
+    bounds = np.concatenate([[0], np.cumsum(np.add.reduceat(counts, first)[which])]).tolist()
     return [
         (
             chip_vals[c0:c1],
@@ -418,9 +404,9 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
     stretches, copies = [], []
     for chips, known, _, _ in read:
         stretches.append((chips, known))
-        starts = range(0, chips.size - n + 1, n)
-        copies.append(len(starts))
-        stretches += [(chips[k : k + n], known[k : k + n]) for k in starts]
+        whole = range(0, chips.size - n + 1, n)
+        copies.append(len(whole))
+        stretches += [(chips[k : k + n], known[k : k + n]) for k in whole]
     decoded = iter(frame.decode_many(stretches))
     out = []
     for (chips, _, text, margin), rpc, bleed, m in zip(

@@ -13,6 +13,8 @@ import math
 import cv2
 import numpy as np
 
+from camvlp.pipeline.ragged import pieces, starts
+
 __all__ = ["row_profile", "shape_profile", "shape_profiles"]
 
 
@@ -101,10 +103,10 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     of = np.repeat(np.arange(sizes.size), sizes)
     r = np.concatenate(rho)
     r2 = r * r
-    top = np.maximum.reduceat(r2, _starts(sizes))
+    top = np.maximum.reduceat(r2, starts(sizes))
     k = (r2 * (bins / np.where(top != 0.0, top, 1.0))[of]).astype(np.intp)
     np.minimum(k, (bins - 1)[of], out=k)
-    k += _starts(bins)[of]  # each light's rings after the previous lights'
+    k += starts(bins)[of]  # each light's rings after the previous lights'
     key = k * 256 + np.concatenate(values)  # by ring, then by level
     key.sort()
     counts = np.bincount(k, minlength=int(bins.sum()))
@@ -112,15 +114,8 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     picks = np.cumsum(counts) - counts + ((counts - 1) * _ENVELOPE_QUANTILE).astype(np.intp)
     level = (key[picks[full]] & 255).astype(np.float64)
     middle = np.bincount(k, weights=r, minlength=counts.size)[full] / counts[full]
-    cut = np.cumsum(np.add.reduceat(full.astype(np.intp), _starts(bins)))[:-1]
-    return list(zip(np.split(middle, cut), np.split(level, cut), strict=True))
-
-
-def _starts(counts: np.ndarray) -> np.ndarray:
-    """Where each group begins in values given one group after another (``counts`` each)."""
-    out = np.zeros(counts.size, np.intp)
-    np.cumsum(counts[:-1], out=out[1:])
-    return out
+    cut = np.cumsum(np.add.reduceat(full.astype(np.intp), starts(bins)))[:-1]
+    return [(middle[a:b], level[a:b]) for a, b in pieces(cut, middle.size)]
 
 
 def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
@@ -142,7 +137,7 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     u, v = dx * cos + dy * sin, dy * cos - dx * sin
     rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
     cut = np.cumsum(sizes)[:-1]
-    return list(zip(np.split(ys, cut), np.split(xs, cut), np.split(rho, cut), strict=True))
+    return [(ys[a:b], xs[a:b], rho[a:b]) for a, b in pieces(cut, ys.size)]
 
 
 def shape_profile(

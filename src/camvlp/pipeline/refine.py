@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
+from camvlp.pipeline.ragged import pieces, starts
 
 __all__ = [
     "Blob",
@@ -552,16 +553,15 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     a0, a1, b0, b1 = np.where(near[j, cols], g[j, cols], background[j]).astype(np.float32)
     # each region's left ends, then its right ends; x in the column its axis says
     kept = np.bincount(of, minlength=len(regions))
-    start = np.zeros(len(regions), np.int64)
-    np.cumsum(kept[:-1], out=start[1:])
-    at = 2 * start[of] + np.arange(of.size) - start[of]
+    start = starts(kept)[of]
+    at = start + np.arange(of.size)  # twice the region's start, plus the row's place in it
     u = np.array([0 if r.axis == "rows" else 1 for r in regions])[of]
     pts = np.empty((2 * of.size, 2))
     pts[at, u] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
     pts[at + kept[of], u] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
     pts[at, 1 - u] = rows
     pts[at + kept[of], 1 - u] = rows
-    return np.split(pts, 2 * np.cumsum(kept)[:-1])
+    return [pts[a:b] for a, b in pieces(2 * np.cumsum(kept)[:-1], pts.shape[0])]
 
 
 def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
@@ -648,10 +648,9 @@ def _row_groups(points: list[np.ndarray], axes: list[str]) -> list[np.ndarray]:
     rows = np.concatenate(
         [p[:, 1] if ax == "rows" else p[:, 0] for p, ax in zip(points, axes, strict=True)]
     )
-    starts = np.zeros(sizes.size, np.int64)
-    np.cumsum(sizes[:-1], out=starts[1:])
-    low = np.minimum.reduceat(rows, starts)
-    span = np.maximum.reduceat(rows, starts) - low + 1.0
+    first = starts(sizes)
+    low = np.minimum.reduceat(rows, first)
+    span = np.maximum.reduceat(rows, first) - low + 1.0
     step = np.maximum(1.0, np.sqrt(span))
     groups = np.floor((rows - np.repeat(low, sizes)) / np.repeat(step, sizes)).astype(np.int64)
-    return np.split(groups, starts[1:])
+    return [groups[a:b] for a, b in pieces(first[1:], groups.size)]

@@ -1,0 +1,30 @@
+"""Groups of values laid one after another in one flat array (a photo's lights, profiles or
+runs worked at once): where each group begins, the groups as padded rows, the pieces back."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+__all__ = ["padded", "pieces", "starts"]
+
+
+def starts(counts: np.ndarray) -> np.ndarray:
+    """Where each group begins, given how many values each has (``counts``, (G,))."""
+    out = np.zeros(counts.size, np.intp)
+    np.cumsum(counts[:-1], out=out[1:])
+    return out
+
+
+def padded(flat: np.ndarray, counts: np.ndarray, fill: float) -> np.ndarray:
+    """The groups as rows of a (groups, longest) array, each row's tail filled with ``fill``."""
+    out = np.full((counts.size, int(counts.max()) if counts.size else 0), fill, flat.dtype)
+    out[np.arange(out.shape[1])[None, :] < counts[:, None]] = flat
+    return out
+
+
+def pieces(cuts: np.ndarray, size: int) -> list[tuple[int, int]]:
+    """``(start, end)`` of the pieces ``np.split`` cuts ``size`` values into at ``cuts``
+    (without its cost: slice with them)."""
+    return list(itertools.pairwise([0, *cuts.tolist(), size]))
