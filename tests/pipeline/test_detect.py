@@ -17,7 +17,6 @@ import pytest
 from camvlp.model.camera import Pose
 from camvlp.pipeline.detect import (
     _close_lit,
-    _decimated,
     _median_u8,
     _percentiles_u8,
     detect_fixtures,
@@ -304,17 +303,3 @@ def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
         np.testing.assert_array_equal(full, whole)
         cropped += (x, y) != (0, 0)
     assert cropped > 100
-
-
-@pytest.mark.parametrize("channels", [0, 3, 4])
-def test_decimated_photo_is_the_resizes_pick(channels):
-    """Every s-th pixel of every s-th row, as cv2.resize's nearest neighbour picks them: sides
-    that s divides (taken as runs of s pixels), sides it does not, mirrored views, 16 bits."""
-    rng = np.random.default_rng(channels)
-    for s, (h, w) in [(3, (1080, 1920)), (8, (3880, 5184)), (6, (3024, 4032)), (3, (1081, 1920))]:
-        shape = (h, w, channels) if channels else (h, w)
-        img = rng.integers(0, 4096, shape).astype(np.uint16 if s == 6 else np.uint8)
-        for view in (img, img[:, ::-1]):
-            size = (-(-w // s), -(-h // s))
-            want = cv2.resize(view, size, interpolation=cv2.INTER_NEAREST)
-            np.testing.assert_array_equal(_decimated(view, s), want)

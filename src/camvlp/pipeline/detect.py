@@ -96,24 +96,6 @@ def _reduction(shape: tuple[int, ...]) -> int:
     return max(1, round(max(shape[:2]) / 640.0))
 
 
-def _decimated(img: np.ndarray, s: int) -> np.ndarray:
-    """Every ``s``-th pixel of every ``s``-th row (``ceil(H / s) x ceil(W / s)``), as
-    ``cv2.resize(..., INTER_NEAREST)`` picks them.
-
-    When ``s`` divides both sides those are ``img[::s, ::s]``: each run of ``s`` pixels of a
-    row is taken as one pixel of ``s`` times the channels, whose first channels OpenCV copies
-    out (a little faster than the resize's per-pixel lookup)."""
-    h, w = img.shape[:2]
-    if h % s or w % s or not img.flags.c_contiguous:
-        size = (-(-w // s), -(-h // s))
-        return cv2.resize(img, size, interpolation=cv2.INTER_NEAREST)
-    ch = img.shape[2] if img.ndim == 3 else 1
-    runs = img.reshape(h, w // s, s * ch)[::s]
-    out = np.empty((h // s, w // s, ch), img.dtype)
-    cv2.mixChannels([runs], [out], [i for c in range(ch) for i in (c, c)])
-    return out if img.ndim == 3 else out[:, :, 0]
-
-
 def detect_fixtures(
     image: np.ndarray,
     *,
@@ -156,7 +138,11 @@ def detect_fixtures(
     # Candidates on every s-th pixel: a decimated view costs nothing, where averaging a
     # 20-megapixel photo down costs more than the rest of the pipeline.  A striped disc
     # keeps about half its sampled rows lit; the closing below joins them.
-    small = to_gray(_decimated(img, s) if s > 1 else img)
+    small = img
+    if s > 1:
+        size = (-(-width // s), -(-height // s))  # ceil: the pixels img[::s, ::s]
+        small = cv2.resize(img, size, interpolation=cv2.INTER_NEAREST)
+    small = to_gray(small)
     background = _median_u8(small)
     peak = float(cv2.GaussianBlur(small, (3, 3), 0).max())
     if peak - background < 12:  # nothing stands out of the noise
