@@ -185,7 +185,7 @@ def detect_fixtures(
             min(width, (x + w) * s + pad),
             min(height, (y + h) * s + pad),
         )
-        seeds = None if cell is None else cell[0] * np.array([s, s, s], dtype=np.float64)
+        seeds = None if cell is None else cell[0] * float(s)  # [x, y, r] at full resolution
         boxes.append(box)
         cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))
     blobs = refine_regions(img, boxes, readout, kernel_px, min_diameter_px, cells)

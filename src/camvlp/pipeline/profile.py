@@ -30,6 +30,15 @@ def _trimmed(mask: np.ndarray) -> np.ndarray:
     return eroded if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m) else m
 
 
+def _filled(prof: np.ndarray) -> np.ndarray:
+    """A profile (n,) with the rows its mask skips (NaN) interpolated from their neighbours."""
+    if np.isnan(prof).any():
+        idx = np.arange(prof.size)
+        good = ~np.isnan(prof)
+        prof = np.interp(idx, idx[good], prof[good])
+    return prof
+
+
 def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple[np.ndarray, int]:
     """Mean intensity of each sensor row inside a disc.
 
@@ -71,11 +80,7 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
-    if np.isnan(prof).any():  # rows the mask skips: interpolate
-        idx = np.arange(prof.size)
-        good = ~np.isnan(prof)
-        prof = np.interp(idx, idx[good], prof[good])
-    return prof, first
+    return _filled(prof), first
 
 
 #: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
@@ -240,8 +245,4 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     num = np.bincount(line, weights=values, minlength=last)[first:last]
     den = np.bincount(line, weights=level, minlength=last)[first:last]
     prof = num / np.where(den > 0, den, np.nan) * float(level.max())
-    if np.isnan(prof).any():  # rows the mask skips: interpolate
-        idx = np.arange(prof.size)
-        good = ~np.isnan(prof)
-        prof = np.interp(idx, idx[good], prof[good])
-    return prof, first
+    return _filled(prof), first

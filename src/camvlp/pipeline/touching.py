@@ -96,27 +96,21 @@ def light_seeds(
         top, rest = cands[0], cands[1:]
         far = np.hypot(rest[:, 0] - top[0], rest[:, 1] - top[1]) > np.maximum(top[2], rest[:, 2])
         cands = np.concatenate([cands[:1], rest[far]])
-    # the outline's distance transform and the axis only when two peaks may be one light
-    memo: dict = {}
-
-    def wide() -> np.ndarray:
-        if "wide" not in memo:
-            memo["wide"] = cv2.distanceTransform(outline, cv2.DIST_L2, 5)
-        return memo["wide"]
-
-    def readout() -> str:
-        if "axis" not in memo:
-            memo["axis"] = axis() if callable(axis) else axis
-        return memo["axis"]
+    # the outline's distance transform only when two peaks are left, the axis only when
+    # two peaks lie apart along it
+    wide = (
+        None
+        if outline is None or len(cands) < 2
+        else cv2.distanceTransform(outline, cv2.DIST_L2, 5)
+    )
+    readout = functools.cache(axis) if callable(axis) else lambda: axis
 
     def necked(d: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
         ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
         return _neck(d, a, b) < NECK * min(ra, rb)
 
-    def outside(d: np.ndarray | None, a: np.ndarray, b: np.ndarray) -> bool:
+    def outside(d: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
         """Each centre outside the other's inscribed circle in ``d``."""
-        if d is None:
-            return True
         ra, rb = d[int(a[1]), int(a[0])], d[int(b[1]), int(b[0])]
         return bool(np.hypot(*(b[:2] - a[:2])) > max(ra, rb))
 
@@ -124,9 +118,9 @@ def light_seeds(
     for c in cands:
         apart = all(
             np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
-            and outside(None if outline is None else wide(), s, c)
+            and (wide is None or outside(wide, s, c))
             and necked(dist, s, c)
-            and (outline is None or not _along(s, c, readout()) or necked(wide(), s, c))
+            and (wide is None or not _along(s, c, readout()) or necked(wide, s, c))
             for s in seeds
         )
         if apart:
