@@ -4,11 +4,15 @@ Random poses (camera on the floor or 1 m up, tilts within the visible range, any
 rows per chip from 3 to 8 and exposures from 0.1 to 1 chip, full 5184 x 3880 renders.
 Prints the decode rate of fixtures spanning at least 1.2 frames, wrong IDs, and the
 position error.  Run: ``python benchmarks/sweep_locate.py --n 100``.
+
+``--without-normals`` also locates every photo with the map's ``normal`` fields removed (the
+discs' plane is then inferred) and prints both errors, and their difference per photo.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -54,9 +58,18 @@ def main() -> int:
         "--rows-per-chip", default="3,8", help="range of rows per chip, MIN,MAX (default 3,8)"
     )
     ap.add_argument("--heights", default="0,1", help="camera heights to draw from, m (default 0,1)")
+    ap.add_argument(
+        "--without-normals",
+        action="store_true",
+        help="also locate each photo with a map that gives no normal, and compare",
+    )
     args = ap.parse_args()
     camera = camvlp.load_camera(ROOT / "examples/thesis_camera.yaml")
     fmap = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
+    bare = dataclasses.replace(
+        fmap, fixtures=tuple(dataclasses.replace(f, normal=None) for f in fmap.fixtures)
+    )
+    bare_errors: list[float] = []
     rng = np.random.default_rng(args.seed)
     row_time = camera.row_time_s
     rows = []
@@ -112,6 +125,11 @@ def main() -> int:
                     )
         err = float(np.linalg.norm(res.position - pose.position)) if res else float("nan")
         errors.append(err)
+        if args.without_normals:
+            res2 = locate(photo.image, camera, bare)
+            bare_errors.append(
+                float(np.linalg.norm(res2.position - pose.position)) if res2 else float("nan")
+            )
         rows.append(
             dict(
                 photo=k,
@@ -147,6 +165,17 @@ def main() -> int:
         f"position error         mean {1e3 * e[located].mean():.3f} mm, median "
         f"{1e3 * np.median(e[located]):.3f} mm, max {1e3 * e[located].max():.3f} mm"
     )
+    if args.without_normals:
+        b = np.array(bare_errors)
+        both = located & np.isfinite(b)
+        print(
+            f"without normals        located {int(np.isfinite(b).sum())} / {args.n}, position "
+            f"error mean {1e3 * b[both].mean():.3f} mm (with normals {1e3 * e[both].mean():.3f}"
+            f" on the same {int(both.sum())} photos), median {1e3 * np.median(b[both]):.3f} mm,"
+            f" max {1e3 * b[both].max():.3f} mm; per photo, |difference| median "
+            f"{1e3 * np.median(np.abs(b - e)[both]):.3f} mm, max "
+            f"{1e3 * np.abs(b - e)[both].max():.3f} mm"
+        )
     for f in failures[:20]:
         print("  not decoded:", f)
     if args.json:

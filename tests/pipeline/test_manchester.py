@@ -69,7 +69,13 @@ def test_direction_from_the_fast_path_when_fixtures_say_it():
 def test_reversal_pairs_only_are_left_to_the_model_and_the_pose():
     rng = np.random.default_rng(4)
     ids = [0, 14, 2, 6]
-    man = decode_manchester(profiles(ids, rng), Readout.ROWS, False, CAMERA, fmap(ids))
-    assert all(isinstance(d, ModelDecode) for d in man.decodes)
-    # read either way the IDs are the map's: the pose must decide
+    ps = profiles(ids, rng)
+    man = decode_manchester(ps, Readout.ROWS, False, CAMERA, fmap(ids))
+    # read either way the IDs are the map's: the pose must decide, and each direction is
+    # read as if it were known (its run-length IDs, the model for the rest)
     assert man.other is not None
+    rev = _reversed_ids(FRAME)
+    assert [d.id for d in man.decodes] == ids
+    assert [d.id for d in man.other] == [int(rev[i]) for i in ids]
+    known = decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))
+    assert [type(d) for d in man.decodes] == [type(d) for d in known.decodes]

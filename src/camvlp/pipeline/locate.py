@@ -405,16 +405,13 @@ def _withheld(decodes, decodes2) -> list:
     def shown(d):
         return d.id if d.id is not None else getattr(d, "outside_id", None)
 
+    def withheld(d1, d2):
+        reason = f"readout direction undecided: ID {shown(d1)} read one way, {shown(d2)} the other"
+        extra = {"outside_id": None} if hasattr(d1, "outside_id") else {}
+        return dataclasses.replace(d1, id=None, reason=reason, **extra)
+
     return [
-        dataclasses.replace(
-            d1,
-            id=None,
-            outside_id=None,
-            reason=f"readout direction undecided: ID {shown(d1)} read one way, "
-            f"{shown(d2)} the other",
-        )
-        if shown(d1) != shown(d2)
-        else d1
+        withheld(d1, d2) if shown(d1) != shown(d2) else d1
         for d1, d2 in zip(decodes, decodes2, strict=True)
     ]
 

@@ -162,6 +162,16 @@ def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None):
     return out, photo.model
 
 
+def _one_way(profiles, fast, frame: FrameFormat, ids, seed: float | None, t_photo: float):
+    """One readout direction's decodes as if it were known: ``(decodes, rows_per_chip,
+    model)``, from its run-length decodes ``fast`` (chip lengths checked against ``seed`` or
+    each other) and the model fit for the rest."""
+    t, (kept,) = _agreeing([fast], seed)
+    t = t or seed or t_photo
+    decodes, model = _with_model(profiles, kept, frame, ids, t)
+    return tuple(decodes), (model.rows_per_chip if model is not None else float(t)), model
+
+
 def _manchester(decodes, readout: Readout, model: SensorModel | None, t) -> Manchester:
     rpc = model.rows_per_chip if model is not None else (float(t) if t else float("nan"))
     return Manchester(tuple(decodes), readout, rpc, model)
@@ -267,6 +277,7 @@ def decode_manchester(
     if camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
     fwd, lengths = _fast(profiles, frame, map_ids)
+    fast_f = fwd
     if direction_known:
         t, (fwd,) = _agreeing([fwd], seed)
         t = t or seed or _measured(lengths)
@@ -288,4 +299,14 @@ def decode_manchester(
         flipped = Readout.of(readout.axis, not readout.reversed)
         decodes, model = _with_model(backwards, bwd, frame, ids, t)
         return _manchester(decodes, flipped, model, t)
-    return _model_directions(profiles, readout, frame, ids, t)
+    man = _model_directions(profiles, readout, frame, ids, t)
+    if man.other is None:
+        return man
+    # the stripes do not say the direction: each is read as if it were known (its sure
+    # run-length IDs, the model fitted to it for the rest), and the pose decides.  Parameters
+    # fitted one way can blur the other way's IDs into look-alikes
+    one, other = (
+        _one_way(p, d, frame, ids, seed, man.rows_per_chip)
+        for p, d in ((profiles, fast_f), (backwards, _fast(backwards, frame, map_ids)[0]))
+    )
+    return Manchester(one[0], readout, one[1], one[2], other[0], other[2])
