@@ -15,7 +15,9 @@ Fixtures are discs on a ceiling 2 m above the camera, placed at random without o
 each spans 1.0 to 2.6 frames of the code along the readout.  A fixture counts as eligible
 when its whole disc is in the photo and it spans 1.2 frames or more (whether ``locate``
 detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
-other ID reported for it.
+other ID reported for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
+the pose telling which (``FixtureResult.look_alikes``), are counted apart too ("told by the
+pose").
 
 Prints decode rate and wrong IDs per cell and overall, and saves a plot of the decode rate
 over exposure x rows per chip.  Run::
@@ -204,7 +206,7 @@ def main() -> int:
     t0 = time.perf_counter()
     n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
     for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
-        eligible = decoded = wrong = located = ambiguous = 0
+        eligible = decoded = told = wrong = located = ambiguous = 0
         times = []
         for _ in range(args.per_cell):
             photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc, looks=not args.plain)
@@ -227,6 +229,7 @@ def main() -> int:
                 ok = fr.id == t.id
                 bad = fr.id is not None and fr.id != t.id
                 decoded += elig and ok
+                told += elig and ok and bool(fr.look_alikes)
                 wrong += bad
                 sep = None
                 if elig and not ok and res.stages is not None:
@@ -271,6 +274,7 @@ def main() -> int:
         cells[(exposure, rpc)] = dict(
             eligible=eligible,
             decoded=decoded,
+            told=told,
             wrong=wrong,
             located=located,
             ambiguous=ambiguous,
@@ -285,20 +289,22 @@ def main() -> int:
         )
     print(file=sys.stderr)
     print(
-        "| exposure (chips) | rows per chip | fixtures >= 1.2 frames | decoded | wrong IDs | "
-        "photos located | not identifiable | decoded of the identifiable |"
+        "| exposure (chips) | rows per chip | fixtures >= 1.2 frames | decoded | told by the pose "
+        "| wrong IDs | photos located | not identifiable | decoded of the identifiable |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for (e, r), c in cells.items():
         rate = 100 * c["decoded"] / max(c["eligible"], 1)
         ident = c["eligible"] - c["ambiguous"]
         print(
-            f"| {e:g} | {r:g} | {c['eligible']} | {c['decoded']} ({rate:.1f} %) | {c['wrong']} | "
+            f"| {e:g} | {r:g} | {c['eligible']} | {c['decoded']} ({rate:.1f} %) | {c['told']} | "
+            f"{c['wrong']} | "
             f"{c['located']} / {c['photos']} | {c['ambiguous']} | "
             f"{c['decoded']} / {ident} ({100 * c['decoded'] / max(ident, 1):.1f} %) |"
         )
     tot = {
-        k: sum(c[k] for c in cells.values()) for k in ("eligible", "decoded", "wrong", "ambiguous")
+        k: sum(c[k] for c in cells.values())
+        for k in ("eligible", "decoded", "told", "wrong", "ambiguous")
     }
     photos = sum(c["photos"] for c in cells.values())
     located = sum(c["located"] for c in cells.values())
@@ -310,15 +316,18 @@ def main() -> int:
     ident = tot["eligible"] - tot["ambiguous"]
     print(
         f"\noverall: {tot['decoded']} / {tot['eligible']} fixtures spanning >= 1.2 frames decoded "
-        f"({100 * tot['decoded'] / max(tot['eligible'], 1):.2f} %), wrong IDs {tot['wrong']}, "
+        f"({100 * tot['decoded'] / max(tot['eligible'], 1):.2f} %; {tot['told']} of them "
+        f"look-alikes told by the pose, so {tot['decoded'] - tot['told']} from the stripes alone), "
+        f"wrong IDs {tot['wrong']}, "
         f"photos located {located} / {photos}; worst cell exposure {worst[0][0]:g} chip, "
         f"{worst[0][1]:g} rows per chip: {worst[1]['decoded']} / {worst[1]['eligible']}; "
         f"{time.perf_counter() - t0:.0f} s"
     )
     print(
         f"not identifiable from their stripes (even with the true chip length, exposure and "
-        f"blur, another ID of the map fits within a margin of {MIN_MARGIN:g}; the ideal decoder "
-        f"models plain discs, so for lamps with a hot core or a halo this is an upper count): "
+        f"blur, another ID of the map fits within a margin of {MIN_MARGIN:g}, and the pose did "
+        f"not tell them apart; the ideal decoder models plain discs, so for lamps with a hot "
+        f"core or a halo this is an upper count): "
         f"{tot['ambiguous']}; decoded of the identifiable: {tot['decoded']} / {ident} "
         f"({100 * tot['decoded'] / max(ident, 1):.2f} %), worst cell exposure "
         f"{worst_id[0][0]:g} chip, {worst_id[0][1]:g} rows per chip: {worst_id[1]['decoded']} / "

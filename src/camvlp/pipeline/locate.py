@@ -28,6 +28,7 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.by_pose import told_by_pose
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
@@ -317,6 +318,34 @@ def _solve(
     return est, "" if est else est.reason
 
 
+def _with_told(
+    camera: Camera, fixture_map: FixtureMap, blobs, decodes, found, est, outlier_px, solve
+):
+    """Fixtures the stripes leave between look-alike IDs, told apart by the pose
+    (:mod:`camvlp.pipeline.by_pose`) and the pose solved again with them.  Returns ``found,
+    est, told`` (``told``: fixture index -> its candidate IDs); as given when none is told,
+    or when the pose solved again does not use every one told."""
+    if est is None or est.pose is None:
+        return found, est, {}
+    cands = [
+        getattr(d, "candidates", ()) if i is None and not b.touches_border else ()
+        for b, d, i in zip(blobs, decodes, found.ids, strict=True)
+    ]
+    taken = {found.ids[k] for k in found.usable}
+    pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
+    told = told_by_pose(camera, est.pose, fixture_map, pixels, cands, taken, outlier_px)
+    if not told:
+        return found, est, {}
+    ids = [told.get(k, i) for k, i in enumerate(found.ids)]
+    reasons = ["" if k in told else r for k, r in enumerate(found.reasons)]
+    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
+    found2 = _Identified(tuple(ids), tuple(reasons), usable)
+    est2, _ = solve(found2)
+    if not est2 or not all(est2.used[usable.index(k)] for k in told):
+        return found, est, {}
+    return found2, est2, {k: cands[k] for k in told}
+
+
 def _fixture_results(
     blobs,
     decodes,
@@ -326,6 +355,7 @@ def _fixture_results(
     frequencies: np.ndarray,
     shown,
     needed: int = 4,
+    told: dict[int, tuple[int, ...]] | None = None,
 ) -> tuple[FixtureResult, ...]:
     """Stage 6: every fixture seen, identified or not, with why it was not used."""
     results = []
@@ -357,6 +387,7 @@ def _fixture_results(
                 residual_px=residual,
                 frequency_hz=float(frequencies[k]),
                 centre_sigma_px=b.centre_sigma_px,
+                look_alikes=(told or {}).get(k, ()),
             )
         )
     return tuple(results)
@@ -576,6 +607,9 @@ def locate(
         return _solve(camera, fixture_map, blobs, f, st, outlier_px, down)
 
     man, decodes, found, est, reason = _decided(blobs, fixture_map, man, decodes, solve)
+    found, est, told = _with_told(
+        camera, fixture_map, blobs, decodes, found, est, outlier_px, solve
+    )
     if man is not None:
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
@@ -594,7 +628,7 @@ def locate(
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
         fixtures=_fixture_results(
-            blobs, decodes, found, est, extents, frequencies, shown, 4 if down is None else 2
+            blobs, decodes, found, est, extents, frequencies, shown, 4 if down is None else 2, told
         ),
         timing_ms=_timings(t0, t1, t2, t3),
         reason=reason,

@@ -120,6 +120,10 @@ class ModelDecode:
     knee : float
         The best ID's saturation knee for this fixture (fraction of its on-level; see
         :data:`FIXTURE_KNEES`), NaN when no fit.
+    candidates : tuple of int
+        When two or more IDs of the map fit almost equally (``margin`` under the least):
+        every ID of the map whose fit is within that margin of the best's, best first (the
+        stripes say the light is one of them; the pose may tell which).  Else empty.
     """
 
     id: int | None
@@ -141,6 +145,7 @@ class ModelDecode:
     noise_var: float = float("nan")
     outside_id: int | None = None
     knee: float = float("nan")
+    candidates: tuple[int, ...] = ()
 
     def __bool__(self) -> bool:
         return self.id is not None
@@ -359,12 +364,14 @@ def _decide(
             **common,
         )
     if margin < min_margin:
+        close = [int(cand_ids[k]) for k in order if lr(float(per_id[k])) < min_margin]
         return ModelDecode(
             None,
             f"IDs {best_id} and {common['runner_up']} fit almost equally "
             f"(margin {max(margin, 0.0):.1f}, at least {min_margin:g} needed)",
             margin,
             **common,
+            candidates=tuple(dict.fromkeys([best_id, *close])),
         )
     return ModelDecode(best_id, "", margin, **common)
 

@@ -51,6 +51,11 @@ class FixtureResult:
     centre_sigma_px : float
         Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
         axis; NaN when the disc was too small to fit).
+    look_alikes : tuple of int
+        When the stripes fit two or more IDs of the map almost equally and the pose told
+        them apart (:mod:`camvlp.pipeline.by_pose`): those IDs, ``id`` among them (the one
+        whose map position projects onto the fixture).  Empty when the stripes alone said
+        the ID (``margin`` is then the stripes' own).
     """
 
     id: int | None
@@ -64,6 +69,7 @@ class FixtureResult:
     residual_px: float = float("nan")
     frequency_hz: float = float("nan")
     centre_sigma_px: float = float("nan")
+    look_alikes: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
@@ -81,6 +87,7 @@ class FixtureResult:
             d[key] = v
         sigma = self.centre_sigma_px
         d["centre_sigma_px"] = None if not np.isfinite(sigma) else round(float(sigma), 4)
+        d["look_alikes"] = [int(i) for i in self.look_alikes]
         return d
 
 
