@@ -140,6 +140,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="one exposure, no readout sweep")
     parser.add_argument("--plot", type=Path, help="save the errors against periods shown (PNG)")
+    parser.add_argument("--styles", nargs="+", choices=STYLES, help="only these light styles")
+    parser.add_argument("--periods", nargs="+", type=float, help="only these periods shown")
+    parser.add_argument(
+        "--worst", type=int, default=0, help="print the N worst lights (their sweep's settings)"
+    )
     args = parser.parse_args(argv)
     exposures = (0.2,) if args.quick else EXPOSURES
     readouts = READOUTS[:1] if args.quick else READOUTS
@@ -147,8 +152,17 @@ def main(argv=None) -> None:
     by: dict[str, dict] = defaultdict(lambda: defaultdict(list))
     everything = []
     grid = itertools.product(PERIODS, STYLES, exposures, NOISES, readouts)
+    worst = []
     for seed, (periods, style, exposure, noise, readout) in enumerate(grid):
+        if (args.styles and style not in args.styles) or (
+            args.periods and not any(abs(periods - p) < 1e-9 for p in args.periods)
+        ):
+            continue  # the same seeds as in the whole sweep
         rows = _measure(periods, style, exposure, noise, readout, seed)
+        worst += [
+            (r[1], i, (periods, style, exposure, noise, readout, seed), r[3])
+            for i, r in enumerate(rows)
+        ]
         everything += rows
         by["style, periods"][f"{style:<10} {periods:4.1f}"] += rows
         by["style"][style] += rows
@@ -180,6 +194,10 @@ def main(argv=None) -> None:
         f"locate per photo of four lights: median {1e3 * np.median(_LOCATE_S):.0f} ms, "
         f"90th percentile {1e3 * np.percentile(_LOCATE_S, 90):.0f} ms"
     )
+    for err, i, where, bound in sorted(worst, key=lambda w: -np.nan_to_num(w[0], nan=1e9))[
+        : args.worst
+    ]:
+        print(f"worst: {err:6.2f} % (bound {bound:.3f} %) light {i} of {where}")
     if args.plot:
         plot(by["style"], args.plot)
         print(f"wrote {args.plot}")

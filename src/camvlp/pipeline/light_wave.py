@@ -32,6 +32,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from camvlp.pipeline.rim import refine_wave
 from camvlp.pipeline.stripes import spectral_peak
 
 __all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse", "radial_centre"]
@@ -54,6 +55,9 @@ _MAX_LOG_RATIO = float(np.log(20.0))
 #: Fewest lines with signal a square wave (five parameters) is fitted to: on fewer, some
 #: short period fits any profile.
 _MIN_LINES = 10
+#: A clipped light showing fewer stripe periods than this has its shape fitted on the pixel
+#: grid with its square wave (:func:`camvlp.pipeline.rim.refine_wave`).
+_FEW_PERIODS = 4.5
 #: Fewest stripe periods the lines with signal must span: a steady light (or one too small
 #: for a whole period) fits some long period, never the right one.
 _MIN_PERIODS = 1.0
@@ -533,6 +537,7 @@ class _Radial(NamedTuple):
     bin_px: float
     background: float
     n_lines: int
+    pixels: tuple[np.ndarray, np.ndarray, np.ndarray]  # (lines, x, level) of the unclipped
 
 
 def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radial | LightWave:
@@ -590,7 +595,7 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
     best = np.asarray(res.x, dtype=float)
-    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines)
+    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines, (ly, lx, value))
 
 
 def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
@@ -660,6 +665,28 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     if seen < _MIN_PERIODS:
         why = f"the light shows {seen:.2f} stripe periods, under one (steady, or too small)"
         return _failed(centre, why, conclusive=True)
+    if cy_.size and seen < _FEW_PERIODS:
+        (ex, ey), _, _ = ellipse
+        outline = (ey, ex) if axis == "columns" else (ex, ey)
+        fit = refine_wave(
+            fitted.pixels,
+            fitted.clipped,
+            _CLIP - fitted.background,
+            n_lines,
+            [best, np.array([*outline, 0.0])],
+            np.array([period, phase, window, low, high]),
+            lambda rho: np.interp(rho / bin_px, np.arange(shape.size), shape, right=0.0),
+            cs,
+            bin_px,
+            _integrated,
+        )
+        p, ph, win, lo, hi = (float(v) for v in fit.wave)
+        if np.isfinite(fit.cost) and p > 2.0 and hi > lo:
+            period, phase, window, low, high = p, ph % p, win, lo, hi
+            centre = np.array(fit.geometry[:2], dtype=float)
+            if axis == "columns":
+                centre = centre[::-1]
+            seen = (used[-1] - used[0] + 1) / period
     return LightWave(period, window, phase, (low, high), centre, float(seen))
 
 

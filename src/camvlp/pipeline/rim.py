@@ -1,0 +1,413 @@
+"""A light's shape as the pixel grid sees it: a radial shape sampled at the pixels' centres
+and blurred on the grid, fitted with the light's waveform.
+
+:func:`camvlp.pipeline.light_wave.light_wave` separates a light's waveform ``s(line)`` from
+its shape ``g``.  A saturated light shows its waveform only where it does not clip: in its
+dark stripes, and in the bright ones at the outer edge of its rim, where the shape falls from
+full (four times the clipping level, say) to nothing over a pixel or two.  There the fit must
+know the shape to a per cent, and a shape that is a function of the elliptical radius alone
+is not one: a disc's edge crosses each pixel differently, and its blur mixes each pixel with
+its neighbours on the square grid, so the rim's pixels depart from radial symmetry by up to
+2.6 % of the light's level (and by four times that in the bright stripes' units).
+
+So the shape here is modelled as it forms: a radial shape ``h`` (piecewise linear in the
+elliptical radius), sampled at the centres of the pixels, then blurred on the pixel grid by a
+Gaussian of ``sigma`` pixels (over the 21 pixels within sqrt(5) px):
+
+    g(p) = sum over q of K_sigma(q - p) h(rho(q)).
+
+A disc's edge is a step that the pixel's area turns into a ramp one pixel wide; the knots of
+``h``, half a pixel apart, are laid so that two of them fall on the ramp's ends (the knots'
+offset ``phi`` is fitted), so the ramp is drawn exactly.  The centre, the axis ratio, ``phi``
+and ``sigma`` are fitted with ``h`` and ``s`` by Gauss-Newton (Levenberg-Marquardt, ``s``
+eliminated per line in closed form; the geometry's derivatives by finite differences), over
+the pixels that do not clip.  A hot core, a halo or a soft edge are radial shapes too, drawn
+by ``h``; an unblurred shape is ``sigma`` near 0.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import cv2
+import numpy as np
+
+__all__ = ["GridShape", "fit_grid_shape", "grid_shape_at"]
+
+#: Half-width of the blur's kernel, pixels.
+_TAPS = 2
+#: Bounds of the fitted blur, pixels.
+_SIGMA = (0.3, 1.5)
+#: Blur to start from, pixels.
+_SIGMA0 = 0.8
+#: The knots of the radial shape begin this many bins before the offset ``phi``.
+_KNOT0 = 2.0
+#: Weight of the radial shape's second differences (its curvature) in the fit, relative to
+#: the mean diagonal of the shape's normal equations: only shapes the blur hides are damped.
+_SMOOTH = 1e-6
+#: Finite-difference steps of the geometry (x, y px; log axis ratio; phi, sigma px).
+_STEPS = np.array([0.02, 0.02, 0.002, 0.01, 0.01])
+#: Iterations from each start, and for the best one after.
+_START_ITERS = 4
+_ITERS = 12
+#: Relative decrease of the cost under which the fit stops.
+_TOL = 1e-4
+#: Largest axis ratio (natural log).
+_MAX_LOG_RATIO = float(np.log(20.0))
+
+
+class GridShape(NamedTuple):
+    """A light's shape on the pixel grid (:func:`fit_grid_shape`).
+
+    ``geometry``: centre x, y (pixels, readout coordinates: lines down axis 0), log axis
+    ratio, the knots' offset ``phi`` (pixels) and the blur ``sigma`` (pixels); ``h``: the
+    radial shape per knot (its largest magnitude 1); ``wave``: the square wave's period,
+    phase and window (lines), its low and high level (gray levels where ``h`` is 1);
+    ``cost``: the sum of the residuals squared.
+    """
+
+    geometry: np.ndarray
+    h: np.ndarray
+    wave: np.ndarray
+    cost: float
+
+
+_OFFSETS = np.arange(-_TAPS, _TAPS + 1, dtype=float)
+_DY, _DX = (v.ravel() for v in np.meshgrid(_OFFSETS, _OFFSETS, indexing="ij"))
+#: The taps kept: within sqrt(5) px of the centre (a blur of 0.8 px puts 0.4 % of its
+#: weight beyond).
+_KEEP = _DY**2 + _DX**2 <= 5.0
+_DY, _DX = _DY[_KEEP], _DX[_KEEP]
+
+
+def _kernel(sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The blur's 2-D taps (offsets ``_DY``, ``_DX``), summing to 1, and their derivative
+    in ``sigma``; each shape (T,)."""
+    e = np.exp(-0.5 * (_OFFSETS / sigma) ** 2)
+    de = e * _OFFSETS**2 / sigma**3
+    k2 = np.outer(e, e).ravel()[_KEEP]
+    dk2 = (np.outer(de, e) + np.outer(e, de)).ravel()[_KEEP]
+    total = k2.sum()
+    return k2 / total, (dk2 - k2 * (dk2.sum() / total)) / total
+
+
+def _knots_at(x, y, geometry, cs, bin_px: float, derivatives: bool = False):
+    """Knot coordinate (bins from knot 0) of points ``(x, y)``: their elliptical radius about
+    the centre ``geometry[:2]``, with the axis ratio ``exp(geometry[2])`` along ``cs`` = (cos,
+    sin), less the offset ``geometry[3]``; with ``derivatives``, also its derivatives in the
+    centre, the log ratio and the offset (a list of four arrays of the points' shape)."""
+    c, s = cs
+    dx, dy = x - geometry[0], y - geometry[1]
+    u, v = dx * c + dy * s, dy * c - dx * s
+    r = float(np.clip(geometry[2], -_MAX_LOG_RATIO, _MAX_LOG_RATIO))
+    a, b = np.exp(-0.5 * r), np.exp(0.5 * r)
+    rho = np.hypot(u * a, v * b)
+    f = (rho - geometry[3]) / bin_px + _KNOT0
+    if not derivatives:
+        return f
+    inv = 1.0 / (np.maximum(rho, 1e-9) * bin_px)
+    ua, vb = u * (a * a) * inv, v * (b * b) * inv
+    return f, [
+        -c * ua + s * vb,
+        -s * ua - c * vb,
+        0.5 * (v * vb - u * ua),
+        np.full_like(f, -1.0 / bin_px),
+    ]
+
+
+def _interp(f: np.ndarray, h: np.ndarray):
+    """``h`` (knots) linearly interpolated at knot coordinates ``f``: (value, slope per knot,
+    lower knot, fraction)."""
+    i0 = np.clip(f.astype(np.intp), 0, h.size - 2)  # f > 0: truncation is the floor
+    t = np.clip(f - i0, 0.0, 1.0)
+    lo, hi = h[i0], h[i0 + 1]
+    return lo + t * (hi - lo), hi - lo, i0, t
+
+
+def grid_shape_at(ly, lx, geometry, cs, bin_px: float, h: np.ndarray) -> np.ndarray:
+    """The shape ``g`` (N,) at pixels ``(ly, lx)`` (readout coordinates) of a fitted
+    :class:`GridShape`'s ``geometry`` and ``h``."""
+    if ly.size == 0:
+        return np.zeros(0)
+    f = _knots_at(lx[:, None] + _DX, ly[:, None] + _DY, geometry, cs, bin_px)
+    return _interp(f, h)[0] @ _kernel(float(geometry[4]))[0]
+
+
+class _Data(NamedTuple):
+    """The pixels of a fit: ``ly``, ``lx`` (N,) unclipped then clipped, ``target`` (N,) the
+    unclipped levels and the clipped ones' clipping level, ``n_free`` unclipped pixels."""
+
+    ly: np.ndarray
+    lx: np.ndarray
+    target: np.ndarray
+    n_free: int
+    n_lines: int
+
+
+class _State(NamedTuple):
+    g: np.ndarray  # shape per pixel (N,), unclipped then clipped
+    s: np.ndarray  # waveform per line (L,)
+    r: np.ndarray  # residual per pixel (0 where a clipped pixel's prediction clips)
+    cost: float
+
+
+def _wave(lines: np.ndarray, w: np.ndarray, integrated) -> np.ndarray:
+    """The waveform per line: ``low + (high - low) * integrated(lines, period, phase,
+    window)`` for ``w`` = (period, phase, window, low, high)."""
+    return w[3] + (w[4] - w[3]) * integrated(lines, w[0], w[1], w[2])
+
+
+def _state(data: _Data, geometry, cs, bin_px, h, w, integrated) -> _State:
+    """The shape and waveform of these parameters and their residuals."""
+    g = grid_shape_at(data.ly, data.lx, geometry, cs, bin_px, h)
+    s = _wave(np.arange(data.n_lines, dtype=float), w, integrated)
+    r = data.target - s[data.ly] * g
+    r[data.n_free :] = np.maximum(r[data.n_free :], 0.0)  # a clipped pixel: at least
+    return _State(g, s, r, float(r @ r))
+
+
+def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
+    """The prediction's derivatives: in ``h`` as (first knot (N,), weights on the knots from
+    it (N, M)), and in (geometry, waveform) as (N, 10)."""
+    n = data.ly.size
+    f, df = _knots_at(data.lx[:, None] + _DX, data.ly[:, None] + _DY, geometry, cs, bin_px, True)
+    k, dk = _kernel(float(geometry[4]))
+    value, slope, i0, t = _interp(f, h)
+    k0 = i0.min(axis=1)
+    rel = i0 - k0[:, None]
+    m = int(rel.max()) + 2
+    base = (np.arange(n) * m)[:, None] + rel
+    b = np.bincount(
+        np.concatenate([base.ravel(), base.ravel() + 1]),
+        np.concatenate([(k * (1.0 - t)).ravel(), (k * t).ravel()]),
+        minlength=n * m,
+    ).reshape(n, m)
+    s_p = st.s[data.ly]
+    jo = np.empty((n, 10))
+    slope *= k
+    for j in range(4):
+        jo[:, j] = np.einsum("nt,nt->n", slope, df[j])
+    jo[:, 4] = value @ dk
+    jo[:, :5] *= s_p[:, None]
+    lines = np.arange(data.n_lines, dtype=float)
+    step = 1e-3 * w[0]
+    for j in range(3):
+        wm = w.copy()
+        wm[j] += step
+        jo[:, 5 + j] = st.g * ((_wave(lines, wm, integrated) - st.s) / step)[data.ly]
+    frac = (st.s - w[3]) / (w[4] - w[3]) if w[4] != w[3] else np.zeros(data.n_lines)
+    jo[:, 8] = st.g * (1.0 - frac)[data.ly]
+    jo[:, 9] = st.g * frac[data.ly]
+    active = np.ones(n)
+    active[data.n_free :] = st.r[data.n_free :] > 0  # clipped pixels whose bound binds
+    jo *= active[:, None]
+    return k0, b * (s_p * active)[:, None], jo
+
+
+def _normal_equations(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
+    """Gauss-Newton's normal equations in (h, geometry, waveform): (matrix, right side)."""
+    n_knots = h.size
+    k0, jh, jo = _jacobian(data, geometry, cs, bin_px, h, w, integrated, st)
+    cols = np.minimum(k0[:, None] + np.arange(jh.shape[1]), n_knots - 1)
+    n = n_knots + jo.shape[1]
+    a = np.zeros((n, n))
+    pairs = (cols[:, :, None] * n_knots + cols[:, None, :]).ravel()
+    a[:n_knots, :n_knots] = np.bincount(
+        pairs, (jh[:, :, None] * jh[:, None, :]).ravel(), minlength=n_knots * n_knots
+    ).reshape(n_knots, n_knots)
+    flat = cols.ravel()
+    for i in range(jo.shape[1]):
+        a[:n_knots, n_knots + i] = np.bincount(
+            flat, (jh * jo[:, i, None]).ravel(), minlength=n_knots
+        )
+    a[n_knots:, n_knots:] = jo.T @ jo
+    a[n_knots:, :n_knots] = a[:n_knots, n_knots:].T
+    rhs = np.concatenate(
+        [np.bincount(flat, (jh * st.r[:, None]).ravel(), minlength=n_knots), jo.T @ st.r]
+    )
+    return a, rhs
+
+
+def _curvature(n: int) -> np.ndarray:
+    """The second differences' normal matrix, shape (n, n)."""
+    d = np.zeros((max(n - 2, 0), n))
+    i = np.arange(max(n - 2, 0))
+    d[i, i], d[i, i + 1], d[i, i + 2] = 1.0, -2.0, 1.0
+    return d.T @ d
+
+
+def fit_grid_shape(
+    data: _Data,
+    start: np.ndarray,
+    wave: np.ndarray,
+    cs: tuple[float, float],
+    bin_px: float,
+    h0,
+    integrated,
+    iters: int = 12,
+    fit_geometry: bool = True,
+) -> GridShape:
+    """Fit the pixels' levels with the light's shape on the pixel grid times its waveform.
+
+    Parameters
+    ----------
+    data : _Data
+        The pixels.
+    start : ndarray, shape (5,)
+        Geometry to start from: centre x, y (px), log axis ratio, knots' offset ``phi``
+        (px, 0 to ``bin_px``), blur ``sigma`` (px).
+    wave : ndarray, shape (5,)
+        The waveform to start from: period, phase, window (lines), low and high level.
+    cs : tuple of float
+        Cos and sin of the angle of the ellipse's first axis from the x axis.
+    bin_px : float
+        Spacing of the radial shape's knots, pixels.
+    h0 : callable
+        The radial shape to start from, as a function of the radius (pixels).
+    integrated : callable
+        ``integrated(lines, period, phase, window)``: the square wave integrated, 0 to 1.
+    iters : int
+        Levenberg-Marquardt iterations.
+    fit_geometry : bool
+        Whether the geometry is fitted (else only the shape and the waveform).
+
+    Returns
+    -------
+    GridShape
+    """
+    geometry = np.asarray(start, dtype=float).copy()
+    w = np.asarray(wave, dtype=float).copy()
+    ends = _OFFSETS[[0, -1]]
+    reach = _knots_at(
+        data.lx[:, None] + ends, data.ly[:, None] + ends, geometry, cs, bin_px
+    )
+    n_knots = int(np.nanmax(reach)) + 6
+    h = np.asarray(h0((np.arange(n_knots) - _KNOT0) * bin_px + geometry[3]), dtype=float)
+    st = _state(data, geometry, cs, bin_px, h, w, integrated)
+    curv = _curvature(n_knots)
+    mu = 1e-3
+    fixed = np.zeros(n_knots + 10, dtype=bool)
+    if not fit_geometry:
+        fixed[n_knots : n_knots + 5] = True
+    for _ in range(iters):
+        a, rhs = _normal_equations(data, geometry, cs, bin_px, h, w, integrated, st)
+        a[fixed, :] = 0.0
+        a[:, fixed] = 0.0
+        rhs[fixed] = 0.0
+        diag = np.diag(a).copy()
+        weight = _SMOOTH * float(np.mean(diag[:n_knots]))
+        a[:n_knots, :n_knots] += weight * curv
+        rhs[:n_knots] -= weight * (curv @ h)
+        scale = np.maximum(diag, 1e-9 * max(float(diag.max()), 1e-300))
+        before = st.cost + weight * float(h @ curv @ h)
+        for _ in range(8):
+            try:
+                step = np.linalg.solve(a + mu * np.diag(scale), rhs)
+            except np.linalg.LinAlgError:
+                mu *= 10.0
+                continue
+            hn = h + step[:n_knots]
+            gn = geometry + step[n_knots : n_knots + 5]
+            gn[4] = float(np.clip(gn[4], *_SIGMA))
+            gn[3] = float(np.clip(gn[3], -bin_px, 1.9 * bin_px))
+            wn = w + step[n_knots + 5 :]
+            wn[2] = float(np.clip(wn[2], 1.0, 0.5 * wn[0]))
+            stn = _state(data, gn, cs, bin_px, hn, wn, integrated)
+            after = stn.cost + weight * float(hn @ curv @ hn)
+            if after <= before:
+                h, geometry, w, st = hn, gn, wn, stn
+                mu = max(mu * 0.1, 1e-9)
+                break
+            mu *= 10.0
+        else:
+            break
+        if after > (1.0 - _TOL) * before:
+            break
+    top = float(np.max(np.abs(h))) or 1.0
+    w[3:] *= top
+    return GridShape(geometry, h / top, w, st.cost)
+
+
+def refine_wave(
+    free: tuple[np.ndarray, np.ndarray, np.ndarray],
+    clipped: tuple[np.ndarray, np.ndarray],
+    clip_level: float,
+    n_lines: int,
+    starts: list[np.ndarray],
+    wave: np.ndarray,
+    h0,
+    cs: tuple[float, float],
+    bin_px: float,
+    integrated,
+) -> GridShape:
+    """The light's shape on the pixel grid and its square wave, fitted to its pixels together
+    (:func:`fit_grid_shape`) from each of ``starts``; the fit with the least cost.
+
+    Parameters
+    ----------
+    free : tuple of ndarray, each shape (N,)
+        Lines, positions along them and levels above the background of the unclipped pixels
+        (readout coordinates).
+    clipped : tuple of ndarray, each shape (M,)
+        Lines and positions of the clipped pixels; those within 2 px of an unclipped one
+        enter the fit, as lower bounds.
+    clip_level : float
+        The clipping level above the background.
+    n_lines : int
+        Lines of the region.
+    starts : list of ndarray, each shape (3,)
+        Centres x, y (px) and log axis ratios to start from.
+    wave : ndarray, shape (5,)
+        The square wave to start from (period, phase, window, low, high).
+    h0 : callable
+        The radial shape to start from (levels where the wave is 1), of the radius (px).
+    cs, bin_px, integrated
+        As :func:`fit_grid_shape` takes them.
+    """
+    ly, lx, value = free
+    cy, cx = clipped
+    width = int(max(lx.max(initial=0), cx.max(initial=0))) + 1
+    mask = np.zeros((n_lines, width), np.uint8)
+    mask[ly, lx] = 1
+    near = cv2.dilate(mask, np.ones((5, 5), np.uint8)).astype(bool)[cy, cx]
+    data = _Data(
+        np.concatenate([ly, cy[near]]),
+        np.concatenate([lx, cx[near]]),
+        np.concatenate([value, np.full(int(near.sum()), float(clip_level))]),
+        ly.size,
+        n_lines,
+    )
+    # the knots' offset: the ends of a ramp one pixel wide about the shape's steepest fall
+    radii = np.arange(0.0, float(np.hypot(*np.ptp([lx, ly], axis=1))) + 1.0, 0.05)
+    edge = float(radii[np.argmin(np.gradient(h0(radii)))])
+    phi = (edge - 0.5) % bin_px
+    fits = [
+        fit_grid_shape(
+            data,
+            np.array([*start[:3], phi, _SIGMA0]),
+            wave,
+            cs,
+            bin_px,
+            h0,
+            integrated,
+            iters=_START_ITERS,
+        )
+        for start in starts
+    ]
+    best = min(fits, key=lambda t: t.cost)
+    return _continued(data, best, cs, bin_px, integrated, _ITERS)
+
+
+def _continued(data: _Data, fit: GridShape, cs, bin_px: float, integrated, iters: int):
+    """:func:`fit_grid_shape` continued from ``fit`` for ``iters`` more iterations."""
+    knots = (np.arange(fit.h.size) - _KNOT0) * bin_px + fit.geometry[3]
+    return fit_grid_shape(
+        data,
+        fit.geometry,
+        fit.wave,
+        cs,
+        bin_px,
+        lambda rho: np.interp(rho, knots, fit.h),
+        integrated,
+        iters=iters,
+    )
