@@ -55,8 +55,9 @@ _MAX_LOG_RATIO = float(np.log(20.0))
 #: Fewest lines with signal a square wave (five parameters) is fitted to: on fewer, some
 #: short period fits any profile.
 _MIN_LINES = 10
-#: A clipped light showing fewer stripe periods than this has its shape fitted on the pixel
-#: grid with its square wave (:func:`camvlp.pipeline.rim.refine_wave`).
+#: A clipped light showing fewer stripe periods than this, and small enough for its radial
+#: shape's knots to lie half a pixel apart, has its shape fitted on the pixel grid with its
+#: square wave (:func:`camvlp.pipeline.rim.refine_wave`).
 _FEW_PERIODS = 4.5
 #: Fewest stripe periods the lines with signal must span: a steady light (or one too small
 #: for a whole period) fits some long period, never the right one.
@@ -665,7 +666,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     if seen < _MIN_PERIODS:
         why = f"the light shows {seen:.2f} stripe periods, under one (steady, or too small)"
         return _failed(centre, why, conclusive=True)
-    if cy_.size and seen < _FEW_PERIODS:
+    if cy_.size and seen < _FEW_PERIODS and bin_px <= _BIN_PX:
         (ex, ey), _, _ = ellipse
         outline = (ey, ex) if axis == "columns" else (ex, ey)
         fit = refine_wave(

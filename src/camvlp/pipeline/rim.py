@@ -51,7 +51,9 @@ _STEPS = np.array([0.02, 0.02, 0.002, 0.01, 0.01])
 _START_ITERS = 4
 _ITERS = 12
 #: Relative decrease of the cost under which the fit stops.
-_TOL = 1e-4
+_TOL = 1e-3
+#: Shortest window of the square wave, lines.
+_MIN_WINDOW = 1.0
 #: Largest axis ratio (natural log).
 _MAX_LOG_RATIO = float(np.log(20.0))
 
@@ -278,9 +280,7 @@ def fit_grid_shape(
     geometry = np.asarray(start, dtype=float).copy()
     w = np.asarray(wave, dtype=float).copy()
     ends = _OFFSETS[[0, -1]]
-    reach = _knots_at(
-        data.lx[:, None] + ends, data.ly[:, None] + ends, geometry, cs, bin_px
-    )
+    reach = _knots_at(data.lx[:, None] + ends, data.ly[:, None] + ends, geometry, cs, bin_px)
     n_knots = int(np.nanmax(reach)) + 6
     h = np.asarray(h0((np.arange(n_knots) - _KNOT0) * bin_px + geometry[3]), dtype=float)
     st = _state(data, geometry, cs, bin_px, h, w, integrated)
@@ -311,7 +311,7 @@ def fit_grid_shape(
             gn[4] = float(np.clip(gn[4], *_SIGMA))
             gn[3] = float(np.clip(gn[3], -bin_px, 1.9 * bin_px))
             wn = w + step[n_knots + 5 :]
-            wn[2] = float(np.clip(wn[2], 1.0, 0.5 * wn[0]))
+            wn[2] = float(np.clip(wn[2], _MIN_WINDOW, 0.5 * wn[0]))
             stn = _state(data, gn, cs, bin_px, hn, wn, integrated)
             after = stn.cost + weight * float(hn @ curv @ hn)
             if after <= before:
