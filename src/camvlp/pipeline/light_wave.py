@@ -17,10 +17,9 @@ says that ``s`` reached at least the level that clips it there.
 :func:`fit_square_wave` then fits the physics of ``s``: a 50 % square wave of period ``P``
 lines, integrated over a window of ``e`` lines (the exposure, plus the LED's slow edges), with
 a low and a high level, by least squares; each clipped line enters as a lower bound.  The
-period comes from every edge of every stripe, rising and falling.  On
-``benchmarks/bench_frequency.py``'s lights showing 1.5 periods, the median error is 0.1 to
-0.7 %; what is left is mostly physics: an edge sharper than a line is known only to about
-half a line, and a clipped light shows its waveform only at its rim and in its dark stripes.
+period comes from every edge of every stripe, rising and falling.  A small clipped light
+showing few periods, whose waveform shows in its bright stripes only at its rim, has its
+shape then fitted on the pixel grid with its square wave (:mod:`camvlp.pipeline.rim`).
 """
 
 from __future__ import annotations

@@ -1,28 +1,33 @@
-"""A light's shape as the pixel grid sees it: a radial shape sampled at the pixels' centres
-and blurred on the grid, fitted with the light's waveform.
+"""A light's shape as the pixel grid sees it, fitted with its square wave to its pixels.
 
 :func:`camvlp.pipeline.light_wave.light_wave` separates a light's waveform ``s(line)`` from
 its shape ``g``.  A saturated light shows its waveform only where it does not clip: in its
 dark stripes, and in the bright ones at the outer edge of its rim, where the shape falls from
 full (four times the clipping level, say) to nothing over a pixel or two.  There the fit must
-know the shape to a per cent, and a shape that is a function of the elliptical radius alone
-is not one: a disc's edge crosses each pixel differently, and its blur mixes each pixel with
-its neighbours on the square grid, so the rim's pixels depart from radial symmetry by up to
-2.6 % of the light's level (and by four times that in the bright stripes' units).
+know the shape to a per cent, and a function of the elliptical radius alone is not one: a
+disc's edge crosses each pixel differently and the blur mixes each pixel with its neighbours
+on the square grid, so pixels at one radius differ by 2 % of the light's level and more.
 
-So the shape here is modelled as it forms: a radial shape ``h`` (piecewise linear in the
-elliptical radius), sampled at the centres of the pixels, then blurred on the pixel grid by a
-Gaussian of ``sigma`` pixels (over the 21 pixels within sqrt(5) px):
+Here the shape is modelled as it forms: a radial shape ``h`` (piecewise linear in the
+elliptical radius, knots half a pixel apart), sampled at the centres of the pixels, then
+blurred on the pixel grid by a Gaussian of ``sigma`` pixels (the 21 pixels within sqrt(5) px):
 
     g(p) = sum over q of K_sigma(q - p) h(rho(q)).
 
-A disc's edge is a step that the pixel's area turns into a ramp one pixel wide; the knots of
-``h``, half a pixel apart, are laid so that two of them fall on the ramp's ends (the knots'
-offset ``phi`` is fitted), so the ramp is drawn exactly.  The centre, the axis ratio, ``phi``
-and ``sigma`` are fitted with ``h`` and ``s`` by Gauss-Newton (Levenberg-Marquardt, ``s``
-eliminated per line in closed form; the geometry's derivatives by finite differences), over
-the pixels that do not clip.  A hot core, a halo or a soft edge are radial shapes too, drawn
-by ``h``; an unblurred shape is ``sigma`` near 0.
+A disc's edge is a step that a pixel's area turns into a ramp one pixel wide; the knots are
+offset by ``phi`` so that two of them fall on the ramp's ends, and the ramp is drawn exactly.
+A hot core, a halo or a soft edge are radial shapes too, drawn by ``h``.
+
+The pixels are then fitted with the light's physics as a whole, ``g(p) * S(line)``, ``S`` the
+50 % square wave integrated over its window (``low + (high - low) * integrated``, as
+:func:`~camvlp.pipeline.light_wave.fit_square_wave` fits it), each clipped pixel next to an
+unclipped one a lower bound: ``h``, the centre, the axis ratio, ``phi``, ``sigma`` and the
+wave's period, phase, window and levels together, by Levenberg-Marquardt (analytic
+derivatives but for the wave's three timing parameters).  A wave free per line, as
+:func:`~camvlp.pipeline.light_wave.light_wave` fits it, trades a bright line's level against
+the light's outline along the readout; the square wave's one high level for every bright
+line does not.  The fit starts from the radial fit's centre and from the outline's (round),
+and keeps the better.
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-__all__ = ["GridShape", "fit_grid_shape", "grid_shape_at"]
+__all__ = ["GridShape", "grid_shape_at", "refine_wave"]
 
 #: Half-width of the blur's kernel, pixels.
 _TAPS = 2
@@ -45,8 +50,6 @@ _KNOT0 = 2.0
 #: Weight of the radial shape's second differences (its curvature) in the fit, relative to
 #: the mean diagonal of the shape's normal equations: only shapes the blur hides are damped.
 _SMOOTH = 1e-6
-#: Finite-difference steps of the geometry (x, y px; log axis ratio; phi, sigma px).
-_STEPS = np.array([0.02, 0.02, 0.002, 0.01, 0.01])
 #: Iterations from each start, and for the best one after.
 _START_ITERS = 4
 _ITERS = 12
@@ -59,7 +62,7 @@ _MAX_LOG_RATIO = float(np.log(20.0))
 
 
 class GridShape(NamedTuple):
-    """A light's shape on the pixel grid (:func:`fit_grid_shape`).
+    """A light's shape on the pixel grid (:func:`_fit_grid_shape`).
 
     ``geometry``: centre x, y (pixels, readout coordinates: lines down axis 0), log axis
     ratio, the knots' offset ``phi`` (pixels) and the blur ``sigma`` (pixels); ``h``: the
@@ -238,7 +241,7 @@ def _curvature(n: int) -> np.ndarray:
     return d.T @ d
 
 
-def fit_grid_shape(
+def _fit_grid_shape(
     data: _Data,
     start: np.ndarray,
     wave: np.ndarray,
@@ -341,7 +344,7 @@ def refine_wave(
     integrated,
 ) -> GridShape:
     """The light's shape on the pixel grid and its square wave, fitted to its pixels together
-    (:func:`fit_grid_shape`) from each of ``starts``; the fit with the least cost.
+    (:func:`_fit_grid_shape`) from each of ``starts``; the fit with the least cost.
 
     Parameters
     ----------
@@ -362,7 +365,7 @@ def refine_wave(
     h0 : callable
         The radial shape to start from (levels where the wave is 1), of the radius (px).
     cs, bin_px, integrated
-        As :func:`fit_grid_shape` takes them.
+        As :func:`_fit_grid_shape` takes them.
     """
     ly, lx, value = free
     cy, cx = clipped
@@ -382,7 +385,7 @@ def refine_wave(
     edge = float(radii[np.argmin(np.gradient(h0(radii)))])
     phi = (edge - 0.5) % bin_px
     fits = [
-        fit_grid_shape(
+        _fit_grid_shape(
             data,
             np.array([*start[:3], phi, _SIGMA0]),
             wave,
@@ -399,9 +402,9 @@ def refine_wave(
 
 
 def _continued(data: _Data, fit: GridShape, cs, bin_px: float, integrated, iters: int):
-    """:func:`fit_grid_shape` continued from ``fit`` for ``iters`` more iterations."""
+    """:func:`_fit_grid_shape` continued from ``fit`` for ``iters`` more iterations."""
     knots = (np.arange(fit.h.size) - _KNOT0) * bin_px + fit.geometry[3]
-    return fit_grid_shape(
+    return _fit_grid_shape(
         data,
         fit.geometry,
         fit.wave,
