@@ -71,9 +71,13 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     x = cx + _RADII * (a * ct * _COS - b * st * _SIN)  # (n, radii, angles)
     y = cy + _RADII * (a * st * _COS + b * ct * _SIN)
     ok = (x > -0.5) & (x < w - 0.5) & (y > -0.5) & (y < h - 0.5)
-    xi = np.clip(np.rint(x), 0, w - 1).astype(np.intp)
-    yi = np.clip(np.rint(y), 0, h - 1).astype(np.intp)
-    px = img[yi, xi].astype(np.float64)
+    xi = np.minimum(np.maximum(np.rint(x), 0), w - 1).astype(np.intp)  # np.clip's values
+    yi = np.minimum(np.maximum(np.rint(y), 0), h - 1).astype(np.intp)
+    if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
+        px = np.take(img.reshape(h * w, -1), yi * w + xi, axis=0).reshape(*yi.shape, -1)
+        px = (px[..., 0] if img.ndim == 2 else px).astype(np.float64)
+    else:
+        px = img[yi, xi].astype(np.float64)
     if px.ndim == 4:  # BGR(A): OpenCV's luma weights
         px = px[..., :3] @ _LUMA
     px = np.where(ok, px, np.nan)

@@ -123,11 +123,20 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     return [(middle[a:b], level[a:b]) for a, b in pieces(cut, middle.size)]
 
 
+def _nonzero(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.nonzero`` of a uint8 mask (h, w), in the same (row-major) order, by OpenCV."""
+    xy = cv2.findNonZero(np.ascontiguousarray(mask))
+    if xy is None:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    xy = xy.reshape(-1, 2)
+    return xy[:, 1], xy[:, 0]
+
+
 def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     """Each mask's pixels on every ``step``-th row and column: rows, columns, and radii in
     its outline ellipse's units (centre, full axes and angle in degrees as OpenCV gives
     them); worked for all the masks at once."""
-    found = [np.nonzero(m[::st, ::st]) for m, st in zip(masks, steps, strict=True)]
+    found = [_nonzero(m[::st, ::st]) for m, st in zip(masks, steps, strict=True)]
     sizes = np.array([ys.size for ys, _ in found], dtype=np.intp)
     of = np.repeat(np.arange(sizes.size), sizes)
     step = np.repeat(np.array(steps, dtype=np.intp), sizes)
