@@ -20,6 +20,7 @@ from camvlp.pipeline.decode import (
     row_profile,
     shape_profile,
 )
+from camvlp.pipeline.profile import _nonzero
 
 FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
 SUB = 20  # time samples per row
@@ -263,6 +264,19 @@ def test_shape_profile_of_a_plain_disc_is_its_row_mean():
     shaped, _ = shape_profile(img, mask, "rows", centre, axes, 0.0)
     plain, _ = row_profile(img, mask, "rows")
     assert np.abs(shaped - plain).max() < 0.03 * plain.max()
+
+
+def test_mask_pixels_found_as_numpy_finds_them():
+    # the flat test's pixels by OpenCV: NumPy's rows and columns, in its order, of any mask
+    # (every k-th row and column of one too), and none of an empty one
+    rng = np.random.default_rng(8)
+    for h, w, step in ((37, 61, 1), (64, 23, 3), (5, 90, 2)):
+        mask = (rng.uniform(size=(h, w)) < 0.3).astype(np.uint8)[::step, ::step]
+        ys, xs = _nonzero(mask)
+        np.testing.assert_array_equal(ys, np.nonzero(mask)[0])
+        np.testing.assert_array_equal(xs, np.nonzero(mask)[1])
+    ys, xs = _nonzero(np.zeros((9, 7), np.uint8))
+    assert ys.size == xs.size == 0
 
 
 def test_profiles_decoded_together_as_one_by_one():

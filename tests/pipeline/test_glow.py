@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+
+import cv2
 import numpy as np
 import pytest
 from camvlp.locate import locate
@@ -9,7 +12,7 @@ from camvlp.locate import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import GLOW_LEVEL, centred_on_glow, glow_level
+from camvlp.pipeline.glow import GLOW_LEVEL, centred_on_glow, glow_level, glow_levels
 from camvlp.sim.render import RenderSettings, render
 
 CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
@@ -44,6 +47,31 @@ def test_a_glow_is_seen(halo):
     blobs = detect_fixtures(photo.image).blobs
     assert len(blobs) == 4
     assert all(glow_level(photo.image, b) > 1.5 * GLOW_LEVEL for b in blobs)
+
+
+def test_glow_levels_the_same_from_any_layout_of_the_photo():
+    # samples are gathered by one flat index from a contiguous photo, by (row, column) pairs
+    # from a view: the same pixels either way, also where the samples leave the photo
+    photo, _ = _photo(2, halo=0.2)
+    img = photo.image
+    blobs = detect_fixtures(img).blobs
+    h, w = img.shape[:2]
+    moved = [
+        dataclasses.replace(blobs[0], pixel=np.array([x, y]))
+        for x, y in ((3.0, 5.0), (w - 2.0, h - 9.0))
+    ]
+    blobs = [*blobs, *moved]
+    levels = glow_levels(img, blobs)
+    padded = np.zeros((h, w + 5, 3), np.uint8)
+    padded[:, :w] = img
+    view = padded[:, :w]  # not contiguous
+    assert not view.flags.c_contiguous
+    np.testing.assert_array_equal(glow_levels(view, blobs), levels)
+    assert np.all(np.isfinite(levels[:4]))
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    wide = np.zeros((h, w + 5), np.uint8)
+    wide[:, :w] = gray
+    np.testing.assert_array_equal(glow_levels(wide[:, :w], blobs), glow_levels(gray, blobs))
 
 
 def _centre_errors(photo, blobs) -> np.ndarray:
