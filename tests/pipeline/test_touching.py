@@ -88,3 +88,15 @@ def test_lamps_whose_glows_join_are_each_found_and_decoded():
                 assert f.id in truth and np.linalg.norm(f.pixel - truth[f.id]) < 1.0
                 decoded += 1
     assert decoded >= 11
+
+
+def test_the_box_edge_counts_as_outside_a_region_that_fills_it():
+    # the lower part of a disc cut by a dark stripe (as a decimated photo shows it), filling
+    # its bounding box: its inscribed circle is about 7 px, centred about 6 rows down; a
+    # distance transform blind beyond the box put a deeper peak on its top edge
+    yy, xx = np.mgrid[0:13, 0:28]
+    region = (((xx - 13.5) / 14.0) ** 2 + ((yy + 4.0) / 17.0) ** 2 <= 1.0).astype(np.uint8)
+    seeds = light_seeds(region, 3.0, region, "rows")
+    assert len(seeds) == 1
+    x, y, r = seeds[0]
+    assert 6.0 <= r <= 7.5 and 4 <= y <= 8 and abs(x - 13.5) <= 2

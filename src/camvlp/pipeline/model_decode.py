@@ -356,13 +356,8 @@ def _decide(
                 **common,
             )
     if unexplained > MAX_UNEXPLAINED:
-        return ModelDecode(
-            None,
-            f"the stripes fit no ID's model ({100 * unexplained:.0f} % of their variance "
-            "unexplained)",
-            margin,
-            **common,
-        )
+        why = f"the stripes fit no ID's model ({100 * unexplained:.0f} % of their variance "
+        return ModelDecode(None, why + "unexplained)", margin, **common)
     if margin < min_margin:
         close = [int(cand_ids[k]) for k in order if lr(float(per_id[k])) < min_margin]
         return ModelDecode(

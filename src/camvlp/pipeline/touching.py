@@ -36,6 +36,14 @@ def not_convex(contour: np.ndarray, area: float) -> bool:
     return area < SOLIDITY * cv2.contourArea(cv2.convexHull(contour))
 
 
+def _distances(mask: np.ndarray) -> np.ndarray:
+    """Each pixel's distance (pixels) to the nearest pixel outside ``mask`` (uint8, nonzero
+    inside), the box around it counted as outside: OpenCV's distance transform sees nothing
+    beyond the image's edge, where a region that fills its box would look deep."""
+    padded = cv2.copyMakeBorder(mask, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    return cv2.distanceTransform(padded, cv2.DIST_L2, 5)[1:-1, 1:-1]
+
+
 def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     """The least distance-transform value on the segment between two peaks ``[x, y, r]``,
     sampled at every pixel along it."""
@@ -87,7 +95,7 @@ def light_seeds(
         ``[x, y, r]`` of each light: its peak (pixels of ``region``) and radius (pixels),
         largest first; one row at least when the region has a peak of ``min_radius``.
     """
-    dist = cv2.distanceTransform((region > 0).astype(np.uint8), cv2.DIST_L2, 5)
+    dist = _distances((region > 0).astype(np.uint8))
     peak = (dist >= cv2.dilate(dist, np.ones((3, 3), np.uint8))) & (dist >= min_radius)
     ys, xs = np.nonzero(peak)
     order = np.argsort(-dist[ys, xs], kind="stable")
@@ -98,11 +106,7 @@ def light_seeds(
         cands = np.concatenate([cands[:1], rest[far]])
     # the outline's distance transform only when two peaks are left, the axis only when
     # two peaks lie apart along it
-    wide = (
-        None
-        if outline is None or len(cands) < 2
-        else cv2.distanceTransform(outline, cv2.DIST_L2, 5)
-    )
+    wide = None if outline is None or len(cands) < 2 else _distances(outline)
     readout = functools.cache(axis) if callable(axis) else lambda: axis
 
     def necked(d: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
