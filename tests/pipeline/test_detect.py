@@ -303,18 +303,3 @@ def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
         np.testing.assert_array_equal(full, whole)
         cropped += (x, y) != (0, 0)
     assert cropped > 100
-
-
-@pytest.mark.parametrize("angle_deg", [20.0, 65.0, 110.0, 155.0])
-def test_the_angle_is_the_major_axis(angle_deg):
-    # a striped ellipse of 160 x 100 px: axes_px is major first, angle_deg must be its own
-    img = np.full((300, 300), 10, np.uint8)
-    ellipse = np.zeros_like(img)
-    cv2.ellipse(ellipse, (150, 150), (80, 50), angle_deg, 0, 360, 255, -1)
-    stripes = (np.arange(300) // 6 % 2 == 0)[:, None]
-    img[(ellipse > 0) & stripes] = 230
-    (blob,) = detect_fixtures(img).blobs
-    assert blob.axes_px[0] == pytest.approx(160, abs=4)
-    assert blob.axes_px[1] == pytest.approx(100, abs=4)
-    turn = (blob.angle_deg - angle_deg + 90.0) % 180.0 - 90.0
-    assert abs(turn) < 3.0

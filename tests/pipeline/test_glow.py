@@ -106,3 +106,19 @@ def test_locate_centres_glowing_lights():
     errors = _centre_errors(photo, res.fixtures)
     assert np.median(errors) < 0.25
     assert np.linalg.norm(res.position - pose.position) < 2e-3  # 16 mm centred on outlines
+
+
+def test_an_outline_that_misses_the_disc_somewhere_is_no_glow():
+    # a plain disc of radius 50 px whose outline came out 16 % short across one axis: the
+    # ring's inner samples there fall on the disc (8 of its 96), which is not a glow
+    img = np.full((300, 300), 10, np.uint8)
+    cv2.circle(img, (150, 150), 50, 230, -1)
+    (blob,) = detect_fixtures(img).blobs
+    assert glow_level(img, blob) < GLOW_LEVEL
+    short = dataclasses.replace(blob, axes_px=np.array([100.0, 84.0]), angle_deg=30.0)
+    assert glow_level(img, short) < GLOW_LEVEL
+    # a glow lifts the whole ring: still seen
+    yy, xx = np.mgrid[0:300, 0:300]
+    rho = np.hypot(xx - 150, yy - 150)
+    glowing = np.where(rho <= 50, 230, 10 + 40 * np.exp(-(rho - 50) / 15)).astype(np.uint8)
+    assert glow_level(glowing, short) > 2 * GLOW_LEVEL

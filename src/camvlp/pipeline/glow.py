@@ -44,9 +44,10 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
 
     The photo is sampled along 32 directions from each outline ellipse's centre: within it
     (0.3 to 0.7 of its radii), in the ring just beyond it (1.15 to 1.35 radii) and further
-    out (1.7 and 1.9 radii: the background, their median).  The ring's mean above the
-    background, over the inside's, is about 0 for a plain disc, blurred or not (its blur ends
-    within the ring's inner edge), and a few per cent or more for a glow.
+    out (1.7 and 1.9 radii: the background, their median).  The ring's mean (its brightest
+    tenth left out) above the background, over the inside's, is about 0 for a plain disc,
+    blurred or not (its blur ends within the ring's inner edge), and a few per cent or more
+    for a glow.
 
     Parameters
     ----------
@@ -83,7 +84,11 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     px = np.where(ok, px, np.nan)
     n_in, n_ring, n_out = (ok[:, k].sum(axis=(1, 2)) for k in (_IN, _RING, _OUT))
     inside = np.nansum(px[:, _IN], axis=(1, 2)) / np.maximum(n_in, 1)
-    ring = np.nansum(px[:, _RING], axis=(1, 2)) / np.maximum(n_ring, 1)
+    # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
+    # outline that misses the disc somewhere puts a few ring samples on the disc itself
+    ranked = np.sort(px[:, _RING].reshape(len(blobs), -1), axis=1)  # NaNs last
+    kept = np.arange(ranked.shape[1]) < (n_ring - n_ring // 10)[:, None]
+    ring = np.where(kept, ranked, 0.0).sum(axis=1) / np.maximum(kept.sum(axis=1), 1)
     out = np.sort(px[:, _OUT].reshape(len(blobs), -1), axis=1)  # NaNs last
     background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]
     level = (ring - background) / np.maximum(inside - background, 1.0)

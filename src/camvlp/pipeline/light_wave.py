@@ -573,13 +573,13 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
             _aggregate(_radius(uv[:, ::step], p, cs), y, v, n_lines, bin_px), g0, iters
         )
 
-    # starts: the outline's centre and the support's, round (a glow's bright rows stretch the
-    # outline: a stretched start can stay in a local minimum; the search finds the ratio)
+    # starts: the given outline and the support's, each round and with the given axis ratio
+    ratio = np.clip(np.log(max(aw, 1e-6) / max(ah, 1e-6)), -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
     centres = [(cx, cy)]
     other = outline_ellipse(m, "rows")  # m is in readout coordinates already
     if other is not None:
         centres.append(other[0])
-    starts = [np.array([x, y, 0.0]) for x, y in centres]
+    starts = [np.array([x, y, r]) for x, y in centres for r in (0.0, ratio)]
     start = min(starts, key=lambda p: fit(p, None, 6, every)[0])
     warm = fit(start, None, 8)[3]
 
@@ -587,18 +587,14 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
-    best = start
-    # coarse to fine: on every ``every``-th pixel, then on all of them from there (the
-    # sampled pixels' minimum can lie a pixel or two off a stretched glow's)
-    for step, size, fev in ((every, 1.0, 80), (1, 0.3, 40))[: 1 + (every > 1)]:
-        simplex = best + np.vstack([np.zeros(3), np.diag([size, size, 0.1 * size])])
-        best = minimize(
-            lambda p, step=step: fit(p, warm, 2, step)[0] / unit,
-            best,
-            method="Nelder-Mead",
-            options={"xatol": 0.03, "fatol": 1e-5, "maxfev": fev, "initial_simplex": simplex},
-        ).x
-    best = np.asarray(best, dtype=float)
+    simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
+    res = minimize(
+        lambda p: fit(p, warm, 2, every)[0] / unit,
+        start,
+        method="Nelder-Mead",
+        options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
+    )
+    best = np.asarray(res.x, dtype=float)
     return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines, (ly, lx, value))
 
 

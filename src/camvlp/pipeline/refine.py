@@ -48,8 +48,7 @@ class Blob:
     axes_px : ndarray, shape (2,)
         Full lengths of the fitted ellipse's axes, pixels (major first).
     angle_deg : float
-        Orientation of the fitted ellipse's major axis (the first of ``axes_px``), degrees,
-        as OpenCV gives angles (from the image's x axis towards its y axis).
+        Orientation of the fitted ellipse (OpenCV's convention), degrees.
     touches_border : bool
         The disc is cut by the image border (its centre would be biased).
     axis : str
@@ -591,9 +590,8 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
         pixel=np.array([x0 + cx, y0 + cy]),
         box=r.box,
         mask=r.mask,
-        # major axis first, the angle its own (OpenCV's is the first axis' it returns)
-        axes_px=np.array([max(a, b), min(a, b)], dtype=float),
-        angle_deg=float(angle) if a >= b else (float(angle) + 90.0) % 180.0,
+        axes_px=np.array(sorted((float(a), float(b)), reverse=True)),
+        angle_deg=float(angle),
         touches_border=r.touches,
         axis=r.axis,
         stripe_contrast=float(r.contrast),
