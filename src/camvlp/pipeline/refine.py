@@ -48,7 +48,10 @@ class Blob:
     axes_px : ndarray, shape (2,)
         Full lengths of the fitted ellipse's axes, pixels (major first).
     angle_deg : float
-        Orientation of the fitted ellipse (OpenCV's convention), degrees.
+        Orientation of the fitted ellipse as :func:`cv2.fitEllipse` gives it, degrees: of the
+        first axis it returns, which may be the minor one (``axes_px`` is sorted).  The
+        consumers of the pair (the glow check, the row profiles' rings, the radial fit's
+        starts) were measured with it as it is.
     touches_border : bool
         The disc is cut by the image border (its centre would be biased).
     axis : str
