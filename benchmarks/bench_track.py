@@ -21,7 +21,8 @@ where a phone records 1080p at 10 to 20).  Then for each video it prints:
 
 Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``;
 ``--halo 0.4 --brightness 1`` renders (and tracks) the lamps glowing, as
-``camvlp render-video --halo --brightness`` does; ``--videos robot`` takes one of the two.
+``camvlp render-video --halo --brightness`` does; ``--seed`` the renderer's seed (1);
+``--videos robot`` takes one of the two.
 """
 
 from __future__ import annotations
@@ -52,10 +53,13 @@ EX = ROOT / "examples"
 VIDEOS = {"robot": "thesis_room.yaml", "walk": "corridor_room.yaml"}
 
 
-def _video(name: str, cache: Path, crf: int, halo: float = 0.0, brightness: float = 4.0) -> Path:
-    look = RenderSettings(seed=1, halo=halo, brightness=brightness)
+def _video(
+    name: str, cache: Path, crf: int, halo: float = 0.0, brightness: float = 4.0, seed: int = 1
+) -> Path:
+    look = RenderSettings(seed=seed, halo=halo, brightness=brightness)
     stem = name + (f"_halo{halo:g}" if halo else "")
     stem += f"_bright{brightness:g}" if brightness != RenderSettings.brightness else ""
+    stem += f"_seed{seed}" if seed != 1 else ""
     path = cache / f"{stem}.mp4"
     if not path.exists() or not (cache / f"{stem}_truth.csv").exists():
         cache.mkdir(parents=True, exist_ok=True)
@@ -180,6 +184,9 @@ def main() -> None:
         default=RenderSettings.brightness,
         help="The lamps' brightness, in full scales (`camvlp render-video --brightness`).",
     )
+    ap.add_argument(
+        "--seed", type=int, default=1, help="The renderer's seed (noise, phases, lamps' looks)."
+    )
     ap.add_argument("--videos", nargs="+", choices=sorted(VIDEOS), default=list(VIDEOS))
     args = ap.parse_args()
     cv2.setNumThreads(1)
@@ -187,7 +194,7 @@ def main() -> None:
     results = {}
     for name in args.videos:
         room_file = VIDEOS[name]
-        video = _video(name, args.cache, args.crf, args.halo, args.brightness)
+        video = _video(name, args.cache, args.crf, args.halo, args.brightness, args.seed)
         room = camvlp.load_map(EX / room_file)
         rs = _track(video, room, camera, args.cache / f"track_{video.stem}", True)
         plain = _track(video, room, camera, args.cache / f"track_{video.stem}_no_rs", False)

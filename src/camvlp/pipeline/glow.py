@@ -6,7 +6,7 @@ clip there too), in the dark ones not at all, so an ellipse fitted to the outlin
 about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on 1080p renders, where a
 plain disc's is 0.02 px.  The light's shape, glow included, is radially symmetric about its
 centre, so a glowing light is centred on its radial shape instead
-(:func:`camvlp.pipeline.light_wave.radial_centre`, which separates the shape from the stripes
+(:func:`camvlp.pipeline.radial.radial_centre`, which separates the shape from the stripes
 over the light's whole striped area; the square wave is not fitted).  That costs 40 to 60 ms
 per glowing light on 1080p video frames (median, one core; discs of 85 px, halo 0.4); a light
 without a glow (its ring beyond the outline at the background) is left as detected, at the
@@ -22,7 +22,7 @@ import dataclasses
 import numpy as np
 
 from camvlp.pipeline.detect import Blob, light_support, to_gray
-from camvlp.pipeline.light_wave import radial_centre
+from camvlp.pipeline.radial import radial_centre
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 

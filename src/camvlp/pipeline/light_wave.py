@@ -34,7 +34,7 @@ import numpy as np
 from camvlp.pipeline.rim import refine_wave
 from camvlp.pipeline.stripes import spectral_peak
 
-__all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse", "radial_centre"]
+__all__ = ["LightWave", "fit_square_wave", "light_wave", "outline_ellipse"]
 
 #: Width of the bins of the light's radial shape ``g``: at least half a pixel, at most
 #: 1/40 of its radius (a big light needs no finer shape).
@@ -538,11 +538,14 @@ class _Radial(NamedTuple):
     background: float
     n_lines: int
     pixels: tuple[np.ndarray, np.ndarray, np.ndarray]  # (lines, x, level) of the unclipped
+    start: np.ndarray  # the start the centre was fitted from (as ``best``)
 
 
-def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radial | LightWave:
+def _radial(
+    gray: np.ndarray, support: np.ndarray, ellipse, axis: str, refine: bool = True
+) -> _Radial | LightWave:
     """The light's radial shape and its centre fitted (see :func:`light_wave`), or a failed
-    :class:`LightWave`."""
+    :class:`LightWave`; without ``refine``, ``best`` is the start (the centre not fitted)."""
     nan = float("nan")
     g = np.asarray(gray, dtype=np.float64)
     m = np.asarray(support, dtype=bool)
@@ -566,6 +569,7 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
     every = max(1, ly.size // _GEOMETRY_PIXELS)  # the geometry needs a few thousand pixels
 
     uv = _axes(lx, ly, cs)
+    pixels = (ly, lx, value)
 
     def fit(p: np.ndarray, g0, iters: int, step: int = 1):
         y, v = ly[::step], value[::step]
@@ -583,6 +587,8 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
     start = min(starts, key=lambda p: fit(p, None, 6, every)[0])
     warm = fit(start, None, 8)[3]
 
+    if not refine:
+        return _Radial(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels, start)
     unit = max(fit(start, warm, 2, every)[0], 1e-12)  # costs relative to the start's
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
@@ -595,26 +601,7 @@ def _radial(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> _Radia
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
     best = np.asarray(res.x, dtype=float)
-    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines, (ly, lx, value))
-
-
-def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
-    """The centre of a round light's radial shape (core, disc and glow), separated from its
-    stripes: :func:`light_wave`'s ``centre`` without the square wave's fit (half its time).
-
-    Parameters are :func:`light_wave`'s.
-
-    Returns
-    -------
-    ndarray, shape (2,)
-        Centre ``[x, y]`` in the region, pixels; NaN when the region has too few pixels with
-        signal.
-    """
-    fitted = _radial(gray, support, ellipse, axis)
-    if isinstance(fitted, LightWave):
-        return fitted.centre
-    centre = np.array(fitted.best[:2], dtype=float)
-    return centre[::-1] if axis == "columns" else centre
+    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines, pixels, start)
 
 
 def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
