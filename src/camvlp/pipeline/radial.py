@@ -41,6 +41,9 @@ __all__ = ["radial_centre"]
 _BIN_PX = 0.5
 #: Pixels the centre is fitted on: those that say the most about it.
 _PIXELS = 4000
+#: Radii of the picked pixels the shape reaches below the least of them at the start, pixels:
+#: more than the centre moves while it is fitted (nearer ones fall in the first bin).
+_MARGIN_PX = 4.0
 #: Steps of the shape's fit at the start, and at each trial centre.
 _WARM_ITERS, _ITERS = 8, 12
 
@@ -74,26 +77,32 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
     cs, n_lines = fitted.cs, fitted.n_lines
     uv = _axes(lx, ly, cs)
 
-    def fit(p: np.ndarray, g0, iters: int, pick=slice(None)):
-        rho = _radius(uv[:, pick], p, cs)
-        return _shape_fit(_aggregate(rho, ly[pick], value[pick], n_lines, _BIN_PX), g0, iters)
+    def fit(p: np.ndarray, g0, iters: int, pick=slice(None), lines=ly, n=n_lines, r0=0.0):
+        rho = np.maximum(_radius(uv[:, pick], p, cs) - r0, 0.0)
+        return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
     start = np.asarray(fitted.start, dtype=float)
     _, s, _, g = fit(start, None, _WARM_ITERS)
-    pick = slice(None)
+    pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
         slope = np.gradient(g)  # per bin; the scale does not matter
-        f = _radius(uv, start, cs) / _BIN_PX
-        info = np.square(s[ly] * np.interp(f, np.arange(g.size), slope, right=0.0))
+        rho = _radius(uv, start, cs)
+        info = np.square(s[ly] * np.interp(rho / _BIN_PX, np.arange(g.size), slope, right=0.0))
         pick = np.argpartition(info, ly.size - _PIXELS)[ly.size - _PIXELS :]
-    warm = fit(start, None, _WARM_ITERS, pick)[3]
-    unit = max(fit(start, warm, _ITERS, pick)[0], 1e-12)
+        # the shape over the picked pixels' radii and lines only (a big light's bins and
+        # lines would cost the most): from _MARGIN_PX within their least radius
+        r0 = _BIN_PX * np.floor(max(float(rho[pick].min()) - _MARGIN_PX, 0.0) / _BIN_PX)
+        used, lines = np.unique(ly[pick], return_inverse=True)
+        n = used.size
+    part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
+    warm = fit(start, None, _WARM_ITERS, **part)[3]
+    unit = max(fit(start, warm, _ITERS, **part)[0], 1e-12)
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
     simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
     res = minimize(
-        lambda p: fit(p, warm, _ITERS, pick)[0] / unit,
+        lambda p: fit(p, warm, _ITERS, **part)[0] / unit,
         start,
         method="Nelder-Mead",
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
