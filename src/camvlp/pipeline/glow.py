@@ -7,8 +7,9 @@ about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on 1080p rend
 plain disc's is 0.02 px.  The light's shape, glow included, is radially symmetric about its
 centre, so a glowing light is centred on its radial shape instead
 (:func:`camvlp.pipeline.radial.radial_centre`, which separates the shape from the stripes
-over the light's whole striped area; the square wave is not fitted).  That costs 40 to 60 ms
-per glowing light on 1080p video frames (median, one core; discs of 85 px, halo 0.4); a light
+over the light's whole striped area, on the pixels that tell the centre; the square wave is
+not fitted).  That costs 85 to 125 ms per glowing light on 1080p renders (one core; discs
+of 105 px, halo 0.4); a light
 without a glow (its ring beyond the outline at the background) is left as detected, at the
 cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
 centres every light of a photo; :class:`camvlp.pipeline.track.Tracker` tells each fixture's
