@@ -538,7 +538,6 @@ class _Radial(NamedTuple):
     background: float
     n_lines: int
     pixels: tuple[np.ndarray, np.ndarray, np.ndarray]  # (lines, x, level) of the unclipped
-    start: np.ndarray  # the start the centre was fitted from (as ``best``)
 
 
 def _radial(
@@ -587,21 +586,26 @@ def _radial(
     start = min(starts, key=lambda p: fit(p, None, 6, every)[0])
     warm = fit(start, None, 8)[3]
 
-    if not refine:
-        return _Radial(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels, start)
-    unit = max(fit(start, warm, 2, every)[0], 1e-12)  # costs relative to the start's
+    if refine:
+        start = _search_centre(lambda p: fit(p, warm, 2, every)[0], start)
+    return _Radial(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels)
+
+
+def _search_centre(cost, start: np.ndarray) -> np.ndarray:
+    """Nelder-Mead over a light's ``[x, y, log axis ratio]`` from ``start`` (pixels, pixels,
+    natural log), on ``cost`` relative to the start's; the end, shape (3,)."""
+    unit = max(cost(start), 1e-12)
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
     simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
     res = minimize(
-        lambda p: fit(p, warm, 2, every)[0] / unit,
+        lambda p: cost(p) / unit,
         start,
         method="Nelder-Mead",
         options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
     )
-    best = np.asarray(res.x, dtype=float)
-    return _Radial(best, warm, fit, clipped, cs, bin_px, background, n_lines, pixels, start)
+    return np.asarray(res.x, dtype=float)
 
 
 def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:

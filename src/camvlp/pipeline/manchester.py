@@ -162,14 +162,16 @@ def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None):
     return out, photo.model
 
 
-def _one_way(profiles, fast, frame: FrameFormat, ids, seed: float | None, t_photo: float):
-    """One readout direction's decodes as if it were known: ``(decodes, rows_per_chip,
-    model)``, from its run-length decodes ``fast`` (chip lengths checked against ``seed`` or
-    each other) and the model fit for the rest."""
+def _one_way(
+    profiles, fast, frame: FrameFormat, ids, seed: float | None, fallback, readout: Readout
+) -> Manchester:
+    """The decode of one readout direction taken as known: its run-length decodes ``fast``
+    whose chip lengths agree (with ``seed`` or each other), the model fit for the rest, seeded
+    by that chip length, else ``seed``, else ``fallback`` (rows)."""
     t, (kept,) = _agreeing([fast], seed)
-    t = t or seed or t_photo
+    t = t or seed or fallback
     decodes, model = _with_model(profiles, kept, frame, ids, t)
-    return tuple(decodes), (model.rows_per_chip if model is not None else float(t)), model
+    return _manchester(decodes, readout, model, t)
 
 
 def _manchester(decodes, readout: Readout, model: SensorModel | None, t) -> Manchester:
@@ -277,13 +279,11 @@ def decode_manchester(
     if camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
     fwd, lengths = _fast(profiles, frame, map_ids)
-    fast_f = fwd
     if direction_known:
-        t, (fwd,) = _agreeing([fwd], seed)
-        t = t or seed or _measured(lengths)
-        decodes, model = _with_model(profiles, fwd, frame, ids, t)
-        return _manchester(decodes, readout, model, t)
+        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout)
+    fast_f = fwd  # (fwd is narrowed below to the chip lengths both ways agree on)
     backwards = [p[::-1] for p in profiles]
+    flipped = Readout.of(readout.axis, not readout.reversed)
     # read backwards, the chips of an ID read forwards with none in error are that ID's frame
     # reversed: a frame (rev[id], which does not say the direction) or none
     bwd, _ = _fast(backwards, frame, map_ids, skip=[d is not None for d in fwd])
@@ -296,7 +296,6 @@ def decode_manchester(
         decodes, model = _with_model(profiles, fwd, frame, ids, t)
         return _manchester(decodes, readout, model, t)
     if firm_b >= 2 and firm_f == 0:
-        flipped = Readout.of(readout.axis, not readout.reversed)
         decodes, model = _with_model(backwards, bwd, frame, ids, t)
         return _manchester(decodes, flipped, model, t)
     man = _model_directions(profiles, readout, frame, ids, t)
@@ -305,8 +304,9 @@ def decode_manchester(
     # the stripes do not say the direction: each is read as if it were known (its sure
     # run-length IDs, the model fitted to it for the rest), and the pose decides.  Parameters
     # fitted one way can blur the other way's IDs into look-alikes
-    one, other = (
-        _one_way(p, d, frame, ids, seed, man.rows_per_chip)
-        for p, d in ((profiles, fast_f), (backwards, _fast(backwards, frame, map_ids)[0]))
+    one = _one_way(profiles, fast_f, frame, ids, seed, man.rows_per_chip, readout)
+    bwd_all = _fast(backwards, frame, map_ids)[0]
+    other = _one_way(backwards, bwd_all, frame, ids, seed, man.rows_per_chip, flipped)
+    return Manchester(
+        one.decodes, readout, one.rows_per_chip, one.model, other.decodes, other.model
     )
-    return Manchester(one[0], readout, one[1], one[2], other[0], other[2])

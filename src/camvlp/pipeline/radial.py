@@ -32,6 +32,7 @@ from camvlp.pipeline.light_wave import (
     _axes,
     _radial,
     _radius,
+    _search_centre,
     _shape_fit,
 )
 
@@ -81,7 +82,7 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         rho = np.maximum(_radius(uv[:, pick], p, cs) - r0, 0.0)
         return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
-    start = np.asarray(fitted.start, dtype=float)
+    start = np.asarray(fitted.best, dtype=float)  # not refined: the coarse fit's start
     _, s, _, g = fit(start, None, _WARM_ITERS)
     pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
@@ -96,16 +97,5 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         n = used.size
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
-    unit = max(fit(start, warm, _ITERS, **part)[0], 1e-12)
-
-    from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
-
-    simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
-    res = minimize(
-        lambda p: fit(p, warm, _ITERS, **part)[0] / unit,
-        start,
-        method="Nelder-Mead",
-        options={"xatol": 0.03, "fatol": 1e-5, "maxfev": 80, "initial_simplex": simplex},
-    )
-    centre = np.array(res.x[:2], dtype=float)
+    centre = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)[:2]
     return centre[::-1] if axis == "columns" else centre
