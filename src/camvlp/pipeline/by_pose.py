@@ -8,20 +8,32 @@ the fixtures that were decoded, each of those IDs' map positions projects to one
 photo: the fixture is the one that projects onto it, when exactly one does and every other
 projects far away.  The stripes narrow the fixture to a few IDs and the geometry picks one;
 neither alone would.
+
+When the fixtures the stripes identified are too few for a pose, the pose comes from the
+look-alikes themselves (:func:`assigned_by_pose`): every way of giving a few of them one of
+their candidates is a hypothesis, solved and checked against the others.  An assignment is
+taken when the fixtures it explains are more than a pose needs and no assignment that
+contradicts it explains as many.
 """
 
 from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
 
 import numpy as np
 
 from camvlp.model.camera import Camera, Pose, project_points
 from camvlp.model.fixtures import FixtureMap
 
-__all__ = ["TOLD_APART", "told_by_pose"]
+__all__ = ["HYPOTHESES", "TOLD_APART", "assigned_by_pose", "told_by_pose"]
 
 #: A candidate ID is taken when its map position projects within the pose's outlier distance
 #: of the fixture and every other candidate's farther than this many times that distance.
 TOLD_APART = 4.0
+
+#: The most hypotheses :func:`assigned_by_pose` solves (each one a pose).
+HYPOTHESES = 300
 
 
 def told_by_pose(
@@ -77,3 +89,83 @@ def told_by_pose(
     # an ID told for two fixtures: neither
     seen = list(told.values())
     return {k: i for k, i in told.items() if seen.count(i) == 1}
+
+
+def _hypotheses(
+    fixed: dict[int, int], candidates: list[tuple[int, ...]], needed: int
+) -> list[dict[int, int]]:
+    """Seeds of :func:`assigned_by_pose`: the fixed IDs and one candidate each for as many
+    ambiguous fixtures as a pose needs besides (fewest candidates first), at most
+    :data:`HYPOTHESES`, no ID twice."""
+    free = [k for k, c in enumerate(candidates) if len(c) >= 2 and k not in fixed]
+    free.sort(key=lambda k: len(candidates[k]))
+    m = needed - len(fixed)
+    out: list[dict[int, int]] = []
+    if m <= 0 or len(free) <= m:  # a fixture beyond the seeds must confirm them
+        return out
+    used = set(fixed.values())
+    for seeds in itertools.combinations(free, m):
+        for ids in itertools.product(*(candidates[k] for k in seeds)):
+            if len(set(ids)) == m and not used.intersection(ids):
+                out.append({**fixed, **dict(zip(seeds, ids, strict=True))})
+                if len(out) >= HYPOTHESES:
+                    return out
+    return out
+
+
+def assigned_by_pose(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    pixels: np.ndarray,
+    fixed: dict[int, int],
+    candidates: list[tuple[int, ...]],
+    outlier_px: float,
+    pose_of: Callable[[dict[int, int]], Pose | None],
+    needed: int = 4,
+) -> dict[int, int]:
+    """IDs for look-alike fixtures when those the stripes identified are too few for a pose.
+
+    Each hypothesis gives as many ambiguous fixtures as the pose needs besides the identified
+    ones (``fixed``) one of their candidates; ``pose_of`` solves it, and the other
+    fixtures are told by that pose (:func:`told_by_pose`; a seed must be told as it was
+    guessed).  The assignment that explains the most fixtures is returned when it explains
+    more than ``needed`` and no assignment that gives a fixture another ID explains more
+    than ``needed``; otherwise nothing (the photo is ambiguous, not located).
+
+    Parameters
+    ----------
+    camera, fixture_map, pixels, candidates, outlier_px
+        As in :func:`told_by_pose` (``pixels`` shape (n, 2), ``candidates`` length n).
+    fixed : dict
+        Fixture index -> ID, the fixtures the stripes identified (fewer than ``needed``).
+    pose_of : callable
+        Fixture index -> ID assignment -> the pose that every one of them fits, or None.
+    needed : int
+        Fixtures a pose needs (4; 2 with gravity).
+
+    Returns
+    -------
+    dict
+        Fixture index -> ID for the look-alike fixtures assigned (empty when none).
+    """
+    found: set[frozenset] = set()
+    for seed in _hypotheses(fixed, candidates, needed):
+        pose = pose_of(seed)
+        if pose is None:
+            continue
+        taken = set(fixed.values())
+        told = told_by_pose(camera, pose, fixture_map, pixels, candidates, taken, outlier_px)
+        if all(told.get(k) == i for k, i in seed.items() if k not in fixed):
+            found.add(frozenset(told.items()))
+    if not found:
+        return {}
+    best = max(found, key=len)
+    if len(best) + len(fixed) <= needed:
+        return {}
+    given = dict(best)
+    by_id = {i: k for k, i in best}
+    for other in found:
+        contradicts = any(given.get(k, i) != i or by_id.get(i, k) != k for k, i in other)
+        if contradicts and len(other) + len(fixed) > needed:
+            return {}
+    return given

@@ -28,10 +28,10 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.by_pose import told_by_pose
 from camvlp.pipeline.detect import Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
+from camvlp.pipeline.identify import Identified, decided, identifier, identify
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.profile import shape_profiles
@@ -145,15 +145,6 @@ def _extent(blob: Blob, axis: str) -> float:
     return float(h if axis == "rows" else w)
 
 
-@dataclass(frozen=True)
-class _Identified:
-    """The identify stage: each blob's ID (or None) and why it cannot be used ("" if it can)."""
-
-    ids: tuple[int | None, ...]
-    reasons: tuple[str, ...]
-    usable: tuple[int, ...]  # indices of blobs with an ID and no reason
-
-
 def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.ndarray, bool]:
     """Stage 0: the checked image, flipped left-right when the photo is mirrored."""
     img = _check_image(image, camera)
@@ -224,32 +215,6 @@ def _decode(
     return decodes, frequencies, [note] if note else [], moved
 
 
-def _identify(blobs, decodes, fixture_map: FixtureMap) -> _Identified:
-    """Stage 4: IDs looked up in the map; cut discs, unknown and repeated IDs set aside."""
-    reasons: list[str] = []
-    ids: list[int | None] = []
-    for b, dec in zip(blobs, decodes, strict=True):
-        fid, reason = dec.id, dec.reason
-        outside = getattr(dec, "outside_id", None)
-        if fid is None and outside is not None:  # a light that sends an ID the map lacks
-            ids.append(outside)
-            reasons.append(f"ID {outside} is not in the map")
-            continue
-        if fid is not None and fixture_map.get(fid) is None:
-            reason, fid = f"ID {dec.id} is not in the map", None
-        elif fid is not None and b.touches_border:
-            reason = "cut by the image border (its centre would be biased)"
-        ids.append(dec.id if fid is None and dec.id is not None else fid)
-        reasons.append(reason)
-    # the same ID twice: neither can be trusted
-    decoded = [i for i, r in zip(ids, reasons, strict=True) if i is not None and not r]
-    for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
-        if i is not None and not r and decoded.count(i) > 1:
-            reasons[k] = f"ID {i} was decoded for two fixtures"
-    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
-    return _Identified(tuple(ids), tuple(reasons), usable)
-
-
 #: Centre sigma of a disc whose ellipse fit gives none (the centroid of a small disc), pixels.
 UNKNOWN_CENTRE_SIGMA_PX = 1.0
 
@@ -266,7 +231,7 @@ def _solve(
     camera: Camera,
     fixture_map: FixtureMap,
     blobs,
-    found: _Identified,
+    found: Identified,
     st: LocateSettings,
     outlier_px: float,
     gravity: tuple[np.ndarray, np.ndarray] | None = None,
@@ -318,38 +283,10 @@ def _solve(
     return est, "" if est else est.reason
 
 
-def _with_told(
-    camera: Camera, fixture_map: FixtureMap, blobs, decodes, found, est, outlier_px, solve
-):
-    """Fixtures the stripes leave between look-alike IDs, told apart by the pose
-    (:mod:`camvlp.pipeline.by_pose`) and the pose solved again with them.  Returns ``found,
-    est, told`` (``told``: fixture index -> its candidate IDs); as given when none is told,
-    or when the pose solved again does not use every one told."""
-    if est is None or est.pose is None:
-        return found, est, {}
-    cands = [
-        getattr(d, "candidates", ()) if i is None and not b.touches_border else ()
-        for b, d, i in zip(blobs, decodes, found.ids, strict=True)
-    ]
-    taken = {found.ids[k] for k in found.usable}
-    pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
-    told = told_by_pose(camera, est.pose, fixture_map, pixels, cands, taken, outlier_px)
-    if not told:
-        return found, est, {}
-    ids = [told.get(k, i) for k, i in enumerate(found.ids)]
-    reasons = ["" if k in told else r for k, r in enumerate(found.reasons)]
-    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
-    found2 = _Identified(tuple(ids), tuple(reasons), usable)
-    est2, _ = solve(found2)
-    if not est2 or not all(est2.used[usable.index(k)] for k in told):
-        return found, est, {}
-    return found2, est2, {k: cands[k] for k in told}
-
-
 def _fixture_results(
     blobs,
     decodes,
-    found: _Identified,
+    found: Identified,
     est: PoseEstimate | GravityPose | None,
     extents: np.ndarray,
     frequencies: np.ndarray,
@@ -393,99 +330,6 @@ def _fixture_results(
     return tuple(results)
 
 
-def _same_answer(a: _Identified, b: _Identified) -> bool:
-    return [a.ids[k] for k in a.usable] == [b.ids[k] for k in b.usable] and a.usable == b.usable
-
-
-def _pick_direction(est1, est2, found1: _Identified, found2: _Identified) -> int:
-    """Which direction's pose to keep (1 or 2); 0 when both fit and cannot be told apart,
-    -1 when neither gives a pose."""
-    ok1, ok2 = bool(est1), bool(est2)
-    if _same_answer(found1, found2):
-        return 1
-    if ok1 != ok2:
-        return 1 if ok1 else 2
-    if not ok1:
-        return -1  # neither locates
-    n1, n2 = int(np.sum(est1.used)), int(np.sum(est2.used))
-    r1, r2 = est1.reprojection_rms_px, est2.reprojection_rms_px
-    if n1 > n2 and r1 <= r2:
-        return 1
-    if n2 > n1 and r2 <= r1:
-        return 2
-    if r1 * 5 < r2:
-        return 1
-    if r2 * 5 < r1:
-        return 2
-    return 0
-
-
-@dataclass(frozen=True)
-class _Decided:
-    """One direction's decodes, identities, pose (or None) and why it failed (internal)."""
-
-    decodes: list
-    found: _Identified
-    est: PoseEstimate | GravityPose | None
-    reason: str
-
-
-def _withheld(decodes, decodes2) -> list:
-    """The decodes with every ID that depends on the readout direction withheld."""
-
-    def shown(d):
-        return d.id if d.id is not None else getattr(d, "outside_id", None)
-
-    def withheld(d1, d2):
-        reason = f"readout direction undecided: ID {shown(d1)} read one way, {shown(d2)} the other"
-        extra = {"outside_id": None} if hasattr(d1, "outside_id") else {}
-        return dataclasses.replace(d1, id=None, reason=reason, **extra)
-
-    return [
-        withheld(d1, d2) if shown(d1) != shown(d2) else d1
-        for d1, d2 in zip(decodes, decodes2, strict=True)
-    ]
-
-
-def _direction_by_pose(blobs, fixture_map: FixtureMap, man: Manchester, one: _Decided, solve):
-    """The direction whose IDs give a pose, when the stripes fit both about equally; else
-    no pose and every ID that depends on the direction withheld.  Returns ``man, decodes,
-    found, est, reason`` of the direction kept (``man.readout`` says which)."""
-    decodes2 = list(man.other)
-    found2 = _identify(blobs, decodes2, fixture_map)
-    est2, reason2 = solve(found2)
-    pick = _pick_direction(one.est, est2, one.found, found2)
-    if pick == 2:
-        flipped = Readout.of(man.readout.axis, not man.readout.reversed)
-        man = Manchester(tuple(decodes2), flipped, man.rows_per_chip, man.other_model)
-        return man, decodes2, found2, est2, reason2
-    if pick == 1:
-        return man, one.decodes, one.found, one.est, one.reason
-    # undecided: no ID that depends on the direction is reported, and no pose
-    decodes = _withheld(one.decodes, decodes2)
-    reason = (
-        "readout direction ambiguous: read either way, the stripes give IDs of the map "
-        "that fit a pose; give the camera's readout (e.g. rows or rows-reversed)"
-        if pick == 0
-        else f"{one.reason} (and the readout direction is undecided)"
-    )
-    return man, decodes, _identify(blobs, decodes, fixture_map), None, reason
-
-
-def _decided(blobs, fixture_map: FixtureMap, man: Manchester | None, decodes: list, solve):
-    """Stages 4 and 5: the IDs looked up and the pose solved (``solve``); when the stripes fit
-    both readout directions about equally (``man.other``: IDs whose reversed frames are other
-    IDs'), the direction whose IDs give a pose decides, else the photo is refused.  Returns
-    ``man, decodes, found, est, reason`` (``man.readout`` the direction kept)."""
-    found = _identify(blobs, decodes, fixture_map)
-    est, reason = solve(found)
-    if man is not None and man.other is not None:
-        return _direction_by_pose(
-            blobs, fixture_map, man, _Decided(decodes, found, est, reason), solve
-        )
-    return man, decodes, found, est, reason
-
-
 def readout_direction(
     img: np.ndarray,
     blobs,
@@ -508,14 +352,15 @@ def readout_direction(
     profiles = _profiles(img, blobs, readout)[2]
     man = decode_manchester(profiles, readout, False, camera, fixture_map)
     if man.other is None:
-        found = _identify(blobs, list(man.decodes), fixture_map)
+        found = identify(blobs, list(man.decodes), fixture_map)
         return man.readout if found.usable else None
 
-    def solve(f: _Identified):
+    def solve(f: Identified):
         return _solve(camera, fixture_map, blobs, f, st, outlier_px, None)
 
-    man, _, _, est, _ = _decided(blobs, fixture_map, man, list(man.decodes), solve)
-    return man.readout if est is not None else None
+    identified = identifier(camera, fixture_map, blobs, outlier_px, solve, 4)
+    man, kept = decided(blobs, fixture_map, man, list(man.decodes), identified)
+    return man.readout if kept.est is not None else None
 
 
 def _gravity(gravity, camera: Camera, fixture_map: FixtureMap) -> tuple[np.ndarray, np.ndarray]:
@@ -603,13 +448,13 @@ def locate(
         decodes, frequencies, notes = list(man.decodes), np.full(len(blobs), np.nan), []
     t2 = time.perf_counter()
 
-    def solve(f: _Identified):
+    def solve(f: Identified):
         return _solve(camera, fixture_map, blobs, f, st, outlier_px, down)
 
-    man, decodes, found, est, reason = _decided(blobs, fixture_map, man, decodes, solve)
-    found, est, told = _with_told(
-        camera, fixture_map, blobs, decodes, found, est, outlier_px, solve
-    )
+    needed = 4 if down is None else 2
+    identified = identifier(camera, fixture_map, blobs, outlier_px, solve, needed)
+    man, kept = decided(blobs, fixture_map, man, decodes, identified)
+    decodes, found, est, reason, told = kept.decodes, kept.found, kept.est, kept.reason, kept.told
     if man is not None:
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
@@ -628,7 +473,7 @@ def locate(
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
         fixtures=_fixture_results(
-            blobs, decodes, found, est, extents, frequencies, shown, 4 if down is None else 2, told
+            blobs, decodes, found, est, extents, frequencies, shown, needed, told
         ),
         timing_ms=_timings(t0, t1, t2, t3),
         reason=reason,

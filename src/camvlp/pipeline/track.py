@@ -45,11 +45,10 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profiles
 from camvlp.pipeline.glow import centred_on_glow, glowing
+from camvlp.pipeline.identify import Identified, identify
 from camvlp.pipeline.locate import (
     _decode,
     _detect,
-    _Identified,
-    _identify,
     _prepare,
     _profiles,
     _solve,
@@ -180,7 +179,7 @@ class Tracker:
     # Association (see :mod:`camvlp.pipeline.track_assoc`)
 
     def _associate(
-        self, blobs, found: _Identified, predicted: dict[int, np.ndarray], from_pose: bool
+        self, blobs, found: Identified, predicted: dict[int, np.ndarray], from_pose: bool
     ) -> tuple[list[int | None], list[str], list[str]]:
         """IDs per blob (decoded, carried or None), their sources, and reasons."""
         gate = self._gate * (1.0 if from_pose else 2.0)
@@ -276,7 +275,7 @@ class Tracker:
         undecided = self.readout is None and self.map.mode != "frequency"  # no ID read reversed
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
         decodes = self._decode(img, blobs, self.readout or readout, skip)
-        found = _identify(blobs, decodes, self.map)
+        found = identify(blobs, decodes, self.map)
         t1 = time.perf_counter()
 
         ids, sources, reasons = self._associate(blobs, found, predicted, from_pose)
@@ -362,7 +361,7 @@ class Tracker:
             moved = [
                 dataclasses.replace(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)
             ]
-            sub = _Identified(
+            sub = Identified(
                 tuple(ids[k] for k in usable), ("",) * len(usable), tuple(range(len(usable)))
             )
             est, why = _solve(self.camera, self.map, moved, sub, st, self._outlier_px)

@@ -1,0 +1,220 @@
+"""Stages 4 and 5's decisions: the IDs looked up in the map, look-alikes told by the pose, and
+the readout direction decided by the pose when the stripes fit both directions.
+
+The pose itself is solved by a callable given by :mod:`camvlp.pipeline.locate` (``solve``:
+:class:`Identified` -> ``(estimate or None, reason)``), so these decisions are the same with
+and without gravity.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.geometry.gravity import GravityPose
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.pipeline.by_pose import assigned_by_pose, told_by_pose
+from camvlp.pipeline.manchester import Manchester
+from camvlp.pipeline.pose import PoseEstimate
+
+__all__ = ["Decided", "Identified", "decided", "identifier", "identify", "with_told"]
+
+
+@dataclass(frozen=True)
+class Identified:
+    """The identify stage: each blob's ID (or None) and why it cannot be used ("" if it can)."""
+
+    ids: tuple[int | None, ...]
+    reasons: tuple[str, ...]
+    usable: tuple[int, ...]  # indices of blobs with an ID and no reason
+
+
+def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
+    """Stage 4: IDs looked up in the map; cut discs, unknown and repeated IDs set aside."""
+    reasons: list[str] = []
+    ids: list[int | None] = []
+    for b, dec in zip(blobs, decodes, strict=True):
+        fid, reason = dec.id, dec.reason
+        outside = getattr(dec, "outside_id", None)
+        if fid is None and outside is not None:  # a light that sends an ID the map lacks
+            ids.append(outside)
+            reasons.append(f"ID {outside} is not in the map")
+            continue
+        if fid is not None and fixture_map.get(fid) is None:
+            reason, fid = f"ID {dec.id} is not in the map", None
+        elif fid is not None and b.touches_border:
+            reason = "cut by the image border (its centre would be biased)"
+        ids.append(dec.id if fid is None and dec.id is not None else fid)
+        reasons.append(reason)
+    # the same ID twice: neither can be trusted
+    decoded = [i for i, r in zip(ids, reasons, strict=True) if i is not None and not r]
+    for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
+        if i is not None and not r and decoded.count(i) > 1:
+            reasons[k] = f"ID {i} was decoded for two fixtures"
+    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
+    return Identified(tuple(ids), tuple(reasons), usable)
+
+
+def with_told(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    blobs,
+    decodes,
+    found: Identified,
+    est,
+    outlier_px: float,
+    solve,
+    needed: int,
+):
+    """Fixtures the stripes leave between look-alike IDs, told apart by the pose
+    (:mod:`camvlp.pipeline.by_pose`; when the identified ones are too few for a pose, by the
+    only assignment of look-alikes that gives one) and the pose solved again with them.
+    Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
+    when none is told, or when the pose solved again does not use every one told."""
+    if est is not None and est.pose is None:
+        return found, est, {}
+    cands = [
+        getattr(d, "candidates", ()) if i is None and not b.touches_border else ()
+        for b, d, i in zip(blobs, decodes, found.ids, strict=True)
+    ]
+    if not any(len(c) >= 2 for c in cands):
+        return found, est, {}
+    pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
+    fixed = {k: found.ids[k] for k in found.usable}
+    if est is None:
+
+        def pose_of(assigned: dict[int, int]):
+            e, _ = solve(_given(found, assigned))
+            return e.pose if e and all(e.used) else None
+
+        told = assigned_by_pose(
+            camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed
+        )
+    else:
+        taken = set(fixed.values())
+        told = told_by_pose(camera, est.pose, fixture_map, pixels, cands, taken, outlier_px)
+    if not told:
+        return found, est, {}
+    found2 = _given(found, {**fixed, **told})
+    est2, _ = solve(found2)
+    if not est2 or not all(est2.used[found2.usable.index(k)] for k in told):
+        return found, est, {}
+    return found2, est2, {k: cands[k] for k in told}
+
+
+def _given(found: Identified, ids: dict[int, int]) -> Identified:
+    """``found`` with the fixtures of ``ids`` (index -> ID) given those IDs, and only they
+    and those already usable usable."""
+    new = [ids.get(k, i) for k, i in enumerate(found.ids)]
+    reasons = ["" if k in ids else r for k, r in enumerate(found.reasons)]
+    usable = tuple(k for k, r in enumerate(reasons) if new[k] is not None and not r)
+    return Identified(tuple(new), tuple(reasons), usable)
+
+
+def _same_answer(a: Identified, b: Identified) -> bool:
+    return [a.ids[k] for k in a.usable] == [b.ids[k] for k in b.usable] and a.usable == b.usable
+
+
+def _pick_direction(est1, est2, found1: Identified, found2: Identified) -> int:
+    """Which direction's pose to keep (1 or 2); 0 when both fit and cannot be told apart,
+    -1 when neither gives a pose."""
+    ok1, ok2 = bool(est1), bool(est2)
+    if _same_answer(found1, found2):
+        return 1
+    if ok1 != ok2:
+        return 1 if ok1 else 2
+    if not ok1:
+        return -1  # neither locates
+    n1, n2 = int(np.sum(est1.used)), int(np.sum(est2.used))
+    r1, r2 = est1.reprojection_rms_px, est2.reprojection_rms_px
+    if n1 > n2 and r1 <= r2:
+        return 1
+    if n2 > n1 and r2 <= r1:
+        return 2
+    if r1 * 5 < r2:
+        return 1
+    if r2 * 5 < r1:
+        return 2
+    return 0
+
+
+@dataclass(frozen=True)
+class Decided:
+    """One direction's decodes, identities, pose (or None), why it failed, and the fixtures
+    told by the pose (internal)."""
+
+    decodes: list
+    found: Identified
+    est: PoseEstimate | GravityPose | None
+    reason: str
+    told: dict[int, tuple[int, ...]]
+
+
+def identifier(camera: Camera, fixture_map: FixtureMap, blobs, outlier_px: float, solve, needed):
+    """Stages 4 and 5 for one readout direction: decodes -> :class:`Decided` (the IDs looked
+    up, the pose solved by ``solve``, look-alikes told by the pose)."""
+
+    def identified(decodes: list) -> Decided:
+        found = identify(blobs, decodes, fixture_map)
+        est, reason = solve(found)
+        found, est, told = with_told(
+            camera, fixture_map, blobs, decodes, found, est, outlier_px, solve, needed
+        )
+        return Decided(decodes, found, est, "" if est else reason, told)
+
+    return identified
+
+
+def _withheld(decodes, decodes2) -> list:
+    """The decodes with every ID that depends on the readout direction withheld."""
+
+    def shown(d):
+        return d.id if d.id is not None else getattr(d, "outside_id", None)
+
+    def withheld(d1, d2):
+        reason = f"readout direction undecided: ID {shown(d1)} read one way, {shown(d2)} the other"
+        extra = {"outside_id": None} if hasattr(d1, "outside_id") else {}
+        return dataclasses.replace(d1, id=None, reason=reason, **extra)
+
+    return [
+        withheld(d1, d2) if shown(d1) != shown(d2) else d1
+        for d1, d2 in zip(decodes, decodes2, strict=True)
+    ]
+
+
+def _direction_by_pose(blobs, fixture_map: FixtureMap, man: Manchester, one: Decided, identified):
+    """The direction whose IDs give a pose, when the stripes fit both about equally; else
+    no pose and every ID that depends on the direction withheld.  Returns ``man`` and the
+    :class:`Decided` of the direction kept (``man.readout`` says which)."""
+    two = identified(list(man.other))
+    pick = _pick_direction(one.est, two.est, one.found, two.found)
+    if pick == 2:
+        flipped = Readout.of(man.readout.axis, not man.readout.reversed)
+        man = Manchester(tuple(two.decodes), flipped, man.rows_per_chip, man.other_model)
+        return man, two
+    if pick == 1:
+        return man, one
+    # undecided: no ID that depends on the direction is reported, and no pose
+    decodes = _withheld(one.decodes, two.decodes)
+    reason = (
+        "readout direction ambiguous: read either way, the stripes give IDs of the map "
+        "that fit a pose; give the camera's readout (e.g. rows or rows-reversed)"
+        if pick == 0
+        else f"{one.reason} (and the readout direction is undecided)"
+    )
+    return man, Decided(decodes, identify(blobs, decodes, fixture_map), None, reason, {})
+
+
+def decided(blobs, fixture_map: FixtureMap, man: Manchester | None, decodes: list, identified):
+    """Stages 4 and 5 (``identified``, from :func:`_identifier`); when the stripes fit both
+    readout directions about equally (``man.other``: IDs whose reversed frames are other
+    IDs'), the direction whose IDs give a pose decides, else the photo is refused.  Returns
+    ``man`` and the :class:`Decided` of the direction kept (``man.readout`` says which)."""
+    one = identified(decodes)
+    if man is not None and man.other is not None:
+        return _direction_by_pose(blobs, fixture_map, man, one, identified)
+    return man, one
