@@ -332,10 +332,13 @@ def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
     tt = t[which]
     grid = _bleed_grids(tt)
     out = np.empty(which.size)
+    # (l - g) / t for a bright run, (l + g) / t = (-l - g) / -t for a dark one (the same
+    # values, negation being exact): the runs' signs are set once, not per grid value
+    signed = np.where(bi, li, -li)
+    div = np.where(bi, tt[:, None], -tt[:, None])
     for group in _groups(np.full(which.size, _BLEED_STEPS), counts[which]):
-        g = grid[group][:, :, None]
-        lg, bg = li[group][:, None, :], bi[group][:, None, :]
-        xs = np.where(bg, lg - g, lg + g) / tt[group][:, None, None]
+        xs = signed[group][:, None, :] - grid[group][:, :, None]
+        xs /= div[group][:, None, :]
         m = np.round(xs)
         xs -= np.minimum(np.maximum(m, 1, out=m), 2, out=m)
         np.square(xs, out=xs)
