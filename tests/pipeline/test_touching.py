@@ -55,6 +55,24 @@ def test_a_light_cut_by_a_wide_dark_stripe_stays_one():
     assert len(light_seeds(high, outline=outline, axis="rows")) == 1
     # the same halves apart across the readout could be two lights: split
     assert len(light_seeds(high, outline=outline, axis="columns")) == 2
+    # the dark stripe is dark before the stripes are bridged: still one light
+    raw = high.copy()
+    assert len(light_seeds(high, outline=outline, axis="rows", raw=raw)) == 1
+
+
+def test_two_lights_whose_glows_fill_the_gap_along_the_readout_are_two():
+    # two round discs apart along the readout (rows) whose glows join without a neck at the
+    # detection's threshold: glow between them is lit (on its bright stripes), where a dark
+    # stripe through one light would be dark
+    high = _circles((100, 30, 22), (100, 95, 22), shape=(130, 200))
+    outline = high.copy()
+    cv2.rectangle(outline, (70, 30), (130, 95), 1, -1)
+    assert len(light_seeds(high, outline=outline, axis="rows")) == 1  # without the raw pixels
+    raw = high.copy()
+    raw[52:74:4, 80:120] = 1  # every fourth row of the gap lit by glow
+    seeds = light_seeds(high, outline=outline, axis="rows", raw=raw)
+    assert len(seeds) == 2
+    assert sorted(np.round(seeds[:, 1] / 5) * 5) == [30, 95]
 
 
 CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)

@@ -149,9 +149,9 @@ def detect_fixtures(
         return Detection((), s, np.zeros_like(small), peak)
     thr = background + relative_threshold * (peak - background)
     # small > thr as 255 and 0: OpenCV compares with floor(thr), the same for whole levels
-    binary = cv2.threshold(small, thr, 255, cv2.THRESH_BINARY)[1]
+    raw = cv2.threshold(small, thr, 255, cv2.THRESH_BINARY)[1]
     k = max(3, int(np.ceil(2.0 * kernel_px / s)) | 1)
-    binary = _close_lit(binary, k)
+    binary = _close_lit(raw, k)
     contours, _ = cv2.findContours(binary, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     min_area = 0.5 * (min_diameter_px / s) ** 2
     rects = [cv2.boundingRect(c) for c in contours]
@@ -176,7 +176,7 @@ def detect_fixtures(
         return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(comps, several, binary, high, 3.0, axis_of)
+    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw)
     boxes, cells = [], []
     for (x, y, w, h), cell in lights:
         box = (

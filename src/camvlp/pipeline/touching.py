@@ -54,6 +54,18 @@ def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(dist[y, x].min())
 
 
+def _lit_between(region: np.ndarray, raw: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the gap of ``region`` on the segment between two peaks ``[x, y, ...]`` holds
+    pixels lit in ``raw`` (away from the gap's ends): light dimmer than the lights, such as
+    glow, where a dark stripe through one light would be dark."""
+    n = int(np.ceil(np.hypot(*(b[:2] - a[:2])))) + 1
+    t = np.linspace(0.0, 1.0, max(n, 2))
+    x = np.rint(a[0] + t * (b[0] - a[0])).astype(np.intp)
+    y = np.rint(a[1] + t * (b[1] - a[1])).astype(np.intp)
+    gap = np.flatnonzero(region[y, x] == 0)[1:-1]
+    return bool(gap.size and raw[y[gap], x[gap]].any())
+
+
 def _along(a: np.ndarray, b: np.ndarray, axis: str) -> bool:
     """Whether two points ``[x, y, ...]`` lie apart mostly along the readout axis (across
     the stripes)."""
@@ -66,6 +78,7 @@ def light_seeds(
     min_radius: float = 2.0,
     outline: np.ndarray | None = None,
     axis: str | Callable[[], str] = "rows",
+    raw: np.ndarray | None = None,
 ) -> np.ndarray:
     """The lights in one lit region: the peaks of its distance transform.
 
@@ -75,7 +88,9 @@ def light_seeds(
     outline's) and a neck (:data:`NECK`) separates it from each in ``region``.  Two peaks
     apart mostly along the readout (``axis``) may be the halves of one light cut by a wide
     dark stripe: they must be necked in ``outline`` too, when given (the same lights at a
-    lower threshold, their stripes bridged, where one light has no neck).
+    lower threshold, their stripes bridged, where one light has no neck), unless the gap
+    between them in ``region`` holds pixels lit in ``raw``: a dark stripe through one light
+    is dark, where two lights whose glows join show glow between them.
 
     Parameters
     ----------
@@ -124,7 +139,12 @@ def light_seeds(
             np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
             and (wide is None or outside(wide, s, c))
             and necked(dist, s, c)
-            and (wide is None or not _along(s, c, readout()) or necked(wide, s, c))
+            and (
+                wide is None
+                or not _along(s, c, readout())
+                or necked(wide, s, c)
+                or (raw is not None and _lit_between(region, raw, s, c))
+            )
             for s in seeds
         )
         if apart:
@@ -168,6 +188,7 @@ def one_per_light(
     high: np.ndarray | None,
     min_radius: float,
     axis_of: Callable,
+    raw: np.ndarray | None = None,
 ):
     """The lights of the detection's candidate regions.
 
@@ -187,6 +208,8 @@ def one_per_light(
     axis_of : callable
         ``axis_of(inside, (x, y, w, h))``: the readout axis (``"rows"`` or ``"columns"``)
         of a region, from its pixels ``inside`` (uint8 0/1 of the box).
+    raw : ndarray of uint8, shape (h, w), optional
+        ``binary`` before its stripes were bridged (see :func:`light_seeds`).
 
     Yields
     ------
@@ -209,7 +232,8 @@ def one_per_light(
         main = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         inside = (labels == main).astype(np.uint8)
         axis = functools.partial(axis_of, inside, (x, y, w, h))  # when needed
-        seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis)
+        lit = None if raw is None else raw[y : y + h, x : x + w]
+        seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis, lit)
         if len(seeds) < 2:
             yield (x, y, w, h), None
             continue
