@@ -93,6 +93,32 @@ def test_a_glowing_light_is_centred_on_its_shape():
     assert np.max(after) < 0.6
 
 
+def test_a_radial_fit_that_leaves_its_disc_is_not_taken(monkeypatch):
+    # a fit drawn to a neighbour's glow ends off the light's disc: the outline's centre stays
+    import camvlp.pipeline.glow as glow
+
+    photo, _ = _photo(1, halo=0.4, brightness=1.0)
+    blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
+    real = glow.radial_centre
+    shift = np.array([0.0, 0.0])
+
+    def moved(*args, **kwargs):
+        return real(*args, **kwargs) + shift
+
+    monkeypatch.setattr(glow, "radial_centre", moved)
+    near = centred_on_glow(photo.image, blobs, "rows")
+    assert all(np.hypot(*(a.pixel - b.pixel)) < 2.0 for a, b in zip(near, blobs, strict=True))
+    assert any(a is not b for a, b in zip(near, blobs, strict=True))
+    checked = 0
+    for b in blobs:  # a centre beyond the disc's semi-major axis, but within its box
+        shift[:] = (0.0, 0.55 * float(max(b.axes_px)) + 2.0)
+        if b.pixel[1] + shift[1] < b.box[3] - 1:
+            (moved_blob,) = centred_on_glow(photo.image, [b], "rows")
+            assert moved_blob is b
+            checked += 1
+    assert checked >= 2
+
+
 def test_plain_discs_are_left_as_detected():
     photo, _ = _photo(0)
     blobs = detect_fixtures(photo.image).blobs

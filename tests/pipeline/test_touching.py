@@ -73,6 +73,11 @@ def test_two_lights_whose_glows_fill_the_gap_along_the_readout_are_two():
     seeds = light_seeds(high, outline=outline, axis="rows", raw=raw)
     assert len(seeds) == 2
     assert sorted(np.round(seeds[:, 1] / 5) * 5) == [30, 95]
+    # joined by a narrow neck of glow at the high threshold: no dark stripe between them
+    necked = high.copy()
+    necked[50:76, 97:104] = 1
+    assert len(light_seeds(necked, outline=outline, axis="rows")) == 1
+    assert len(light_seeds(necked, outline=outline, axis="rows", raw=necked.copy())) == 2
 
 
 CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)

@@ -160,6 +160,10 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
     centre = radial_centre(gray, support, ellipse, axis)
     h, w = b.mask.shape
-    if np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h:
-        return dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))
-    return b
+    if not (np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h):
+        return b
+    # a light's centre lies on its disc: a fit that left it (drawn to a neighbour's glow)
+    # failed
+    if not b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]:
+        return b
+    return dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))

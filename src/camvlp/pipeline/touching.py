@@ -54,16 +54,17 @@ def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
     return float(dist[y, x].min())
 
 
-def _lit_between(region: np.ndarray, raw: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
-    """Whether the gap of ``region`` on the segment between two peaks ``[x, y, ...]`` holds
+def _not_cut(region: np.ndarray, raw: np.ndarray, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the segment between two peaks ``[x, y, ...]`` is not cut by a dark stripe:
+    it has no gap in ``region`` (the peaks are joined there, by a neck), or its gap holds
     pixels lit in ``raw`` (away from the gap's ends): light dimmer than the lights, such as
     glow, where a dark stripe through one light would be dark."""
     n = int(np.ceil(np.hypot(*(b[:2] - a[:2])))) + 1
     t = np.linspace(0.0, 1.0, max(n, 2))
     x = np.rint(a[0] + t * (b[0] - a[0])).astype(np.intp)
     y = np.rint(a[1] + t * (b[1] - a[1])).astype(np.intp)
-    gap = np.flatnonzero(region[y, x] == 0)[1:-1]
-    return bool(gap.size and raw[y[gap], x[gap]].any())
+    gap = np.flatnonzero(region[y, x] == 0)
+    return bool(gap.size == 0 or raw[y[gap[1:-1]], x[gap[1:-1]]].any())
 
 
 def _along(a: np.ndarray, b: np.ndarray, axis: str) -> bool:
@@ -88,9 +89,10 @@ def light_seeds(
     outline's) and a neck (:data:`NECK`) separates it from each in ``region``.  Two peaks
     apart mostly along the readout (``axis``) may be the halves of one light cut by a wide
     dark stripe: they must be necked in ``outline`` too, when given (the same lights at a
-    lower threshold, their stripes bridged, where one light has no neck), unless the gap
-    between them in ``region`` holds pixels lit in ``raw``: a dark stripe through one light
-    is dark, where two lights whose glows join show glow between them.
+    lower threshold, their stripes bridged, where one light has no neck), unless nothing
+    dark cuts the segment between them: they are joined by a neck in ``region``, or the gap
+    between them there holds pixels lit in ``raw`` (a dark stripe through one light is dark,
+    where two lights whose glows join show glow between them).
 
     Parameters
     ----------
@@ -143,7 +145,7 @@ def light_seeds(
                 wide is None
                 or not _along(s, c, readout())
                 or necked(wide, s, c)
-                or (raw is not None and _lit_between(region, raw, s, c))
+                or (raw is not None and _not_cut(region, raw, s, c))
             )
             for s in seeds
         )
