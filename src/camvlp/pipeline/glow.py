@@ -23,12 +23,16 @@ import dataclasses
 import numpy as np
 
 from camvlp.pipeline.detect import Blob, light_support, to_gray
-from camvlp.pipeline.radial import radial_centre
+from camvlp.pipeline.radial import radial_fit
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
 #: Glow level (see :func:`glow_level`) from which a light counts as glowing.
 GLOW_LEVEL = 0.02
+#: How far within the photo a glowing light's disc (its fitted rim) must lie for a light
+#: whose glow the border cuts to be used, pixels: its rim is found to the pixel (the fall over
+#: two bins of half a pixel).
+RIM_MARGIN_PX = 1.0
 
 
 #: Where :func:`glow_level` samples a light, in radii of its outline ellipse: inside, the
@@ -146,20 +150,41 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     list of Blob
         The blobs; a moved one has its new ``pixel`` (all else as detected).
     """
-    which = glowing(img, blobs)[0] if which is None else np.asarray(which, dtype=bool)
+    if which is None:
+        levels = glow_levels(img, blobs)
+        which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
+    which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
     return [_centred(img, b, axis) if w else b for b, w in zip(blobs, which, strict=True)]
 
 
 def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
-    """The blob moved to the centre of its radial shape (as detected when that fails)."""
+    """The blob moved to the centre of its radial shape (as detected when that fails).
+
+    A blob whose region reaches the photo's border is searched for from further off (its
+    outline is pulled away from the border where the border cuts its glow); one touching
+    the border (:attr:`Blob.touches_border`) is then moved, and no longer counts as
+    touching it, only when its disc's rim (:func:`radial_fit`) lies :data:`RIM_MARGIN_PX`
+    or more within the photo: a glow the border cuts leaves the shape fitted to the pixels
+    that are in the photo, while a disc the border cuts stays set aside.
+    """
     x0, y0, x1, y1 = b.box
+    height, width = img.shape[:2]
     gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
     support = light_support(gray, b.mask, axis, cell=b.cell)
     ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
-    centre = radial_centre(gray, support, ellipse, axis)
+    far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
+    fit = radial_fit(gray, support, ellipse, axis, far)
+    centre = fit.centre
     h, w = b.mask.shape
-    if np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h:
-        return dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))
+    if not (np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h):
+        return b
+    pixel = centre + np.array([x0, y0], dtype=float)
+    if not b.touches_border:
+        return dataclasses.replace(b, pixel=pixel)
+    size = np.array([width, height], dtype=float)
+    low, high = pixel - fit.rim, pixel + fit.rim  # the rim's extent; the photo: -0.5 to size
+    if np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX):
+        return dataclasses.replace(b, pixel=pixel, touches_border=False)
     return b

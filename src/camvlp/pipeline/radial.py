@@ -24,9 +24,12 @@ and with the shape refitted in :data:`_ITERS` steps at each trial centre.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from camvlp.pipeline.light_wave import (
+    _MAX_LOG_RATIO,
     LightWave,
     _aggregate,
     _axes,
@@ -36,7 +39,7 @@ from camvlp.pipeline.light_wave import (
     _shape_fit,
 )
 
-__all__ = ["radial_centre"]
+__all__ = ["RadialFit", "radial_centre", "radial_fit"]
 
 #: Width of the radial shape's bins, pixels: finer than a rim blurred over a pixel.
 _BIN_PX = 0.5
@@ -49,9 +52,31 @@ _MARGIN_PX = 4.0
 _WARM_ITERS, _ITERS = 8, 12
 
 
+class RadialFit(NamedTuple):
+    """A light's radial shape fitted (:func:`radial_fit`), in its region's pixels (x, y)."""
+
+    centre: np.ndarray  # shape (2,): the shape's centre, pixels; NaN when not fitted
+    rim: np.ndarray  # shape (2,): half-extents of the disc's rim along x and y, pixels; NaN
+    # when not fitted
+
+
 def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
+    """The centre of a round light's radial shape: :func:`radial_fit`'s ``centre``."""
+    return radial_fit(gray, support, ellipse, axis).centre
+
+
+def radial_fit(
+    gray: np.ndarray, support: np.ndarray, ellipse, axis: str, far: bool = False
+) -> RadialFit:
     """The centre of a round light's radial shape (core, disc and glow), separated from its
-    stripes (the square wave is not fitted), from the pixels that tell it best.
+    stripes (the square wave is not fitted), from the pixels that tell it best, and its
+    disc's rim.
+
+    The rim is where the shape, fitted over all the light's pixels at that centre, falls the
+    most steeply (a disc's edge, blurred over a pixel or two, falls from the disc's level to
+    the glow's; a hot core and a glow change slowly, over tenths of the radius).  Pixels the
+    region lacks (beyond the photo's border) take no part in the fit: the shape is fitted
+    to each pixel that is there.
 
     Parameters
     ----------
@@ -64,16 +89,20 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         ``((cx, cy), (width, height), angle_deg)``.
     axis : {"rows", "columns"}
         The readout axis.
+    far : bool
+        The outline's centre may be far from the shape's (e.g. a glow the photo's border
+        cuts): a coarse search on every k-th pixel first, in steps of a tenth of the radius.
 
     Returns
     -------
-    ndarray, shape (2,)
-        Centre ``[x, y]`` in the region, pixels; NaN when the region has too few pixels with
-        signal.
+    RadialFit
+        Centre ``[x, y]`` in the region, and the half-extents ``[x, y]`` of the rim (the
+        ellipse of the shape's axis ratio and angle), pixels; NaN when the region has too
+        few pixels with signal.
     """
     fitted = _radial(gray, support, ellipse, axis, refine=False)
     if isinstance(fitted, LightWave):
-        return fitted.centre
+        return RadialFit(fitted.centre, np.full(2, np.nan))
     ly, lx, value = fitted.pixels
     cs, n_lines = fitted.cs, fitted.n_lines
     uv = _axes(lx, ly, cs)
@@ -83,6 +112,15 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
     start = np.asarray(fitted.best, dtype=float)  # not refined: the coarse fit's start
+    if far:  # a coarse search first, in steps of a tenth of the radius
+        every = max(1, ly.size // _PIXELS)
+        radius = 0.25 * float(sum(ellipse[1]))
+        coarse = fitted.warm
+
+        def cost(p: np.ndarray) -> float:
+            return fitted.fit(p, coarse, 2, every)[0]
+
+        start = _search_centre(cost, start, max(1.0, 0.1 * radius))
     _, s, _, g = fit(start, None, _WARM_ITERS)
     pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
@@ -97,5 +135,22 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         n = used.size
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
-    centre = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)[:2]
-    return centre[::-1] if axis == "columns" else centre
+    best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
+    rim = _rim_extents(fit(best, None, _WARM_ITERS)[3], best[2], cs)
+    if axis == "columns":
+        return RadialFit(best[1::-1].copy(), rim[::-1])
+    return RadialFit(best[:2].copy(), rim)
+
+
+def _rim_extents(g: np.ndarray, log_ratio: float, cs: tuple[float, float]) -> np.ndarray:
+    """Half-extents (along the lines, across them) of the rim of a light of radial shape ``g``
+    (knots :data:`_BIN_PX` apart from its centre; its rim where it falls the most over a
+    pixel), with axis ratio ``exp(log_ratio)`` and the first axis along ``cs``, pixels."""
+    if g.size < 4:
+        return np.full(2, np.nan)
+    fall = g[:-2] - g[2:]  # over two bins: a pixel
+    radius = _BIN_PX * (1.0 + float(np.argmax(fall)))
+    r = float(np.clip(log_ratio, -_MAX_LOG_RATIO, _MAX_LOG_RATIO))
+    a, b = radius * np.exp(0.5 * r), radius * np.exp(-0.5 * r)  # along cs, across it
+    c, s = cs
+    return np.array([np.hypot(a * c, b * s), np.hypot(a * s, b * c)])
