@@ -151,12 +151,21 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         The blobs; a moved one has its new ``pixel`` (all else as detected).
     """
     if which is None:
-        levels = glow_levels(img, blobs)
+        levels = glow_levels(img, [_round(b) for b in blobs])
         which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
     return [_centred(img, b, axis) if w else b for b, w in zip(blobs, which, strict=True)]
+
+
+def _round(b: Blob) -> Blob:
+    """The blob; one touching the border with a round outline of its smaller axis (the
+    border cuts the rows its outline was fitted to: the ellipse may come out stretched
+    along them without end)."""
+    if not b.touches_border:
+        return b
+    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
 def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
@@ -173,7 +182,8 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     height, width = img.shape[:2]
     gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
     support = light_support(gray, b.mask, axis, cell=b.cell)
-    ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
+    r = _round(b)
+    ellipse = ((r.pixel[0] - x0, r.pixel[1] - y0), tuple(r.axes_px), r.angle_deg)
     far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
     fit = radial_fit(gray, support, ellipse, axis, far)
     centre = fit.centre
