@@ -172,11 +172,12 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     """The blob moved to the centre of its radial shape (as detected when that fails).
 
     A blob whose region reaches the photo's border is searched for from further off (its
-    outline is pulled away from the border where the border cuts its glow); one touching
-    the border (:attr:`Blob.touches_border`) is then moved, and no longer counts as
-    touching it, only when its disc's rim (:func:`radial_fit`) lies :data:`RIM_MARGIN_PX`
-    or more within the photo: a glow the border cuts leaves the shape fitted to the pixels
-    that are in the photo, while a disc the border cuts stays set aside.
+    outline is pulled away from the border where the border cuts its glow), then moved, and
+    counted as not touching the border (:attr:`Blob.touches_border`), only when its disc's
+    rim (:func:`radial_fit`) lies :data:`RIM_MARGIN_PX` or more within the photo; else it
+    counts as touching it.  A glow the border cuts leaves the shape fitted to the pixels
+    that are in the photo, while a disc the border cuts stays set aside, also where its
+    bright part missed the border (the part cut off in a dark stripe).
     """
     x0, y0, x1, y1 = b.box
     height, width = img.shape[:2]
@@ -191,10 +192,10 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     if not (np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h):
         return b
     pixel = centre + np.array([x0, y0], dtype=float)
-    if not b.touches_border:
+    if not far:
         return dataclasses.replace(b, pixel=pixel)
     size = np.array([width, height], dtype=float)
     low, high = pixel - fit.rim, pixel + fit.rim  # the rim's extent; the photo: -0.5 to size
     if np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX):
         return dataclasses.replace(b, pixel=pixel, touches_border=False)
-    return b
+    return dataclasses.replace(b, touches_border=True)  # its disc cut (or its rim not found)
