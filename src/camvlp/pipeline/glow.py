@@ -12,8 +12,10 @@ not fitted).  That costs 85 to 125 ms per glowing light on 1080p renders (one co
 of 105 px, halo 0.4); a light
 without a glow (its ring beyond the outline at the background) is left as detected, at the
 cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
-centres every light of a photo; :class:`camvlp.pipeline.track.Tracker` tells each fixture's
-glow once and centres the glowing ones it uses, frame after frame.
+centres every light of a photo (a light whose glow the photo's border cuts too, fitted to
+the pixels in the photo, and used when its disc's rim lies within the photo);
+:class:`camvlp.pipeline.track.Tracker` tells each fixture's glow once and centres the
+glowing ones it uses, frame after frame.
 """
 
 from __future__ import annotations
@@ -143,12 +145,15 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         The readout axis.
     which : array_like of bool, shape (len(blobs),), optional
         The blobs to centre, when already told (e.g. once per light along a video); None:
-        those :func:`glowing` tells.
+        those whose :func:`glow_levels` is at least :data:`GLOW_LEVEL`, those touching the
+        border included (measured on a round outline, see :func:`_round`).
 
     Returns
     -------
     list of Blob
-        The blobs; a moved one has its new ``pixel`` (all else as detected).
+        The blobs; a moved one has its new ``pixel``, and a centred one whose region reaches
+        the photo's border says in ``touches_border`` whether its disc does (all else as
+        detected).
     """
     if which is None:
         levels = glow_levels(img, [_round(b) for b in blobs])
