@@ -48,6 +48,13 @@ _PIXELS = 4000
 #: Radii of the picked pixels the shape reaches below the least of them at the start, pixels:
 #: more than the centre moves while it is fitted (nearer ones fall in the first bin).
 _MARGIN_PX = 4.0
+#: Fewest pixels of a radial bin the disc's rim is looked for in (near the centre, bins of
+#: half a pixel hold a few pixels, or none where the light clips).
+_RIM_PIXELS = 8
+#: The shape's knots averaged (a pixel), and their distance across the rim (a disc's edge
+#: blurred by up to 2 px falls over some 3 px; the noise of a few knots does not grow with
+#: the distance).
+_RIM_SMOOTH, _RIM_SPAN = 2, 6
 #: Steps of the shape's fit at the start, and at each trial centre.
 _WARM_ITERS, _ITERS = 8, 12
 
@@ -56,8 +63,8 @@ class RadialFit(NamedTuple):
     """A light's radial shape fitted (:func:`radial_fit`), in its region's pixels (x, y)."""
 
     centre: np.ndarray  # shape (2,): the shape's centre, pixels; NaN when not fitted
-    rim: np.ndarray  # shape (2,): half-extents of the disc's rim along x and y, pixels; NaN
-    # when not fitted
+    rim: np.ndarray  # shape (2,): half-extents of the disc's rim along x and y (its larger
+    # semi-axis both ways), pixels; NaN when not fitted
 
 
 def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
@@ -136,21 +143,38 @@ def radial_fit(
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
     best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
-    rim = _rim_extents(fit(best, None, _WARM_ITERS)[3], best[2], cs)
+    g = fit(best, None, _WARM_ITERS)[3]
+    per_bin = np.bincount((_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size)
+    rim = _rim_extents(g, per_bin[: g.size], best[2])
     if axis == "columns":
         return RadialFit(best[1::-1].copy(), rim[::-1])
     return RadialFit(best[:2].copy(), rim)
 
 
-def _rim_extents(g: np.ndarray, log_ratio: float, cs: tuple[float, float]) -> np.ndarray:
-    """Half-extents (along the lines, across them) of the rim of a light of radial shape ``g``
-    (knots :data:`_BIN_PX` apart from its centre; its rim where it falls the most over a
-    pixel), with axis ratio ``exp(log_ratio)`` and the first axis along ``cs``, pixels."""
-    if g.size < 4:
+def _rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndarray:
+    """Half-extents (along the lines, across them) of the rim of a light of radial shape
+    ``g`` (knots :data:`_BIN_PX` apart from its centre) and axis ratio ``exp(log_ratio)``,
+    pixels: the larger semi-axis both ways.  The rim is the outermost place where the
+    shape's mean over a pixel falls over :data:`_RIM_SPAN` knots by half the most it falls
+    anywhere, among the bins holding :data:`_RIM_PIXELS` pixels or more (a knot without
+    pixels is 0); ``per_bin`` counts the pixels of each bin (as many as ``g``'s knots)."""
+    n = _RIM_SMOOTH
+    if g.size < 2 * n + _RIM_SPAN:
         return np.full(2, np.nan)
-    fall = g[:-2] - g[2:]  # over two bins: a pixel
-    radius = _BIN_PX * (1.0 + float(np.argmax(fall)))
-    r = float(np.clip(log_ratio, -_MAX_LOG_RATIO, _MAX_LOG_RATIO))
-    a, b = radius * np.exp(0.5 * r), radius * np.exp(-0.5 * r)  # along cs, across it
-    c, s = cs
-    return np.array([np.hypot(a * c, b * s), np.hypot(a * s, b * c)])
+    mean = np.convolve(g, np.full(n, 1.0 / n), mode="valid")  # knots k to k + n - 1
+    full = np.convolve(per_bin >= _RIM_PIXELS, np.ones(n), mode="valid") == n
+    # from the knots k..k+n-1 to k+span..: the fall across the rim, centred at k+(n-1+span)/2
+    fall = np.where(
+        full[:-_RIM_SPAN] & full[_RIM_SPAN:], mean[:-_RIM_SPAN] - mean[_RIM_SPAN:], -np.inf
+    )
+    if not np.isfinite(fall).any():
+        return np.full(2, np.nan)
+    # the outermost steep fall: where the light clips, the few pixels left near the centre
+    # draw the shape less surely than the many at the rim
+    last = int(np.flatnonzero(fall >= 0.5 * fall.max())[-1])
+    first = max(last - 2 * _RIM_SPAN, 0)  # the peak of that fall
+    k = first + int(np.argmax(fall[first : last + 1]))
+    radius = _BIN_PX * (float(k) + 0.5 * (n - 1 + _RIM_SPAN))
+    # the major axis every way: a light the border cuts shows its axis ratio less surely
+    r = float(np.clip(abs(log_ratio), 0.0, _MAX_LOG_RATIO))
+    return np.full(2, radius * np.exp(0.5 * r))
