@@ -184,3 +184,47 @@ def test_an_unclipped_glow_stays_centred():
     assert len(centred) >= 12
     assert np.median(centred) < 0.03 < 0.5 < np.median(outline)
     assert np.max(centred) < 0.1
+
+
+def _lamp_at(u: float, v: float, r_px: float, readout: str, **look):
+    """One lamp of radius ``r_px`` centred at pixel (u, v) of CAM, facing it; its photo."""
+    f = CAM.matrix[0, 0]
+    ray = CAM.undistort_pixels(np.array([[u, v]]))[0]
+    fx = Fixture(0, np.array([ray[0], ray[1], 1.0]) * 2.0, 4.0 * r_px / f, np.array([0, 0, -1.0]))
+    settings = RenderSettings(seed=7, readout=readout, chip_rate_hz=5000.0, **look)
+    return render(CAM, FixtureMap((fx,)), Pose(np.eye(3), np.zeros(3)), settings)
+
+
+@pytest.mark.parametrize(
+    ("readout", "side", "look"),
+    [
+        ("rows", "left", {"halo": 0.3, "brightness": 6.0}),
+        ("columns", "bottom", {"halo": 0.4, "brightness": 4.0}),
+        ("rows-reversed", "top", {"halo": 0.25, "brightness": 8.0, "core": 1.5}),
+    ],
+)
+def test_a_lamp_whose_glow_the_border_cuts_is_centred_and_used(readout, side, look):
+    # the disc's edge 0.25 radius from the border, the glow bright well beyond it: the
+    # outline is pulled away from the border by some px, the radial shape is fitted to the
+    # pixels in the photo
+    r = 40.0
+    d = 1.25 * r
+    u, v = {"left": (d, 240.0), "bottom": (320.0, 479.0 - d), "top": (320.0, d)}[side]
+    photo = _lamp_at(u, v, r, readout, **look)
+    axis = "rows" if readout.startswith("rows") else "columns"
+    (blob,) = detect_fixtures(photo.image, readout=axis).blobs
+    assert blob.touches_border  # the glow's bright part reaches the border
+    (moved,) = centred_on_glow(photo.image, [blob], axis)
+    truth = photo.fixtures[0].pixel
+    assert not moved.touches_border
+    assert np.linalg.norm(moved.pixel - truth) < 0.3 < np.linalg.norm(blob.pixel - truth)
+
+
+@pytest.mark.parametrize("gap", [-0.3, -0.05])
+def test_a_lamp_whose_disc_the_border_cuts_stays_set_aside(gap):
+    r = 40.0
+    photo = _lamp_at(r * (1.0 + gap), 240.0, r, "rows", halo=0.3, brightness=4.0)
+    (blob,) = detect_fixtures(photo.image, readout="rows").blobs
+    assert blob.touches_border
+    (moved,) = centred_on_glow(photo.image, [blob], "rows")
+    assert moved.touches_border

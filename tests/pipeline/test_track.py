@@ -116,7 +116,7 @@ def test_plain_lamps_cost_one_glow_check(video, monkeypatch):
 
     real = camvlp.pipeline.track.glowing
     monkeypatch.setattr(camvlp.pipeline.track, "glowing", glowing)
-    monkeypatch.setattr(camvlp.pipeline.glow, "radial_centre", no_fit)
+    monkeypatch.setattr(camvlp.pipeline.glow, "radial_fit", no_fit)
     tracker = Tracker(cam, room)
     results = [tracker.update(f.image, f.t) for f in frames]
     used = {i for r in results for i in r.fixtures_used}

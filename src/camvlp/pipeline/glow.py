@@ -12,8 +12,10 @@ not fitted).  That costs 85 to 125 ms per glowing light on 1080p renders (one co
 of 105 px, halo 0.4); a light
 without a glow (its ring beyond the outline at the background) is left as detected, at the
 cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
-centres every light of a photo; :class:`camvlp.pipeline.track.Tracker` tells each fixture's
-glow once and centres the glowing ones it uses, frame after frame.
+centres every light of a photo (a light whose glow the photo's border cuts too, fitted to
+the pixels in the photo, and used when its disc's rim lies within the photo);
+:class:`camvlp.pipeline.track.Tracker` tells each fixture's glow once and centres the
+glowing ones it uses, frame after frame.
 """
 
 from __future__ import annotations
@@ -23,12 +25,16 @@ import dataclasses
 import numpy as np
 
 from camvlp.pipeline.detect import Blob, light_support, to_gray
-from camvlp.pipeline.radial import radial_centre
+from camvlp.pipeline.radial import radial_fit
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
 #: Glow level (see :func:`glow_level`) from which a light counts as glowing.
 GLOW_LEVEL = 0.02
+#: How far within the photo a glowing light's disc (its fitted rim) must lie for a light
+#: whose glow the border cuts to be used, pixels: its rim is found to the pixel (the fall over
+#: two bins of half a pixel).
+RIM_MARGIN_PX = 1.0
 
 
 #: Where :func:`glow_level` samples a light, in radii of its outline ellipse: inside, the
@@ -139,31 +145,66 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         The readout axis.
     which : array_like of bool, shape (len(blobs),), optional
         The blobs to centre, when already told (e.g. once per light along a video); None:
-        those :func:`glowing` tells.
+        those whose :func:`glow_levels` is at least :data:`GLOW_LEVEL`, those touching the
+        border included (measured on a round outline, see :func:`_round`).
 
     Returns
     -------
     list of Blob
-        The blobs; a moved one has its new ``pixel`` (all else as detected).
+        The blobs; a moved one has its new ``pixel``, and a centred one whose region reaches
+        the photo's border says in ``touches_border`` whether its disc does (all else as
+        detected).
     """
-    which = glowing(img, blobs)[0] if which is None else np.asarray(which, dtype=bool)
+    if which is None:
+        levels = glow_levels(img, [_round(b) for b in blobs])
+        which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
+    which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
     return [_centred(img, b, axis) if w else b for b, w in zip(blobs, which, strict=True)]
 
 
+def _round(b: Blob) -> Blob:
+    """The blob; one touching the border with a round outline of its smaller axis (the
+    border cuts the rows its outline was fitted to: the ellipse may come out stretched
+    along them without end)."""
+    if not b.touches_border:
+        return b
+    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
+
+
 def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
-    """The blob moved to the centre of its radial shape (as detected when that fails)."""
+    """The blob moved to the centre of its radial shape (as detected when that fails).
+
+    A blob whose region reaches the photo's border is searched for from further off (its
+    outline is pulled away from the border where the border cuts its glow), then moved, and
+    counted as not touching the border (:attr:`Blob.touches_border`), only when its disc's
+    rim (:func:`radial_fit`) lies :data:`RIM_MARGIN_PX` or more within the photo; else it
+    counts as touching it.  A glow the border cuts leaves the shape fitted to the pixels
+    that are in the photo, while a disc the border cuts stays set aside, also where its
+    bright part missed the border (the part cut off in a dark stripe).
+    """
     x0, y0, x1, y1 = b.box
+    height, width = img.shape[:2]
     gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
     support = light_support(gray, b.mask, axis, cell=b.cell)
-    ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(b.axes_px), b.angle_deg)
-    centre = radial_centre(gray, support, ellipse, axis)
+    r = _round(b)
+    ellipse = ((r.pixel[0] - x0, r.pixel[1] - y0), tuple(r.axes_px), r.angle_deg)
+    far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
+    fit = radial_fit(gray, support, ellipse, axis, far)
+    centre = fit.centre
     h, w = b.mask.shape
     if not (np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h):
         return b
     # a light's centre lies on its disc: a fit that left it (drawn to a neighbour's glow)
     # failed
     if not b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]:
-        return b
-    return dataclasses.replace(b, pixel=centre + np.array([x0, y0], dtype=float))
+        return dataclasses.replace(b, touches_border=True) if far else b
+    pixel = centre + np.array([x0, y0], dtype=float)
+    if not far:
+        return dataclasses.replace(b, pixel=pixel)
+    size = np.array([width, height], dtype=float)
+    low, high = pixel - fit.rim, pixel + fit.rim  # the rim's extent; the photo: -0.5 to size
+    if np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX):
+        return dataclasses.replace(b, pixel=pixel, touches_border=False)
+    return dataclasses.replace(b, touches_border=True)  # its disc cut (or its rim not found)

@@ -591,14 +591,15 @@ def _radial(
     return _Radial(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels)
 
 
-def _search_centre(cost, start: np.ndarray) -> np.ndarray:
+def _search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
     """Nelder-Mead over a light's ``[x, y, log axis ratio]`` from ``start`` (pixels, pixels,
-    natural log), on ``cost`` relative to the start's; the end, shape (3,)."""
+    natural log), on ``cost`` relative to the start's, first steps of ``step_px`` and 0.1;
+    the end, shape (3,)."""
     unit = max(cost(start), 1e-12)
 
     from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
 
-    simplex = start + np.vstack([np.zeros(3), np.diag([1.0, 1.0, 0.1])])  # px, px, log ratio
+    simplex = start + np.vstack([np.zeros(3), np.diag([step_px, step_px, 0.1])])
     res = minimize(
         lambda p: cost(p) / unit,
         start,

@@ -24,9 +24,12 @@ and with the shape refitted in :data:`_ITERS` steps at each trial centre.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from camvlp.pipeline.light_wave import (
+    _MAX_LOG_RATIO,
     LightWave,
     _aggregate,
     _axes,
@@ -36,7 +39,7 @@ from camvlp.pipeline.light_wave import (
     _shape_fit,
 )
 
-__all__ = ["radial_centre"]
+__all__ = ["RadialFit", "radial_centre", "radial_fit"]
 
 #: Width of the radial shape's bins, pixels: finer than a rim blurred over a pixel.
 _BIN_PX = 0.5
@@ -45,13 +48,42 @@ _PIXELS = 4000
 #: Radii of the picked pixels the shape reaches below the least of them at the start, pixels:
 #: more than the centre moves while it is fitted (nearer ones fall in the first bin).
 _MARGIN_PX = 4.0
+#: Fewest pixels of a radial bin the disc's rim is looked for in (near the centre, bins of
+#: half a pixel hold a few pixels, or none where the light clips).
+_RIM_PIXELS = 8
+#: The shape's knots averaged (a pixel), and their distance across the rim (a disc's edge
+#: blurred by up to 2 px falls over some 3 px; the noise of a few knots does not grow with
+#: the distance).
+_RIM_SMOOTH, _RIM_SPAN = 2, 6
 #: Steps of the shape's fit at the start, and at each trial centre.
 _WARM_ITERS, _ITERS = 8, 12
 
 
+class RadialFit(NamedTuple):
+    """A light's radial shape fitted (:func:`radial_fit`), in its region's pixels (x, y)."""
+
+    centre: np.ndarray  # shape (2,): the shape's centre, pixels; NaN when not fitted
+    rim: np.ndarray  # shape (2,): half-extents of the disc's rim along x and y (its larger
+    # semi-axis both ways), pixels; NaN when not fitted
+
+
 def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
+    """The centre of a round light's radial shape: :func:`radial_fit`'s ``centre``."""
+    return radial_fit(gray, support, ellipse, axis).centre
+
+
+def radial_fit(
+    gray: np.ndarray, support: np.ndarray, ellipse, axis: str, far: bool = False
+) -> RadialFit:
     """The centre of a round light's radial shape (core, disc and glow), separated from its
-    stripes (the square wave is not fitted), from the pixels that tell it best.
+    stripes (the square wave is not fitted), from the pixels that tell it best, and its
+    disc's rim.
+
+    The rim is where the shape, fitted over all the light's pixels at that centre, falls the
+    most steeply (a disc's edge, blurred over a pixel or two, falls from the disc's level to
+    the glow's; a hot core and a glow change slowly, over tenths of the radius).  Pixels the
+    region lacks (beyond the photo's border) take no part in the fit: the shape is fitted
+    to each pixel that is there.
 
     Parameters
     ----------
@@ -64,16 +96,20 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         ``((cx, cy), (width, height), angle_deg)``.
     axis : {"rows", "columns"}
         The readout axis.
+    far : bool
+        The outline's centre may be far from the shape's (e.g. a glow the photo's border
+        cuts): a coarse search on every k-th pixel first, in steps of a tenth of the radius.
 
     Returns
     -------
-    ndarray, shape (2,)
-        Centre ``[x, y]`` in the region, pixels; NaN when the region has too few pixels with
-        signal.
+    RadialFit
+        Centre ``[x, y]`` in the region, and the half-extents ``[x, y]`` of the rim (the
+        ellipse of the shape's axis ratio and angle), pixels; NaN when the region has too
+        few pixels with signal.
     """
     fitted = _radial(gray, support, ellipse, axis, refine=False)
     if isinstance(fitted, LightWave):
-        return fitted.centre
+        return RadialFit(fitted.centre, np.full(2, np.nan))
     ly, lx, value = fitted.pixels
     cs, n_lines = fitted.cs, fitted.n_lines
     uv = _axes(lx, ly, cs)
@@ -83,6 +119,15 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
     start = np.asarray(fitted.best, dtype=float)  # not refined: the coarse fit's start
+    if far:  # a coarse search first, in steps of a tenth of the radius
+        every = max(1, ly.size // _PIXELS)
+        radius = 0.25 * float(sum(ellipse[1]))
+        coarse = fitted.warm
+
+        def cost(p: np.ndarray) -> float:
+            return fitted.fit(p, coarse, 2, every)[0]
+
+        start = _search_centre(cost, start, max(1.0, 0.1 * radius))
     _, s, _, g = fit(start, None, _WARM_ITERS)
     pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
@@ -97,5 +142,39 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
         n = used.size
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
-    centre = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)[:2]
-    return centre[::-1] if axis == "columns" else centre
+    best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
+    g = fit(best, None, _WARM_ITERS)[3]
+    per_bin = np.bincount((_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size)
+    rim = _rim_extents(g, per_bin[: g.size], best[2])
+    if axis == "columns":
+        return RadialFit(best[1::-1].copy(), rim[::-1])
+    return RadialFit(best[:2].copy(), rim)
+
+
+def _rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndarray:
+    """Half-extents (along the lines, across them) of the rim of a light of radial shape
+    ``g`` (knots :data:`_BIN_PX` apart from its centre) and axis ratio ``exp(log_ratio)``,
+    pixels: the larger semi-axis both ways.  The rim is the outermost place where the
+    shape's mean over a pixel falls over :data:`_RIM_SPAN` knots by half the most it falls
+    anywhere, among the bins holding :data:`_RIM_PIXELS` pixels or more (a knot without
+    pixels is 0); ``per_bin`` counts the pixels of each bin (as many as ``g``'s knots)."""
+    n = _RIM_SMOOTH
+    if g.size < 2 * n + _RIM_SPAN:
+        return np.full(2, np.nan)
+    mean = np.convolve(g, np.full(n, 1.0 / n), mode="valid")  # knots k to k + n - 1
+    full = np.convolve(per_bin >= _RIM_PIXELS, np.ones(n), mode="valid") == n
+    # from the knots k..k+n-1 to k+span..: the fall across the rim, centred at k+(n-1+span)/2
+    fall = np.where(
+        full[:-_RIM_SPAN] & full[_RIM_SPAN:], mean[:-_RIM_SPAN] - mean[_RIM_SPAN:], -np.inf
+    )
+    if not np.isfinite(fall).any():
+        return np.full(2, np.nan)
+    # the outermost steep fall: where the light clips, the few pixels left near the centre
+    # draw the shape less surely than the many at the rim
+    last = int(np.flatnonzero(fall >= 0.5 * fall.max())[-1])
+    first = max(last - 2 * _RIM_SPAN, 0)  # the peak of that fall
+    k = first + int(np.argmax(fall[first : last + 1]))
+    radius = _BIN_PX * (float(k) + 0.5 * (n - 1 + _RIM_SPAN))
+    # the major axis every way: a light the border cuts shows its axis ratio less surely
+    r = float(np.clip(abs(log_ratio), 0.0, _MAX_LOG_RATIO))
+    return np.full(2, radius * np.exp(0.5 * r))
