@@ -99,13 +99,14 @@ def test_a_radial_fit_that_leaves_its_disc_is_not_taken(monkeypatch):
 
     photo, _ = _photo(1, halo=0.4, brightness=1.0)
     blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
-    real = glow.radial_centre
+    real = glow.radial_fit
     shift = np.array([0.0, 0.0])
 
     def moved(*args, **kwargs):
-        return real(*args, **kwargs) + shift
+        fit = real(*args, **kwargs)
+        return fit._replace(centre=fit.centre + shift)
 
-    monkeypatch.setattr(glow, "radial_centre", moved)
+    monkeypatch.setattr(glow, "radial_fit", moved)
     near = centred_on_glow(photo.image, blobs, "rows")
     assert all(np.hypot(*(a.pixel - b.pixel)) < 2.0 for a, b in zip(near, blobs, strict=True))
     assert any(a is not b for a, b in zip(near, blobs, strict=True))
