@@ -142,6 +142,10 @@ def main(argv=None) -> None:
     parser.add_argument("--plot", type=Path, help="save the errors against periods shown (PNG)")
     parser.add_argument("--styles", nargs="+", choices=STYLES, help="only these light styles")
     parser.add_argument("--periods", nargs="+", type=float, help="only these periods shown")
+    parser.add_argument("--exposures", nargs="+", type=float, help="only these exposures")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="first seed of the sweep (0: the seeds of the README)"
+    )
     parser.add_argument(
         "--worst", type=int, default=0, help="print the N worst lights (their sweep's settings)"
     )
@@ -153,9 +157,11 @@ def main(argv=None) -> None:
     everything = []
     grid = itertools.product(PERIODS, STYLES, exposures, NOISES, readouts)
     worst = []
-    for seed, (periods, style, exposure, noise, readout) in enumerate(grid):
-        if (args.styles and style not in args.styles) or (
-            args.periods and not any(abs(periods - p) < 1e-9 for p in args.periods)
+    for seed, (periods, style, exposure, noise, readout) in enumerate(grid, args.seed):
+        if (
+            (args.styles and style not in args.styles)
+            or (args.periods and not any(abs(periods - p) < 1e-9 for p in args.periods))
+            or (args.exposures and not any(abs(exposure - e) < 1e-9 for e in args.exposures))
         ):
             continue  # the same seeds as in the whole sweep
         rows = _measure(periods, style, exposure, noise, readout, seed)

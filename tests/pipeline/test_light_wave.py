@@ -9,7 +9,8 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures, light_support, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
-from camvlp.pipeline.light_wave import _integrated, fit_square_wave, light_wave
+from camvlp.pipeline.light_wave import light_wave
+from camvlp.pipeline.square_wave import _integrated, fit_square_wave
 from camvlp.pipeline.stripes import estimate_stripe_period
 from camvlp.sim.render import RenderSettings, render
 
