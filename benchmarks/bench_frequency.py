@@ -37,7 +37,7 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.sim.bound import frequency_bounds, share_within
+from camvlp.sim.bound import frequency_bounds, frequency_intervals, share_within
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 1.0 / 47_540.0
@@ -60,6 +60,8 @@ NOISES = {  # read noise (fraction of full scale), JPEG quality (None: no JPEG)
 }
 READOUTS = ("rows", "columns-reversed")
 _LOCATE_S: list[float] = []  # each photo's locate time, s
+#: (seed, light) -> the frequencies its pixels cannot tell from its own (--limits), fractions
+_LIMITS: dict[tuple[int, int], np.ndarray] = {}
 
 
 def _room(periods: float, style: str) -> tuple[FixtureMap, Camera]:
@@ -84,7 +86,9 @@ def _room(periods: float, style: str) -> tuple[FixtureMap, Camera]:
     return FixtureMap(fixtures, mode="frequency"), camera
 
 
-def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float, ...]]:
+def _measure(
+    periods, style, exposure, noise, readout, seed, limits=False
+) -> list[tuple[float, ...]]:
     """(periods shown, frequency error %, centre error px, the bound %) per light: NaN errors
     if missed; the bound is the Cramer-Rao bound of the frequency error's standard deviation
     (:func:`camvlp.sim.bound.frequency_bounds`)."""
@@ -119,6 +123,9 @@ def _measure(periods, style, exposure, noise, readout, seed) -> list[tuple[float
         true_hz = fmap.get(t.id).frequency_hz
         err = 100.0 * abs(f.frequency_hz / true_hz - 1.0)
         rows.append((t.frames_spanned, err, float(np.hypot(*(f.pixel - t.pixel))), bound))
+    if limits and not all(r[1] < 1.0 for r in rows):  # a light off by 1 % or more, or missed
+        for i, lo_hi in enumerate(frequency_intervals(camera, fmap, pose, settings, jpeg_error)):
+            _LIMITS[seed, i] = lo_hi
     return rows
 
 
@@ -149,6 +156,11 @@ def main(argv=None) -> None:
     parser.add_argument(
         "--worst", type=int, default=0, help="print the N worst lights (their sweep's settings)"
     )
+    parser.add_argument(
+        "--limits",
+        action="store_true",
+        help="for each light off by 1 %% or more, the frequencies its pixels cannot tell apart",
+    )
     args = parser.parse_args(argv)
     exposures = (0.2,) if args.quick else EXPOSURES
     readouts = READOUTS[:1] if args.quick else READOUTS
@@ -164,7 +176,7 @@ def main(argv=None) -> None:
             or (args.exposures and not any(abs(exposure - e) < 1e-9 for e in args.exposures))
         ):
             continue  # the same seeds as in the whole sweep
-        rows = _measure(periods, style, exposure, noise, readout, seed)
+        rows = _measure(periods, style, exposure, noise, readout, seed, args.limits)
         worst += [
             (r[1], i, (periods, style, exposure, noise, readout, seed), r[3])
             for i, r in enumerate(rows)
@@ -203,10 +215,28 @@ def main(argv=None) -> None:
     for err, i, where, bound in sorted(worst, key=lambda w: -np.nan_to_num(w[0], nan=1e9))[
         : args.worst
     ]:
-        print(f"worst: {err:6.2f} % (bound {bound:.3f} %) light {i} of {where}")
+        lo_hi = _LIMITS.get((where[-1], i))
+        told = "" if lo_hi is None else " consistent: {:+.2f} to {:+.2f} %".format(*100 * lo_hi)
+        print(f"worst: {err:6.2f} % (bound {bound:.3f} %){told} light {i} of {where}")
+    if args.limits:
+        _print_limits(worst)
     if args.plot:
         plot(by["style"], args.plot)
         print(f"wrote {args.plot}")
+
+
+def _print_limits(worst: list) -> None:
+    """How many of the lights off by 1 % or more are so because their pixels cannot tell."""
+    off = [(i, where) for err, i, where, _ in worst if not err < 1.0]
+    spans = np.array([_LIMITS[where[-1], i] for i, where in off]).reshape(-1, 2)
+    wide = (spans[:, 0] < -0.01) | (spans[:, 1] > 0.01)
+    mid = np.abs(spans.mean(axis=1)) > 0.01
+    print(
+        f"lights off by 1 % or more: {len(off)}; their pixels are consistent (within one "
+        f"standard deviation of their noise) with a frequency 1 % off or more for {wide.sum()}"
+        f", and the middle of the frequencies they are consistent with is 1 % off or more for "
+        f"{mid.sum()}"
+    )
 
 
 def plot(by_style: dict, path: Path) -> None:

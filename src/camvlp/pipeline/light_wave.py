@@ -29,8 +29,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from camvlp.pipeline.rim import refine_wave
-from camvlp.pipeline.square_wave import _integrated, fit_square_wave
+from camvlp.pipeline.rim import GridShape, refine_wave
+from camvlp.pipeline.square_wave import _integrated, fit_square_wave, sharp_period
 
 __all__ = ["LightWave", "light_wave", "outline_ellipse"]
 
@@ -365,7 +365,8 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     )
     weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
     lines = np.arange(n_lines, dtype=float)
-    period, phase, window, low, high = fit_square_wave(lines, s, weight, *bounds)
+    profile = (lines, s, weight, *bounds)
+    period, phase, window, low, high = fit_square_wave(*profile, sharp=False)
     centre = np.array(best[:2], dtype=float)
     if axis == "columns":
         centre = centre[::-1]
@@ -376,29 +377,44 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     if seen < _MIN_PERIODS:
         why = f"the light shows {seen:.2f} stripe periods, under one (steady, or too small)"
         return _failed(centre, why, conclusive=True)
+    wave = (period, phase, window, low, high)
+    grid = None
     if cy_.size and seen < _FEW_PERIODS and bin_px <= _BIN_PX:
-        (ex, ey), _, _ = ellipse
-        outline = (ey, ex) if axis == "columns" else (ex, ey)
-        fit = refine_wave(
-            fitted.pixels,
-            fitted.clipped,
-            _CLIP - fitted.background,
-            n_lines,
-            [best, np.array([*outline, 0.0])],
-            np.array([period, phase, window, low, high]),
-            lambda rho: np.interp(rho / bin_px, np.arange(shape.size), shape, right=0.0),
-            cs,
-            bin_px,
-            _integrated,
+        grid = _on_grid(fitted, ellipse, axis, shape, wave)
+    if grid is None:
+        period, phase, window, low, high = (float(v) for v in sharp_period(*profile, wave))
+    else:
+        period, phase, window, low, high = (
+            float(v) for v in sharp_period(*grid.profile, grid.wave)
         )
-        p, ph, win, lo, hi = (float(v) for v in fit.wave)
-        if np.isfinite(fit.cost) and p > 2.0 and hi > lo:
-            period, phase, window, low, high = p, ph % p, win, lo, hi
-            centre = np.array(fit.geometry[:2], dtype=float)
-            if axis == "columns":
-                centre = centre[::-1]
-            seen = (used[-1] - used[0] + 1) / period
+        centre = np.array(grid.geometry[:2], dtype=float)
+        if axis == "columns":
+            centre = centre[::-1]
+        seen = (used[-1] - used[0] + 1) / period
     return LightWave(period, window, phase, (low, high), centre, float(seen))
+
+
+def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> GridShape | None:
+    """The light's shape on the pixel grid fitted with its square wave
+    (:func:`camvlp.pipeline.rim.refine_wave`) from the radial fit (its radial ``shape`` per
+    knot, its ``wave``: period, phase, window, low, high), or None when that fit fails."""
+    (ex, ey), _, _ = ellipse
+    outline = (ey, ex) if axis == "columns" else (ex, ey)
+    bin_px = fitted.bin_px
+    fit = refine_wave(
+        fitted.pixels,
+        fitted.clipped,
+        _CLIP - fitted.background,
+        fitted.n_lines,
+        [fitted.best, np.array([*outline, 0.0])],
+        np.array(wave, dtype=float),
+        lambda rho: np.interp(rho / bin_px, np.arange(shape.size), shape, right=0.0),
+        fitted.cs,
+        bin_px,
+        _integrated,
+    )
+    p, _, _, lo, hi = (float(v) for v in fit.wave)
+    return fit if np.isfinite(fit.cost) and p > 2.0 and hi > lo else None
 
 
 def _failed(centre: np.ndarray, message: str, conclusive: bool = False) -> LightWave:

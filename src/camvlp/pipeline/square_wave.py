@@ -15,7 +15,7 @@ import numpy as np
 
 from camvlp.pipeline.stripes import spectral_peak
 
-__all__ = ["fit_square_wave"]
+__all__ = ["consistent_periods", "fit_square_wave", "sharp_period"]
 
 #: Shortest window of the square wave, lines.  Lines sample the wave once each: an edge
 #: sharper than a line lies anywhere between two lines at the same cost, and a ramp of one
@@ -202,6 +202,7 @@ def fit_square_wave(
     bound_lines=None,
     bounds=None,
     bound_weight=None,
+    sharp: bool = True,
 ) -> tuple[float, float, float, float, float]:
     """Fit an integrated 50 % square wave to a light's line profile.
 
@@ -210,7 +211,9 @@ def fit_square_wave(
     periods are searched finer, and the best is refined (Nelder-Mead over period, phase and
     window, the levels solved exactly).  A window of ``e`` and one of ``period - e`` give the
     same shape (one is the other's complement, shifted by half a period), so the window is
-    sought up to half a period.
+    sought up to half a period.  Where the fitted window is under :data:`_SHARP` lines, the
+    period is the mean over those that fit about as well (:func:`_sharp_mean`; not without
+    ``sharp``: :func:`sharp_period` does it after).
 
     Parameters
     ----------
@@ -229,21 +232,10 @@ def fit_square_wave(
         Period, phase (a rising edge's line, modulo the period) and window, lines; the levels
         in ``signal``'s units.  NaN when fewer than :data:`_MIN_LINES` lines carry weight.
     """
-    y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, signal, weight))
-    keep = (w > 0) & np.isfinite(s)
-    if keep.sum() < _MIN_LINES:
+    prepared = _prepared(lines, signal, weight, bound_lines, bounds, bound_weight)
+    if prepared is None:
         return (float("nan"),) * 5
-    top = float(w[keep].max())
-    if bound_lines is None:
-        bound_lines = bounds = bound_weight = np.zeros(0)
-    yc, bc, wc = (
-        np.asarray(v, dtype=float).reshape(-1) for v in (bound_lines, bounds, bound_weight)
-    )
-    kc = wc > 0
-    scale = float(np.percentile(np.abs(s[keep]), 95)) or 1.0  # costs of order 1 per line
-    data = _Profile.of(
-        y[keep], s[keep] / scale, w[keep] / top, yc[kc], bc[kc] / scale, wc[kc] / top
-    )
+    data, scale = prepared
     span = float(data[0].max() - data[0].min() + 1)
     if span < 2.5 / 0.8:
         return (float("nan"),) * 5
@@ -274,7 +266,53 @@ def fit_square_wave(
             p = fine[k[0]]
             window = max(fractions[k[2]] * p, _MIN_WINDOW)
             best = (float(cost[k]), np.array([p, k[1] / 16 * p, window]))
-    x0 = best[1]
+    x = _refine(data, best[1])
+    if sharp and x[2] < _SHARP:
+        x = _sharp_mean(data, x)
+    p, phase, window = (float(v) for v in x)
+    _, low, high = _cost(data, p, phase, window)
+    return p, phase % p, window, float(low) * scale, float(high) * scale
+
+
+def _prepared(lines, signal, weight, bound_lines, bounds, bound_weight):
+    """:func:`fit_square_wave`'s arguments as a :class:`_Profile` of costs of order 1 per
+    line, and the scale of its signal; None when fewer than :data:`_MIN_LINES` lines carry
+    weight."""
+    y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, signal, weight))
+    keep = (w > 0) & np.isfinite(s)
+    if keep.sum() < _MIN_LINES:
+        return None
+    top = float(w[keep].max())
+    if bound_lines is None:
+        bound_lines = bounds = bound_weight = np.zeros(0)
+    yc, bc, wc = (
+        np.asarray(v, dtype=float).reshape(-1) for v in (bound_lines, bounds, bound_weight)
+    )
+    kc = wc > 0
+    scale = float(np.percentile(np.abs(s[keep]), 95)) or 1.0  # costs of order 1 per line
+    data = _Profile.of(
+        y[keep], s[keep] / scale, w[keep] / top, yc[kc], bc[kc] / scale, wc[kc] / top
+    )
+    return data, scale
+
+
+def sharp_period(lines, signal, weight, bound_lines, bounds, bound_weight, wave) -> np.ndarray:
+    """A square wave fitted otherwise (``wave``: period, phase, window, low, high), with the
+    period :func:`_sharp_mean` gives on this line profile where its window is under
+    :data:`_SHARP` lines (arguments as :func:`fit_square_wave` takes them); shape (5,)."""
+    wave = np.asarray(wave, dtype=float)
+    prepared = _prepared(lines, signal, weight, bound_lines, bounds, bound_weight)
+    if wave[2] >= _SHARP or prepared is None:
+        return wave
+    data, scale = prepared
+    p, phase, window = (float(v) for v in _sharp_mean(data, wave[:3]))
+    _, low, high = _cost(data, p, phase, window)
+    return np.array([p, phase % p, window, float(low) * scale, float(high) * scale])
+
+
+def _refine(data: _Profile, x0: np.ndarray) -> np.ndarray:
+    """Nelder-Mead over period, phase and window (lines) from ``x0``, windows of
+    :data:`_MIN_WINDOW` or more; the end, shape (3,)."""
 
     def objective(x: np.ndarray) -> float:
         p, phase, window = x
@@ -292,6 +330,149 @@ def fit_square_wave(
         method="Nelder-Mead",
         options={"xatol": 1e-4, "fatol": 1e-9, "maxiter": 600, "initial_simplex": simplex},
     )
-    p, phase, window = (float(v) for v in res.x)
-    _, low, high = _cost(data, p, phase, window)
-    return p, phase % p, window, float(low) * scale, float(high) * scale
+    return np.asarray(res.x, dtype=float)
+
+
+#: A fitted window shorter than this (lines) may hide a window shorter than a line, whose
+#: stripes' edges the lines sample too sparsely to place (:func:`_sharp_mean`).
+_SHARP = 1.5
+#: :func:`_sharp_mean`'s grid: periods relative to the fit's (step, reach), phases (lines,
+#: about the one that keeps the middle edge in place; step, reach) and windows (lines).
+_SHARP_STEP, _SHARP_REACH = 0.001, 0.03
+_SHARP_PHASE_STEP, _SHARP_PHASE_REACH = 0.005, 0.75
+_SHARP_WINDOWS = np.arange(0.05, 1.5, 0.1)
+#: Least variance of a line's noise in :func:`_sharp_mean` (the profile's units: its
+#: signal's 95th percentile is 1): edges placed to about 2 % of the wave's swing, which the
+#: grid's steps resolve.
+_SHARP_VAR = 4e-4
+#: :func:`_profile`'s steps from period to period: the phases (lines, about the one that
+#: keeps the middle edge in place) and windows (lines) its minimisation starts from besides
+#: the previous period's best, and its shortest window (lines).
+_PROFILE_PHASES = np.linspace(-1.5, 1.5, 31)
+_PROFILE_WINDOWS = np.arange(0.05, 2.0, 0.1)
+_SHARPEST = 0.02
+
+
+def _sharp_mean(data: _Profile, x: np.ndarray) -> np.ndarray:
+    """The mean period of the waves that fit the lines, under their likelihood.
+
+    A window shorter than a line samples each stripe edge at one line at most: a line caught
+    by the edge says where it lies only given the window, and a line that is not says only
+    between which two lines it falls.  Then a whole family of periods fits the lines about
+    equally well (a shorter window with the edges moved in proportion, or edges anywhere
+    between their lines), and the least cost picks one of them at random, often at the
+    family's end; no window of one line or more fits them as well.  The mean of the period
+    under the likelihood, uniform over period, phase and window, is the estimate of least
+    expected error: summed over a grid of periods (:data:`_SHARP_STEP` of the fit's, to
+    :data:`_SHARP_REACH`), phases and windows, the noise's variance from the fit's residual
+    (at least :data:`_SHARP_VAR`, which the grid resolves).  Returns ``[period, phase,
+    window]``, lines: the mean period, the fit's phase and window.
+    """
+    p0, phase0, window0 = (float(v) for v in x)
+    c0 = float(_cost(data, p0, phase0, window0)[0])
+    var = max(c0 / max(data.y.size - 5, 1), _SHARP_VAR)
+    # phases that keep in place the edge nearest the middle of the lines
+    m = np.round((0.5 * float(data.lines.min() + data.lines.max()) - phase0) / (0.5 * p0))
+    ks = np.arange(-round(_SHARP_REACH / _SHARP_STEP), round(_SHARP_REACH / _SHARP_STEP) + 1)
+    steps = np.arange(-_SHARP_PHASE_REACH, _SHARP_PHASE_REACH + 1e-9, _SHARP_PHASE_STEP)
+    costs = []
+    for k in ks:
+        period = p0 * (1.0 + k * _SHARP_STEP)
+        phases = phase0 + 0.5 * m * (p0 - period) + steps
+        windows = _SHARP_WINDOWS[_SHARP_WINDOWS <= 0.5 * period]
+        costs.append(_cost(data, period, phases[:, None, None], windows[None, :, None])[0])
+    least = min(c0, min(float(c.min()) for c in costs))
+    like = np.array([np.exp(-(c - least) / (2.0 * var)).sum() for c in costs])
+    if not like.sum() > 0:
+        return np.array([p0, phase0, window0])
+    return np.array([p0 * (1.0 + _SHARP_STEP * float(like @ ks) / like.sum()), phase0, window0])
+
+
+def _profile(data: _Profile, x, var: float, stop: float, step: float, reach: float):
+    """The least cost over phase and window (:func:`_least_at`, to a hundredth of ``var``) at
+    periods ``x[0] * (1 + k * step)``, ``k`` outwards from 0 (the wave ``x``: period, phase,
+    window) both ways until ``|k| step`` passes ``reach`` or the cost exceeds the least so
+    far by ``stop`` times ``var`` twice in a row.  Returns ``k`` (shape (K,), increasing),
+    the costs (K,) and per ``k`` the ``(cost, phase, window)`` of the least."""
+    p0 = float(x[0])
+    # phases that keep in place the edge nearest the middle of the lines
+    m = np.round((0.5 * float(data.lines.min() + data.lines.max()) - x[1]) / (0.5 * p0))
+    profile = {0: (float(_cost(data, *x)[0]), float(x[1]), float(x[2]))}
+    for sign in (1, -1):
+        k, prev, above = sign, profile[0], 0
+        while abs(k) * step <= reach + 1e-12 and above < 2:
+            period = p0 * (1.0 + k * step)
+            anchor = float(x[1]) + 0.5 * m * (p0 - period)
+            prev = _least_at(data, period, anchor, prev[1:], 0.01 * var)
+            profile[k] = prev
+            least = min(v[0] for v in profile.values())
+            above = above + 1 if prev[0] - least > stop * var else 0
+            k += sign
+    ks = np.array(sorted(profile))
+    return ks, np.array([profile[k][0] for k in ks]), [profile[k] for k in ks]
+
+
+def consistent_periods(
+    lines, signal, weight, wave, within: float = 1.0, step: float = 5e-4, reach: float = 0.05
+) -> tuple[float, float]:
+    """The periods that fit a line profile about as well as ``wave`` does.
+
+    Parameters
+    ----------
+    lines, signal, weight : array_like, shape (N,)
+        The profile, as :func:`fit_square_wave` takes it, the weights each line's inverse
+        variance (no clipped lines).
+    wave : array_like, shape (3,)
+        Period, phase and window (lines) of a wave that fits it (the true one, say).
+    within : float
+        Largest excess of the least cost (over phase, window and levels; weighted squares)
+        over the least at any period: 1 is one standard deviation.
+    step, reach : float
+        Step and reach of the relative periods tried, outwards from ``wave``'s.
+
+    Returns
+    -------
+    lo, hi : float
+        The least and largest period fitting within ``within``, relative to ``wave``'s
+        (``-reach`` or ``reach`` where the fits reach that far).
+    """
+    y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, signal, weight))
+    keep = (w > 0) & np.isfinite(s)
+    empty = np.zeros(0)
+    data = _Profile.of(y[keep], s[keep], w[keep], empty, empty, empty)
+    ks, cost, _ = _profile(data, np.asarray(wave, dtype=float)[:3], 1.0, within, step, reach)
+    ok = ks[cost - cost.min() <= within] * step
+    return float(ok.min()), float(ok.max())
+
+
+def _least_at(data: _Profile, period: float, anchor: float, start, fatol: float):
+    """The least cost at ``period`` over phase and window, ``(cost, phase, window)``, by
+    Nelder-Mead (to ``fatol`` in the cost) from ``start`` (phase, window), and from the best
+    of a grid of phases about ``anchor`` and of windows (:data:`_PROFILE_PHASES`,
+    :data:`_PROFILE_WINDOWS`) where that is better."""
+    from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
+
+    def objective(z: np.ndarray) -> float:
+        if not _SHARPEST <= z[1] <= 0.5 * period:
+            return 1e300
+        return min(float(_cost(data, period, z[0], z[1])[0]), 1e300)  # inf: a singular fit
+
+    def descend(z0: np.ndarray) -> tuple[float, float, float]:
+        z0[1] = min(max(z0[1], _SHARPEST), 0.5 * period)
+        simplex = z0 + np.array([[0.0, 0.0], [0.05, 0.0], [0.0, 0.05]])
+        res = minimize(
+            objective,
+            z0,
+            method="Nelder-Mead",
+            options={"xatol": 1e-4, "fatol": fatol, "maxiter": 200, "initial_simplex": simplex},
+        )
+        return float(res.fun), float(res.x[0]), float(res.x[1])
+
+    best = descend(np.array(start, dtype=float))
+    windows = _PROFILE_WINDOWS[_PROFILE_WINDOWS <= 0.5 * period]
+    phases = anchor + _PROFILE_PHASES
+    grid = _cost(data, period, phases[:, None, None], windows[None, :, None])[0]
+    i, j = np.unravel_index(int(np.argmin(grid)), grid.shape)
+    if grid[i, j] < best[0]:
+        best = min(best, descend(np.array([phases[i], windows[j]])))
+    return best
