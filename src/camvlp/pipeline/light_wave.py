@@ -45,10 +45,14 @@ _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
 #: of 0) would otherwise stretch the radial bins without end.
 _MAX_LOG_RATIO = float(np.log(20.0))
-#: A clipped light showing fewer stripe periods than this, and small enough for its radial
-#: shape's knots to lie half a pixel apart, has its shape fitted on the pixel grid with its
-#: square wave (:func:`camvlp.pipeline.rim.refine_wave`).
+#: A clipped light showing fewer stripe periods than this, and no larger than
+#: :data:`_GRID_BIN_PX` allows, has its shape fitted on the pixel grid with its square wave
+#: (:func:`camvlp.pipeline.rim.refine_wave`).
 _FEW_PERIODS = 4.5
+#: Widest bins of the radial shape (pixels) of a light whose shape is fitted on the pixel
+#: grid (whose knots are :data:`_BIN_PX` apart whatever the radial bins): 1.5 px, a radius
+#: of 60 px; the grid fit's time grows with the light's area.
+_GRID_BIN_PX = 1.5
 #: Fewest stripe periods the lines with signal must span: a steady light (or one too small
 #: for a whole period) fits some long period, never the right one.
 _MIN_PERIODS = 1.0
@@ -379,7 +383,7 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         return _failed(centre, why, conclusive=True)
     wave = (period, phase, window, low, high)
     grid = None
-    if cy_.size and seen < _FEW_PERIODS and bin_px <= _BIN_PX:
+    if cy_.size and seen < _FEW_PERIODS and bin_px <= _GRID_BIN_PX:
         grid = _on_grid(fitted, ellipse, axis, shape, wave)
     if grid is None:
         period, phase, window, low, high = (float(v) for v in sharp_period(*profile, wave))
@@ -410,7 +414,7 @@ def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> Gr
         np.array(wave, dtype=float),
         lambda rho: np.interp(rho / bin_px, np.arange(shape.size), shape, right=0.0),
         fitted.cs,
-        bin_px,
+        _BIN_PX,
         _integrated,
     )
     p, _, _, lo, hi = (float(v) for v in fit.wave)
