@@ -18,9 +18,16 @@ deviation and the share of lights an unbiased measurement that reached it would 
 1 %; the last lines, how many that is over the whole sweep and the measured errors over the
 bound (an efficient measurement's median is 0.67).
 
+With ``--limits``, each light off by 1 % or more is also checked globally: the frequencies
+its noise-free pixels fit within one standard deviation of their noise
+(:func:`camvlp.sim.bound.frequency_intervals`; stripes sharper than a line fit a whole range
+of them, which the local bound, infinite there, does not tell apart).
+
 Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
-(about four minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
-``--plot`` draws each light's error against the periods it shows).
+(about ten minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
+``--plot`` draws each light's error against the periods it shows; ``--styles``,
+``--periods`` and ``--exposures`` measure a part of the sweep with the same seeds, ``--seed
+N`` the sweep with seeds from N, ``--worst N`` lists the N worst lights).
 """
 
 from __future__ import annotations
