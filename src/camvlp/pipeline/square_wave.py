@@ -363,29 +363,50 @@ def _sharp_mean(data: _Profile, x: np.ndarray) -> np.ndarray:
     between their lines), and the least cost picks one of them at random, often at the
     family's end; no window of one line or more fits them as well.  The mean of the period
     under the likelihood, uniform over period, phase and window, is the estimate of least
-    expected error: summed over a grid of periods (:data:`_SHARP_STEP` of the fit's, to
-    :data:`_SHARP_REACH`), phases and windows, the noise's variance from the fit's residual
-    (at least :data:`_SHARP_VAR`, which the grid resolves).  Returns ``[period, phase,
-    window]``, lines: the mean period, the fit's phase and window.
+    expected error: summed over a grid (:func:`_likelihood`) about the fit ``x`` (period,
+    phase, window), the noise's variance from its residual (at least :data:`_SHARP_VAR`,
+    which the grid resolves).  Where the grid's least cost lies in the outer half of its
+    periods (the fit in a wrong basin), the grid is centred there and summed again, twice
+    at most.  Returns ``[period, phase, window]``, lines: the mean period, the fit's phase
+    and window.
     """
     p0, phase0, window0 = (float(v) for v in x)
     c0 = float(_cost(data, p0, phase0, window0)[0])
     var = max(c0 / max(data.y.size - 5, 1), _SHARP_VAR)
+    centre = (p0, phase0)
+    for _ in range(3):
+        ks, like, k_least, phase_least = _likelihood(data, *centre, var)
+        if 2 * abs(k_least) <= ks.max():
+            break
+        centre = (centre[0] * (1.0 + k_least * _SHARP_STEP), phase_least)
+    if not like.sum() > 0:
+        return np.array([p0, phase0, window0])
+    mean = centre[0] * (1.0 + _SHARP_STEP * float(like @ ks) / like.sum())
+    return np.array([mean, phase0, window0])
+
+
+def _likelihood(data: _Profile, p0: float, phase0: float, var: float):
+    """The likelihood of the waves of a grid about period ``p0`` and phase ``phase0`` (lines),
+    summed per period: periods ``p0 * (1 + k * _SHARP_STEP)`` to :data:`_SHARP_REACH`,
+    phases about the one that keeps the middle edge in place, every window of
+    :data:`_SHARP_WINDOWS`.  Returns ``k`` (K,), the sums (K,), and the period's ``k`` and
+    the phase of the grid's least cost."""
     # phases that keep in place the edge nearest the middle of the lines
     m = np.round((0.5 * float(data.lines.min() + data.lines.max()) - phase0) / (0.5 * p0))
     ks = np.arange(-round(_SHARP_REACH / _SHARP_STEP), round(_SHARP_REACH / _SHARP_STEP) + 1)
     steps = np.arange(-_SHARP_PHASE_REACH, _SHARP_PHASE_REACH + 1e-9, _SHARP_PHASE_STEP)
-    costs = []
+    costs, least = [], (np.inf, 0, phase0)
     for k in ks:
         period = p0 * (1.0 + k * _SHARP_STEP)
         phases = phase0 + 0.5 * m * (p0 - period) + steps
         windows = _SHARP_WINDOWS[_SHARP_WINDOWS <= 0.5 * period]
-        costs.append(_cost(data, period, phases[:, None, None], windows[None, :, None])[0])
-    least = min(c0, min(float(c.min()) for c in costs))
-    like = np.array([np.exp(-(c - least) / (2.0 * var)).sum() for c in costs])
-    if not like.sum() > 0:
-        return np.array([p0, phase0, window0])
-    return np.array([p0 * (1.0 + _SHARP_STEP * float(like @ ks) / like.sum()), phase0, window0])
+        cost = _cost(data, period, phases[:, None, None], windows[None, :, None])[0]
+        i = int(np.argmin(cost))
+        if cost.flat[i] < least[0]:
+            least = (float(cost.flat[i]), int(k), float(phases[i // windows.size]))
+        costs.append(cost)
+    like = np.array([np.exp(-(c - least[0]) / (2.0 * var)).sum() for c in costs])
+    return ks, like, least[1], least[2]
 
 
 def _profile(data: _Profile, x, var: float, stop: float, step: float, reach: float):
