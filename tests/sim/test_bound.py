@@ -10,7 +10,7 @@ from scipy.optimize import least_squares
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.sim.bound import frequency_bounds, share_within
+from camvlp.sim.bound import frequency_bounds, frequency_intervals, share_within
 from camvlp.sim.render import RenderSettings, light_patches
 
 ROW_TIME_S = 1.0 / 47_540.0
@@ -112,3 +112,37 @@ def test_share_within():
     assert share_within(np.array([0.01 / 1.959964]))[0] == pytest.approx(0.95, abs=1e-4)
     out = share_within(np.array([np.inf, np.nan, 1e-6]))
     assert out[0] == 0.0 and np.isnan(out[1]) and out[2] == pytest.approx(1.0)
+
+
+def test_stripes_sharper_than_a_line_leave_the_frequency_undetermined():
+    # exposed for 0.6 of a row, each stripe edge is caught by one line at most: a frequency
+    # 0.5 % lower with a shorter exposure (the edges moved in proportion) gives every line
+    # the same on-fraction, so the same pixels; the bound must not claim a hundredth of that
+    camera, fmap = _scene(2.0)
+    s = _settings(exposure_s=0.6 * ROW_TIME_S, read_noise=0.002).resolved(camera)
+    (light,) = light_patches(camera, fmap, POSE, s)
+    on = light.on_fraction(s.row_time_s, s.exposure_s)
+
+    def on_at(scale: float, x: np.ndarray) -> np.ndarray:
+        moved = dataclasses.replace(light, chip_s=light.chip_s / scale, phase_s=x[0])
+        return moved.on_fraction(s.row_time_s, x[1])
+
+    for scale in (0.995, 1.002):
+        fit = least_squares(
+            lambda x, k=scale: on_at(k, x) - on, [light.phase_s, s.exposure_s], x_scale=1e-6
+        )
+        assert np.abs(fit.fun).max() < 1e-6 and fit.x[1] > 0.0
+    assert frequency_bounds(camera, fmap, POSE, s)[0] == np.inf
+    lo, hi = frequency_intervals(camera, fmap, POSE, s)[0]
+    assert lo <= -0.005 and hi >= 0.002
+
+
+def test_a_light_exposed_over_rows_has_a_narrow_interval():
+    # exposed for 1.5 rows, every edge shows in two lines or more: the frequencies the
+    # pixels cannot tell apart lie within a few bounds' standard deviations
+    camera, fmap = _scene(2.0)
+    s = _settings(read_noise=0.002)
+    sigma = frequency_bounds(camera, fmap, POSE, s)[0]
+    lo, hi = frequency_intervals(camera, fmap, POSE, s)[0]
+    assert np.isfinite(sigma) and -0.001 <= lo <= 0.0 <= hi <= 0.001
+    assert hi - lo <= 10.0 * sigma + 0.001  # the interval's steps are 0.05 %

@@ -68,13 +68,15 @@ class GridShape(NamedTuple):
     ratio, the knots' offset ``phi`` (pixels) and the blur ``sigma`` (pixels); ``h``: the
     radial shape per knot (its largest magnitude 1); ``wave``: the square wave's period,
     phase and window (lines), its low and high level (gray levels where ``h`` is 1);
-    ``cost``: the sum of the residuals squared.
+    ``cost``: the sum of the residuals squared; ``profile``: the waveform per line that the
+    shape gives (:func:`_line_profile`; set by :func:`refine_wave`).
     """
 
     geometry: np.ndarray
     h: np.ndarray
     wave: np.ndarray
     cost: float
+    profile: tuple = ()
 
 
 _OFFSETS = np.arange(-_TAPS, _TAPS + 1, dtype=float)
@@ -398,7 +400,34 @@ def refine_wave(
         for start in starts
     ]
     best = min(fits, key=lambda t: t.cost)
-    return _continued(data, best, cs, bin_px, integrated, _ITERS)
+    fit = _continued(data, best, cs, bin_px, integrated, _ITERS)
+    return fit._replace(profile=_line_profile(data, fit, cs, bin_px))
+
+
+def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.ndarray, ...]:
+    """The waveform per line given the fitted shape, as
+    :func:`~camvlp.pipeline.square_wave.fit_square_wave` takes a profile: ``(lines, signal,
+    weight, bound_lines, bounds, bound_weight)``, each shape (L,).
+
+    Per line, the least-squares level of its unclipped pixels (``sum(v g) / sum(g ** 2)``,
+    weight ``sum(g ** 2)``: their cost is the profile's, up to a constant; lines with under
+    1e-3 of the largest weight are left out), and the bound its
+    clipped pixels set (the clipping level over the largest shape among them, weight the sum
+    of their shapes squared).
+    """
+    n, free = data.n_lines, data.n_free
+    g = grid_shape_at(data.ly, data.lx, fit.geometry, cs, bin_px, fit.h)
+    ly = data.ly.astype(np.intp)
+    den = np.bincount(ly[:free], g[:free] ** 2, minlength=n)
+    num = np.bincount(ly[:free], data.target[:free] * g[:free], minlength=n)
+    den[den < 1e-3 * den.max(initial=0.0)] = 0.0  # lines with next to nothing
+    signal = np.divide(num, den, out=np.zeros(n), where=den > 0)
+    top = np.zeros(n)
+    np.maximum.at(top, ly[free:], g[free:])
+    clip = data.target[free:][0] if data.target.size > free else 0.0
+    bounds = np.divide(clip, top, out=np.zeros(n), where=top > 0)
+    lines = np.arange(n, dtype=float)
+    return lines, signal, den, lines, bounds, np.bincount(ly[free:], g[free:] ** 2, minlength=n)
 
 
 def _continued(data: _Data, fit: GridShape, cs, bin_px: float, integrated, iters: int):

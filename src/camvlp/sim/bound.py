@@ -14,7 +14,10 @@ plus a slow driver's smoothing), the brightness, the ambient level and the LED's
 A clipped pixel (mean at full scale or above) tells nothing; the noise of each pixel is
 shot noise, read noise, 8-bit quantisation and, when given, JPEG's error.  The bound is
 local (small errors) and Gaussian: for a light whose every edge falls in clipped rows it
-is loose, and sharp stripes make it slightly optimistic between rows.  It answers "could
+is loose, and sharp stripes make it slightly optimistic between rows.  Where the pixels
+leave the frequency undetermined (a null direction of the information that moves it) it is
+infinite: stripes sharper than a line, each edge caught by one line at most, fit as well a
+shorter window with every edge moved in proportion (:func:`_frequency_sigma`).  It answers "could
 any method have measured this light within 1 %?", the reference against which
 ``benchmarks/bench_frequency.py`` reads its misses.
 """
@@ -30,7 +33,7 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim.render import LightPatch, RenderSettings, light_patches
 
-__all__ = ["frequency_bounds", "share_within"]
+__all__ = ["frequency_bounds", "frequency_intervals", "share_within"]
 
 #: Relative step of the numerical derivatives (of the frequency, and of the window).
 _STEP = 1e-5
@@ -76,11 +79,7 @@ def frequency_bounds(
         if getattr(s, name) > 0
     }
     for light in lights:
-        extra = 0.0
-        if jpeg_error is not None:
-            u0, u1, v0, v1 = light.box
-            err = np.asarray(jpeg_error, dtype=np.float64)[v0:v1, u0:u1] / 255.0
-            extra = float(np.mean(err**2))
+        extra = _jpeg_variance(light, jpeg_error)
         d_shape = _geometry_derivatives(light.shape)
         for name, (lower, upper) in moved.items():
             a, b = lower.get(light.index), upper.get(light.index)
@@ -91,6 +90,77 @@ def frequency_bounds(
                     * getattr(s, name)
                 )
         out[light.index] = _bound(light, s, extra, d_shape)
+    return out
+
+
+def _jpeg_variance(light: LightPatch, jpeg_error: np.ndarray | None) -> float:
+    """The mean square of JPEG's error over the light's box, full-scale units squared."""
+    if jpeg_error is None:
+        return 0.0
+    u0, u1, v0, v1 = light.box
+    return float(np.mean((np.asarray(jpeg_error, dtype=np.float64)[v0:v1, u0:u1] / 255.0) ** 2))
+
+
+def _variance(mean: np.ndarray, s: RenderSettings, extra_var: float) -> np.ndarray:
+    """Each pixel's noise variance at its mean level ``mean`` (full-scale units): shot noise,
+    read noise, 8-bit steps and ``extra_var``."""
+    var = np.maximum(mean, 0.0) / s.full_well_e if s.full_well_e > 0 else 0.0
+    return var + s.read_noise**2 + 1.0 / (12.0 * 255.0**2) + extra_var
+
+
+def frequency_intervals(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    pose: Pose,
+    settings: RenderSettings,
+    jpeg_error: np.ndarray | None = None,
+) -> np.ndarray:
+    """The frequencies each light's pixels cannot tell from its own, within their noise.
+
+    Where the bound (:func:`frequency_bounds`) is local, this is global along the frequency:
+    the light's noise-free waveform per line (the renderer's on-fraction), each line weighted
+    by its information (the sum over its unclipped pixels of their level squared over their
+    variance), is fitted with a 50 % square wave integrated over a window at frequencies
+    stepping away from the true one, phase, window and levels free
+    (:func:`camvlp.pipeline.square_wave.consistent_periods`); those whose best fit costs at
+    most one (one standard deviation of the noise) more than the truth are consistent with
+    it.  Stripes sharper than a line make a whole range consistent, however little the noise.
+    The shape is taken as known and the clipped pixels as telling nothing.
+
+    Parameters are as :func:`frequency_bounds` takes them.
+
+    Returns
+    -------
+    ndarray of float64, shape (N, 2)
+        Per fixture in map order, the least and largest ``frequency / true - 1`` consistent
+        with its pixels (fractions; searched to +-5 %: a range reaching that far may reach
+        further); NaN for a fixture not drawn or without information.
+    """
+    from camvlp.pipeline.square_wave import consistent_periods  # SciPy's optimiser
+
+    s = settings.resolved(camera)
+    out = np.full((len(fixture_map.fixtures), 2), np.nan)
+    for light in light_patches(camera, fixture_map, pose, s):
+        on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level)
+        info = np.zeros(on.size)
+        for c in np.asarray(light.colour, dtype=np.float64):
+            lit = s.brightness * c * light.shape.astype(np.float64)
+            mean = s.ambient + lit * (on[:, None] if s.readout.by_rows else on[None, :])
+            w = np.where(
+                mean < 1.0, lit**2 / _variance(mean, s, _jpeg_variance(light, jpeg_error)), 0.0
+            )
+            info += w.sum(axis=1 if s.readout.by_rows else 0) if c > 0 else 0.0
+        if not info.any():
+            continue
+        rt = s.row_time_s
+        period = light.chips.size * light.chip_s / rt
+        window = (s.exposure_s + light.smooth_s) / rt
+        # the renderer's window starts at the line's time; the fit's is centred on it
+        phase = -(light.phase_s + 0.5 * s.exposure_s) / rt
+        if window > 0.5 * period:  # the same shape, up to its levels
+            window = period - window
+        lo, hi = consistent_periods(light.lines, on, info, (period, phase, window))
+        out[light.index] = (1.0 / (1.0 + hi) - 1.0, 1.0 / (1.0 + lo) - 1.0)
     return out
 
 
@@ -153,19 +223,35 @@ def _bound(
         grads.append(lit * lines(on))  # d / d log brightness
         grads.append(np.ones_like(mean))  # d / d ambient
         grads += [s.brightness * c * d * lines(on) for d in d_shape]
-        var = np.maximum(mean, 0.0) / s.full_well_e if s.full_well_e > 0 else 0.0
-        var = var + s.read_noise**2 + 1.0 / (12.0 * 255.0**2) + extra_var
+        var = _variance(mean, s, extra_var)
         g = np.stack([np.where(unclipped, x, 0.0).ravel() for x in grads])
         w = (np.ones_like(mean) / var).ravel()
         info += (g * w) @ g.T
     info[np.abs(info) < 1e-300] = 0.0
+    return _frequency_sigma(info)
+
+
+def _frequency_sigma(info: np.ndarray) -> float:
+    """The bound's standard deviation of the first unknown (the log frequency) from the
+    Fisher information ``info`` (n, n): ``inf`` when the information leaves it undetermined.
+
+    A singular information has a null direction: a change of the unknowns the pixels do not
+    see.  If that change moves the frequency (sharp stripes sampled at one line per edge: a
+    shorter window with the edges moved in proportion looks the same), the frequency is not
+    determined at all; otherwise the null direction is left out (a pseudo-inverse).
+    """
     if info[0, 0] <= 0:
         return float("inf")
+    d = np.sqrt(np.maximum(np.diag(info), 1e-300))
     try:
-        cov = np.linalg.pinv(info, rcond=1e-12, hermitian=True)
+        value, vector = np.linalg.eigh(info / np.outer(d, d))
     except np.linalg.LinAlgError:
         return float("inf")
-    return float(np.sqrt(max(cov[0, 0], 0.0)))
+    null = value <= 1e-10 * value.max()
+    if np.any(np.abs(vector[0, null]) > 1e-6):
+        return float("inf")
+    v0 = vector[0, ~null]
+    return float(np.sqrt(max(float(v0 * v0 @ (1.0 / value[~null])), 0.0)) / d[0])
 
 
 def _central(light: LightPatch, s: RenderSettings, what: str, h: float) -> np.ndarray:
