@@ -88,6 +88,20 @@ def test_look_alikes_are_not_assigned_when_two_assignments_fit(small_camera, sma
     assert _assigned(small_camera, small_room, TURNED, seed) == {}
 
 
+def test_look_alikes_are_assigned_only_from_every_way_for_the_fixtures_tried(
+    monkeypatch, small_camera, small_room
+):
+    # the first four fixtures (IDs 5, 6, 9, 10, each beside the next ID round the room) have
+    # 5 ways with no ID twice; a cap below that tries none of them (a part of the ways could
+    # miss the one that contradicts an assignment)
+    import camvlp.pipeline.by_pose as by_pose
+
+    monkeypatch.setattr(by_pose, "HYPOTHESES", 4)
+    assert _assigned(small_camera, small_room, NEXT, 0) == {}
+    monkeypatch.setattr(by_pose, "HYPOTHESES", 5)
+    assert len(_assigned(small_camera, small_room, NEXT, 0)) == 5
+
+
 def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[int, int]):
     """locate's Manchester decode with the fixtures of ``true_id`` (one ID or several)
     refused between ``candidates`` (as the model fit refuses look-alikes; a dict gives each

@@ -95,8 +95,9 @@ def _hypotheses(
     fixed: dict[int, int], candidates: list[tuple[int, ...]], needed: int
 ) -> list[dict[int, int]]:
     """Seeds of :func:`assigned_by_pose`: the fixed IDs and one candidate each for as many
-    ambiguous fixtures as a pose needs besides (fewest candidates first), at most
-    :data:`HYPOTHESES`, no ID twice."""
+    ambiguous fixtures as a pose needs besides (fewest candidates first), no ID twice; every
+    way for a set of fixtures or none of them (so that an assignment and those that
+    contradict it on those fixtures are all tried), at most :data:`HYPOTHESES` in all."""
     free = [k for k, c in enumerate(candidates) if len(c) >= 2 and k not in fixed]
     free.sort(key=lambda k: len(candidates[k]))
     m = needed - len(fixed)
@@ -105,11 +106,14 @@ def _hypotheses(
         return out
     used = set(fixed.values())
     for seeds in itertools.combinations(free, m):
-        for ids in itertools.product(*(candidates[k] for k in seeds)):
-            if len(set(ids)) == m and not used.intersection(ids):
-                out.append({**fixed, **dict(zip(seeds, ids, strict=True))})
-                if len(out) >= HYPOTHESES:
-                    return out
+        ways = [
+            {**fixed, **dict(zip(seeds, ids, strict=True))}
+            for ids in itertools.product(*(candidates[k] for k in seeds))
+            if len(set(ids)) == m and not used.intersection(ids)
+        ]
+        if len(out) + len(ways) > HYPOTHESES:
+            return out
+        out += ways
     return out
 
 
