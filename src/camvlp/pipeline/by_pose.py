@@ -153,11 +153,11 @@ def assigned_by_pose(
         Fixture index -> ID for the look-alike fixtures assigned (empty when none).
     """
     found: set[frozenset] = set()
+    taken = set(fixed.values())
     for seed in _hypotheses(fixed, candidates, needed):
         pose = pose_of(seed)
         if pose is None:
             continue
-        taken = set(fixed.values())
         told = told_by_pose(camera, pose, fixture_map, pixels, candidates, taken, outlier_px)
         if all(told.get(k) == i for k, i in seed.items() if k not in fixed):
             found.add(frozenset(told.items()))

@@ -33,6 +33,12 @@ class Identified:
     usable: tuple[int, ...]  # indices of blobs with an ID and no reason
 
 
+def _identified(ids, reasons) -> Identified:
+    """The identities of blobs with these IDs (or None) and reasons ("" if usable)."""
+    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
+    return Identified(tuple(ids), tuple(reasons), usable)
+
+
 def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
     """Stage 4: IDs looked up in the map; cut discs, unknown and repeated IDs set aside."""
     reasons: list[str] = []
@@ -55,8 +61,7 @@ def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
     for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
         if i is not None and not r and decoded.count(i) > 1:
             reasons[k] = f"ID {i} was decoded for two fixtures"
-    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
-    return Identified(tuple(ids), tuple(reasons), usable)
+    return _identified(ids, reasons)
 
 
 def with_told(
@@ -111,8 +116,7 @@ def _given(found: Identified, ids: dict[int, int]) -> Identified:
     and those already usable usable."""
     new = [ids.get(k, i) for k, i in enumerate(found.ids)]
     reasons = ["" if k in ids else r for k, r in enumerate(found.reasons)]
-    usable = tuple(k for k, r in enumerate(reasons) if new[k] is not None and not r)
-    return Identified(tuple(new), tuple(reasons), usable)
+    return _identified(new, reasons)
 
 
 def _same_answer(a: Identified, b: Identified) -> bool:

@@ -44,13 +44,20 @@ def _distances(mask: np.ndarray) -> np.ndarray:
     return cv2.distanceTransform(padded, cv2.DIST_L2, 5)[1:-1, 1:-1]
 
 
-def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    """The least distance-transform value on the segment between two peaks ``[x, y, r]``,
-    sampled at every pixel along it."""
+def _segment(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels ``(x, y)`` (index arrays) on the segment between two points ``[x, y, ...]``,
+    one at every pixel along it, ends included."""
     n = int(np.ceil(np.hypot(*(b[:2] - a[:2])))) + 1
     t = np.linspace(0.0, 1.0, max(n, 2))
     x = np.rint(a[0] + t * (b[0] - a[0])).astype(np.intp)
     y = np.rint(a[1] + t * (b[1] - a[1])).astype(np.intp)
+    return x, y
+
+
+def _neck(dist: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """The least distance-transform value on the segment between two peaks ``[x, y, r]``,
+    sampled at every pixel along it."""
+    x, y = _segment(a, b)
     return float(dist[y, x].min())
 
 
@@ -59,10 +66,7 @@ def _not_cut(region: np.ndarray, raw: np.ndarray, a: np.ndarray, b: np.ndarray) 
     it has no gap in ``region`` (the peaks are joined there, by a neck), or its gap holds
     pixels lit in ``raw`` (away from the gap's ends): light dimmer than the lights, such as
     glow, where a dark stripe through one light would be dark."""
-    n = int(np.ceil(np.hypot(*(b[:2] - a[:2])))) + 1
-    t = np.linspace(0.0, 1.0, max(n, 2))
-    x = np.rint(a[0] + t * (b[0] - a[0])).astype(np.intp)
-    y = np.rint(a[1] + t * (b[1] - a[1])).astype(np.intp)
+    x, y = _segment(a, b)
     gap = np.flatnonzero(region[y, x] == 0)
     return bool(gap.size == 0 or raw[y[gap[1:-1]], x[gap[1:-1]]].any())
 
