@@ -6,7 +6,9 @@ sensor's full scale, blur sigma 0.5 to 2 px, JPEG quality 70 to 95, lens distort
 barrel/pincushion), 4 to 16 fixtures, landscape or portrait turned either way (readout rows,
 rows-reversed, columns, columns-reversed), 1080p or 20 MP, and lamps plain (half the photos),
 with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` renders the same
-photos with plain discs).  The map always holds IDs whose
+photos with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
+an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5) and
+vignetting (0 to 50 %).  The map always holds IDs whose
 reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
 not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
 maps give the chip rate (``chip_rate_hz``), half do not.
@@ -99,7 +101,18 @@ def lamp_look(rng: np.random.Generator) -> dict[str, float]:
     return dict(core=core, halo=halo)
 
 
-def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True):
+def phone_look(rng: np.random.Generator) -> dict:
+    """A phone camera's processing: an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to
+    2.6), unsharp-mask sharpening (0 to 1.5) and vignetting (0 to 50 % lost at the corners)."""
+    return dict(
+        bayer=True,
+        gamma=float(rng.uniform(1.6, 2.6)),
+        sharpen=float(rng.uniform(0.0, 1.5)),
+        vignetting=float(rng.uniform(0.0, 0.5)),
+    )
+
+
+def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True, phone: bool = False):
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
@@ -128,6 +141,10 @@ def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True):
     )
     if looks:  # drawn apart, so that every other condition is that of the plain sweep
         settings = dataclasses.replace(settings, **lamp_look(np.random.default_rng(settings.seed)))
+    if phone:  # drawn apart too
+        settings = dataclasses.replace(
+            settings, **phone_look(np.random.default_rng([settings.seed, 7]))
+        )
     photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
     quality = int(rng.integers(70, 96))
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
@@ -147,6 +164,9 @@ def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True):
         core=round(settings.core, 2),
         halo=round(settings.halo, 2),
         chip_rate_given=given_rate,
+        gamma=round(settings.gamma, 2),
+        sharpen=round(settings.sharpen, 2),
+        vignetting=round(settings.vignetting, 2),
     )
     return photo, res, cond, dt, fmap
 
@@ -199,6 +219,11 @@ def main() -> int:
     ap.add_argument(
         "--plain", action="store_true", help="plain discs only (no hot cores, no halos)"
     )
+    ap.add_argument(
+        "--phone",
+        action="store_true",
+        help="a phone camera's processing too (Bayer mosaic, tone curve, sharpening, vignetting)",
+    )
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     cells = {}
@@ -209,7 +234,9 @@ def main() -> int:
         eligible = decoded = told = wrong = located = ambiguous = 0
         times = []
         for _ in range(args.per_cell):
-            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc, looks=not args.plain)
+            photo, res, cond, dt, fmap = one_photo(
+                rng, exposure, rpc, looks=not args.plain, phone=args.phone
+            )
             times.append(dt)
             located += bool(res)
             truth = [t for t in photo.fixtures]

@@ -109,6 +109,27 @@ def test_render_options_reach_the_settings(tmp_path, small_camera_path, thesis_r
     assert image[:40].max() == 0  # no ambient, no noise: black away from the fixtures
 
 
+def test_a_phone_photo_is_rendered_and_located(tmp_path, thesis_room_path):
+    """A phone's processing (mosaic, tone curve, sharpening, vignetting) reaches the settings
+    and the photo, and the photo is still located."""
+    camera = tmp_path / "cam.yaml"  # lamps of 69 rows, 1.5 frames at 2.5 rows per chip
+    save_camera(Camera.from_focal(1280, 960, 1250.0, row_time_s=20e-6), camera)
+    out, plain = tmp_path / "phone.jpg", tmp_path / "plain.jpg"
+    phone = ["--bayer", "--gamma", "2.2", "--sharpen", "1", "--vignetting", "0.3"]
+    assert run(camera, thesis_room_path, out, "--chip-rate", "20000", *phone).exit_code == 0
+    s = json.loads((tmp_path / "phone.json").read_text())["settings"]
+    assert (s["bayer"], s["gamma"], s["sharpen"], s["vignetting"]) == (True, 2.2, 1, 0.3)
+    assert run(camera, thesis_room_path, plain, "--chip-rate", "20000").exit_code == 0
+    dark = [float(np.median(cv2.imread(str(p))[:40])) for p in (out, plain)]
+    assert dark[0] > 2 * dark[1]  # the tone curve lifts the dark background
+    args = ["locate", str(out), "--camera", str(camera), "--map", str(thesis_room_path)]
+    located = runner.invoke(app, [*args, "--json"])
+    assert located.exit_code == 0, located.output
+    result = json.loads(located.output)
+    assert [f["id"] for f in result["fixtures"] if f["used"]] == [9, 6, 10, 5]
+    assert np.linalg.norm(result["position"]) < 0.005  # the truth is the origin, metres
+
+
 def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_path):
     bad_map = tmp_path / "bad.yaml"
     bad_map.write_text("fixtures: [ {id: 5, position: [0, 1]\n")
@@ -122,6 +143,9 @@ def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_
         (small_camera_path, thesis_room_path, "p.png", ["--position", "0,0"], "--position"),
         (small_camera_path, thesis_room_path, "p.png", ["--euler", "-90,0,0"], "behind"),
         (small_camera_path, thesis_room_path, "nodir/p.png", [], "nodir"),
+        (small_camera_path, thesis_room_path, "p.png", ["--gamma", "0"], "--gamma"),
+        (small_camera_path, thesis_room_path, "p.png", ["--vignetting", "1"], "--vignetting"),
+        (small_camera_path, thesis_room_path, "p.png", ["--sharpen", "-1"], "--sharpen"),
     ]
     for camera, room, out, extra, needle in cases:
         result = run(camera, room, tmp_path / out, *extra)

@@ -94,6 +94,22 @@ def render_command(
     noise: Annotated[
         str, typer.Option("--noise", metavar="X", help="Scale of shot and read noise (0 = none).")
     ] = "1",
+    vignetting: Annotated[
+        str,
+        typer.Option(
+            "--vignetting", metavar="X", help="Fraction of light lost at the corners (0 to 1)."
+        ),
+    ] = "0",
+    bayer: Annotated[
+        bool, typer.Option("--bayer", help="One colour per pixel (RGGB mosaic), demosaiced.")
+    ] = False,
+    gamma: Annotated[
+        str,
+        typer.Option("--gamma", metavar="G", help="Tone curve x^(1/G) (1 linear, 2.2 ~ sRGB)."),
+    ] = "1",
+    sharpen: Annotated[
+        str, typer.Option("--sharpen", metavar="X", help="Unsharp-mask sharpening amount.")
+    ] = "0",
     readout: Annotated[
         str | None,
         typer.Option(
@@ -149,6 +165,10 @@ def render_command(
             soft=_number(soft, "--soft"),
             blur_px=_number(blur, "--blur"),
             **_noise_settings(noise_scale),
+            vignetting=_number(vignetting, "--vignetting"),
+            bayer=bayer,
+            gamma=_number(gamma, "--gamma"),
+            sharpen=_number(sharpen, "--sharpen"),
             readout=given_readout or camera.readout or Readout.ROWS,
             colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
             seed=_integer(seed, "--seed"),
@@ -235,6 +255,9 @@ _OPTIONS = {
     "blur_px": "--blur",
     "full_well_e": "--noise",
     "read_noise": "--noise",
+    "vignetting": "--vignetting",
+    "gamma": "--gamma",
+    "sharpen": "--sharpen",
     "seed": "--seed",
     "position": "--position",
 }

@@ -236,6 +236,18 @@ def render_video_command(
     blur: Annotated[
         float, typer.Option("--blur", help="Optical blur sigma, pixels.")
     ] = RenderSettings.blur_px,
+    vignetting: Annotated[
+        float, typer.Option("--vignetting", help="Fraction of light lost at the corners (0 to 1).")
+    ] = 0.0,
+    bayer: Annotated[
+        bool, typer.Option("--bayer", help="One colour per pixel (RGGB mosaic), demosaiced.")
+    ] = False,
+    gamma: Annotated[
+        float, typer.Option("--gamma", help="Tone curve x^(1/G) (1 linear, 2.2 ~ sRGB).")
+    ] = 1.0,
+    sharpen: Annotated[
+        float, typer.Option("--sharpen", help="Unsharp-mask sharpening amount.")
+    ] = 0.0,
     readout: Annotated[
         str | None,
         typer.Option("--readout", help="rows, columns, rows-reversed or columns-reversed."),
@@ -243,7 +255,8 @@ def render_video_command(
 ) -> None:
     """Render a rolling-shutter video of a camera moving along a trajectory, each sensor row
     seen from the pose at its own time, with the true trajectory beside it; the lights look
-    as in ``camvlp render`` (off level, hot core, halo, soft stripes, blur, readout)."""
+    as in ``camvlp render`` (off level, hot core, halo, soft stripes, blur, a phone's
+    processing, readout)."""
     check_positive(fps, "--fps")
     check_positive(chip_rate, "--chip-rate")
     check_positive(row_time, "--row-time")
@@ -271,6 +284,10 @@ def render_video_command(
             halo=halo,
             soft=soft,
             blur_px=blur,
+            vignetting=vignetting,
+            bayer=bayer,
+            gamma=gamma,
+            sharpen=sharpen,
             readout=parse_readout(readout) or camera.readout or "rows",
         )
     except ValueError as exc:

@@ -18,7 +18,9 @@ and lays a crude stripe mask over it.  This module renders the same scenes physi
 * **Sensor.**  Irradiance ``ambient + sum(brightness * colour * coverage * on_fraction)`` in
   units of full scale, shot noise (Gaussian approximation of Poisson with ``full_well_e``
   electrons at full scale), read noise, clipping to [0, 1] (saturation: bright stripes come
-  out wider than dark ones, the thesis' bleeding, section 5.3) and 8-bit quantisation.
+  out wider than dark ones, the thesis' bleeding, section 5.3) and 8-bit quantisation;
+  optionally a phone's processing: vignetting, a Bayer mosaic and its demosaicing, white
+  balance, a tone curve and sharpening (:mod:`camvlp.sim.sensor`).
 
 Time origin: sensor row 0 starts its exposure at ``t = 0``.  A fixture with phase ``phase_s``
 shows, at time ``t``, chip ``floor((t + phase_s) / chip_s) mod n_chips`` of its frame.
@@ -47,6 +49,7 @@ from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
+from camvlp.sim.sensor import expose
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -63,8 +66,6 @@ __all__ = [
 
 #: Rim points used for a fixture's projected outline (bounding box, visibility, extent).
 N_RIM = 64
-
-_ROW_CHUNK = 128  # image rows per chunk of the full-frame noise pass
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,6 +104,16 @@ class RenderSettings:
         Electrons at full scale, for shot noise; 0 disables shot noise.
     read_noise : float
         Read-noise sigma, fraction of full scale; 0 disables it.
+    vignetting : float
+        Fraction of the light the lens loses at the image's corners (0 to 1; falls off as
+        the squared distance from the centre).
+    bayer : bool
+        Sense one colour per pixel through an RGGB mosaic and demosaic it, as a phone does.
+    gamma : float
+        The camera's tone curve, ``x ** (1 / gamma)`` (1 for a linear response, 2.2 about
+        sRGB).
+    sharpen : float
+        Amount of the camera's unsharp-mask sharpening (0 for none; phones use 0.5 to 1.5).
     readout : {"rows", "columns", "rows-reversed", "columns-reversed"}
         ``"rows"``: exposure start grows with image row ``v`` (stripes horizontal);
         ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical);
@@ -125,6 +136,10 @@ class RenderSettings:
     blur_px: float = 0.8
     full_well_e: float = 8000.0
     read_noise: float = 0.004
+    vignetting: float = 0.0
+    bayer: bool = False
+    gamma: float = 1.0
+    sharpen: float = 0.0
     readout: Readout = Readout.ROWS
     colours: tuple | None = None
     seed: int = 0
@@ -146,6 +161,7 @@ class RenderSettings:
             "blur_px",
             "full_well_e",
             "read_noise",
+            "sharpen",
         ):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and value >= 0):
@@ -156,6 +172,15 @@ class RenderSettings:
             isinstance(self.off_level, (int, float)) and 0 <= self.off_level <= 1
         ):
             raise ValueError(f"off_level must be a number from 0 to 1, got {self.off_level!r}")
+        if isinstance(self.vignetting, bool) or not (
+            isinstance(self.vignetting, (int, float)) and 0 <= self.vignetting < 1
+        ):
+            raise ValueError(
+                f"vignetting must be a number from 0 to below 1, got {self.vignetting!r}"
+            )
+        _positive(self.gamma, "gamma")
+        if not isinstance(self.bayer, bool):
+            raise ValueError(f"bayer must be true or false, got {self.bayer!r}")
         object.__setattr__(self, "readout", Readout.parse(self.readout))
         if (
             isinstance(self.seed, bool)
@@ -645,34 +670,7 @@ def render(
         u0, u1, v0, v1 = light.box
         patches.append((v0, v1, u0, u1, lit[:, :, None] * light.colour[None, None, :]))
     w, h = camera.width, camera.height
-    image = _expose(patches, w, h, s)
+    image = expose(patches, w, h, s)
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])
     return Render(image=image, pose=pose, fixtures=truths, settings=s, camera=camera)
-
-
-def _expose(patches, width: int, height: int, s: RenderSettings) -> np.ndarray:
-    """Add ambient light and noise, clip and quantise, in chunks of rows: uint8 (H, W, 3)."""
-    out = np.empty((height, width, 3), dtype=np.uint8)
-    rng = np.random.default_rng([int(s.seed), 2])
-    shot = 1.0 / s.full_well_e if s.full_well_e > 0 else 0.0
-    read_var = float(s.read_noise) ** 2
-    for r0 in range(0, height, _ROW_CHUNK):
-        r1 = min(r0 + _ROW_CHUNK, height)
-        value = np.full((r1 - r0, width, 3), s.ambient, dtype=np.float32)
-        for v0, v1, u0, u1, sig in patches:
-            a, b = max(v0, r0), min(v1, r1)
-            if a < b:
-                value[a - r0 : b - r0, u0:u1] += sig[a - v0 : b - v0]
-        if shot > 0 or read_var > 0:
-            sigma = value * np.float32(shot)
-            sigma += np.float32(read_var)
-            np.sqrt(sigma, out=sigma)
-            noise = rng.standard_normal(value.shape, dtype=np.float32)
-            noise *= sigma
-            value += noise
-        np.clip(value, 0.0, 1.0, out=value)
-        value *= np.float32(255.0)
-        np.rint(value, out=value)
-        out[r0:r1] = value.astype(np.uint8)
-    return out

@@ -40,6 +40,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
 from camvlp.sim.render import FixtureTruth, RenderSettings
+from camvlp.sim.sensor import expose
 
 __all__ = [
     "TRAJECTORY_COLUMNS",
@@ -277,7 +278,7 @@ def render_frame(
         on = on.astype(np.float32)
         lit = cov * (on[:, None] if s.readout.by_rows else on[None, :]) * np.float32(s.brightness)
         patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
-    image = _render._expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
+    image = expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])
     return VideoFrame(

@@ -1,0 +1,160 @@
+"""The sensor and the camera's own processing: light in, the stored 8-bit photo out.
+
+:func:`expose` turns the light that reaches each pixel (ambient plus every lamp's patch, in
+units of the sensor's full scale) into the uint8 BGR photo a camera stores.
+
+* **Plain sensor** (the default): shot noise (Gaussian approximation of Poisson with
+  ``full_well_e`` electrons at full scale), read noise, clipping to [0, 1] and 8-bit
+  quantisation of each of the three channels.  The response is linear up to the clip.
+* **A phone's processing**, when any of ``vignetting``, ``bayer``, ``gamma`` or ``sharpen``
+  is set (:func:`develops`), in the order a camera applies them:
+
+  1. *Vignetting*: the lens passes ``1 - vignetting * (r / r_corner) ** 2`` of the light at a
+     distance ``r`` from the image's centre (``r_corner`` at its corners).
+  2. *Colour filters*: a white lamp's light reaches the blue, green and red pixels in the
+     ratios :data:`RAW_WHITE` (green the most), so the raw channels clip at different
+     levels and blue and red carry more noise once balanced.  With ``bayer`` each pixel
+     senses one colour of an RGGB mosaic; otherwise all three.
+  3. Shot and read noise, the clip at full scale, and a 12-bit analogue-to-digital step.
+  4. *Demosaicing* (``bayer``): OpenCV's bilinear interpolation of the missing colours,
+     which blurs and colours the stripes' edges.
+  5. *White balance*: each channel divided by its :data:`RAW_WHITE` and clipped at full
+     scale (a white lamp comes out grey; at a stripe's edge the demosaicing's colours fringe).
+  6. *Tone curve*: ``x ** (1 / gamma)`` (2.2 is about sRGB), so a dark stripe's dip and the
+     LED's off level come out deeper or shallower than the light's.
+  7. *Sharpening*: an unsharp mask of amount ``sharpen`` (sigma 1 px), which overshoots at the
+     stripes' edges and clips the overshoot.
+  8. 8-bit output.
+
+Randomness comes from ``default_rng([seed, 2])`` only, so a photo is reproducible from its
+settings.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+__all__ = ["RAW_WHITE", "develops", "expose"]
+
+#: How a white lamp's light reaches the blue, green and red raw pixels, relative to green
+#: (a daylight-white LED through a phone's colour filters); white balance divides it out.
+RAW_WHITE = np.array([0.7, 1.0, 0.5], dtype=np.float32)
+
+#: Largest value of the 12-bit raw pixels.
+RAW_MAX = 4095
+
+#: Sigma of the sharpening's unsharp mask, pixels.
+SHARPEN_SIGMA_PX = 1.0
+
+_ROW_CHUNK = 128  # image rows per chunk of the full-frame passes
+
+
+def develops(s) -> bool:
+    """Whether render settings ``s`` ask for a camera's processing beyond the plain sensor."""
+    return bool(s.bayer) or s.vignetting > 0 or s.gamma != 1.0 or s.sharpen > 0
+
+
+def expose(patches, width: int, height: int, s) -> np.ndarray:
+    """The stored photo of the light reaching the sensor.
+
+    Parameters
+    ----------
+    patches : sequence of tuple
+        ``(v0, v1, u0, u1, light)`` per lamp: its box (rows ``v0:v1``, columns ``u0:u1``) and
+        its light there, float32 (v1 - v0, u1 - u0, 3), BGR, units of full scale.
+    width, height : int
+        Size of the photo, pixels.
+    s : RenderSettings
+        Resolved settings: ``ambient``, ``full_well_e``, ``read_noise``, ``seed`` and the
+        camera's processing (``vignetting``, ``bayer``, ``gamma``, ``sharpen``).
+
+    Returns
+    -------
+    ndarray, uint8, shape (height, width, 3)
+        The BGR photo.
+    """
+    if not develops(s):
+        return _plain(patches, width, height, s)
+    raw = _raw(patches, width, height, s)
+    if s.bayer:
+        raw = cv2.cvtColor(raw, cv2.COLOR_BayerBG2BGR)  # OpenCV's name for this RGGB layout
+    return _develop(raw, s)
+
+
+def _light(patches, r0: int, r1: int, width: int, ambient: float) -> np.ndarray:
+    """The light on rows ``r0:r1``: ambient plus the lamps' patches, float32 (r1 - r0, W, 3)."""
+    value = np.full((r1 - r0, width, 3), ambient, dtype=np.float32)
+    for v0, v1, u0, u1, sig in patches:
+        a, b = max(v0, r0), min(v1, r1)
+        if a < b:
+            value[a - r0 : b - r0, u0:u1] += sig[a - v0 : b - v0]
+    return value
+
+
+def _add_noise(value: np.ndarray, rng: np.random.Generator, s) -> None:
+    """Shot and read noise added to ``value`` (units of full scale) in place."""
+    shot = 1.0 / s.full_well_e if s.full_well_e > 0 else 0.0
+    read_var = float(s.read_noise) ** 2
+    if shot > 0 or read_var > 0:
+        sigma = value * np.float32(shot)
+        sigma += np.float32(read_var)
+        np.sqrt(sigma, out=sigma)
+        noise = rng.standard_normal(value.shape, dtype=np.float32)
+        noise *= sigma
+        value += noise
+
+
+def _plain(patches, width: int, height: int, s) -> np.ndarray:
+    """The plain sensor: noise, clip and 8-bit quantisation, in chunks of rows."""
+    out = np.empty((height, width, 3), dtype=np.uint8)
+    rng = np.random.default_rng([int(s.seed), 2])
+    for r0 in range(0, height, _ROW_CHUNK):
+        r1 = min(r0 + _ROW_CHUNK, height)
+        value = _light(patches, r0, r1, width, s.ambient)
+        _add_noise(value, rng, s)
+        np.clip(value, 0.0, 1.0, out=value)
+        value *= np.float32(255.0)
+        np.rint(value, out=value)
+        out[r0:r1] = value.astype(np.uint8)
+    return out
+
+
+def _raw(patches, width: int, height: int, s) -> np.ndarray:
+    """The 12-bit raw pixels: uint16 (H, W) RGGB mosaic with ``bayer``, else (H, W, 3) BGR."""
+    rng = np.random.default_rng([int(s.seed), 2])
+    out = np.empty((height, width) if s.bayer else (height, width, 3), dtype=np.uint16)
+    cu, cv = 0.5 * (width - 1), 0.5 * (height - 1)
+    corner2 = cu * cu + cv * cv
+    du2 = ((np.arange(width, dtype=np.float32) - cu) ** 2)[None, :]
+    u = np.arange(width)
+    for r0 in range(0, height, _ROW_CHUNK):
+        r1 = min(r0 + _ROW_CHUNK, height)
+        value = _light(patches, r0, r1, width, s.ambient)
+        value *= RAW_WHITE
+        if s.vignetting > 0:
+            dv2 = ((np.arange(r0, r1, dtype=np.float32) - cv) ** 2)[:, None]
+            value *= (1.0 - np.float32(s.vignetting / corner2) * (du2 + dv2))[:, :, None]
+        if s.bayer:  # rows from 0: R G R G ..., then G B G B ... (BGR channels 2, 1, 0)
+            v = np.arange(r0, r1)[:, None]
+            channel = np.where(v % 2 == 0, np.where(u % 2 == 0, 2, 1), np.where(u % 2 == 0, 1, 0))
+            value = np.take_along_axis(value, channel[:, :, None], axis=2)[:, :, 0]
+        _add_noise(value, rng, s)
+        np.clip(value, 0.0, 1.0, out=value)
+        value *= np.float32(RAW_MAX)
+        np.rint(value, out=value)
+        out[r0:r1] = value.astype(np.uint16)
+    return out
+
+
+def _develop(raw: np.ndarray, s) -> np.ndarray:
+    """White balance, tone curve and sharpening of 12-bit BGR ``raw``: uint8 (H, W, 3)."""
+    levels = np.arange(RAW_MAX + 1, dtype=np.float64) / RAW_MAX
+    toned = np.empty(raw.shape, dtype=np.uint16)
+    for c in range(3):  # one lookup table per channel: balance, clip, tone, to 16 bits
+        lut = np.minimum(levels / float(RAW_WHITE[c]), 1.0) ** (1.0 / float(s.gamma))
+        toned[..., c] = np.rint(65535.0 * lut).astype(np.uint16)[raw[..., c]]
+    if s.sharpen > 0:
+        blurred = cv2.GaussianBlur(toned, (0, 0), SHARPEN_SIGMA_PX)
+        toned = cv2.addWeighted(toned, 1.0 + float(s.sharpen), blurred, -float(s.sharpen), 0.0)
+    return cv2.convertScaleAbs(toned, alpha=255.0 / 65535.0)
