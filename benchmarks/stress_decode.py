@@ -8,7 +8,8 @@ rows-reversed, columns, columns-reversed), 1080p or 20 MP, and lamps plain (half
 with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` renders the same
 photos with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
 an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5) and
-vignetting (0 to 50 %).  The map always holds IDs whose
+vignetting (0 to 50 %); ``--tone-given`` gives ``locate`` the camera's tone curve in its
+camera file (``tone_gamma``), as a calibrated camera would.  The map always holds IDs whose
 reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
 not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
 maps give the chip rate (``chip_rate_hz``), half do not.
@@ -112,7 +113,14 @@ def phone_look(rng: np.random.Generator) -> dict:
     )
 
 
-def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True, phone: bool = False):
+def one_photo(
+    rng,
+    exposure: float,
+    rows_per_chip: float,
+    looks: bool = True,
+    phone: bool = False,
+    tone_given: bool = False,
+):
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
@@ -146,6 +154,8 @@ def one_photo(rng, exposure: float, rows_per_chip: float, looks: bool = True, ph
             settings, **phone_look(np.random.default_rng([settings.seed, 7]))
         )
     photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
+    if tone_given:  # the camera file says its tone curve
+        camera = dataclasses.replace(camera, tone_gamma=settings.gamma)
     quality = int(rng.integers(70, 96))
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
@@ -224,6 +234,11 @@ def main() -> int:
         action="store_true",
         help="a phone camera's processing too (Bayer mosaic, tone curve, sharpening, vignetting)",
     )
+    ap.add_argument(
+        "--tone-given",
+        action="store_true",
+        help="with --phone: the camera file gives the camera's tone curve (tone_gamma)",
+    )
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     cells = {}
@@ -235,7 +250,12 @@ def main() -> int:
         times = []
         for _ in range(args.per_cell):
             photo, res, cond, dt, fmap = one_photo(
-                rng, exposure, rpc, looks=not args.plain, phone=args.phone
+                rng,
+                exposure,
+                rpc,
+                looks=not args.plain,
+                phone=args.phone,
+                tone_given=args.tone_given,
             )
             times.append(dt)
             located += bool(res)

@@ -88,6 +88,7 @@ def _same_camera(a: Camera, b: Camera) -> bool:
         and a.row_time_s == b.row_time_s
         and a.mirrored == b.mirrored
         and a.readout == b.readout
+        and a.tone_gamma == b.tone_gamma
     )
 
 
@@ -99,6 +100,7 @@ def _same_camera(a: Camera, b: Camera) -> bool:
         {"row_time_s": 1.7e-5},
         {"row_time_s": 3.1e-5, "mirrored": True},
         {"mirrored": True, "readout": "columns"},
+        {"tone_gamma": 2.2},
     ],
 )
 def test_save_camera_round_trips(tmp_path: Path, suffix: str, extra: dict):
@@ -112,6 +114,15 @@ def test_save_camera_round_trips(tmp_path: Path, suffix: str, extra: dict):
         np.testing.assert_array_equal(fs.getNode("camera_matrix").mat(), k)
         fs.release()
     assert _same_camera(load_camera(path), cam)
+
+
+@pytest.mark.parametrize("bad", ["0", "-2", "9", "true", "fast", ".nan"])
+def test_a_bad_tone_gamma_is_refused_naming_the_key(tmp_path: Path, bad: str):
+    base = "image_width: 64\nimage_height: 48\nfocal_length_px: 50\n"
+    with pytest.raises(InputError, match="tone_gamma"):
+        load_camera(_write(tmp_path / "cam.yaml", base + f"tone_gamma: {bad}\n"))
+    cam = load_camera(_write(tmp_path / "ok.yaml", base + "tone_gamma: 2.2\n"))
+    assert cam.tone_gamma == 2.2 and cam.with_size(32, 24).tone_gamma == 2.2
 
 
 def test_save_camera_without_distortion_loads_as_zero_distortion(tmp_path: Path):

@@ -213,7 +213,7 @@ def load_camera(path: str | Path) -> Camera:
     for the image centre, which also overrides a matrix's cx, cy); optional
     ``distortion_coefficients`` (1 x N, OpenCV order), ``row_time_s`` (seconds between
     sensor rows), ``mirrored`` (bool), ``readout`` (``rows``, ``columns``, ``rows-reversed`` or
-    ``columns-reversed``).
+    ``columns-reversed``), ``tone_gamma`` (the camera's tone curve, e.g. 2.2).
 
     Raises
     ------
@@ -277,8 +277,13 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
     mirrored = data.get("mirrored", False)
     if not isinstance(mirrored, bool):
         raise InputError(f"mirrored must be true or false, got {mirrored!r}", p)
+    tone = data.get("tone_gamma")
+    if tone is not None:
+        tone = _number(tone, "tone_gamma", p, positive=True)
     try:
-        return Camera(width, height, k, dist.reshape(-1), row_time, mirrored, data.get("readout"))
+        return Camera(
+            width, height, k, dist.reshape(-1), row_time, mirrored, data.get("readout"), tone
+        )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
 
@@ -303,6 +308,8 @@ def save_camera(camera: Camera, path: str | Path, *, extra: dict | None = None) 
         fields["mirrored"] = 1
     if camera.readout:
         fields["readout"] = camera.readout
+    if camera.tone_gamma is not None:
+        fields["tone_gamma"] = float(camera.tone_gamma)
     fields.update(extra or {})
     if p.suffix.lower() == ".json":
         out = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in fields.items()}

@@ -207,6 +207,10 @@ class Pose:
         return (p - self.position) @ self.world_from_camera
 
 
+#: The range of a camera's ``tone_gamma`` (beyond it no camera's curve is a power law).
+MIN_TONE_GAMMA, MAX_TONE_GAMMA = 0.25, 4.0
+
+
 @dataclass(frozen=True)
 class Camera:
     """A calibrated camera: pinhole intrinsics, OpenCV distortion, and sensor timing.
@@ -231,6 +235,11 @@ class Camera:
         takes the forward direction.  The direction matters for Manchester IDs: read
         backwards, some IDs' frames are other IDs' frames (0 and 14, 2 and 6, 4 and 10,
         8 and 12 in the default format).
+    tone_gamma : float or None
+        The camera's tone curve: a stored level ``x`` (0 to 1) was made by light
+        ``x ** tone_gamma`` (about 2.2 for a phone's sRGB JPEG).  ``locate`` undoes it before
+        anything else, so that a lamp's glow and its stripes' levels add as light does.  None
+        (or 1) takes the levels as linear in light.
     """
 
     width: int
@@ -240,6 +249,7 @@ class Camera:
     row_time_s: float | None = None
     mirrored: bool = False
     readout: Readout | None = None
+    tone_gamma: float | None = None
 
     def __post_init__(self) -> None:
         if int(self.width) <= 0 or int(self.height) <= 0:
@@ -261,6 +271,15 @@ class Camera:
         if self.row_time_s is not None and not (0 < float(self.row_time_s) < 1):
             raise ValueError(
                 f"row_time_s must be a positive number of seconds, got {self.row_time_s}"
+            )
+        if self.tone_gamma is not None and (
+            isinstance(self.tone_gamma, bool)
+            or not isinstance(self.tone_gamma, (int, float))
+            or not MIN_TONE_GAMMA <= self.tone_gamma <= MAX_TONE_GAMMA
+        ):
+            raise ValueError(
+                f"tone_gamma must be a number from {MIN_TONE_GAMMA:g} to {MAX_TONE_GAMMA:g}, "
+                f"got {self.tone_gamma!r}"
             )
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
         object.__setattr__(self, "width", int(self.width))
@@ -334,6 +353,7 @@ class Camera:
             self.row_time_s,
             self.mirrored,
             self.readout,
+            self.tone_gamma,
         )
 
 

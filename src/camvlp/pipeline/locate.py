@@ -36,6 +36,7 @@ from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.profile import shape_profiles
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
+from camvlp.pipeline.tone import linear_light
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
 
@@ -146,8 +147,11 @@ def _extent(blob: Blob, axis: str) -> float:
 
 
 def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.ndarray, bool]:
-    """Stage 0: the checked image, flipped left-right when the photo is mirrored."""
+    """Stage 0: the checked image, its levels mapped back to light when the camera gives its
+    tone curve, flipped left-right when the photo is mirrored."""
     img = _check_image(image, camera)
+    if camera.tone_gamma is not None:
+        img = linear_light(img, camera.tone_gamma)
     mirrored = camera.mirrored if st.mirrored is None else bool(st.mirrored)
     return (img[:, ::-1] if mirrored else img), mirrored
 

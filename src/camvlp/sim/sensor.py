@@ -35,11 +35,15 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["RAW_WHITE", "develops", "expose"]
+__all__ = ["PHONE", "RAW_WHITE", "develops", "expose"]
 
 #: How a white lamp's light reaches the blue, green and red raw pixels, relative to green
 #: (a daylight-white LED through a phone's colour filters); white balance divides it out.
 RAW_WHITE = np.array([0.7, 1.0, 0.5], dtype=np.float32)
+
+#: A phone camera's processing, as :class:`~camvlp.sim.render.RenderSettings` fields: a
+#: colour mosaic, about sRGB's tone curve, moderate sharpening and vignetting.
+PHONE = {"bayer": True, "gamma": 2.2, "sharpen": 1.0, "vignetting": 0.3}
 
 #: Largest value of the 12-bit raw pixels.
 RAW_MAX = 4095
