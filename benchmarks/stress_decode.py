@@ -9,7 +9,8 @@ with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` re
 photos with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
 an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5) and
 vignetting (0 to 50 %); ``--tone-given`` gives ``locate`` the camera's tone curve in its
-camera file (``tone_gamma``), as a calibrated camera would.  The map always holds IDs whose
+camera file (``tone_gamma``), as a calibrated camera would; ``--tone-gamma G`` gives ``G``
+whatever the photo's (e.g. 2.2, sRGB's, for a phone not calibrated).  The map always holds IDs whose
 reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
 not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
 maps give the chip rate (``chip_rate_hz``), half do not.
@@ -120,6 +121,7 @@ def one_photo(
     looks: bool = True,
     phone: bool = False,
     tone_given: bool = False,
+    tone_gamma: float | None = None,
 ):
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
@@ -154,8 +156,8 @@ def one_photo(
             settings, **phone_look(np.random.default_rng([settings.seed, 7]))
         )
     photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
-    if tone_given:  # the camera file says its tone curve
-        camera = dataclasses.replace(camera, tone_gamma=settings.gamma)
+    if tone_given or tone_gamma:  # the camera file says its tone curve, or a guess at it
+        camera = dataclasses.replace(camera, tone_gamma=tone_gamma or settings.gamma)
     quality = int(rng.integers(70, 96))
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
@@ -239,6 +241,12 @@ def main() -> int:
         action="store_true",
         help="with --phone: the camera file gives the camera's tone curve (tone_gamma)",
     )
+    ap.add_argument(
+        "--tone-gamma",
+        type=float,
+        metavar="G",
+        help="with --phone: the camera file gives tone_gamma G, whatever the photo's",
+    )
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     cells = {}
@@ -256,6 +264,7 @@ def main() -> int:
                 looks=not args.plain,
                 phone=args.phone,
                 tone_given=args.tone_given,
+                tone_gamma=args.tone_gamma,
             )
             times.append(dt)
             located += bool(res)
