@@ -7,7 +7,7 @@ position error.  Run: ``python benchmarks/sweep_locate.py --n 100``.
 
 ``--phone`` renders every photo through a phone camera's processing
 (:data:`camvlp.sim.sensor.PHONE`: a colour mosaic demosaiced, gamma 2.2, sharpening 1,
-vignetting 0.3).
+vignetting 0.3); ``--tone-given`` gives ``locate`` its tone curve in the camera file.
 
 ``--without-normals`` also locates every photo with the map's ``normal`` fields removed (the
 discs' plane is then inferred) and prints both errors, and their difference per photo.
@@ -65,12 +65,19 @@ def main() -> int:
     ap.add_argument("--heights", default="0,1", help="camera heights to draw from, m (default 0,1)")
     ap.add_argument("--phone", action="store_true", help="a phone camera's processing too")
     ap.add_argument(
+        "--tone-given",
+        action="store_true",
+        help="with --phone: the camera file gives the phone's tone curve (tone_gamma)",
+    )
+    ap.add_argument(
         "--without-normals",
         action="store_true",
         help="also locate each photo with a map that gives no normal, and compare",
     )
     args = ap.parse_args()
     camera = camvlp.load_camera(ROOT / "examples/thesis_camera.yaml")
+    if args.phone and args.tone_given:
+        camera = dataclasses.replace(camera, tone_gamma=PHONE["gamma"])
     fmap = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
     bare = dataclasses.replace(
         fmap, fixtures=tuple(dataclasses.replace(f, normal=None) for f in fmap.fixtures)
