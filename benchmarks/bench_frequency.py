@@ -234,16 +234,37 @@ def main(argv=None) -> None:
 
 
 def _print_limits(worst: list) -> None:
-    """How many of the lights off by 1 % or more are so because their pixels cannot tell."""
-    off = [(i, where) for err, i, where, _ in worst if not err < 1.0]
-    spans = np.array([_LIMITS[where[-1], i] for i, where in off]).reshape(-1, 2)
+    """Each light off by 1 % or more (or missed), whether it is a limit (its pixels are
+    consistent with a frequency 1 % off or more), and the summary line "N of M within 1 %, K
+    of the misses are limits" over the lights showing 1.5 periods or more."""
+    off = [(err, i, where) for err, i, where, _ in worst if not err < 1.0]
+    spans = np.array([_LIMITS[where[-1], i] for _, i, where in off]).reshape(-1, 2)
     wide = (spans[:, 0] < -0.01) | (spans[:, 1] > 0.01)
     mid = np.abs(spans.mean(axis=1)) > 0.01
+    for (err, i, where), (lo, hi), limit in sorted(
+        zip(off, spans, wide, strict=True), key=lambda o: -np.nan_to_num(o[0][0], nan=1e9)
+    ):
+        kind = "limit" if limit else "not a limit"
+        print(
+            f"miss: {err:6.2f} % {kind:<11} (its pixels fit {100 * lo:+.2f} to {100 * hi:+.2f} %)"
+            f" light {i} of {where}"
+        )
     print(
         f"lights off by 1 % or more: {len(off)}; their pixels are consistent (within one "
         f"standard deviation of their noise) with a frequency 1 % off or more for {wide.sum()}"
         f", and the middle of the frequencies they are consistent with is 1 % off or more for "
         f"{mid.sum()}"
+    )
+    shown = [w for w in worst if w[2][0] >= 1.5 - 1e-9]
+    n_within = sum(1 for w in shown if w[0] < 1.0)
+    limits = sum(
+        1
+        for (_, _, where), limit in zip(off, wide, strict=True)
+        if where[0] >= 1.5 - 1e-9 and limit
+    )
+    print(
+        f"{n_within} of {len(shown)} within 1 %, {limits} of the {len(shown) - n_within} misses "
+        "are limits (lights showing 1.5 periods or more)"
     )
 
 
