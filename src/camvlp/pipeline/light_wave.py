@@ -55,6 +55,13 @@ _FEW_PERIODS = 4.5
 #: of 25 to 48 px ten times closer at the median, but took up to 29 s a photo on the real
 #: photos' lights.
 _GRID_BIN_PX = _BIN_PX
+#: A larger clipped light has its shape fitted on the pixel grid too when its bright stripes
+#: clip over at least this share of its area (:func:`_rim_only`): their waveform then shows
+#: only at its rim, as for a small one.  A light brighter only in its core (the real photos'
+#: LEDs: 0 to 28 % of their area) keeps the radial shape.
+_RIM_ONLY = 0.5
+#: Widest bins of the radial shape (pixels) of such a light: a radius of 60 px.
+_RIM_ONLY_BIN_PX = 1.5
 #: Fewest stripe periods the lines with signal must span: a steady light (or one too small
 #: for a whole period) fits some long period, never the right one.
 _MIN_PERIODS = 1.0
@@ -386,7 +393,14 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
         return _failed(centre, why, conclusive=True)
     wave = (period, phase, window, low, high)
     grid = None
-    if cy_.size and seen < _FEW_PERIODS and bin_px <= _GRID_BIN_PX:
+    if (
+        cy_.size
+        and seen < _FEW_PERIODS
+        and (
+            bin_px <= _GRID_BIN_PX
+            or (bin_px <= _RIM_ONLY_BIN_PX and _rim_only(fitted, shape, high) >= _RIM_ONLY)
+        )
+    ):
         grid = _on_grid(fitted, ellipse, axis, shape, wave)
     if grid is None:
         period, phase, window, low, high = (float(v) for v in sharp_period(*profile, wave))
@@ -401,11 +415,26 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
     return LightWave(period, window, phase, (low, high), centre, float(seen))
 
 
+def _rim_only(fitted: _Radial, shape: np.ndarray, high: float) -> float:
+    """The share of a light's area (where its radial ``shape``, per knot, is 5 % of its peak
+    or more) at which its ``high`` level (gray levels above the background where the shape
+    peaks) clips: near 1 for a light whose bright stripes clip all across but at the rim,
+    small for one that clips only in its core."""
+    ly, lx, _ = fitted.pixels
+    cy, cx = fitted.clipped
+    uv = _axes(np.concatenate([lx, cx]), np.concatenate([ly, cy]), fitted.cs)
+    rho = _radius(uv, fitted.best, fitted.cs) / fitted.bin_px
+    g = np.interp(rho, np.arange(shape.size), shape, right=0.0)
+    lit = g >= 0.05
+    hot = lit & (g * high >= _CLIP - fitted.background)
+    return float(hot.sum()) / max(float(lit.sum()), 1.0)
+
+
 def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> GridShape | None:
     """The light's shape on the pixel grid fitted with its square wave
     (:func:`camvlp.pipeline.rim.refine_wave`) from the radial fit (its radial ``shape`` per
     knot, its ``wave``: period, phase, window, low, high), or None when that fit fails."""
-    (ex, ey), _, _ = ellipse
+    (ex, ey), (aw, ah), _ = ellipse
     outline = (ey, ex) if axis == "columns" else (ex, ey)
     bin_px = fitted.bin_px
     fit = refine_wave(
@@ -419,6 +448,7 @@ def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> Gr
         fitted.cs,
         _BIN_PX,
         _integrated,
+        0.25 * float(aw + ah),
     )
     p, _, _, lo, hi = (float(v) for v in fit.wave)
     return fit if np.isfinite(fit.cost) and p > 2.0 and hi > lo else None

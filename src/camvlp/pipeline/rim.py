@@ -142,13 +142,15 @@ def grid_shape_at(ly, lx, geometry, cs, bin_px: float, h: np.ndarray) -> np.ndar
 
 class _Data(NamedTuple):
     """The pixels of a fit: ``ly``, ``lx`` (N,) unclipped then clipped, ``target`` (N,) the
-    unclipped levels and the clipped ones' clipping level, ``n_free`` unclipped pixels."""
+    unclipped levels and the clipped ones' clipping level, ``n_free`` unclipped pixels, and
+    ``root`` (N,) the square root of each pixel's weight (the pixels it stands for)."""
 
     ly: np.ndarray
     lx: np.ndarray
     target: np.ndarray
     n_free: int
     n_lines: int
+    root: np.ndarray
 
 
 class _State(NamedTuple):
@@ -170,6 +172,7 @@ def _state(data: _Data, geometry, cs, bin_px, h, w, integrated) -> _State:
     s = _wave(np.arange(data.n_lines, dtype=float), w, integrated)
     r = data.target - s[data.ly] * g
     r[data.n_free :] = np.maximum(r[data.n_free :], 0.0)  # a clipped pixel: at least
+    r *= data.root
     return _State(g, s, r, float(r @ r))
 
 
@@ -205,8 +208,8 @@ def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
     frac = (st.s - w[3]) / (w[4] - w[3]) if w[4] != w[3] else np.zeros(data.n_lines)
     jo[:, 8] = st.g * (1.0 - frac)[data.ly]
     jo[:, 9] = st.g * frac[data.ly]
-    active = np.ones(n)
-    active[data.n_free :] = st.r[data.n_free :] > 0  # clipped pixels whose bound binds
+    active = data.root.copy()
+    active[data.n_free :] *= st.r[data.n_free :] > 0  # clipped pixels whose bound binds
     jo *= active[:, None]
     return k0, b * (s_p * active)[:, None], jo
 
@@ -235,12 +238,25 @@ def _normal_equations(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _
     return a, rhs
 
 
+def _solve(a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
+    """``x`` with ``a @ x = b`` (a of shape (n, n), b (n,)), None when ``a`` is singular.
+
+    By OpenCV's LU decomposition, on one thread: NumPy's LAPACK runs these systems of a
+    hundred unknowns on all the BLAS threads, which took 10 to 70 ms a solve instead of
+    0.2 ms on a loaded machine (the threads waiting for cores)."""
+    ok, x = cv2.solve(a, b.reshape(-1, 1), flags=cv2.DECOMP_LU)
+    return x.reshape(-1) if ok else None
+
+
 def _curvature(n: int) -> np.ndarray:
-    """The second differences' normal matrix, shape (n, n)."""
-    d = np.zeros((max(n - 2, 0), n))
-    i = np.arange(max(n - 2, 0))
-    d[i, i], d[i, i + 1], d[i, i + 2] = 1.0, -2.0, 1.0
-    return d.T @ d
+    """The second differences' normal matrix, shape (n, n): ``d.T @ d`` for ``d`` the
+    (n - 2, n) second differences, summed row by row of ``d`` (no matrix product)."""
+    a = np.zeros((n, n))
+    c = np.array([1.0, -2.0, 1.0])
+    j = np.arange(max(n - 2, 0))[:, None, None]
+    p, q = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+    np.add.at(a, (j + p, j + q), np.broadcast_to(np.outer(c, c), (j.size, 3, 3)))
+    return a
 
 
 def _fit_grid_shape(
@@ -306,9 +322,8 @@ def _fit_grid_shape(
         scale = np.maximum(diag, 1e-9 * max(float(diag.max()), 1e-300))
         before = st.cost + weight * float(h @ curv @ h)
         for _ in range(8):
-            try:
-                step = np.linalg.solve(a + mu * np.diag(scale), rhs)
-            except np.linalg.LinAlgError:
+            step = _solve(a + mu * np.diag(scale), rhs)
+            if step is None:
                 mu *= 10.0
                 continue
             hn = h + step[:n_knots]
@@ -344,6 +359,7 @@ def refine_wave(
     cs: tuple[float, float],
     bin_px: float,
     integrated,
+    radius: float = 0.0,
 ) -> GridShape:
     """The light's shape on the pixel grid and its square wave, fitted to its pixels together
     (:func:`_fit_grid_shape`) from each of ``starts``; the fit with the least cost.
@@ -368,6 +384,9 @@ def refine_wave(
         The radial shape to start from (levels where the wave is 1), of the radius (px).
     cs, bin_px, integrated
         As :func:`_fit_grid_shape` takes them.
+    radius : float
+        The light's radius (pixels, its outline's), for the pixels' thinning
+        (:func:`_thinned`; 0 for none).
     """
     ly, lx, value = free
     cy, cx = clipped
@@ -375,17 +394,19 @@ def refine_wave(
     mask = np.zeros((n_lines, width), np.uint8)
     mask[ly, lx] = 1
     near = cv2.dilate(mask, np.ones((5, 5), np.uint8)).astype(bool)[cy, cx]
-    data = _Data(
-        np.concatenate([ly, cy[near]]),
-        np.concatenate([lx, cx[near]]),
-        np.concatenate([value, np.full(int(near.sum()), float(clip_level))]),
-        ly.size,
-        n_lines,
-    )
     # the knots' offset: the ends of a ramp one pixel wide about the shape's steepest fall
     radii = np.arange(0.0, float(np.hypot(*np.ptp([lx, ly], axis=1))) + 1.0, 0.05)
     edge = float(radii[np.argmin(np.gradient(h0(radii)))])
     phi = (edge - 0.5) % bin_px
+    keep, weight = _thinned(ly, lx, starts[0], cs, radius)
+    data = _Data(
+        np.concatenate([ly[keep], cy[near]]),
+        np.concatenate([lx[keep], cx[near]]),
+        np.concatenate([value[keep], np.full(int(near.sum()), float(clip_level))]),
+        int(keep.size),
+        n_lines,
+        np.sqrt(np.concatenate([weight, np.ones(int(near.sum()))])),
+    )
     fits = [
         _fit_grid_shape(
             data,
@@ -404,6 +425,28 @@ def refine_wave(
     return fit._replace(profile=_line_profile(data, fit, cs, bin_px))
 
 
+#: Pixels deeper inside a light than this (pixels, from the steepest fall of its shape)
+#: see no edge through the blur (its taps reach sqrt(5) px, the edge's ramp half a pixel).
+_BAND_PX = 3.0
+#: Inner pixels kept per line, about: a light's inside tells its level per line from this
+#: many as well as from all (a line's level is one number), and costs the fit most of its
+#: time in a big light.
+_INNER_PER_LINE = 20
+
+
+def _thinned(ly: np.ndarray, lx: np.ndarray, start: np.ndarray, cs, radius: float):
+    """The unclipped pixels a fit uses, and their weights: every pixel within
+    :data:`_BAND_PX` of the light's rim (``radius`` pixels about the centre and axis ratio
+    ``start``), and of those deeper inside, every ``k``-th along its line, weight ``k``,
+    ``k`` the light's diameter over :data:`_INNER_PER_LINE` (1 for a light of 20 px in
+    radius or less).  Returns (indices (K,), weights (K,))."""
+    rho = (_knots_at(lx, ly, np.array([*start[:3], 0.0]), cs, 1.0) - _KNOT0).astype(float)
+    inner = rho < radius - _BAND_PX
+    k = max(1, int(2.0 * radius / _INNER_PER_LINE))
+    keep = np.flatnonzero(~inner | (lx % k == 0))
+    return keep, np.where(inner[keep], float(k), 1.0)
+
+
 def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.ndarray, ...]:
     """The waveform per line given the fitted shape, as
     :func:`~camvlp.pipeline.square_wave.fit_square_wave` takes a profile: ``(lines, signal,
@@ -418,8 +461,9 @@ def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.nd
     n, free = data.n_lines, data.n_free
     g = grid_shape_at(data.ly, data.lx, fit.geometry, cs, bin_px, fit.h)
     ly = data.ly.astype(np.intp)
-    den = np.bincount(ly[:free], g[:free] ** 2, minlength=n)
-    num = np.bincount(ly[:free], data.target[:free] * g[:free], minlength=n)
+    wg = data.root**2 * g
+    den = np.bincount(ly[:free], wg[:free] * g[:free], minlength=n)
+    num = np.bincount(ly[:free], data.target[:free] * wg[:free], minlength=n)
     den[den < 1e-3 * den.max(initial=0.0)] = 0.0  # lines with next to nothing
     signal = np.divide(num, den, out=np.zeros(n), where=den > 0)
     top = np.zeros(n)
@@ -427,7 +471,14 @@ def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.nd
     clip = data.target[free:][0] if data.target.size > free else 0.0
     bounds = np.divide(clip, top, out=np.zeros(n), where=top > 0)
     lines = np.arange(n, dtype=float)
-    return lines, signal, den, lines, bounds, np.bincount(ly[free:], g[free:] ** 2, minlength=n)
+    return (
+        lines,
+        signal,
+        den,
+        lines,
+        bounds,
+        np.bincount(ly[free:], wg[free:] * g[free:], minlength=n),
+    )
 
 
 def _continued(data: _Data, fit: GridShape, cs, bin_px: float, integrated, iters: int):
