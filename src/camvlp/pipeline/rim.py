@@ -136,8 +136,37 @@ def grid_shape_at(ly, lx, geometry, cs, bin_px: float, h: np.ndarray) -> np.ndar
     :class:`GridShape`'s ``geometry`` and ``h``."""
     if ly.size == 0:
         return np.zeros(0)
-    f = _knots_at(lx[:, None] + _DX, ly[:, None] + _DY, geometry, cs, bin_px)
-    return _interp(f, h)[0] @ _kernel(float(geometry[4]))[0]
+    return _shape(_Taps.of(ly, lx), geometry, cs, bin_px, h)
+
+
+class _Taps(NamedTuple):
+    """The pixels the blur's taps reach from pixels ``(ly, lx)`` (N,): each once, ``uy``,
+    ``ux`` (U,), and ``nb`` (N, T) the index of each tap's pixel there.  The radial shape is
+    evaluated once per pixel reached, not once per tap (T = 21 times as often)."""
+
+    uy: np.ndarray
+    ux: np.ndarray
+    nb: np.ndarray
+
+    @classmethod
+    def of(cls, ly: np.ndarray, lx: np.ndarray) -> _Taps:
+        """The taps of pixels ``(ly, lx)``, integer coordinates, shape (N,)."""
+        ty = (np.asarray(ly)[:, None] + _DY).astype(np.int64)
+        tx = (np.asarray(lx)[:, None] + _DX).astype(np.int64)
+        y0, x0 = int(ty.min()), int(tx.min())
+        span = int(tx.max()) - x0 + 1
+        keys, nb = np.unique((ty - y0) * span + (tx - x0), return_inverse=True)
+        return cls(
+            (keys // span + y0).astype(float),
+            (keys % span + x0).astype(float),
+            nb.reshape(ty.shape),
+        )
+
+
+def _shape(taps: _Taps, geometry, cs, bin_px: float, h: np.ndarray) -> np.ndarray:
+    """:func:`grid_shape_at` at the pixels of ``taps``, shape (N,)."""
+    f = _knots_at(taps.ux, taps.uy, geometry, cs, bin_px)
+    return _interp(f, h)[0][taps.nb] @ _kernel(float(geometry[4]))[0]
 
 
 class _Data(NamedTuple):
@@ -151,6 +180,7 @@ class _Data(NamedTuple):
     n_free: int
     n_lines: int
     root: np.ndarray
+    taps: _Taps
 
 
 class _State(NamedTuple):
@@ -168,7 +198,7 @@ def _wave(lines: np.ndarray, w: np.ndarray, integrated) -> np.ndarray:
 
 def _state(data: _Data, geometry, cs, bin_px, h, w, integrated) -> _State:
     """The shape and waveform of these parameters and their residuals."""
-    g = grid_shape_at(data.ly, data.lx, geometry, cs, bin_px, h)
+    g = _shape(data.taps, geometry, cs, bin_px, h)
     s = _wave(np.arange(data.n_lines, dtype=float), w, integrated)
     r = data.target - s[data.ly] * g
     r[data.n_free :] = np.maximum(r[data.n_free :], 0.0)  # a clipped pixel: at least
@@ -179,10 +209,11 @@ def _state(data: _Data, geometry, cs, bin_px, h, w, integrated) -> _State:
 def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
     """The prediction's derivatives: in ``h`` as (first knot (N,), weights on the knots from
     it (N, M)), and in (geometry, waveform) as (N, 10)."""
-    n = data.ly.size
-    f, df = _knots_at(data.lx[:, None] + _DX, data.ly[:, None] + _DY, geometry, cs, bin_px, True)
+    n, nb = data.ly.size, data.taps.nb
+    f, df = _knots_at(data.taps.ux, data.taps.uy, geometry, cs, bin_px, True)
     k, dk = _kernel(float(geometry[4]))
     value, slope, i0, t = _interp(f, h)
+    i0, t = i0[nb], t[nb]
     k0 = i0.min(axis=1)
     rel = i0 - k0[:, None]
     m = int(rel.max()) + 2
@@ -194,10 +225,9 @@ def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
     ).reshape(n, m)
     s_p = st.s[data.ly]
     jo = np.empty((n, 10))
-    slope *= k
     for j in range(4):
-        jo[:, j] = np.einsum("nt,nt->n", slope, df[j])
-    jo[:, 4] = value @ dk
+        jo[:, j] = (slope * df[j])[nb] @ k
+    jo[:, 4] = value[nb] @ dk
     jo[:, :5] *= s_p[:, None]
     lines = np.arange(data.n_lines, dtype=float)
     step = 1e-3 * w[0]
@@ -406,6 +436,7 @@ def refine_wave(
         int(keep.size),
         n_lines,
         np.sqrt(np.concatenate([weight, np.ones(int(near.sum()))])),
+        _Taps.of(np.concatenate([ly[keep], cy[near]]), np.concatenate([lx[keep], cx[near]])),
     )
     fits = [
         _fit_grid_shape(
@@ -459,7 +490,7 @@ def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.nd
     of their shapes squared).
     """
     n, free = data.n_lines, data.n_free
-    g = grid_shape_at(data.ly, data.lx, fit.geometry, cs, bin_px, fit.h)
+    g = _shape(data.taps, fit.geometry, cs, bin_px, fit.h)
     ly = data.ly.astype(np.intp)
     wg = data.root**2 * g
     den = np.bincount(ly[:free], wg[:free] * g[:free], minlength=n)
