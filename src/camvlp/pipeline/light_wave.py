@@ -40,6 +40,8 @@ _BIN_PX = 0.5
 _BINS_PER_RADIUS = 40
 #: Gray level at or above which a pixel counts as clipped (8-bit photos; JPEG rings below 255).
 _CLIP = 235.0
+#: The sensor's full scale (8-bit photos).
+_FULL = 255.0
 #: Pixels (at most, every k-th) whose fit refines the light's outline.
 _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
@@ -434,7 +436,7 @@ def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> Gr
     """The light's shape on the pixel grid fitted with its square wave
     (:func:`camvlp.pipeline.rim.refine_wave`) from the radial fit (its radial ``shape`` per
     knot, its ``wave``: period, phase, window, low, high), or None when that fit fails."""
-    (ex, ey), (aw, ah), _ = ellipse
+    (ex, ey), _, _ = ellipse
     outline = (ey, ex) if axis == "columns" else (ex, ey)
     bin_px = fitted.bin_px
     fit = refine_wave(
@@ -448,7 +450,7 @@ def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> Gr
         fitted.cs,
         _BIN_PX,
         _integrated,
-        0.25 * float(aw + ah),
+        _FULL - fitted.background,
     )
     p, _, _, lo, hi = (float(v) for v in fit.wave)
     return fit if np.isfinite(fit.cost) and p > 2.0 and hi > lo else None

@@ -172,7 +172,10 @@ def _shape(taps: _Taps, geometry, cs, bin_px: float, h: np.ndarray) -> np.ndarra
 class _Data(NamedTuple):
     """The pixels of a fit: ``ly``, ``lx`` (N,) unclipped then clipped, ``target`` (N,) the
     unclipped levels and the clipped ones' clipping level, ``n_free`` unclipped pixels, and
-    ``root`` (N,) the square root of each pixel's weight (the pixels it stands for)."""
+    ``root`` (N,) the square root of each pixel's weight, ``taps`` the pixels the blur
+    reaches from them, and ``full`` the sensor's full scale (levels above the background): an
+    unclipped pixel whose light would pass it reads the full scale, less the error of a JPEG
+    (which rings below it), not its light."""
 
     ly: np.ndarray
     lx: np.ndarray
@@ -181,6 +184,7 @@ class _Data(NamedTuple):
     n_lines: int
     root: np.ndarray
     taps: _Taps
+    full: float
 
 
 class _State(NamedTuple):
@@ -188,6 +192,7 @@ class _State(NamedTuple):
     s: np.ndarray  # waveform per line (L,)
     r: np.ndarray  # residual per pixel (0 where a clipped pixel's prediction clips)
     cost: float
+    live: np.ndarray  # per pixel (N,): whether its residual moves with the prediction
 
 
 def _wave(lines: np.ndarray, w: np.ndarray, integrated) -> np.ndarray:
@@ -200,10 +205,13 @@ def _state(data: _Data, geometry, cs, bin_px, h, w, integrated) -> _State:
     """The shape and waveform of these parameters and their residuals."""
     g = _shape(data.taps, geometry, cs, bin_px, h)
     s = _wave(np.arange(data.n_lines, dtype=float), w, integrated)
-    r = data.target - s[data.ly] * g
+    predicted = s[data.ly] * g
+    live = predicted < data.full  # an unclipped pixel's light reaching the full scale: clipped
+    r = data.target - np.minimum(predicted, data.full)
     r[data.n_free :] = np.maximum(r[data.n_free :], 0.0)  # a clipped pixel: at least
+    live[data.n_free :] = r[data.n_free :] > 0  # a clipped pixel whose bound binds
     r *= data.root
-    return _State(g, s, r, float(r @ r))
+    return _State(g, s, r, float(r @ r), live)
 
 
 def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
@@ -238,8 +246,7 @@ def _jacobian(data: _Data, geometry, cs, bin_px, h, w, integrated, st: _State):
     frac = (st.s - w[3]) / (w[4] - w[3]) if w[4] != w[3] else np.zeros(data.n_lines)
     jo[:, 8] = st.g * (1.0 - frac)[data.ly]
     jo[:, 9] = st.g * frac[data.ly]
-    active = data.root.copy()
-    active[data.n_free :] *= st.r[data.n_free :] > 0  # clipped pixels whose bound binds
+    active = data.root * st.live
     jo *= active[:, None]
     return k0, b * (s_p * active)[:, None], jo
 
@@ -389,7 +396,7 @@ def refine_wave(
     cs: tuple[float, float],
     bin_px: float,
     integrated,
-    radius: float = 0.0,
+    full_level: float = np.inf,
 ) -> GridShape:
     """The light's shape on the pixel grid and its square wave, fitted to its pixels together
     (:func:`_fit_grid_shape`) from each of ``starts``; the fit with the least cost.
@@ -414,9 +421,9 @@ def refine_wave(
         The radial shape to start from (levels where the wave is 1), of the radius (px).
     cs, bin_px, integrated
         As :func:`_fit_grid_shape` takes them.
-    radius : float
-        The light's radius (pixels, its outline's), for the pixels' thinning
-        (:func:`_thinned`; 0 for none).
+    full_level : float
+        The sensor's full scale above the background: the fit clips its prediction of the
+        unclipped pixels there (inf: no clipping).
     """
     ly, lx, value = free
     cy, cx = clipped
@@ -428,15 +435,16 @@ def refine_wave(
     radii = np.arange(0.0, float(np.hypot(*np.ptp([lx, ly], axis=1))) + 1.0, 0.05)
     edge = float(radii[np.argmin(np.gradient(h0(radii)))])
     phi = (edge - 0.5) % bin_px
-    keep, weight = _thinned(ly, lx, starts[0], cs, radius)
+    all_y, all_x = np.concatenate([ly, cy[near]]), np.concatenate([lx, cx[near]])
     data = _Data(
-        np.concatenate([ly[keep], cy[near]]),
-        np.concatenate([lx[keep], cx[near]]),
-        np.concatenate([value[keep], np.full(int(near.sum()), float(clip_level))]),
-        int(keep.size),
+        all_y,
+        all_x,
+        np.concatenate([value, np.full(int(near.sum()), float(clip_level))]),
+        ly.size,
         n_lines,
-        np.sqrt(np.concatenate([weight, np.ones(int(near.sum()))])),
-        _Taps.of(np.concatenate([ly[keep], cy[near]]), np.concatenate([lx[keep], cx[near]])),
+        np.ones(all_y.size),
+        _Taps.of(all_y, all_x),
+        float(full_level),
     )
     fits = [
         _fit_grid_shape(
@@ -454,28 +462,6 @@ def refine_wave(
     best = min(fits, key=lambda t: t.cost)
     fit = _continued(data, best, cs, bin_px, integrated, _ITERS)
     return fit._replace(profile=_line_profile(data, fit, cs, bin_px))
-
-
-#: Pixels deeper inside a light than this (pixels, from the steepest fall of its shape)
-#: see no edge through the blur (its taps reach sqrt(5) px, the edge's ramp half a pixel).
-_BAND_PX = 3.0
-#: Inner pixels kept per line, about: a light's inside tells its level per line from this
-#: many as well as from all (a line's level is one number), and costs the fit most of its
-#: time in a big light.
-_INNER_PER_LINE = 20
-
-
-def _thinned(ly: np.ndarray, lx: np.ndarray, start: np.ndarray, cs, radius: float):
-    """The unclipped pixels a fit uses, and their weights: every pixel within
-    :data:`_BAND_PX` of the light's rim (``radius`` pixels about the centre and axis ratio
-    ``start``), and of those deeper inside, every ``k``-th along its line, weight ``k``,
-    ``k`` the light's diameter over :data:`_INNER_PER_LINE` (1 for a light of 20 px in
-    radius or less).  Returns (indices (K,), weights (K,))."""
-    rho = (_knots_at(lx, ly, np.array([*start[:3], 0.0]), cs, 1.0) - _KNOT0).astype(float)
-    inner = rho < radius - _BAND_PX
-    k = max(1, int(2.0 * radius / _INNER_PER_LINE))
-    keep = np.flatnonzero(~inner | (lx % k == 0))
-    return keep, np.where(inner[keep], float(k), 1.0)
 
 
 def _line_profile(data: _Data, fit: GridShape, cs, bin_px: float) -> tuple[np.ndarray, ...]:
