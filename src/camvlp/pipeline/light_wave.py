@@ -15,9 +15,10 @@ a stripe, and a stripe seen only in the glow still counts.  A clipped pixel is n
 says that ``s`` reached at least the level that clips it there.
 
 :func:`~camvlp.pipeline.square_wave.fit_square_wave` then fits the physics of ``s``: a 50 %
-square wave integrated over a window (:mod:`camvlp.pipeline.square_wave`).  A small clipped light
-showing few periods, whose waveform shows in its bright stripes only at its rim, has its
-shape then fitted on the pixel grid with its square wave (:mod:`camvlp.pipeline.rim`).
+square wave integrated over a window (:mod:`camvlp.pipeline.square_wave`).  A clipped light
+showing few periods whose waveform shows in its bright stripes only at its rim (a small one,
+or one whose bright stripes clip over most of its area) has its shape then fitted on the
+pixel grid with its square wave (:mod:`camvlp.pipeline.rim`).
 """
 
 from __future__ import annotations

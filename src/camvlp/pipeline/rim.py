@@ -23,7 +23,11 @@ The pixels are then fitted with the light's physics as a whole, ``g(p) * S(line)
 :func:`~camvlp.pipeline.light_wave.fit_square_wave` fits it), each clipped pixel next to an
 unclipped one a lower bound: ``h``, the centre, the axis ratio, ``phi``, ``sigma`` and the
 wave's period, phase, window and levels together, by Levenberg-Marquardt (analytic
-derivatives but for the wave's three timing parameters).  A wave free per line, as
+derivatives but for the wave's three timing parameters).  The prediction of an unclipped
+pixel is clipped at the sensor's full scale: a pixel the light saturates reads the full
+scale, less a JPEG's ringing (which can put it under the clipping threshold), not its
+light; fitted as a level, such a pixel pulled a saturated light's period by up to 1.9 %.
+A wave free per line, as
 :func:`~camvlp.pipeline.light_wave.light_wave` fits it, trades a bright line's level against
 the light's outline along the readout; the square wave's one high level for every bright
 line does not.  The fit starts from the radial fit's centre and from the outline's (round),
