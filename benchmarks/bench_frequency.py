@@ -21,7 +21,9 @@ bound (an efficient measurement's median is 0.67).
 With ``--limits``, each light off by 1 % or more is also checked globally: the frequencies
 its noise-free pixels fit within one standard deviation of their noise
 (:func:`camvlp.sim.bound.frequency_intervals`; stripes sharper than a line fit a whole range
-of them, which the local bound, infinite there, does not tell apart).
+of them, which the local bound, infinite there, does not tell apart).  Each such light is
+listed as a limit (its interval reaches 1 % off or more) or not, and the run ends with "N of
+M within 1 %, K of the misses are limits".
 
 Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
 (about ten minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
