@@ -295,3 +295,41 @@ def test_profiles_decoded_together_as_one_by_one():
         assert [repr(d) for d in together] == [repr(d) for d in alone]
     reasons = {d.reason.split(" (")[0] for d in together}
     assert {"", "too small to decode", "no stripes"} <= reasons
+
+
+def test_shape_profile_of_a_disc_clipping_in_its_glow_reads_one_response():
+    # a disc 4 times full scale in an unclipped glow: the rows through the disc clip in the
+    # bright chips (shallow dips), those beyond it along the readout cross only the glow
+    # (deep dips); the profile is read through the disc's response alone, so rows of the
+    # same on-fraction agree, and it is the disc's knee that fits it
+    rng = np.random.default_rng(11)
+    chips = rng.choice([0.05, 0.2, 0.45, 1.0], 20)
+    on = np.repeat(chips, 6)[:110]  # 6 rows per chip
+    yy, xx = np.mgrid[0:110, 0:110].astype(float)
+    rho = np.hypot(xx - 54.6, yy - 55.3) / 30.0
+    shape = np.where(rho <= 1, 1020.0, 150.0 * np.exp(-(rho - 1) / 0.5))
+    img = np.round(np.clip(shape * on[:, None] + rng.normal(0, 1.5, shape.shape), 0, 255))
+    mask = shape > 60.0  # lit in the bright chips: the disc and the glow around it
+    centre = np.array([54.6, 55.3])
+    prof, first = shape_profile(img.astype(np.uint8), mask, "rows", centre, np.full(2, 60.0), 0.0)
+    truth = on[first : first + prof.size]
+    assert prof.size >= 58  # the disc's rows at least
+    knee = 0.25  # the disc's: full scale at a quarter of its on-level
+    model = np.minimum(truth, knee) / knee
+    a = np.vstack([model, np.ones_like(model)]).T
+    resid = prof - a @ np.linalg.lstsq(a, prof, rcond=None)[0]
+    assert np.sqrt(np.mean(resid**2)) < 0.03 * np.ptp(prof)
+
+
+def test_shape_profile_of_a_lamp_clipping_at_its_core_only_keeps_every_row():
+    # a hot core clips, the rest of the disc does not: the profile keeps the disc's rows
+    rng = np.random.default_rng(12)
+    on = np.repeat(rng.choice([0.05, 0.2, 0.45, 1.0], 20), 6)[:110]
+    yy, xx = np.mgrid[0:110, 0:110].astype(float)
+    rho = np.hypot(xx - 54.6, yy - 55.3) / 30.0
+    shape = np.where(rho <= 1, 150.0 * (1 + 2.5 * np.exp(-((rho / 0.4) ** 2))), 0.0)
+    img = np.round(np.clip(shape * on[:, None] + rng.normal(0, 1.5, shape.shape), 0, 255))
+    mask = shape > 60.0
+    centre = np.array([54.6, 55.3])
+    prof, _ = shape_profile(img.astype(np.uint8), mask, "rows", centre, np.full(2, 60.0), 0.0)
+    assert prof.size >= 50  # the core alone clips on some 29 rows

@@ -13,6 +13,7 @@ import math
 import cv2
 import numpy as np
 
+from camvlp.pipeline.light_wave import _CLIP
 from camvlp.pipeline.ragged import pieces, starts
 
 __all__ = ["row_profile", "shape_profile", "shape_profiles"]
@@ -91,6 +92,10 @@ _ENVELOPE_QUANTILE = 0.9
 _FLAT_SAMPLE, _SHAPE_SAMPLE = 1000, 20000
 #: A light whose rings' levels all lie within this fraction of the brightest is flat.
 _FLAT = 0.05
+#: A light clips over its face (not only at a hot core) when its clipped pixels (those whose
+#: on-level is at the clipping level) are more than this fraction of the pixels of the lines
+#: they span: most of them.
+_FACE = 0.5
 
 
 def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -173,6 +178,10 @@ def shape_profile(
     the profile follows the on-fraction alone (through the sensor's clipping).  For a plain
     disc the level is the same everywhere and the profile is the row mean.
 
+    A light whose face clips (a bright disc in a glow) is measured on its clipped pixels
+    alone (see :func:`_clipped_face`): a pixel's response to the on-fraction depends on its
+    level, and the model decodes a profile through one response.
+
     Parameters
     ----------
     gray : ndarray of uint8, shape (h, w)
@@ -246,6 +255,9 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     values = gray[ys, xs]
     level = np.maximum(np.interp(rho, middle, level), 1.0)
     line = ys if axis != "columns" else xs
+    face = _clipped_face(level, line)
+    if face is not None:
+        values, level, line = values[face], level[face], line[face]
     counts = np.bincount(line)
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
@@ -255,3 +267,37 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     den = np.bincount(line, weights=level, minlength=last)[first:last]
     prof = num / np.where(den > 0, den, np.nan) * float(level.max())
     return _filled(prof), first
+
+
+def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
+    """The pixels of a light whose face clips, or None when it does not.
+
+    A pixel of on-level ``L`` reads ``min(L * s, full scale)`` for an on-fraction ``s``: where
+    the light clips a dark chip between bright ones leaves a shallow dip, where it does not
+    (its glow) the dip is deep.  A bright disc in a glow clips over its whole face, and the
+    lines beyond it along the readout cross only its glow: a profile over both reads the
+    stripes through two responses, which no single saturation knee describes (the model's
+    fit leaves half of such a profile unexplained).  When most pixels of the lines the
+    clipped pixels span are clipped ones (:data:`_FACE`: the face clips, not only a hot core
+    at its centre), the profile is taken over the clipped pixels alone, all read through the
+    disc's own knee; else over all of them, as a light that clips at its core only is mostly
+    read unclipped.
+
+    Parameters
+    ----------
+    level : ndarray, shape (n,)
+        Each pixel's on-level (its ring's), gray levels.
+    line : ndarray of int, shape (n,)
+        Each pixel's line along the readout.
+
+    Returns
+    -------
+    ndarray of bool, shape (n,), or None
+        The clipped pixels, when the light's face clips.
+    """
+    clipped = level >= _CLIP
+    if not clipped.any():
+        return None
+    lines = line[clipped]
+    span = (line >= lines.min()) & (line <= lines.max())
+    return clipped if np.count_nonzero(clipped) > _FACE * np.count_nonzero(span) else None
