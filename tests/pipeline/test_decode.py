@@ -333,3 +333,18 @@ def test_shape_profile_of_a_lamp_clipping_at_its_core_only_keeps_every_row():
     centre = np.array([54.6, 55.3])
     prof, _ = shape_profile(img.astype(np.uint8), mask, "rows", centre, np.full(2, 60.0), 0.0)
     assert prof.size >= 50  # the core alone clips on some 29 rows
+
+
+def test_shape_profile_of_a_lamp_below_full_scale_keeps_its_glow_rows():
+    # a disc just under the sensor's full scale in a glow: nothing clips, one response
+    # throughout, and the rows beyond the disc stay in the profile
+    rng = np.random.default_rng(13)
+    on = np.repeat(rng.choice([0.05, 0.2, 0.45, 1.0], 20), 6)[:110]
+    yy, xx = np.mgrid[0:110, 0:110].astype(float)
+    rho = np.hypot(xx - 54.6, yy - 55.3) / 30.0
+    shape = np.where(rho <= 1, 240.0, 150.0 * np.exp(-(rho - 1) / 0.5))
+    img = np.round(np.clip(shape * on[:, None] + rng.normal(0, 1.5, shape.shape), 0, 255))
+    mask = shape > 60.0
+    centre = np.array([54.6, 55.3])
+    prof, _ = shape_profile(img.astype(np.uint8), mask, "rows", centre, np.full(2, 60.0), 0.0)
+    assert prof.size >= 75  # the disc's 60 rows and its glow's beyond

@@ -13,7 +13,7 @@ import math
 import cv2
 import numpy as np
 
-from camvlp.pipeline.light_wave import _CLIP
+from camvlp.pipeline.light_wave import _CLIP, _FULL
 from camvlp.pipeline.ragged import pieces, starts
 
 __all__ = ["row_profile", "shape_profile", "shape_profiles"]
@@ -281,12 +281,14 @@ def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
     clipped pixels span are clipped ones (:data:`_FACE`: the face clips, not only a hot core
     at its centre), the profile is taken over the clipped pixels alone, all read through the
     disc's own knee; else over all of them, as a light that clips at its core only is mostly
-    read unclipped.
+    read unclipped.  A light whose brightest ring does not reach the sensor's full scale
+    (:data:`~camvlp.pipeline.light_wave._FULL`) does not clip at all.
 
     Parameters
     ----------
     level : ndarray, shape (n,)
-        Each pixel's on-level (its ring's), gray levels.
+        Each pixel's on-level (its ring's), gray levels; a pixel at
+        :data:`~camvlp.pipeline.light_wave._CLIP` or more counts as clipped.
     line : ndarray of int, shape (n,)
         Each pixel's line along the readout.
 
@@ -295,9 +297,9 @@ def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
     ndarray of bool, shape (n,), or None
         The clipped pixels, when the light's face clips.
     """
-    clipped = level >= _CLIP
-    if not clipped.any():
+    if level.max() < _FULL:  # it does not reach the sensor's full scale: no pixel clips
         return None
+    clipped = level >= _CLIP
     lines = line[clipped]
     span = (line >= lines.min()) & (line <= lines.max())
     return clipped if np.count_nonzero(clipped) > _FACE * np.count_nonzero(span) else None
