@@ -372,6 +372,8 @@ def _sharp_mean(data: _Profile, x: np.ndarray) -> np.ndarray:
     """
     p0, phase0, window0 = (float(v) for v in x)
     c0 = float(_cost(data, p0, phase0, window0)[0])
+    if not np.isfinite(c0):  # no noise to weigh the grid by: the fit as it is
+        return np.array([p0, phase0, window0])
     var = max(c0 / max(data.y.size - 5, 1), _SHARP_VAR)
     centre = (p0, phase0)
     for _ in range(3):
