@@ -128,6 +128,13 @@ def test_a_phone_photo_is_rendered_and_located(tmp_path, thesis_room_path):
     result = json.loads(located.output)
     assert [f["id"] for f in result["fixtures"] if f["used"]] == [9, 6, 10, 5]
     assert np.linalg.norm(result["position"]) < 0.005  # the truth is the origin, metres
+    # the tone curve given on the command line: the photo read as light, located as well
+    toned = runner.invoke(app, [*args, "--json", "--tone-gamma", "2.2"])
+    assert toned.exit_code == 0, toned.output
+    assert np.linalg.norm(json.loads(toned.output)["position"]) < 0.005
+    for bad in ("0", "9", "nan"):
+        refused = runner.invoke(app, [*args, "--tone-gamma", bad])
+        assert refused.exit_code == 2 and "--tone-gamma" in one_error_line(refused)
 
 
 def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Annotated
 
@@ -67,6 +68,15 @@ def locate_command(
         ),
     ] = None,
     outlier_px: OutlierOption = None,
+    tone_gamma: Annotated[
+        float | None,
+        typer.Option(
+            "--tone-gamma",
+            metavar="G",
+            help="The camera's tone curve, as the camera file's tone_gamma (about 2.2 for a "
+            "phone's JPEG; default: the camera file's, else levels taken as light).",
+        ),
+    ] = None,
     gravity: Annotated[
         str | None,
         typer.Option(
@@ -92,6 +102,11 @@ def locate_command(
     if debug_dir is not None:
         check_output_dir(debug_dir, "--debug-dir")
     camera = load_camera(camera_path)
+    if tone_gamma is not None:
+        try:
+            camera = dataclasses.replace(camera, tone_gamma=tone_gamma)
+        except ValueError as exc:
+            fail(str(exc).replace("tone_gamma", "--tone-gamma", 1))
     fixture_map = load_map(map_path)
     raw = read_photo(photo)  # read once: decoded here, its EXIF read below
     image = decode_image(raw, photo)
