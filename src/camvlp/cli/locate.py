@@ -35,6 +35,7 @@ from ._app import (
     parse_gravity,
     parse_readout,
 )
+from .render import option_names
 
 
 @app.command("locate")
@@ -106,7 +107,7 @@ def locate_command(
         try:
             camera = dataclasses.replace(camera, tone_gamma=tone_gamma)
         except ValueError as exc:
-            fail(str(exc).replace("tone_gamma", "--tone-gamma", 1))
+            fail(option_names(str(exc)))
     fixture_map = load_map(map_path)
     raw = read_photo(photo)  # read once: decoded here, its EXIF read below
     image = decode_image(raw, photo)

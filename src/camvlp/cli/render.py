@@ -258,6 +258,7 @@ _OPTIONS = {
     "vignetting": "--vignetting",
     "gamma": "--gamma",
     "sharpen": "--sharpen",
+    "tone_gamma": "--tone-gamma",
     "seed": "--seed",
     "position": "--position",
 }

@@ -51,7 +51,7 @@ RAW_MAX = 4095
 #: Sigma of the sharpening's unsharp mask, pixels.
 SHARPEN_SIGMA_PX = 1.0
 
-_ROW_CHUNK = 128  # image rows per chunk of the full-frame passes
+_ROW_CHUNK = 128  # image rows per chunk of the full-frame passes (even: see _raw)
 
 
 def develops(s) -> bool:
@@ -131,7 +131,9 @@ def _raw(patches, width: int, height: int, s) -> np.ndarray:
     cu, cv = 0.5 * (width - 1), 0.5 * (height - 1)
     corner2 = cu * cu + cv * cv
     du2 = ((np.arange(width, dtype=np.float32) - cu) ** 2)[None, :]
-    u = np.arange(width)
+    # each pixel's colour in a chunk (chunks start on even rows): rows R G R G ..., then
+    # G B G B ... (BGR channels 2, 1, 0)
+    mosaic = np.array([[2, 1], [1, 0]])[np.arange(_ROW_CHUNK)[:, None] % 2, np.arange(width) % 2]
     for r0 in range(0, height, _ROW_CHUNK):
         r1 = min(r0 + _ROW_CHUNK, height)
         value = _light(patches, r0, r1, width, s.ambient)
@@ -139,10 +141,8 @@ def _raw(patches, width: int, height: int, s) -> np.ndarray:
         if s.vignetting > 0:
             dv2 = ((np.arange(r0, r1, dtype=np.float32) - cv) ** 2)[:, None]
             value *= (1.0 - np.float32(s.vignetting / corner2) * (du2 + dv2))[:, :, None]
-        if s.bayer:  # rows from 0: R G R G ..., then G B G B ... (BGR channels 2, 1, 0)
-            v = np.arange(r0, r1)[:, None]
-            channel = np.where(v % 2 == 0, np.where(u % 2 == 0, 2, 1), np.where(u % 2 == 0, 1, 0))
-            value = np.take_along_axis(value, channel[:, :, None], axis=2)[:, :, 0]
+        if s.bayer:
+            value = np.take_along_axis(value, mosaic[: r1 - r0, :, None], axis=2)[:, :, 0]
         _add_noise(value, rng, s)
         np.clip(value, 0.0, 1.0, out=value)
         value *= np.float32(RAW_MAX)
