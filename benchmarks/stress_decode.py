@@ -7,13 +7,14 @@ barrel/pincushion), 4 to 16 fixtures, landscape or portrait turned either way (r
 rows-reversed, columns, columns-reversed), 1080p or 20 MP, and lamps plain (half the photos),
 with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` renders the same
 photos with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
-an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5) and
-vignetting (0 to 50 %); ``--tone-given`` gives ``locate`` the camera's tone curve in its
-camera file (``tone_gamma``), as a calibrated camera would; ``--tone-gamma G`` gives ``G``
-whatever the photo's (e.g. 2.2, sRGB's, for a phone not calibrated).  The map always holds IDs whose
-reversed frames are other IDs of the map (0/14, 2/6, 4/10, 8/12), and the camera file does
-not say which way the sensor reads: ``locate`` must find the direction itself.  Half the
-maps give the chip rate (``chip_rate_hz``), half do not.
+an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5),
+vignetting (0 to 50 %) and a black point (0 to 0.06 of full scale); ``--tone-given`` gives
+``locate`` the camera's tone curve in its camera file (``tone_gamma``), as a calibrated
+camera would; ``--tone-gamma G`` gives ``G`` whatever the photo's (e.g. 2.2, sRGB's, for a
+phone not calibrated).  The map always holds IDs whose reversed frames are other IDs of the
+map (0/14, 2/6, 4/10, 8/12), and the camera file does not say which way the sensor reads:
+``locate`` must find the direction itself.  Half the maps give the chip rate
+(``chip_rate_hz``), half do not.
 
 Fixtures are discs on a ceiling 2 m above the camera, placed at random without overlap;
 each spans 1.0 to 2.6 frames of the code along the readout.  A fixture counts as eligible
@@ -105,12 +106,15 @@ def lamp_look(rng: np.random.Generator) -> dict[str, float]:
 
 def phone_look(rng: np.random.Generator) -> dict:
     """A phone camera's processing: an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to
-    2.6), unsharp-mask sharpening (0 to 1.5) and vignetting (0 to 50 % lost at the corners)."""
+    2.6), unsharp-mask sharpening (0 to 1.5), vignetting (0 to 50 % lost at the corners) and a
+    black point (0 to 0.06 of full scale, twice the ambient light: from a lifted background to
+    a black one, as phones store it)."""
     return dict(
         bayer=True,
         gamma=float(rng.uniform(1.6, 2.6)),
         sharpen=float(rng.uniform(0.0, 1.5)),
         vignetting=float(rng.uniform(0.0, 0.5)),
+        black_point=float(rng.uniform(0.0, 0.06)),
     )
 
 
@@ -179,6 +183,7 @@ def one_photo(
         gamma=round(settings.gamma, 2),
         sharpen=round(settings.sharpen, 2),
         vignetting=round(settings.vignetting, 2),
+        black_point=round(settings.black_point, 3),
     )
     return photo, res, cond, dt, fmap
 

@@ -6,8 +6,9 @@ Prints the decode rate of fixtures spanning at least 1.2 frames, wrong IDs, and 
 position error.  Run: ``python benchmarks/sweep_locate.py --n 100``.
 
 ``--phone`` renders every photo through a phone camera's processing
-(:data:`camvlp.sim.sensor.PHONE`: a colour mosaic demosaiced, gamma 2.2, sharpening 1,
-vignetting 0.3); ``--tone-given`` gives ``locate`` its tone curve in the camera file.
+(:data:`camvlp.sim.sensor.PHONE`: a colour mosaic demosaiced, a black point of 0.04, gamma
+2.2, sharpening 1, vignetting 0.3); ``--tone-given`` gives ``locate`` its tone curve in the
+camera file.
 
 ``--without-normals`` also locates every photo with the map's ``normal`` fields removed (the
 discs' plane is then inferred) and prints both errors, and their difference per photo.

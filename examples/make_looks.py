@@ -2,9 +2,9 @@
 
 Rows: a plain lamp, one with a hot core, one with a halo; columns: the plain sensor, and the
 same light through a phone's processing (``camvlp.sim.sensor.PHONE``: a colour mosaic
-demosaiced, gamma 2.2, sharpening 1, vignetting 0.3).  A 1280 x 960 camera under the thesis'
-lamps at 2.5 rows per chip, exposure half a chip, LEDs 5 % on when off; each crop is shown
-at twice its size.
+demosaiced, a black point of 0.04, gamma 2.2, sharpening 1, vignetting 0.3).  A 1280 x 960
+camera under the thesis' lamps at 2.5 rows per chip, exposure half a chip, LEDs 5 % on when
+off; each crop is shown at twice its size.
 
 Usage::
 

@@ -128,6 +128,21 @@ def test_a_phone_photo_is_rendered_and_located(tmp_path, thesis_room_path):
     result = json.loads(located.output)
     assert [f["id"] for f in result["fixtures"] if f["used"]] == [9, 6, 10, 5]
     assert np.linalg.norm(result["position"]) < 0.005  # the truth is the origin, metres
+    # a black point over the ambient light stores the background black, as phones do
+    black = tmp_path / "black.jpg"
+    assert (
+        run(
+            camera, thesis_room_path, black, "--chip-rate", "20000", *phone, "--black-point", "0.04"
+        ).exit_code
+        == 0
+    )
+    assert json.loads((tmp_path / "black.json").read_text())["settings"]["black_point"] == 0.04
+    assert float(np.median(cv2.imread(str(black))[:40])) <= 2
+    located = runner.invoke(app, ["locate", str(black), *args[2:], "--json"])
+    assert located.exit_code == 0, located.output
+    result = json.loads(located.output)
+    assert [f["id"] for f in result["fixtures"] if f["used"]] == [9, 6, 10, 5]
+    assert np.linalg.norm(result["position"]) < 0.005
     # the tone curve given on the command line: the photo read as light, located as well
     toned = runner.invoke(app, [*args, "--json", "--tone-gamma", "2.2"])
     assert toned.exit_code == 0, toned.output
@@ -153,6 +168,7 @@ def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_
         (small_camera_path, thesis_room_path, "p.png", ["--gamma", "0"], "--gamma"),
         (small_camera_path, thesis_room_path, "p.png", ["--vignetting", "1"], "--vignetting"),
         (small_camera_path, thesis_room_path, "p.png", ["--sharpen", "-1"], "--sharpen"),
+        (small_camera_path, thesis_room_path, "p.png", ["--black-point", "1"], "--black-point"),
     ]
     for camera, room, out, extra, needle in cases:
         result = run(camera, room, tmp_path / out, *extra)

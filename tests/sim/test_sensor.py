@@ -19,7 +19,13 @@ def _flat(level, size=(48, 64)) -> tuple:
 
 def test_default_settings_keep_the_plain_sensor():
     assert not develops(RenderSettings())
-    for kw in (dict(bayer=True), dict(gamma=2.2), dict(sharpen=0.5), dict(vignetting=0.2)):
+    for kw in (
+        dict(bayer=True),
+        dict(gamma=2.2),
+        dict(sharpen=0.5),
+        dict(vignetting=0.2),
+        dict(black_point=0.04),
+    ):
         assert develops(RenderSettings(**kw))
 
 
@@ -34,6 +40,18 @@ def test_the_mosaic_demosaiced_gives_back_a_uniform_colour(colour):
 def test_the_tone_curve_raises_mid_greys():
     img = expose([_flat(0.25)], 64, 48, RenderSettings(gamma=2.0, **QUIET))
     assert np.all(np.abs(img.astype(float) - 255 * 0.5) <= 0.5 + 1e-9)
+
+
+def test_the_black_point_stores_dim_light_black_and_stretches_the_rest():
+    """Light at or under the black point stores 0; above it, (x - b) / (1 - b) is toned."""
+    w, h = 64, 48
+    s = dict(black_point=0.1, gamma=2.0, **QUIET)
+    dim = expose([_flat(0.08)], w, h, RenderSettings(**s))
+    assert np.all(dim == 0)
+    mid = expose([_flat(0.325)], w, h, RenderSettings(**s))  # (0.325 - 0.1) / 0.9 = 0.25
+    assert np.all(np.abs(mid.astype(float) - 255 * 0.5) <= 0.5 + 1e-9)
+    full = expose([_flat(1.0)], w, h, RenderSettings(**s))
+    assert np.all(full == 255)
 
 
 def test_white_light_comes_out_grey_and_clips_at_full_scale():
@@ -74,7 +92,15 @@ def test_sharpening_overshoots_at_an_edge():
 
 
 def test_settings_of_the_processing_are_checked():
-    for bad in (dict(vignetting=1.0), dict(vignetting=-0.1), dict(gamma=0.0), dict(sharpen=-1)):
+    for bad in (
+        dict(vignetting=1.0),
+        dict(vignetting=-0.1),
+        dict(gamma=0.0),
+        dict(sharpen=-1),
+        dict(black_point=1.0),
+        dict(black_point=-0.01),
+        dict(black_point=True),
+    ):
         with pytest.raises(ValueError):
             RenderSettings(**bad)
     with pytest.raises(ValueError, match="bayer"):

@@ -110,6 +110,12 @@ def render_command(
     sharpen: Annotated[
         str, typer.Option("--sharpen", metavar="X", help="Unsharp-mask sharpening amount.")
     ] = "0",
+    black_point: Annotated[
+        str,
+        typer.Option(
+            "--black-point", metavar="X", help="Light stored as black, fraction of full scale."
+        ),
+    ] = "0",
     readout: Annotated[
         str | None,
         typer.Option(
@@ -169,6 +175,7 @@ def render_command(
             bayer=bayer,
             gamma=_number(gamma, "--gamma"),
             sharpen=_number(sharpen, "--sharpen"),
+            black_point=_number(black_point, "--black-point"),
             readout=given_readout or camera.readout or Readout.ROWS,
             colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
             seed=_integer(seed, "--seed"),
@@ -258,6 +265,7 @@ _OPTIONS = {
     "vignetting": "--vignetting",
     "gamma": "--gamma",
     "sharpen": "--sharpen",
+    "black_point": "--black-point",
     "tone_gamma": "--tone-gamma",
     "seed": "--seed",
     "position": "--position",

@@ -248,6 +248,10 @@ def render_video_command(
     sharpen: Annotated[
         float, typer.Option("--sharpen", help="Unsharp-mask sharpening amount.")
     ] = 0.0,
+    black_point: Annotated[
+        float,
+        typer.Option("--black-point", help="Light stored as black, fraction of full scale."),
+    ] = 0.0,
     readout: Annotated[
         str | None,
         typer.Option("--readout", help="rows, columns, rows-reversed or columns-reversed."),
@@ -288,6 +292,7 @@ def render_video_command(
             bayer=bayer,
             gamma=gamma,
             sharpen=sharpen,
+            black_point=black_point,
             readout=parse_readout(readout) or camera.readout or "rows",
         )
     except ValueError as exc:

@@ -114,6 +114,10 @@ class RenderSettings:
         sRGB).
     sharpen : float
         Amount of the camera's unsharp-mask sharpening (0 for none; phones use 0.5 to 1.5).
+    black_point : float
+        The level of light (fraction of full scale, 0 to below 1) that the camera's
+        processing stores as black: levels at or under it store 0, the rest are stretched to
+        full scale before the tone curve, as a phone's processing crushes a dim background.
     readout : {"rows", "columns", "rows-reversed", "columns-reversed"}
         ``"rows"``: exposure start grows with image row ``v`` (stripes horizontal);
         ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical);
@@ -140,6 +144,7 @@ class RenderSettings:
     bayer: bool = False
     gamma: float = 1.0
     sharpen: float = 0.0
+    black_point: float = 0.0
     readout: Readout = Readout.ROWS
     colours: tuple | None = None
     seed: int = 0
@@ -177,6 +182,12 @@ class RenderSettings:
         ):
             raise ValueError(
                 f"vignetting must be a number from 0 to below 1, got {self.vignetting!r}"
+            )
+        if isinstance(self.black_point, bool) or not (
+            isinstance(self.black_point, (int, float)) and 0 <= self.black_point < 1
+        ):
+            raise ValueError(
+                f"black_point must be a number from 0 to below 1, got {self.black_point!r}"
             )
         _positive(self.gamma, "gamma")
         if not isinstance(self.bayer, bool):

@@ -6,8 +6,8 @@ units of the sensor's full scale) into the uint8 BGR photo a camera stores.
 * **Plain sensor** (the default): shot noise (Gaussian approximation of Poisson with
   ``full_well_e`` electrons at full scale), read noise, clipping to [0, 1] and 8-bit
   quantisation of each of the three channels.  The response is linear up to the clip.
-* **A phone's processing**, when any of ``vignetting``, ``bayer``, ``gamma`` or ``sharpen``
-  is set (:func:`develops`), in the order a camera applies them:
+* **A phone's processing**, when any of ``vignetting``, ``bayer``, ``gamma``, ``sharpen`` or
+  ``black_point`` is set (:func:`develops`), in the order a camera applies them:
 
   1. *Vignetting*: the lens passes ``1 - vignetting * (r / r_corner) ** 2`` of the light at a
      distance ``r`` from the image's centre (``r_corner`` at its corners).
@@ -20,7 +20,9 @@ units of the sensor's full scale) into the uint8 BGR photo a camera stores.
      which blurs and colours the stripes' edges.
   5. *White balance*: each channel divided by its :data:`RAW_WHITE` and clipped at full
      scale (a white lamp comes out grey; at a stripe's edge the demosaicing's colours fringe).
-  6. *Tone curve*: ``x ** (1 / gamma)`` (2.2 is about sRGB), so a dark stripe's dip and the
+  6. *Black point and tone curve*: ``x`` becomes ``max(x - b, 0) / (1 - b)`` for a black
+     point ``b`` (a dim background and a glow's faint tail store black, as in a phone's
+     photos), then ``x ** (1 / gamma)`` (2.2 is about sRGB), so a dark stripe's dip and the
      LED's off level come out deeper or shallower than the light's.
   7. *Sharpening*: an unsharp mask of amount ``sharpen`` (sigma 1 px), which overshoots at the
      stripes' edges and clips the overshoot.
@@ -42,8 +44,9 @@ __all__ = ["PHONE", "RAW_WHITE", "develops", "expose"]
 RAW_WHITE = np.array([0.7, 1.0, 0.5], dtype=np.float32)
 
 #: A phone camera's processing, as :class:`~camvlp.sim.render.RenderSettings` fields: a
-#: colour mosaic, about sRGB's tone curve, moderate sharpening and vignetting.
-PHONE = {"bayer": True, "gamma": 2.2, "sharpen": 1.0, "vignetting": 0.3}
+#: colour mosaic, about sRGB's tone curve over a black point just above the default ambient
+#: light (the background stores black), moderate sharpening and vignetting.
+PHONE = {"bayer": True, "gamma": 2.2, "sharpen": 1.0, "vignetting": 0.3, "black_point": 0.04}
 
 #: Largest value of the 12-bit raw pixels.
 RAW_MAX = 4095
@@ -56,7 +59,7 @@ _ROW_CHUNK = 128  # image rows per chunk of the full-frame passes (even: see _ra
 
 def develops(s) -> bool:
     """Whether render settings ``s`` ask for a camera's processing beyond the plain sensor."""
-    return bool(s.bayer) or s.vignetting > 0 or s.gamma != 1.0 or s.sharpen > 0
+    return bool(s.bayer) or s.vignetting > 0 or s.gamma != 1.0 or s.sharpen > 0 or s.black_point > 0
 
 
 def expose(patches, width: int, height: int, s) -> np.ndarray:
@@ -71,7 +74,8 @@ def expose(patches, width: int, height: int, s) -> np.ndarray:
         Size of the photo, pixels.
     s : RenderSettings
         Resolved settings: ``ambient``, ``full_well_e``, ``read_noise``, ``seed`` and the
-        camera's processing (``vignetting``, ``bayer``, ``gamma``, ``sharpen``).
+        camera's processing (``vignetting``, ``bayer``, ``gamma``, ``sharpen``,
+        ``black_point``).
 
     Returns
     -------
@@ -152,11 +156,16 @@ def _raw(patches, width: int, height: int, s) -> np.ndarray:
 
 
 def _develop(raw: np.ndarray, s) -> np.ndarray:
-    """White balance, tone curve and sharpening of 12-bit BGR ``raw``: uint8 (H, W, 3)."""
+    """White balance, black point, tone curve and sharpening of 12-bit BGR ``raw``: uint8
+    (H, W, 3)."""
     levels = np.arange(RAW_MAX + 1, dtype=np.float64) / RAW_MAX
     toned = np.empty(raw.shape, dtype=np.uint16)
-    for c in range(3):  # one lookup table per channel: balance, clip, tone, to 16 bits
-        lut = np.minimum(levels / float(RAW_WHITE[c]), 1.0) ** (1.0 / float(s.gamma))
+    black = float(s.black_point)
+    for c in range(3):  # one lookup table per channel: balance, clip, black, tone, to 16 bits
+        lut = np.minimum(levels / float(RAW_WHITE[c]), 1.0)
+        if black > 0:
+            lut = np.maximum(lut - black, 0.0) / (1.0 - black)
+        lut **= 1.0 / float(s.gamma)
         toned[..., c] = np.rint(65535.0 * lut).astype(np.uint16)[raw[..., c]]
     if s.sharpen > 0:
         blurred = cv2.GaussianBlur(toned, (0, 0), SHARPEN_SIGMA_PX)
