@@ -102,6 +102,9 @@ def test_unknown_format_and_cut_headers_are_refused():
         image_header(b"\x89PNG\r\n\x1a\n\x00\x00\x00\x0dIHDR\x00")
     with pytest.raises(InputError, match="malformed JPEG"):
         image_header(b"\xff\xd8\xff\xda\x00\x02")
+    for brand in (b"heic", b"mif1", b"avif"):  # a phone's HEIF photo: told what to do
+        with pytest.raises(InputError, match="HEIF, HEIC and AVIF .* as JPEG or PNG"):
+            image_header(b"\x00\x00\x00\x18ftyp" + brand + bytes(100))
 
 
 def test_as_image_conversions():

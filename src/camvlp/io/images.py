@@ -265,6 +265,10 @@ class ImageHeader:
     bytes_per_sample: int = 1
 
 
+#: ISO base media file brands of HEIF, HEIC and AVIF still images (bytes 8 to 12 of the file).
+_HEIF_BRANDS = (b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1", b"msf1", b"avif")
+
+
 def image_header(data: bytes | np.ndarray) -> ImageHeader:
     """The format, size and depth a file's header announces, read without decoding any pixel.
 
@@ -307,6 +311,11 @@ def image_header(data: bytes | np.ndarray) -> ImageHeader:
         raise InputError("image header is cut short or malformed") from None
     if head[:4] in (b"II+\x00", b"MM\x00+"):
         raise InputError("BigTIFF photos are not supported; save as TIFF, PNG or JPEG")
+    if head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS:
+        raise InputError(
+            "HEIF, HEIC and AVIF photos are not read (a phone's default format): save or "
+            "convert the photo as JPEG or PNG"
+        )
     raise InputError("not an image, or a corrupt one: camvlp reads PNG, JPEG, TIFF, BMP, WebP")
 
 
