@@ -103,7 +103,7 @@ def test_unknown_format_and_cut_headers_are_refused():
     with pytest.raises(InputError, match="malformed JPEG"):
         image_header(b"\xff\xd8\xff\xda\x00\x02")
     for brand in (b"heic", b"mif1", b"avif"):  # a phone's HEIF photo: told what to do
-        with pytest.raises(InputError, match="HEIF, HEIC and AVIF .* as JPEG or PNG"):
+        with pytest.raises(InputError, match=r"HEIF, HEIC and AVIF .* as JPEG or PNG"):
             image_header(b"\x00\x00\x00\x18ftyp" + brand + bytes(100))
 
 
