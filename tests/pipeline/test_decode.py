@@ -348,3 +348,25 @@ def test_shape_profile_of_a_lamp_below_full_scale_keeps_its_glow_rows():
     centre = np.array([54.6, 55.3])
     prof, _ = shape_profile(img.astype(np.uint8), mask, "rows", centre, np.full(2, 60.0), 0.0)
     assert prof.size >= 75  # the disc's 60 rows and its glow's beyond
+
+
+def test_shape_profile_drops_end_lines_that_cross_only_a_faint_rim():
+    # a lamp in a glow that fades to nothing, its outline reaching lines where the glow is a
+    # count or two; there a neighbour's stray light (8 counts over a few pixels) divided by
+    # the faint on-level would read many times brighter than the LED ever is: those lines
+    # are too noisy to keep, and the rest of the profile is the on-fraction
+    rng = np.random.default_rng(14)
+    on = np.repeat(rng.choice([0.05, 0.3, 1.0], 20), 6)[:110]
+    yy, xx = np.mgrid[0:110, 0:110].astype(float)
+    rho = np.hypot(xx - 54.6, yy - 55.3) / 30.0
+    shape = np.where(rho <= 1, 200.0, 60.0 * np.exp(-(rho - 1) / 0.25))
+    img = shape * on[:, None] + 8.0 * ((yy < 6) & (np.abs(xx - 54.6) < 4))  # stray light
+    img = np.round(np.clip(img + rng.normal(0, 0.3, shape.shape), 0, 255)).astype(np.uint8)
+    mask = shape > 0.4
+    centre = np.array([54.6, 55.3])
+    prof, first = shape_profile(img, mask, "rows", centre, np.full(2, 60.0), 0.0)
+    truth = on[first : first + prof.size]
+    assert prof.size >= 60  # the disc's rows at least
+    scale = float(prof @ truth / (truth @ truth))
+    assert np.max(prof) < 1.3 * scale  # no line brighter than the LED fully on
+    assert np.sqrt(np.mean((prof / scale - truth) ** 2)) < 0.05

@@ -97,6 +97,13 @@ _FLAT = 0.05
 #: they span: most of them.
 _FACE = 0.5
 
+#: A shaped profile's first and last lines are dropped while their noise is more than this
+#: many times the median line's: a line's value is its pixels' sum divided by their on-levels'
+#: sum, so its noise grows as sqrt(pixels) / (on-levels' sum), and the lines that cross only a
+#: faint rim or glow (a few pixels, levels near zero) come out many times brighter or darker
+#: than the LED ever is, which the decoder's fit, weighing every line alike, cannot absorb.
+_NOISIEST_END = 8.0
+
 
 def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each light's on-level against radius: the upper quantile of its pixels at about it.
@@ -265,6 +272,11 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     first, last = int(rows[0]), int(rows[-1]) + 1
     num = np.bincount(line, weights=values, minlength=last)[first:last]
     den = np.bincount(line, weights=level, minlength=last)[first:last]
+    noise = np.sqrt(counts[first:last]) / np.where(den > 0, den, np.nan)  # (no pixels: NaN)
+    calm = np.flatnonzero(noise <= _NOISIEST_END * np.nanmedian(noise))
+    if calm.size >= 2:  # the ends whose lines are calm enough
+        first, last = first + int(calm[0]), first + int(calm[-1]) + 1
+        num, den = num[calm[0] : calm[-1] + 1], den[calm[0] : calm[-1] + 1]
     prof = num / np.where(den > 0, den, np.nan) * float(level.max())
     return _filled(prof), first
 
