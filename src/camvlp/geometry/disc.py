@@ -292,11 +292,7 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     out = np.full((n, 2, 2), np.nan)
     pts = [np.asarray(f[0], dtype=float).reshape(-1, 2) for f in fits]
     sizes = np.array([p.shape[0] for p in pts], dtype=np.int64)
-    labels = [
-        _group_labels(np.arange(m) if f[4] is None else np.asarray(f[4]))
-        for m, f in zip(sizes.tolist(), fits, strict=True)
-    ]
-    n_groups = np.array([int(g.max()) + 1 if g.size else 0 for g in labels], dtype=np.int64)
+    ranks, n_groups = _group_labels([f[4] for f in fits], sizes)
     p0 = np.array(
         [
             [*np.asarray(f[1], float), *(0.5 * np.asarray(f[2], float)), np.radians(f[3])]
@@ -307,32 +303,28 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     k = np.flatnonzero(ok)
     if k.size == 0:
         return out
+    kept = np.repeat(ok, sizes)  # the points of the fits worked
     p0, sizes, n_groups = p0[k], sizes[k], n_groups[k]
-    m_max = int(sizes.max())
-    xy = np.zeros((k.size, m_max, 2))
-    lab = np.zeros((k.size, m_max), dtype=np.int64)
-    for j, i in enumerate(k.tolist()):
-        xy[j] = pts[i][0]  # padding: a point of the fit's own, so that its distance is finite
-        xy[j, : sizes[j]] = pts[i]
-        lab[j, : sizes[j]] = labels[i]
+    m_max, g_max = int(sizes.max()), int(n_groups.max())
     real = np.arange(m_max)[None, :] < sizes[:, None]  # (K, M): not padding
-    step = 1e-6 * np.maximum(1.0, np.abs(p0))  # (K, 5)
-    p = np.repeat(p0[:, None, :], 6, axis=1)  # (K, 6, 5): the fit, then each parameter moved
-    p[:, 1:] += step[:, :, None] * np.eye(5)
-    d = _sampson(p, xy[:, None, :, 0], xy[:, None, :, 1])  # (K, 6, M)
-    d *= real[:, None, :]
-    jac = ((d[:, 1:] - d[:, :1]) / step[:, :, None]).transpose(0, 2, 1)  # (K, M, 5)
+    # padding: a point of the fit's own, so that its distance is finite
+    xy = np.repeat(np.array([pts[i][0] for i in k.tolist()])[:, None, :], m_max, axis=1)
+    xy[real] = np.concatenate(pts)[kept]
+    lab = np.zeros((k.size, m_max), dtype=np.int64)
+    lab[real] = ranks[kept]
+    lab += g_max * np.arange(k.size)[:, None]  # each fit's groups after the previous fits'
+    d, jac = _sampson(p0, xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
+    d *= real
+    jac *= real[:, :, None]
     jtj = jac.transpose(0, 2, 1) @ jac
     good = np.all(np.isfinite(jtj), axis=(1, 2))
     # np.linalg.cond(jtj) <= 1e12: J^T J is symmetric, its singular values its |eigenvalues|
     eig = np.abs(np.linalg.eigvalsh(jtj[good]))
     good[good] = eig.max(axis=1) <= 1e12 * eig.min(axis=1)
-    g_max = int(n_groups.max())
-    # each group's summed score, (K, G, 5): np.add.at's sums, in the points' order
-    flat = (lab + g_max * np.arange(k.size)[:, None])[real]
+    # each group's summed score, (K, G, 5), in the points' order (the padding adds zeros)
     scores = np.bincount(
-        (5 * flat[:, None] + np.arange(5)).ravel(),
-        weights=(jac * d[:, 0, :, None])[real].ravel(),
+        (5 * lab[:, :, None] + np.arange(5)).ravel(),
+        weights=(jac * d[:, :, None]).ravel(),
         minlength=5 * g_max * k.size,
     ).reshape(k.size, g_max, 5)
     # small-sample factor of the cluster-robust estimator (CR1)
@@ -344,25 +336,56 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     return out
 
 
-def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Sampson distances of points ``(x, y)`` from ellipses ``p`` (..., 5) as (centre,
-    semi-axes, angle): the last axis of ``p`` is taken apart, the rest broadcast."""
-    c, s = np.cos(p[..., 4:5]), np.sin(p[..., 4:5])
-    dx, dy = x - p[..., 0:1], y - p[..., 1:2]
-    u, v = c * dx + s * dy, -s * dx + c * dy
-    a2, b2 = p[..., 2:3] ** 2, p[..., 3:4] ** 2
-    f = u**2 / a2 + v**2 / b2 - 1.0
-    return f / (2.0 * np.hypot(u / a2, v / b2))
+def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sampson distances of points ``(x, y)`` (K, M) from ellipses ``p`` (K, 5) as (centre,
+    semi-axes, angle in radians), (K, M), and their derivatives in the five parameters,
+    (K, M, 5).
+
+    With ``(u, v)`` a point in the ellipse's axes, ``P = u / a^2``, ``Q = v / b^2``, the
+    distance is ``d = (u P + v Q - 1) / (2 g)``, ``g = hypot(P, Q)``; moving the centre or
+    the angle changes ``(u, v)`` only, by which ``d`` changes by ``alpha du + beta dv``.
+    """
+    c, s = np.cos(p[:, 4:5]), np.sin(p[:, 4:5])
+    dx, dy = x - p[:, 0:1], y - p[:, 1:2]
+    u, v = c * dx + s * dy, c * dy - s * dx
+    ia, ib = 1.0 / p[:, 2:3], 1.0 / p[:, 3:4]
+    a2, b2 = ia * ia, ib * ib  # 1 / a^2, 1 / b^2
+    pp, qq = u * a2, v * b2
+    ig = 1.0 / np.hypot(pp, qq)
+    d = 0.5 * (u * pp + v * qq - 1.0) * ig
+    e = d * ig
+    alpha = pp * (1.0 - e * a2) * ig  # dd/du
+    beta = qq * (1.0 - e * b2) * ig  # dd/dv
+    jac = np.empty((*d.shape, 5))
+    jac[..., 0] = s * beta - c * alpha  # du/dcx = -c, dv/dcx = s
+    jac[..., 1] = -s * alpha - c * beta  # du/dcy = -s, dv/dcy = -c
+    jac[..., 2] = -pp * ia * ig * (u - 2.0 * e * pp)
+    jac[..., 3] = -qq * ib * ig * (v - 2.0 * e * qq)
+    jac[..., 4] = alpha * v - beta * u  # du/dt = v, dv/dt = -u
+    return d, jac
 
 
-def _group_labels(groups: np.ndarray) -> np.ndarray:
-    """Each point's group as the rank of its label among the distinct labels (NumPy's
-    ``np.unique(..., return_inverse=True)``); small non-negative integer labels by counting."""
-    g = groups.reshape(-1)
-    if g.dtype.kind in "iu" and g.size and 0 <= g.min() and g.max() < 4 * g.size + 64:
-        rank = np.cumsum(np.bincount(g) > 0) - 1
-        return rank[g]
-    return np.unique(g, return_inverse=True)[1].reshape(-1)
+def _group_labels(groups: list, sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each fit's points' groups as ranks among its distinct labels (NumPy's
+    ``np.unique(..., return_inverse=True)``; ``None``: every point alone), one fit's after
+    another's, and how many groups each fit has.  Small non-negative integer labels are
+    ranked by counting, all the fits' at once."""
+    gs = [
+        np.arange(m) if g is None else np.asarray(g).reshape(-1)
+        for m, g in zip(sizes.tolist(), groups, strict=True)
+    ]
+    flat = np.concatenate(gs) if gs else np.zeros(0, np.int64)
+    span = int(flat.max()) + 1 if flat.size and flat.dtype.kind in "iu" else 0
+    if span and 0 <= flat.min() and span * len(gs) <= 4 * flat.size + 64:
+        shift = np.repeat(span * np.arange(len(gs)), sizes)  # each fit's labels apart
+        seen = np.bincount(flat + shift, minlength=span * len(gs)) > 0
+        rank = np.cumsum(seen) - 1
+        n_groups = np.add.reduceat(seen.astype(np.int64), np.arange(0, seen.size, span))
+        first = np.cumsum(n_groups) - n_groups  # each fit's lowest rank
+        return rank[flat + shift] - np.repeat(first, sizes), n_groups
+    labels = [np.unique(g, return_inverse=True)[1].reshape(-1) for g in gs]
+    n_groups = np.array([int(g.max()) + 1 if g.size else 0 for g in labels], dtype=np.int64)
+    return (np.concatenate(labels) if labels else np.zeros(0, np.int64)), n_groups
 
 
 def centre_sigma(cov) -> float:

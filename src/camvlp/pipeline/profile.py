@@ -112,8 +112,9 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     sensor rows, the middle one too, and the rings are thin where the rim's step is), about
     ``_RING_PIXELS`` pixels each.  Per light ``values`` (n,) uint8 and ``rho`` (n,) radii (any
     unit, >= 0; n >= 1); returns per light its rings' mean radii and their levels, float64
-    (k,) each.  All the lights' rings are sorted and counted at once (each light's after the
-    previous lights').
+    (k,) each.  All the lights' rings are counted at once (each light's after the previous
+    lights'): a histogram of levels per ring, whose cumulative counts give each ring's
+    quantile (the value a sort of the ring's levels has at that rank).
     """
     sizes = np.array([v.size for v in values], dtype=np.intp)
     bins = np.minimum(np.maximum(sizes // _RING_PIXELS, 16), 256)
@@ -124,12 +125,13 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     k = (r2 * (bins / np.where(top != 0.0, top, 1.0))[of]).astype(np.intp)
     np.minimum(k, (bins - 1)[of], out=k)
     k += starts(bins)[of]  # each light's rings after the previous lights'
+    n_rings = int(bins.sum())
     key = k * 256 + np.concatenate(values)  # by ring, then by level
-    key.sort()
-    counts = np.bincount(k, minlength=int(bins.sum()))
+    below = np.bincount(key, minlength=n_rings * 256).reshape(n_rings, 256).cumsum(axis=1)
+    counts = below[:, -1]
     full = counts > 0
-    picks = np.cumsum(counts) - counts + ((counts - 1) * _ENVELOPE_QUANTILE).astype(np.intp)
-    level = (key[picks[full]] & 255).astype(np.float64)
+    rank = ((counts[full] - 1) * _ENVELOPE_QUANTILE).astype(np.intp)  # in the ring's order
+    level = (below[full] <= rank[:, None]).sum(axis=1).astype(np.float64)
     middle = np.bincount(k, weights=r, minlength=counts.size)[full] / counts[full]
     cut = np.cumsum(np.add.reduceat(full.astype(np.intp), starts(bins)))[:-1]
     return [(middle[a:b], level[a:b]) for a, b in pieces(cut, middle.size)]
