@@ -17,12 +17,13 @@ import pytest
 from camvlp.model.camera import Pose
 from camvlp.pipeline.detect import (
     _close_lit,
+    _decimated_gray,
     _median_u8,
     _percentiles_u8,
     detect_fixtures,
     to_gray,
 )
-from camvlp.pipeline.refine import _bridged
+from camvlp.pipeline.refine import _bridged, _counted_percentiles
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -228,9 +229,9 @@ def test_closing_around_lit_pixels_equals_whole_image_closing():
 
 
 def test_median_by_counting_is_the_histograms():
-    """The reduced image's median, guessed from every fourth row and checked by counting, is
+    """The reduced image's median, guessed from every 16th row and found by counting, is
     the level the whole histogram gives: noise, flat images, half-and-half images, a guess
-    far off (rows that differ), and the fallback after too many steps."""
+    far off (rows that differ)."""
     rng = np.random.default_rng(8)
     for k in range(400):
         h, w = (int(v) for v in rng.integers(64, 400, 2))
@@ -242,12 +243,51 @@ def test_median_by_counting_is_the_histograms():
         elif kind == 2:  # half bright, half dark: the median sits on the split
             g = np.zeros((h, w))
             g[: h // 2] = 255
-        else:  # every fourth row unlike the others: the guess is far off
+        else:  # every 16th row unlike the others: the guess is far off
             g = rng.integers(100, 140, (h, w)).astype(float)
-            g[::4] = rng.integers(0, 20)
+            g[::16] = rng.integers(0, 20)
         g = g.astype(np.uint8)
         assert _median_u8(g) == _percentiles_u8(g, [50])[0]
-        assert _median_u8(g, max_steps=0) == _percentiles_u8(g, [50])[0]
+
+
+def test_percentiles_by_counting_are_the_histograms():
+    """Percentiles found by counting pixels from a guess (the regions' background and peak)
+    are the histogram's levels, whatever the guess (below, above, out of range) and the
+    image (noise, two levels, one level, a strided view)."""
+    rng = np.random.default_rng(9)
+    for k in range(600):
+        h, w = (int(v) for v in rng.integers(1, 90, 2))
+        kind = k % 4
+        if kind == 0:
+            g = rng.integers(0, 256, (h, w))
+        elif kind == 1:
+            g = np.clip(rng.normal(rng.uniform(0, 255), rng.uniform(0.1, 30), (h, w)), 0, 255)
+        elif kind == 2:
+            g = rng.choice([0, 255, int(rng.integers(0, 256))], (h, w))
+        else:
+            g = np.full((h, w), int(rng.integers(0, 256)))
+        g = g.astype(np.uint8)[:, :: int(rng.integers(1, 3))]
+        qs = [float(rng.choice([0.0, 10.0, 50.0, 99.5, 100.0, rng.uniform(0, 100)])), 99.5]
+        guesses = [int(v) for v in rng.integers(-10, 300, 2)]
+        expected = _percentiles_u8(np.ascontiguousarray(g), qs)
+        assert _counted_percentiles(g, qs, guesses) == expected
+
+
+@pytest.mark.parametrize("s", [1, 2, 3, 8])
+def test_decimated_gray_is_the_resized_photos_gray(s):
+    """The reduced photo's gray levels, gathered 4 bytes a pixel where ``s`` divides its
+    sides, are those of OpenCV's nearest-neighbour resize then gray conversion: every colour
+    once, and photos whose sides ``s`` does not divide (the resize's own pixels)."""
+    rng = np.random.default_rng(s)
+    colours = np.arange(1 << 24, dtype=np.uint32).view(np.uint8).reshape(-1, 4)[:, :3]
+    every = colours[rng.permutation(1 << 24)[: 1 << 18]].reshape(512, 512, 3)
+    photo = np.repeat(np.repeat(every, s, axis=0), s, axis=1)
+    np.testing.assert_array_equal(_decimated_gray(photo, s), to_gray(every))
+    for h, w in ((8 * s + 1, 12 * s), (12 * s, 8 * s + 2), (97, 101)):
+        img = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        size = (-(-w // s), -(-h // s))
+        resized = cv2.resize(img, size, interpolation=cv2.INTER_NEAREST) if s > 1 else img
+        np.testing.assert_array_equal(_decimated_gray(img, s), to_gray(resized))
 
 
 @pytest.mark.parametrize(("side_m", "cut"), [(0.7, False), (0.8, True)])

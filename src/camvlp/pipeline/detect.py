@@ -18,6 +18,7 @@ import numpy as np
 from camvlp.pipeline.refine import (
     Blob,
     _axis_contrast,
+    _counted_percentiles,
     _kernel,
     _percentiles_u8,
     find_readout_axis,
@@ -61,35 +62,13 @@ class Detection:
     threshold: float
 
 
-def _median_u8(gray: np.ndarray, max_steps: int = 4) -> float:
-    """``_percentiles_u8(gray, [50])`` of a large uint8 image without its whole histogram.
-
-    The median of every fourth row is a guess, checked (and moved level by level) by
-    counting the pixels at or below a level in the whole image: the smallest level with at
-    least half the pixels at or below it, as the histogram's cumulative sum finds it.  After
-    ``max_steps`` moves, the whole histogram is counted instead.
-    """
-    n = gray.size
-    if gray.ndim != 2 or n < 4096:
+def _median_u8(gray: np.ndarray) -> float:
+    """``_percentiles_u8(gray, [50])`` of a large uint8 image without its whole histogram:
+    the median of every 16th row is a guess, from which the median is found by counting the
+    pixels at or below a level in the whole image (:func:`_counted_percentiles`)."""
+    if gray.ndim != 2 or gray.size < 4096:
         return _percentiles_u8(gray, [50])[0]
-    (level,) = _percentiles_u8(gray[::4], [50])
-    v = int(level)
-
-    def enough(v: int) -> bool:  # at least half the pixels at or below level v
-        above = cv2.countNonZero(cv2.threshold(gray, v, 255, cv2.THRESH_BINARY)[1])
-        return 2 * (n - above) >= n
-
-    step = -1 if enough(v) else 1
-    for _ in range(max_steps):
-        if step < 0:  # v is enough: is v - 1 too?
-            if v == 0 or not enough(v - 1):
-                return float(v)
-            v -= 1
-        else:  # v is not enough: v + 1?
-            v += 1
-            if enough(v):
-                return float(v)
-    return _percentiles_u8(gray, [50])[0]
+    return _counted_percentiles(gray, [50], _percentiles_u8(gray[::16], [50]))[0]
 
 
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
@@ -206,7 +185,9 @@ def detect_fixtures(
         seeds = None if cell is None else cell[0] * float(s)  # [x, y, r] at full resolution
         boxes.append(box)
         cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))
-    blobs = refine_regions(img, boxes, readout, kernel_px, min_diameter_px, cells)
+    blobs = refine_regions(
+        img, boxes, readout, kernel_px, min_diameter_px, cells, (background, peak)
+    )
     blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
     return Detection(tuple(blobs), s, binary, thr)
 

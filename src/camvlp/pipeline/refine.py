@@ -197,6 +197,46 @@ def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
     return _hist_percentiles(hist, qs)[0].tolist()
 
 
+def _counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
+    """``_percentiles_u8(gray, qs)`` of a uint8 image found by counting instead of from its
+    histogram: for each ``q``, the smallest level ``v`` with at least ``q`` % of the pixels
+    at or below it (counted by OpenCV: ``cv2.threshold`` and ``cv2.countNonZero``), searched
+    for from ``guesses`` (one level each) by steps that double, then by halves.  The same
+    levels (the share in float32, as the histogram's counts are); a few counts when the
+    guess is near, which costs less than the histogram."""
+    n = gray.size
+    if n >= 1 << 24:  # beyond float32's whole numbers: the histogram's own float32 counts
+        return _percentiles_u8(gray, qs)
+
+    def at_or_below(v: int) -> int:  # pixels at or below level v
+        return n - cv2.countNonZero(cv2.threshold(gray, v, 255, cv2.THRESH_BINARY)[1])
+
+    out = []
+    for q, guess in zip(qs, guesses, strict=True):
+        at = float(np.float32(q / 100.0) * np.float32(n))
+
+        def enough(v: int, at: float = at) -> bool:  # at least the share at or below v
+            return v >= 255 or at_or_below(v) >= at
+
+        v = min(max(int(guess), 0), 255)
+        step = 1  # then: enough(hi), not enough(lo) (lo -1: no level below hi)
+        if enough(v):
+            hi, lo = v, v - 1
+            while lo >= 0 and enough(lo):
+                hi, step = lo, 2 * step
+                lo = max(hi - step, -1)
+        else:
+            lo, hi = v, v + 1
+            while not enough(hi):
+                lo, step = hi, 2 * step
+                hi = min(lo + step, 255)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            lo, hi = (lo, mid) if enough(mid) else (mid, hi)
+        out.append(float(hi))
+    return out
+
+
 def _hist_percentiles(hists: np.ndarray, qs) -> np.ndarray:
     """Percentiles (0-100) of uint8 images from their histograms (K, 256) (float32 counts, as
     ``cv2.calcHist`` gives them): per image and ``q``, the level where its cumulative count
@@ -381,6 +421,7 @@ def refine_regions(
     kernel_px: int,
     min_diameter_px: float,
     cells: list[np.ndarray | None] | None = None,
+    guesses: tuple[float, float] | None = None,
 ) -> list[Blob]:
     """The candidate regions at full resolution: each one's disc, readout axis and centre.
 
@@ -408,6 +449,10 @@ def refine_regions(
         Per region, the part of it that is its light's when lights' glows join
         (:func:`~camvlp.pipeline.touching.power_cell`; None: all of it): the disc is found
         within it, and no edge point is taken where it cuts the light off from another.
+    guesses : tuple of float, optional
+        Gray levels near the regions' background and peak (the photo's): the two levels are
+        then found by counting pixels from them (:func:`_counted_percentiles`) rather than
+        from each region's histogram (the same levels).
 
     Returns
     -------
@@ -420,10 +465,18 @@ def refine_regions(
     if not usable:
         return []
     cells = cells or [None] * len(boxes)
-    hists = np.stack([cv2.calcHist([grays[k]], [0], None, [256], [0, 256]).ravel() for k in usable])
+    if guesses is None:
+        hists = np.stack(
+            [cv2.calcHist([grays[k]], [0], None, [256], [0, 256]).ravel() for k in usable]
+        )
+        levels = _hist_percentiles(hists, [10, 99.5]).tolist()
+    else:  # each region's guesses: the previous region's levels (lights look alike)
+        levels = []
+        for k in usable:
+            guesses = _counted_percentiles(grays[k], (10, 99.5), guesses)
+            levels.append(guesses)
     regions = []
     min_area = 0.5 * min_diameter_px**2
-    levels = _hist_percentiles(hists, [10, 99.5]).tolist()
     for k, (background, peak) in zip(usable, levels, strict=True):
         if peak - background >= 10:
             levels_k = (background, peak)
