@@ -661,15 +661,18 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
 def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict, tuple | None]]:
     """Two candidates whose refined discs are the same fixture: keep the larger (each blob's
     fields with its ellipse fit), the larger first."""
-    keep: list[tuple[dict, tuple | None]] = []
-    for b, fit in sorted(found, key=lambda bf: -np.count_nonzero(bf[0]["mask"])):
-        r = 0.5 * float(b["axes_px"][1])
-        if all(
-            np.hypot(*(b["pixel"] - k["pixel"])) > max(r, 0.5 * float(k["axes_px"][1]))
-            for k, _ in keep
-        ):
-            keep.append((b, fit))
-    return keep
+    order = sorted(range(len(found)), key=lambda i: -np.count_nonzero(found[i][0]["mask"]))
+    if len(found) < 2:
+        return [found[i] for i in order]
+    xy = np.array([b["pixel"] for b, _ in found])
+    d = xy[:, None, :] - xy[None, :, :]
+    dist = np.hypot(d[..., 0], d[..., 1]).tolist()  # every pair's distance, pixels
+    r = [0.5 * float(b["axes_px"][1]) for b, _ in found]
+    keep: list[int] = []
+    for i in order:
+        if all(dist[i][j] > max(r[i], r[j]) for j in keep):
+            keep.append(i)
+    return [found[i] for i in keep]
 
 
 def _blobs(found: list[tuple[dict, tuple | None]]) -> list[Blob]:
