@@ -73,9 +73,15 @@ def _failure(n: int, reason: str, *, mirrored: bool = False) -> PoseEstimate:
 
 
 def _spread(points: np.ndarray) -> np.ndarray:
-    """Singular values of the centred points (how far they are from a point, line, plane)."""
+    """Singular values of the centred points (how far they are from a point, line, plane),
+    largest first; of image points (N, 2) in closed form (the square roots of their scatter
+    matrix's eigenvalues), without the SVD's set-up."""
     c = points - points.mean(axis=0)
-    return np.linalg.svd(c, compute_uv=False)
+    if c.shape[1] != 2:
+        return np.linalg.svd(c, compute_uv=False)
+    (a, b), (_, d) = (c.T @ c).tolist()
+    mid, half = 0.5 * (a + d), math.hypot(0.5 * (a - d), b)
+    return np.array([math.sqrt(mid + half), math.sqrt(max(mid - half, 0.0))])
 
 
 @functools.lru_cache(maxsize=64)
