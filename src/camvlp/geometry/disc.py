@@ -6,6 +6,8 @@ the projected centre of its disc) and the coverage study (to test whether a disc
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -397,8 +399,8 @@ def centre_sigma(cov) -> float:
     cov : array_like, shape (2, 2)
         Covariance of the centre, pixels squared.
     """
-    c = np.asarray(cov, dtype=float).reshape(2, 2)
-    var = 0.5 * float(np.trace(c))
-    if not np.isfinite(var):
+    (c00, _), (_, c11) = np.asarray(cov, dtype=float).reshape(2, 2).tolist()
+    var = 0.5 * (c00 + c11)  # half the trace, in Python floats (the same values as NumPy's)
+    if not math.isfinite(var):
         return float("nan")
-    return max(CENTRE_SIGMA_FLOOR_PX, float(np.sqrt(max(var, 0.0))))
+    return max(CENTRE_SIGMA_FLOOR_PX, math.sqrt(max(var, 0.0)))
