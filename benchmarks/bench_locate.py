@@ -10,7 +10,8 @@ Run: ``python benchmarks/bench_locate.py [--runs 15] [--against OTHER/src]``.
 ``--against`` compares this code with another copy of the package (e.g. a worktree of the
 main branch): both run in worker processes, one ``imdecode`` and ``locate`` at a time in
 turn, on the same JPEGs, so that a machine whose speed drifts (a shared one) slows both
-alike; each code's medians and ratios are printed, and each one's peak memory.
+alike; each code's medians and ratios are printed (of wall time, and of CPU time, which a
+busy machine's other processes do not add to), and each one's peak memory.
 """
 
 from __future__ import annotations
@@ -78,13 +79,14 @@ print(camvlp.__file__, flush=True)
 for line in sys.stdin:
     name, jpeg, truth = json.loads(line)
     data = np.fromfile(jpeg, np.uint8)
-    t = time.perf_counter()
+    c, t = time.process_time(), time.perf_counter()
     img = cv2.imdecode(data, cv2.IMREAD_COLOR)
-    t1 = time.perf_counter()
+    c1, t1 = time.process_time(), time.perf_counter()
     res = locate(img, cams[name], fmap)
-    t2 = time.perf_counter()
+    c2, t2 = time.process_time(), time.perf_counter()
     err = 1e3 * float(np.linalg.norm(res.position - truth)) if res else float("nan")
-    print(json.dumps([1e3 * (t1 - t), 1e3 * (t2 - t1), res.timing_ms, err]), flush=True)
+    cpu = [1e3 * (c1 - c), 1e3 * (c2 - c1)]
+    print(json.dumps([1e3 * (t1 - t), 1e3 * (t2 - t1), res.timing_ms, err, cpu]), flush=True)
 """
 
 
@@ -125,6 +127,15 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
             print(
                 f"  {k:<8} imdecode {dec:6.1f} ms  locate {loc:6.1f} ms ({st})  ratio "
                 f"{loc / dec:.2f}  error {r[-1][3]:.3f} mm"
+            )
+            # CPU time: what a busy machine's other work does not add (it still slows both);
+            # medians, and minima (the least disturbed runs)
+            cpu = [[x[4][i] for x in r] for i in (0, 1)]
+            cdec, cloc = (statistics.median(v) for v in cpu)
+            mdec, mloc = (min(v) for v in cpu)
+            print(
+                f"  {'':<8} CPU time: imdecode {cdec:6.1f} ms  locate {cloc:6.1f} ms  ratio "
+                f"{cloc / cdec:.2f}; minima {mdec:.2f} and {mloc:.2f} ms, ratio {mloc / mdec:.2f}"
             )
     for w in workers.values():
         w.stdin.close()
