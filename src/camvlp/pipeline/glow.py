@@ -90,7 +90,8 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
         px = px[..., :3] @ _LUMA
     px = np.where(ok, px, np.nan)
     n_in, n_ring, n_out = (ok[:, k].sum(axis=(1, 2)) for k in (_IN, _RING, _OUT))
-    inside = np.nansum(px[:, _IN], axis=(1, 2)) / np.maximum(n_in, 1)
+    within = px[:, _IN]  # np.nansum's sums, without its set-up: NaN (not equal to itself) as 0
+    inside = np.where(within == within, within, 0.0).sum(axis=(1, 2)) / np.maximum(n_in, 1)
     # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
     # outline that misses the disc somewhere puts a few ring samples on the disc itself
     ranked = np.sort(px[:, _RING].reshape(len(blobs), -1), axis=1)  # NaNs last

@@ -156,12 +156,22 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     step = np.repeat(np.array(steps, dtype=np.intp), sizes)
     ys = np.concatenate([ys for ys, _ in found]) * step
     xs = np.concatenate([xs for _, xs in found]) * step
-    t = [math.radians(a) for a in angles]
-    cos, sin = np.array([math.cos(x) for x in t])[of], np.array([math.sin(x) for x in t])[of]
-    dx = xs - np.array([float(c[0]) for c in centres])[of]
-    dy = ys - np.array([float(c[1]) for c in centres])[of]
-    a = np.array([0.5 * max(float(ax[0]), 1.0) for ax in axes])[of]
-    b = np.array([0.5 * max(float(ax[1]), 1.0) for ax in axes])[of]
+    # per mask: cos and sin of its angle, centre, semi-axes; then per pixel, by one index
+    geo = np.array(
+        [
+            (
+                math.cos(math.radians(t)),
+                math.sin(math.radians(t)),
+                float(c[0]),
+                float(c[1]),
+                0.5 * max(float(ax[0]), 1.0),
+                0.5 * max(float(ax[1]), 1.0),
+            )
+            for t, c, ax in zip(angles, centres, axes, strict=True)
+        ]
+    ).reshape(-1, 6)[of]
+    cos, sin, a, b = geo[:, 0], geo[:, 1], geo[:, 4], geo[:, 5]
+    dx, dy = xs - geo[:, 2], ys - geo[:, 3]
     u, v = dx * cos + dy * sin, dy * cos - dx * sin
     rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
     cut = np.cumsum(sizes)[:-1]
