@@ -19,11 +19,11 @@ from camvlp.pipeline.detect import (
     _close_lit,
     _decimated_gray,
     _median_u8,
-    _percentiles_u8,
     detect_fixtures,
     to_gray,
 )
-from camvlp.pipeline.refine import _bridged, _counted_percentiles
+from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
+from camvlp.pipeline.refine import _bridged
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 

@@ -15,12 +15,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
 from camvlp.pipeline.refine import (
     Blob,
     _axis_contrast,
-    _counted_percentiles,
     _kernel,
-    _percentiles_u8,
     find_readout_axis,
     gray_float,
     light_support,
