@@ -10,6 +10,7 @@ from camvlp.locate import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures
+from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.touching import light_seeds, power_cell
 from camvlp.sim.render import RenderSettings, render
 
@@ -123,3 +124,72 @@ def test_the_box_edge_counts_as_outside_a_region_that_fills_it():
     assert len(seeds) == 1
     x, y, r = seeds[0]
     assert 6.0 <= r <= 7.5 and 4 <= y <= 8 and abs(x - 13.5) <= 2
+
+
+def _clipped_grid() -> FixtureMap:
+    # twelve lamps of 0.4 m, 0.17 m apart (some 40 px in the photo), IDs whose reversed
+    # frames are other IDs of the map among them
+    ids = (0, 14, 2, 6, 4, 10, 8, 12, 1, 3, 5, 7)
+    xz = [(x, z) for z in (-0.57, 0.0, 0.57) for x in (-0.855, -0.285, 0.285, 0.855)]
+    return FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.0, z]), 0.4, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip(ids, xz, strict=True)
+        )
+    )
+
+
+def _glowing(seed: int, exposure_chips: float, **look: float) -> RenderSettings:
+    """Lamps with a look (halo, core, brightness, off level, blur) at 4 rows per chip."""
+    chip_s = 4 * CAM.row_time_s
+    return RenderSettings(
+        seed=seed, chip_rate_hz=1.0 / chip_s, exposure_s=exposure_chips * chip_s, **look
+    )
+
+
+POSE = Pose.from_euler([0.01, 0.0, 0.02], [90.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_lamps_whose_glows_clip_together_are_found_by_their_dark_stripes(seed):
+    # halos of 0.37 at 3.3 times full scale clip together across the gaps in every bright
+    # stripe, so no threshold of the bright stripes parts the lamps (one lit region, or a
+    # few); with the LED's off level at 10 % each face shows above its glow in its dark
+    # stripes (exposure 0.1 chip, 4 rows per chip): every lamp is found near its centre,
+    # read, and the photo located
+    room = _clipped_grid()
+    settings = _glowing(seed, 0.1, halo=0.37, brightness=3.3, off_level=0.1, blur_px=0.7)
+    photo = render(CAM, room, POSE, settings)
+    truth = {t.id: t.pixel for t in photo.fixtures}
+    assert all(t.fully_inside for t in photo.fixtures)
+    blobs = detect_fixtures(photo.image).blobs
+    assert len(blobs) == 12
+    near = [min(np.linalg.norm(b.pixel - p) for p in truth.values()) for b in blobs]
+    assert max(near) < 8.0
+    res = locate(photo.image, CAM, room)
+    assert res
+    read = [f for f in res.fixtures if f.id is not None]
+    assert all(f.id in truth and np.linalg.norm(f.pixel - truth[f.id]) < 8.0 for f in read)
+    assert len(read) >= 11
+
+
+def test_lamps_with_hot_cores_whose_glows_join_are_centred_from_their_faces():
+    # two lamps with a hot core (2.7 times) and a halo (0.35) at 3.5 times full scale, side
+    # by side across the readout: their glows join into one region, split by its light
+    # seeds; each lamp's disc is its face in its dark stripes (off level 9 %) where they
+    # show it, from which its radial centre is fitted (from the outline of its lit pixels,
+    # which hold a share of the glow between them, the fit ended some 5 px off)
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.0, 0.05]), 0.45, np.array([0.0, 1.0, 0.0]))
+            for i, x in ((6, -0.4), (14, 0.4))
+        )
+    )
+    look = dict(core=2.7, halo=0.35, brightness=3.5, off_level=0.09, blur_px=1.8)
+    for seed in range(4):
+        photo = render(CAM, room, POSE, _glowing(seed, 0.7, **look))
+        blobs = detect_fixtures(photo.image).blobs
+        assert len(blobs) == 2
+        centred = centred_on_glow(photo.image, blobs, "rows")
+        for b in centred:
+            assert min(np.linalg.norm(b.pixel - t.pixel) for t in photo.fixtures) < 2.0

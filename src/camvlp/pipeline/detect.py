@@ -26,7 +26,7 @@ from camvlp.pipeline.refine import (
     refine_regions,
     to_gray,
 )
-from camvlp.pipeline.touching import not_convex, one_per_light, power_cell
+from camvlp.pipeline.touching import dark_level, not_convex, one_per_light, power_cell
 
 __all__ = [
     "Blob",
@@ -171,9 +171,18 @@ def detect_fixtures(
         x, y, w, h = box
         return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
+    def dark_of(box: tuple[int, int, int, int], axis: str) -> np.ndarray | None:
+        """A region's dark-stripe levels (:func:`dark_level`), worked at full resolution
+        (the decimated image does not resolve the stripes), averaged down to the region."""
+        x, y, w, h = box
+        gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
+        lit = cv2.threshold(gray, thr, 1, cv2.THRESH_BINARY)[1]
+        level = dark_level(gray, lit, axis)
+        return None if level is None else cv2.resize(level, (w, h), interpolation=cv2.INTER_AREA)
+
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw)
-    boxes, cells = [], []
+    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw, dark_of)
+    boxes, cells, seeds_in = [], [], []
     for (x, y, w, h), cell in lights:
         box = (
             max(0, x * s - pad),
@@ -184,8 +193,9 @@ def detect_fixtures(
         seeds = None if cell is None else cell[0] * float(s)  # [x, y, r] at full resolution
         boxes.append(box)
         cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))
+        seeds_in.append(None if seeds is None else seeds[cell[1]] - [box[0], box[1], 0.0])
     blobs = refine_regions(
-        img, boxes, readout, kernel_px, min_diameter_px, cells, (background, peak)
+        img, boxes, readout, kernel_px, min_diameter_px, cells, (background, peak), seeds_in
     )
     blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
     return Detection(tuple(blobs), s, binary, thr)

@@ -192,6 +192,7 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     r = _round(b)
     ellipse = ((r.pixel[0] - x0, r.pixel[1] - y0), tuple(r.axes_px), r.angle_deg)
     far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
+    far = far and not (b.face and not b.touches_border)
     fit = radial_fit(gray, support, ellipse, axis, far)
     centre = fit.centre
     h, w = b.mask.shape

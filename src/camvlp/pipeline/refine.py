@@ -21,8 +21,9 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
-from camvlp.pipeline.levels import _counted_percentiles, _hist_percentiles
+from camvlp.pipeline.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
 from camvlp.pipeline.ragged import pieces, starts
+from camvlp.pipeline.touching import own_face
 
 __all__ = [
     "Blob",
@@ -72,6 +73,10 @@ class Blob:
     cell : ndarray of bool, shape (y1 - y0, x1 - x0), or None
         The part of the region that is this light's when its glow joins other lights'
         (:mod:`camvlp.pipeline.touching`); None when the region is all its own.
+    face : bool
+        ``mask`` is the light's face as its dark stripes show it
+        (:func:`~camvlp.pipeline.touching.own_face`: a light whose glow joins others'),
+        not its lit pixels.
     """
 
     pixel: np.ndarray
@@ -87,6 +92,7 @@ class Blob:
 
     gray: np.ndarray | None = field(default=None, repr=False, compare=False)
     cell: np.ndarray | None = field(default=None, repr=False, compare=False)
+    face: bool = field(default=False, repr=False, compare=False)
 
     @property
     def centre_sigma_px(self) -> float:
@@ -357,6 +363,7 @@ class _Region:
     near: np.ndarray
     cell: np.ndarray | None
     beyond: np.ndarray | None
+    face: bool = False
 
 
 def refine_regions(
@@ -367,6 +374,7 @@ def refine_regions(
     min_diameter_px: float,
     cells: list[np.ndarray | None] | None = None,
     guesses: tuple[float, float] | None = None,
+    seeds: list[np.ndarray | None] | None = None,
 ) -> list[Blob]:
     """The candidate regions at full resolution: each one's disc, readout axis and centre.
 
@@ -398,6 +406,12 @@ def refine_regions(
         Gray levels near the regions' background and peak (the photo's): the two levels are
         then found by counting pixels from them (:func:`_counted_percentiles`) rather than
         from each region's histogram (the same levels).
+    seeds : list of (ndarray or None), optional
+        Per region with a cell, its light's ``[x, y, r]`` in the region's pixels
+        (:func:`~camvlp.pipeline.touching.light_seeds`, at full resolution): the disc is
+        then its face in the dark stripes, when they show one that holds the seed's centre
+        (:func:`~camvlp.pipeline.touching.own_face`; its edge points on the dark-stripe
+        levels), else its lit pixels as above.
 
     Returns
     -------
@@ -410,6 +424,7 @@ def refine_regions(
     if not usable:
         return []
     cells = cells or [None] * len(boxes)
+    seeds = seeds or [None] * len(boxes)
     if guesses is None:
         hists = np.stack(
             [cv2.calcHist([grays[k]], [0], None, [256], [0, 256]).ravel() for k in usable]
@@ -425,7 +440,9 @@ def refine_regions(
     for k, (background, peak) in zip(usable, levels, strict=True):
         if peak - background >= 10:
             levels_k = (background, peak)
-            r = _region(img, boxes[k], grays[k], levels_k, readout, kernel_px, min_area, cells[k])
+            r = _region(
+                img, boxes[k], grays[k], levels_k, readout, kernel_px, min_area, cells[k], seeds[k]
+            )
             if r is not None:
                 regions.append(r)
     found = [_fitted(r, p) for r, p in zip(regions, _edge_points(regions), strict=True)]
@@ -441,10 +458,12 @@ def _region(
     kernel_px: int,
     min_area: float,
     cell: np.ndarray | None,
+    seed: np.ndarray | None = None,
 ) -> _Region | None:
     """A region's disc and its rows for edge points, from its gray levels and its background
-    and peak levels, within its light's ``cell`` when it has one; None when its disc is
-    smaller than ``min_area`` pixels or none is lit."""
+    and peak levels, within its light's ``cell`` when it has one (its face in the dark
+    stripes when it has a ``seed`` and they show it); None when its disc is smaller than
+    ``min_area`` pixels or none is lit."""
     background, peak = levels
     # a low threshold: real lights are often brighter in the middle than at the rim; whole
     # gray levels are above it when they are above its floor
@@ -459,6 +478,11 @@ def _region(
         axis, contrast = _axis_contrast(gray8, cv2.dilate(lit, _AXIS_KERNEL))
     else:
         contrast = _axis_contrast(gray8, lit)[1]
+    edges, edge_bg, on_face = gray8, background, False  # the image of the edge points
+    found = None if seed is None or cell is None else own_face(gray8, lit, cell, axis, seed)
+    if found is not None:  # its face, unclipped in its dark stripes
+        lit, edges, on_face = found[0], found[1], True
+        edge_bg = _percentiles_u8(edges, [10])[0]
     mask = _disc_mask(lit, axis, kernel_px)
     if mask is None:
         return None
@@ -489,10 +513,11 @@ def _region(
         axis,
         contrast,
         touches,
-        background,
-        *_edge_rows(gray8, mask, background, axis),
+        edge_bg,
+        *_edge_rows(edges, mask, edge_bg, axis),
         cell,
         beyond,
+        on_face,
     )
 
 
@@ -599,6 +624,7 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
         edge_points=int(points.shape[0]),
         gray=r.gray8,
         cell=r.cell,
+        face=r.face,
     )
     return fields, fit
 

@@ -18,7 +18,18 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 
-__all__ = ["NECK", "SOLIDITY", "light_seeds", "not_convex", "one_per_light", "power_cell"]
+__all__ = [
+    "NECK",
+    "SOLIDITY",
+    "dark_level",
+    "dark_seeds",
+    "faces",
+    "light_seeds",
+    "not_convex",
+    "one_per_light",
+    "own_face",
+    "power_cell",
+]
 
 #: A peak is a light of its own when the distance transform along the line to a larger
 #: peak dips below this fraction of the smaller of the two (a neck between them).
@@ -195,6 +206,7 @@ def one_per_light(
     min_radius: float,
     axis_of: Callable,
     raw: np.ndarray | None = None,
+    dark_of: Callable | None = None,
 ):
     """The lights of the detection's candidate regions.
 
@@ -240,6 +252,11 @@ def one_per_light(
         axis = functools.partial(axis_of, inside, (x, y, w, h))  # when needed
         lit = None if raw is None else raw[y : y + h, x : x + w]
         seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis, lit)
+        if dark_of is not None:  # more lights apart in the dark stripes?
+            level = dark_of((x, y, w, h), axis())
+            dark = None if level is None else dark_seeds(level, inside, min_radius)
+            if dark is not None and len(dark) > len(seeds):
+                seeds = dark
         if len(seeds) < 2:
             yield (x, y, w, h), None
             continue
@@ -254,3 +271,164 @@ def one_per_light(
                     int(np.ptp(ys)) + 1,
                 )
                 yield box, (seeds, i)
+
+
+def _run_modes(lit: np.ndarray, axis: str) -> tuple[int, int]:
+    """The commonest lengths (pixels) of the lit runs, and of the dark runs between two lit
+    ones, along the readout (``axis``: ``"rows"`` or ``"columns"``) of a region of 0 and 1
+    (uint8, shape (h, w)); 0 when it has none."""
+    lines = lit if axis == "columns" else lit.T  # one line along the readout per row
+    d = np.diff(np.pad(lines.astype(np.int8), ((0, 0), (1, 1))), axis=1)
+    r, c = np.nonzero(d)  # along a line the changes alternate: up, down, up, ...
+    up = d[r, c] > 0
+    lengths, same = np.diff(c), r[1:] == r[:-1]
+    runs = (lengths[same & up[:-1]], lengths[same & ~up[:-1]])
+    lit_mode, dark_mode = (int(np.argmax(np.bincount(x)[1:])) + 1 if x.size else 0 for x in runs)
+    return lit_mode, dark_mode
+
+
+def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | None:
+    """Each pixel's level in its light's dark stripes.
+
+    Lights whose glows clip together in their bright stripes stay apart in their dark ones:
+    a light's stripes are shared by its face and its glow, and where the LED is not fully off
+    its face shows there at its off level, above its glow (a halo is dimmer than the face).
+    The gray levels are opened along the readout (each pixel takes the least level over a
+    window, then the most of those over the windows that hold it) over six chips or more:
+    three times a lit and a dark run's commonest lengths, which together span two chips
+    whatever the exposure (a chip's bright stripe grows by the exposure, a dark one shrinks
+    by it), while no bright run of the default frame is longer than four chips.  The window
+    then holds a dark chip of the light wherever it lies within its face, and a face as long
+    as the window along the readout keeps its extent.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (h, w)
+        A region of the photo, gray levels.
+    lit : ndarray of uint8, shape (h, w)
+        Its lit pixels (0 and 1): the stripes whose runs tell the chip's length.
+    axis : {"rows", "columns"}
+        The readout axis.
+
+    Returns
+    -------
+    ndarray of uint8, shape (h, w), or None
+        The dark-stripe levels; None where the dark stripes do not show the off level: dark
+        runs shorter than 2 pixels (stripes the pixels do not resolve) or than half the lit
+        runs (an exposure of a third of a chip or more, where a single dark chip leaves a
+        shallow dip).
+    """
+    lit_mode, dark_mode = _run_modes(lit, axis)
+    if dark_mode < 2 or 2 * dark_mode < lit_mode:
+        return None
+    n = 3 * (lit_mode + dark_mode) | 1
+    ksize = (n, 1) if axis == "columns" else (1, n)
+    return cv2.morphologyEx(gray, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, ksize))
+
+
+def faces(dark: np.ndarray, inside: np.ndarray) -> np.ndarray | None:
+    """The lights' faces in a region's dark-stripe levels (:func:`dark_level`): the levels
+    inside it (``inside``, nonzero) above Otsu's threshold of them, as uint8 0 and 1; None
+    when the two classes' means lie under 12 gray levels apart (no face stands out of the
+    glow and the background, e.g. an LED fully off)."""
+    vals = dark[inside > 0]
+    if vals.size < 16:
+        return None
+    thr, _ = cv2.threshold(vals.reshape(-1, 1), 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    above = vals > thr
+    if above.all() or not above.any() or vals[above].mean() - vals[~above].mean() < 12:
+        return None
+    return ((dark > thr) & (inside > 0)).astype(np.uint8)
+
+
+def dark_seeds(dark: np.ndarray, inside: np.ndarray, min_radius: float) -> np.ndarray | None:
+    """The lights of one lit region from its faces in the dark stripes (:func:`faces`).
+
+    Each face is a disc: its peak of the faces' distance transform (:func:`light_seeds`) is
+    its inscribed circle, and its part of the faces (its power cell's) covers 0.6 to 1.6
+    times that circle's area; a region whose faces are not all such discs (stripes the
+    window missed, a glow's pieces) gives None.  Peaks under half the median's radius are
+    pieces between faces, left out.
+
+    Parameters
+    ----------
+    dark : ndarray of uint8, shape (h, w)
+        The region's dark-stripe levels (:func:`dark_level`).
+    inside : ndarray of uint8, shape (h, w)
+        The region (nonzero).
+    min_radius : float
+        Smallest radius of a light, pixels.
+
+    Returns
+    -------
+    ndarray, shape (k, 3), or None
+        ``[x, y, r]`` of each light, as :func:`light_seeds`; None when fewer than two.
+    """
+    face = faces(dark, inside)
+    if face is None:
+        return None
+    seeds = light_seeds(face, min_radius)
+    if len(seeds) < 2:
+        return None
+    seeds = seeds[seeds[:, 2] >= 0.5 * np.median(seeds[:, 2])]
+    h, w = face.shape
+    for i in range(len(seeds)):
+        area = np.count_nonzero(face & power_cell((0, 0, w, h), seeds, i))
+        if not 0.6 <= area / (np.pi * seeds[i, 2] ** 2) <= 1.6:
+            return None
+    return seeds if len(seeds) >= 2 else None
+
+
+def own_face(
+    gray: np.ndarray, lit: np.ndarray, cell: np.ndarray, axis: str, seed: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """A light's face in its cell of a region where glows join, from its dark stripes.
+
+    The faces in the cell (:func:`faces` of :func:`dark_level`), opened by a disc of 0.8
+    times the largest one's inscribed diameter and kept within 1.2 times its inscribed
+    radius of its centre: what a window missed (a band along the stripes where two lights'
+    glows are never dark together) is thinner than a face, and lies beyond its rim.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (h, w)
+        The light's region of interest, gray levels.
+    lit : ndarray of uint8, shape (h, w)
+        Its lit pixels within the cell (0 and 1).
+    cell : ndarray of bool, shape (h, w)
+        The light's cell (:func:`power_cell`).
+    axis : {"rows", "columns"}
+        The readout axis.
+    seed : ndarray, shape (3,)
+        The light's ``[x, y, r]`` in the region (:func:`light_seeds`, full resolution).
+
+    Returns
+    -------
+    tuple of ndarray, or None
+        The face (uint8 0 and 1, shape (h, w)) and the dark-stripe levels (uint8, the same
+        shape); None when the dark stripes show no face, when it covers less than 0.6 of its
+        inscribed circle, or when it does not hold the seed's centre (another light's).
+    """
+    level = dark_level(gray, lit, axis)
+    face = None if level is None else faces(level, cell.view(np.uint8))
+    if face is None:
+        return None
+    dist = _distances(face)
+    y, x = np.unravel_index(int(np.argmax(dist)), dist.shape)
+    depth = float(dist[y, x])
+    if depth < 2:
+        return None
+    d = int(1.6 * depth) | 1
+    face = cv2.morphologyEx(
+        face, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (d, d))
+    )
+    disc = np.zeros_like(face)
+    cv2.circle(disc, (int(x), int(y)), int(1.2 * depth), 1, -1)
+    face &= disc
+    h, w = face.shape
+    sx, sy = int(np.clip(seed[0], 0, w - 1)), int(np.clip(seed[1], 0, h - 1))
+    if depth < 0.5 * seed[2] or np.count_nonzero(face) < 0.6 * np.pi * depth**2:
+        return None  # a hot core, or pieces
+    if not face[sy, sx]:  # another light's
+        return None
+    return face, level
