@@ -284,13 +284,12 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     first, last = int(rows[0]), int(rows[-1]) + 1
     num = np.bincount(line, weights=values, minlength=last)[first:last]
     den = np.bincount(line, weights=level, minlength=last)[first:last]
-    noise = np.sqrt(counts[first:last]) / np.where(den > 0, den, np.nan)  # (no pixels: NaN)
+    den = np.where(den > 0, den, np.nan)  # (a line without pixels: NaN, filled below)
+    noise = np.sqrt(counts[first:last]) / den
     calm = np.flatnonzero(noise <= _NOISIEST_END * np.nanmedian(noise))
-    if calm.size >= 2:  # the ends whose lines are calm enough
-        first, last = first + int(calm[0]), first + int(calm[-1]) + 1
-        num, den = num[calm[0] : calm[-1] + 1], den[calm[0] : calm[-1] + 1]
-    prof = num / np.where(den > 0, den, np.nan) * float(level.max())
-    return _filled(prof), first
+    a, b = (int(calm[0]), int(calm[-1]) + 1) if calm.size >= 2 else (0, den.size)
+    prof = num[a:b] / den[a:b] * float(level.max())  # between the calm end lines
+    return _filled(prof), first + a
 
 
 def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:

@@ -177,18 +177,10 @@ class RenderSettings:
             isinstance(self.off_level, (int, float)) and 0 <= self.off_level <= 1
         ):
             raise ValueError(f"off_level must be a number from 0 to 1, got {self.off_level!r}")
-        if isinstance(self.vignetting, bool) or not (
-            isinstance(self.vignetting, (int, float)) and 0 <= self.vignetting < 1
-        ):
-            raise ValueError(
-                f"vignetting must be a number from 0 to below 1, got {self.vignetting!r}"
-            )
-        if isinstance(self.black_point, bool) or not (
-            isinstance(self.black_point, (int, float)) and 0 <= self.black_point < 1
-        ):
-            raise ValueError(
-                f"black_point must be a number from 0 to below 1, got {self.black_point!r}"
-            )
+        for name in ("vignetting", "black_point"):  # fractions of the light, below 1
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1):
+                raise ValueError(f"{name} must be a number from 0 to below 1, got {value!r}")
         _positive(self.gamma, "gamma")
         if not isinstance(self.bayer, bool):
             raise ValueError(f"bayer must be true or false, got {self.bayer!r}")
