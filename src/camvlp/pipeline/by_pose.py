@@ -7,7 +7,11 @@ fit refuses the fixture and lists the IDs of the map that fit it almost equally
 the fixtures that were decoded, each of those IDs' map positions projects to one place in the
 photo: the fixture is the one that projects onto it, when exactly one does and every other
 projects far away.  The stripes narrow the fixture to a few IDs and the geometry picks one;
-neither alone would.
+neither alone would.  "Onto it" allows for what the pose and the fixture's centre are unsure
+of (:class:`Spread`): a pose solved from a few fixtures on one side of the photo projects
+points on the other side tens of pixels off, and a glowing lamp whose stripes say little is
+often centred 10 to 30 px off too; but never farther than half the disc's radius, within
+which no other fixture of the ceiling can be centred.
 
 When the fixtures the stripes identified are too few for a pose, the pose comes from the
 look-alikes themselves (:func:`assigned_by_pose`): every way of giving a few of them one of
@@ -20,17 +24,121 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
+from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from camvlp.model.camera import Camera, Pose, project_points
 from camvlp.model.fixtures import FixtureMap
 
-__all__ = ["HYPOTHESES", "TOLD_APART", "assigned_by_pose", "told_by_pose"]
+__all__ = [
+    "HYPOTHESES",
+    "SPREAD_SIGMAS",
+    "TOLD_APART",
+    "Spread",
+    "assigned_by_pose",
+    "pose_covariance",
+    "told_by_pose",
+]
 
-#: A candidate ID is taken when its map position projects within the pose's outlier distance
-#: of the fixture and every other candidate's farther than this many times that distance.
+#: A candidate ID is taken when its map position projects within the fixture's tolerance
+#: (the pose's outlier distance, or more with a :class:`Spread`) and every other candidate's
+#: farther than this many times that tolerance.
 TOLD_APART = 4.0
+
+#: A :class:`Spread`'s tolerance: this many standard deviations of the distance between a
+#: fixture's centre and its map position projected by the pose.
+SPREAD_SIGMAS = 3.0
+
+#: Steps of the numerical Jacobian of a projection: radians, and map units per unit of the
+#: camera's distance to the points.
+_STEP = 1e-6
+
+
+@dataclass(frozen=True)
+class Spread:
+    """What the pose and each fixture's centre are unsure of (for :func:`told_by_pose`).
+
+    Attributes
+    ----------
+    pose_cov : ndarray, shape (6, 6)
+        The pose's covariance (:func:`pose_covariance`): a rotation of the camera about its
+        own axes (radians), then its centre (map units).
+    centre_sigma_px : ndarray, shape (n,)
+        Each fixture's centre uncertainty, pixels (1-sigma per axis; 0 when unknown).
+    radius_px : ndarray, shape (n,)
+        Each fixture's smaller radius in the photo, pixels: the tolerance never exceeds half
+        of it (no other fixture's centre can lie within a disc of the ceiling).
+    """
+
+    pose_cov: np.ndarray
+    centre_sigma_px: np.ndarray
+    radius_px: np.ndarray
+
+
+def _moved(pose: Pose, step: np.ndarray) -> Pose:
+    """The pose turned by ``step[:3]`` (radians, about the camera's axes) and moved by
+    ``step[3:]`` (map units)."""
+    turn, _ = cv2.Rodrigues(np.asarray(step[:3], dtype=float).reshape(3, 1))
+    return Pose(pose.world_from_camera @ turn, pose.position + step[3:])
+
+
+def _jacobian(camera: Camera, pose: Pose, points: np.ndarray) -> np.ndarray:
+    """The projections' derivatives by the pose's six parameters (see :func:`_moved`),
+    shape (m, 2, 6), pixels per radian and per map unit (central differences)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    scale = max(float(np.median(np.linalg.norm(points - pose.position, axis=1))), 1e-9)
+    steps = np.concatenate([np.full(3, _STEP), np.full(3, _STEP * scale)])
+    cols = []
+    for j, h in enumerate(steps):
+        e = np.zeros(6)
+        e[j] = h
+        plus = project_points(camera, _moved(pose, e), points)
+        minus = project_points(camera, _moved(pose, -e), points)
+        cols.append((plus - minus) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+def pose_covariance(
+    camera: Camera, pose: Pose, points: np.ndarray, pixels: np.ndarray
+) -> np.ndarray:
+    """The covariance of a pose solved from these fixtures, shape (6, 6).
+
+    Gauss-Newton's ``s^2 (J^T J)^-1``, ``J`` the projections' Jacobian (:func:`_jacobian`)
+    and ``s^2`` the residuals' variance per coordinate over the degrees of freedom left (at
+    least 1 px^2; a pose that fits its fixtures exactly is not known better than that).
+
+    Parameters
+    ----------
+    camera, pose
+        The camera and the solved pose.
+    points : ndarray, shape (m, 3)
+        The map positions the pose was solved from (m >= 3).
+    pixels : ndarray, shape (m, 2)
+        Their centres in the photo, pixels.
+    """
+    jac = _jacobian(camera, pose, points).reshape(-1, 6)
+    res = np.asarray(pixels, dtype=float).reshape(-1, 2) - project_points(camera, pose, points)
+    s2 = max(float(np.sum(res**2)) / max(jac.shape[0] - 6, 1), 1.0)
+    return s2 * np.linalg.pinv(jac.T @ jac)
+
+
+def _tolerance(
+    camera: Camera, pose: Pose, where: np.ndarray, k: int, spread: Spread | None, outlier_px: float
+) -> float:
+    """Fixture ``k``'s tolerance for the map point ``where`` (shape (3,)), pixels: the
+    outlier distance, or with ``spread`` :data:`SPREAD_SIGMAS` standard deviations of the
+    distance (its centre's and the projection's) when that is more, up to half its radius."""
+    if spread is None:
+        return outlier_px
+    jac = _jacobian(camera, pose, where[None])[0]
+    var_p = float(np.trace(jac @ spread.pose_cov @ jac.T)) / 2
+    sigma_c = float(spread.centre_sigma_px[k])
+    sigma = np.sqrt(max(var_p, 0.0) + (sigma_c**2 if np.isfinite(sigma_c) else 0.0))
+    cap = 0.5 * float(spread.radius_px[k])
+    return max(outlier_px, min(SPREAD_SIGMAS * sigma, cap))
+
 
 #: The most hypotheses :func:`assigned_by_pose` solves (each one a pose).
 HYPOTHESES = 300
@@ -44,6 +152,7 @@ def told_by_pose(
     candidates: list[tuple[int, ...]],
     taken: set[int],
     outlier_px: float,
+    spread: Spread | None = None,
 ) -> dict[int, int]:
     """The IDs the pose tells apart among each fixture's look-alikes.
 
@@ -62,7 +171,11 @@ def told_by_pose(
     taken : set of int
         IDs already given to a fixture (a map's IDs are unique: none of them is a candidate).
     outlier_px : float
-        The pose's outlier distance, pixels.
+        The pose's outlier distance, pixels: the tolerance of "projects onto the fixture".
+    spread : Spread, optional
+        The pose's and the centres' uncertainty: the tolerance grows to
+        :data:`SPREAD_SIGMAS` standard deviations of each fixture's distance (up to half its
+        radius) when that is more than ``outlier_px``.
 
     Returns
     -------
@@ -80,11 +193,11 @@ def told_by_pose(
         dist = np.where(np.isfinite(dist), dist, np.inf)  # behind the camera: not there
         order = np.argsort(dist)
         best = ids[int(order[0])]
-        if (
-            best not in taken
-            and dist[order[0]] <= outlier_px
-            and dist[order[1]] > TOLD_APART * outlier_px
-        ):
+        if best in taken or not np.isfinite(dist[order[0]]):
+            continue
+        position = np.asarray(fixture_map.get(best).position, dtype=float)
+        tol = _tolerance(camera, pose, position, k, spread, outlier_px)
+        if dist[order[0]] <= tol and dist[order[1]] > TOLD_APART * tol:
             told[k] = best
     # an ID told for two fixtures: neither
     seen = list(told.values())

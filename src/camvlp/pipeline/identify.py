@@ -17,7 +17,7 @@ from camvlp.geometry.gravity import GravityPose
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.by_pose import assigned_by_pose, told_by_pose
+from camvlp.pipeline.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
 from camvlp.pipeline.manchester import Manchester
 from camvlp.pipeline.pose import PoseEstimate
 
@@ -79,7 +79,7 @@ def with_told(
     (:mod:`camvlp.pipeline.by_pose`; when the identified ones are too few for a pose, by the
     only assignment of look-alikes that gives one) and the pose solved again with them.
     Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
-    when none is told, or when the pose solved again does not use every one told."""
+    when none is told."""
     if est is not None and est.pose is None:
         return found, est, {}
     cands = [
@@ -90,18 +90,16 @@ def with_told(
         return found, est, {}
     pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
     fixed = {k: found.ids[k] for k in found.usable}
-    if est is None:
-
-        def pose_of(assigned: dict[int, int]):
-            e, _ = solve(_given(found, assigned))
-            return e.pose if e and all(e.used) else None
-
-        told = assigned_by_pose(
-            camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed
+    if est is not None:
+        return _told_round_by_round(
+            camera, fixture_map, blobs, found, est, cands, outlier_px, solve
         )
-    else:
-        taken = set(fixed.values())
-        told = told_by_pose(camera, est.pose, fixture_map, pixels, cands, taken, outlier_px)
+
+    def pose_of(assigned: dict[int, int]):
+        e, _ = solve(_given(found, assigned))
+        return e.pose if e and all(e.used) else None
+
+    told = assigned_by_pose(camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed)
     if not told:
         return found, est, {}
     found2 = _given(found, {**fixed, **told})
@@ -109,6 +107,48 @@ def with_told(
     if not est2 or not all(est2.used[found2.usable.index(k)] for k in told):
         return found, est, {}
     return found2, est2, {k: cands[k] for k in told}
+
+
+def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, est) -> Spread:
+    """The pose's and the centres' uncertainty (:class:`~camvlp.pipeline.by_pose.Spread`),
+    the pose's from the fixtures it uses."""
+    used = [k for j, k in enumerate(found.usable) if est.used[j]]
+    points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
+    pixels = np.array([blobs[k].pixel for k in used]).reshape(-1, 2)
+    return Spread(
+        pose_covariance(camera, est.pose, points, pixels),
+        np.array([b.centre_sigma_px for b in blobs], dtype=float),
+        np.array([0.5 * float(np.min(b.axes_px)) for b in blobs]),
+    )
+
+
+def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_px, solve):
+    """Look-alikes told by the pose of the identified fixtures (:func:`with_told`), the pose
+    solved again with those told and the others told by it, until none is left to tell.
+    A round is kept when its pose uses as many fixtures as the pose before it, or more; a
+    fixture told keeps its ID when its centre lies beyond the pose's outlier distance (a
+    glowing lamp's centre may be tens of pixels off), left out of the pose as a decoded one
+    would be."""
+    pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
+    fixed = {k: found.ids[k] for k in found.usable}
+    told: dict[int, int] = {}
+    cur_found, cur_est = found, est
+    while True:
+        left = [() if k in told else c for k, c in enumerate(cands)]
+        spread = _spread(camera, fixture_map, blobs, cur_found, cur_est)
+        taken = {cur_found.ids[k] for k in cur_found.usable}
+        new = told_by_pose(
+            camera, cur_est.pose, fixture_map, pixels, left, taken, outlier_px, spread
+        )
+        if not new:
+            break
+        nxt = _given(found, {**fixed, **told, **new})
+        est2, _ = solve(nxt)
+        if not est2 or int(np.sum(est2.used)) < int(np.sum(cur_est.used)):
+            break
+        told.update(new)
+        cur_found, cur_est = nxt, est2
+    return cur_found, cur_est, {k: cands[k] for k in told}
 
 
 def _given(found: Identified, ids: dict[int, int]) -> Identified:
