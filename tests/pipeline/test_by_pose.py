@@ -11,7 +11,13 @@ from tests.conftest import LOOK_UP
 
 import camvlp.pipeline.locate as locate_module
 from camvlp.model.camera import Pose, project_points
-from camvlp.pipeline.by_pose import TOLD_APART, assigned_by_pose, told_by_pose
+from camvlp.pipeline.by_pose import (
+    TOLD_APART,
+    Spread,
+    assigned_by_pose,
+    pose_covariance,
+    told_by_pose,
+)
 from camvlp.pipeline.model_decode import ModelDecode
 from camvlp.pipeline.pose import estimate_pose
 
@@ -50,6 +56,69 @@ def test_an_id_told_for_two_fixtures_is_given_to_neither(small_camera, small_roo
     px = np.array([where(small_camera, small_room, 9)] * 2)
     got = told_by_pose(small_camera, POSE, small_room, px, [(5, 9), (9, 10)], set(), 4.0)
     assert got == {}
+
+
+def _spread(sigma_px: float, radius_px: float, pose_cov=None) -> Spread:
+    """One fixture's centre sigma and radius, and the pose's covariance (none by default)."""
+    cov = np.zeros((6, 6)) if pose_cov is None else pose_cov
+    return Spread(cov, np.array([sigma_px]), np.array([radius_px]))
+
+
+def test_an_unsure_centre_is_told_within_its_spread(small_camera, small_room):
+    # a centre 12 px off the projection of its ID: beyond the outlier distance (4 px), within
+    # three standard deviations of a centre known to 5 px
+    px = (where(small_camera, small_room, 9) + np.array([0.0, 12.0]))[None]
+    args = (small_camera, POSE, small_room, px, [(5, 9)], set(), 4.0)
+    assert told_by_pose(*args) == {}
+    assert told_by_pose(*args, _spread(5.0, 80.0)) == {0: 9}
+    assert told_by_pose(*args, _spread(3.0, 80.0)) == {}  # 9 px: too far
+    # never farther than half the disc's radius, however unsure the centre
+    assert told_by_pose(*args, _spread(100.0, 20.0)) == {}
+    assert told_by_pose(*args, _spread(100.0, 50.0)) == {0: 9}
+
+
+def test_an_unsure_pose_widens_the_tolerance(small_camera, small_room):
+    # the same centre, sure, seen with a pose unsure of its turn by 5 mrad (5 px at f 1000)
+    px = (where(small_camera, small_room, 9) + np.array([0.0, 12.0]))[None]
+    args = (small_camera, POSE, small_room, px, [(5, 9)], set(), 4.0)
+    turn = np.diag([25e-6] * 3 + [0.0] * 3)
+    assert told_by_pose(*args, _spread(0.0, 80.0, turn)) == {0: 9}
+    assert told_by_pose(*args, _spread(0.0, 80.0, turn / 4)) == {}
+
+
+def test_a_wide_tolerance_still_needs_the_others_far(small_camera, small_room):
+    # 5 and 9 project some 600 px apart: a tolerance of 160 px leaves 5 within 4 times it
+    a, b = where(small_camera, small_room, 9), where(small_camera, small_room, 5)
+    px = (a + np.array([0.0, 12.0]))[None]
+    far = float(np.hypot(*(b - px[0])))
+    sigma = far / TOLD_APART / 3.0 + 1.0
+    spread = _spread(sigma, 8 * far)
+    assert told_by_pose(small_camera, POSE, small_room, px, [(5, 9)], set(), 4.0, spread) == {}
+
+
+def test_the_pose_covariance_predicts_how_far_off_a_projection_comes(small_camera, small_room):
+    # poses solved from the five centres, each 2 px noisy: a point beyond the room projects
+    # as far off as the covariance of one of them says (within a fifth)
+    ids = [f.id for f in small_room.fixtures]
+    obj = np.array([small_room.get(i).position for i in ids])
+    exact = project_points(small_camera, POSE, obj)
+    rng = np.random.default_rng(3)
+    far = np.array([[2.0, -2.7, 1.5]])
+    got = []
+    for _ in range(300):
+        est = estimate_pose(exact + rng.normal(0.0, 2.0, exact.shape), obj, small_camera)
+        got.append(project_points(small_camera, est.pose, far)[0])
+    seen = float(np.sqrt(np.mean(np.var(np.array(got), axis=0))))
+    # residuals of exactly 2 px per coordinate over the degrees of freedom left (10 - 6)
+    res = np.zeros_like(exact)
+    res[:2] = [[2.0, 2.0], [-2.0, -2.0]]
+    cov = pose_covariance(small_camera, POSE, obj, exact + res)
+    from camvlp.pipeline.by_pose import _jacobian
+
+    jac = _jacobian(small_camera, POSE, far)[0]
+    said = float(np.sqrt(np.trace(jac @ cov @ jac.T) / 2))
+    assert seen > 5.0  # (a test that tells: far from the fixtures, several pixels)
+    assert abs(said / seen - 1) < 0.2
 
 
 #: Each of the small room's IDs and a look-alike: the next ID round the room (no rigid motion
@@ -191,3 +260,46 @@ def test_locate_refuses_look_alikes_that_two_assignments_fit(
     res = locate(small_render.image, small_camera, small_room)
     assert not res and "at least 4 are needed" in res.reason
     assert all(f.id is None and "almost equally" in f.reason for f in res.fixtures)
+
+
+_CENTRED_ON_GLOW = locate_module.centred_on_glow
+
+
+def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray):
+    """locate's glow centring with the blob near ``near`` moved by ``shift_px`` and its
+    centre as unsure as ``sigma_px`` says (as a glowing lamp's may be)."""
+    real = _CENTRED_ON_GLOW
+
+    def fake(img, blobs, axis):
+        out = []
+        for b in real(img, blobs, axis):
+            if np.hypot(*(b.pixel - near)) < 5:
+                cov = np.eye(2) * sigma_px**2
+                b = dataclasses.replace(b, pixel=b.pixel + shift_px, centre_cov_px2=cov)
+            out.append(b)
+        return out
+
+    return fake
+
+
+def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
+    monkeypatch, small_camera, small_room, small_render
+):
+    # fixture 9 refused between 5 and 9, its centre 14 px off (the outlier distance is 10 px)
+    # and known to 6 px: told, but not used by the pose
+    nine = where(small_camera, small_room, 9)
+    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    shift = np.array([0.0, 14.0])
+    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 6.0, nine))
+    res = locate(small_render.image, small_camera, small_room)
+    assert res
+    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
+    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
+    assert "told by the pose" in f.reason and "not used" in f.reason
+    assert sum(f.used for f in res.fixtures) == 4
+    assert np.linalg.norm(res.position - POSE.position) < 0.01
+    # known to 3 px, it is not told
+    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 3.0, nine))
+    res = locate(small_render.image, small_camera, small_room)
+    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
+    assert f.id is None and "almost equally" in f.reason

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camvlp.geometry.gravity import GravityPose
-from camvlp.model.camera import Camera
+from camvlp.model.camera import Camera, project_points
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
@@ -125,30 +125,51 @@ def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, e
 def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_px, solve):
     """Look-alikes told by the pose of the identified fixtures (:func:`with_told`), the pose
     solved again with those told and the others told by it, until none is left to tell.
-    A round is kept when its pose uses as many fixtures as the pose before it, or more; a
-    fixture told keeps its ID when its centre lies beyond the pose's outlier distance (a
-    glowing lamp's centre may be tens of pixels off), left out of the pose as a decoded one
-    would be."""
+
+    A round is kept when its pose uses as many fixtures as the pose before it, or more.  A
+    fixture told whose centre lies beyond the pose's outlier distance from where its ID
+    projects (a glowing lamp's centre may be tens of pixels off) keeps its ID, left out of
+    the pose with that reason (within its tolerance, see
+    :func:`~camvlp.pipeline.by_pose.told_by_pose`, it would otherwise pull the pose)."""
     pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
     fixed = {k: found.ids[k] for k in found.usable}
     told: dict[int, int] = {}
+    near: dict[int, int] = {}
+    far: dict[int, str] = {}
     cur_found, cur_est = found, est
     while True:
         left = [() if k in told else c for k, c in enumerate(cands)]
         spread = _spread(camera, fixture_map, blobs, cur_found, cur_est)
-        taken = {cur_found.ids[k] for k in cur_found.usable}
+        taken = set(fixed.values()) | set(told.values())
         new = told_by_pose(
             camera, cur_est.pose, fixture_map, pixels, left, taken, outlier_px, spread
         )
         if not new:
             break
-        nxt = _given(found, {**fixed, **told, **new})
-        est2, _ = solve(nxt)
-        if not est2 or int(np.sum(est2.used)) < int(np.sum(cur_est.used)):
-            break
+        where = project_points(
+            camera, cur_est.pose, [fixture_map.get(i).position for i in new.values()]
+        )
+        off = dict(zip(new, np.hypot(*(where - pixels[list(new)]).T).tolist(), strict=True))
+        add = {k: i for k, i in new.items() if off[k] <= outlier_px}
+        nxt, est2 = _given(found, {**fixed, **near, **add}), cur_est
+        if add:
+            est2, _ = solve(nxt)
+            if not est2 or int(np.sum(est2.used)) < int(np.sum(cur_est.used)):
+                break
         told.update(new)
+        near.update(add)
+        for k in set(new) - set(add):
+            far[k] = (
+                f"told by the pose from its look-alikes, {off[k]:.1f} px from where ID "
+                f"{new[k]} projects (beyond the outlier distance): not used"
+            )
         cur_found, cur_est = nxt, est2
-    return cur_found, cur_est, {k: cands[k] for k in told}
+        if not add:  # the same pose: nothing more to tell
+            break
+    ids, reasons = list(cur_found.ids), list(cur_found.reasons)
+    for k, why in far.items():
+        ids[k], reasons[k] = told[k], why
+    return _identified(ids, reasons), cur_est, {k: cands[k] for k in told}
 
 
 def _given(found: Identified, ids: dict[int, int]) -> Identified:
