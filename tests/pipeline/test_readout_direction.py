@@ -116,3 +116,75 @@ def test_swapped_pairs_in_the_map_are_read_the_way_that_fits_the_map():
             assert np.linalg.norm(res.position - pose.position) < 3e-3
         else:
             assert res.error
+
+
+def _unread(true_pixel: np.ndarray):
+    """locate's Manchester decode with the fixture at ``true_pixel`` unread both ways (as
+    one whose stripes span too little of the code)."""
+    import camvlp.pipeline.locate as locate_module
+    from camvlp.pipeline.model_decode import ModelDecode
+
+    real = locate_module.decode_manchester
+
+    def fake(profiles, readout, direction_known, camera, fixture_map):
+        man = real(profiles, readout, direction_known, camera, fixture_map)
+        assert man.other is not None  # (the stripes alone leave the direction open)
+        k = int(np.argmin([np.hypot(*(p - true_pixel)) for p in _PIXELS]))
+        nothing = ModelDecode(
+            None, "spans 0.5 frames of the code", 0.0, None, 0.0, 1.0, 0.0, 0.01, 0.01, 4.0, 0.5
+        )
+
+        def without(decodes):
+            return tuple(nothing if j == k else d for j, d in enumerate(decodes))
+
+        return dataclasses.replace(man, decodes=without(man.decodes), other=without(man.other))
+
+    return fake
+
+
+#: The blobs' pixels of the photo being located (set by :func:`_located_with_unread`).
+_PIXELS: list[np.ndarray] = []
+
+
+def _located_with_unread(monkeypatch, xz, readout: str, seed: int):
+    """The four reversal-pair lamps (0, 14, 2, 6) at ``xz``, the one of ID 6 unread: the
+    photo's fixtures, the truth and the result of locate with no readout given."""
+    import camvlp.pipeline.locate as locate_module
+
+    room = make_small_room(ids=(0, 14, 2, 6), xz=xz)
+    camera = make_small_camera()
+    pose = Pose.from_euler([0.02, 0.0, -0.03], [LOOK_UP[0] + 1.0, -1.0, 25.0])
+    photo = render(camera, room, pose, small_settings(readout=readout, seed=seed))
+    truth = {t.id: t.pixel for t in photo.fixtures}
+    real_profiles = locate_module._profiles
+
+    def profiles(img, blobs, ro):
+        _PIXELS[:] = [b.pixel for b in blobs]
+        return real_profiles(img, blobs, ro)
+
+    monkeypatch.setattr(locate_module, "_profiles", profiles)
+    monkeypatch.setattr(locate_module, "decode_manchester", _unread(truth[6]))
+    return truth, locate(photo.image, camera, room)
+
+
+@pytest.mark.parametrize(("readout", "seed"), [("rows", 21), ("columns-reversed", 22)])
+def test_the_direction_is_decided_by_an_unread_fixture(monkeypatch, readout, seed):
+    # three lamps read (either way, the IDs of the map), the fourth unread: read the right
+    # way the three and the fourth, given the ID left, fit a pose; read the wrong way no ID
+    # fits the fourth.  The IDs are reported; no position (the fourth's ID is a guess)
+    xz = ((0.7, 0.3), (-0.5, -0.4), (0.2, -0.6), (-0.3, 0.5))
+    truth, res = _located_with_unread(monkeypatch, xz, readout, seed)
+    assert res.readout == readout
+    assert not res and "at least 4 are needed" in res.reason
+    for f in res.fixtures:
+        true_id = min(truth, key=lambda i: np.hypot(*(truth[i] - f.pixel)))
+        assert f.id == (None if true_id == 6 else true_id)
+
+
+def test_an_unread_fixture_does_not_decide_a_direction_both_ways_fit(monkeypatch):
+    # the lamps half a turn apart pairwise (0 and 14, 2 and 6): read the wrong way, the IDs
+    # are those of the lamps half a turn round, and a camera turned half a turn sees them so
+    xz = ((0.7, 0.3), (-0.7, -0.3), (0.2, -0.6), (-0.2, 0.6))
+    _, res = _located_with_unread(monkeypatch, xz, "rows", 23)
+    assert not res and "undecided" in res.reason
+    assert all(f.id is None for f in res.fixtures)

@@ -363,7 +363,7 @@ def readout_direction(
         return _solve(camera, fixture_map, blobs, f, st, outlier_px, None)
 
     identified = identifier(camera, fixture_map, blobs, outlier_px, solve, 4)
-    man, kept = decided(blobs, fixture_map, man, list(man.decodes), identified)
+    man, kept = decided(blobs, fixture_map, man, list(man.decodes), identified, solve)
     return man.readout if kept.est is not None else None
 
 
@@ -457,7 +457,7 @@ def locate(
 
     needed = 4 if down is None else 2
     identified = identifier(camera, fixture_map, blobs, outlier_px, solve, needed)
-    man, kept = decided(blobs, fixture_map, man, decodes, identified)
+    man, kept = decided(blobs, fixture_map, man, decodes, identified, solve, needed)
     decodes, found, est, reason, told = kept.decodes, kept.found, kept.est, kept.reason, kept.told
     if man is not None:
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
