@@ -171,11 +171,14 @@ def test_look_alikes_are_assigned_only_from_every_way_for_the_fixtures_tried(
     assert len(_assigned(small_camera, small_room, NEXT, 0)) == 5
 
 
+_DECODE_MANCHESTER = locate_module.decode_manchester
+
+
 def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[int, int]):
     """locate's Manchester decode with the fixtures of ``true_id`` (one ID or several)
     refused between ``candidates`` (as the model fit refuses look-alikes; a dict gives each
     true ID its look-alike, the candidates then in ID order)."""
-    real = locate_module.decode_manchester
+    real = _DECODE_MANCHESTER
     refused = (true_id,) if isinstance(true_id, int) else true_id
 
     def fake(profiles, readout, direction_known, camera, fixture_map):
@@ -265,9 +268,10 @@ def test_locate_refuses_look_alikes_that_two_assignments_fit(
 _CENTRED_ON_GLOW = locate_module.centred_on_glow
 
 
-def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray):
+def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=False):
     """locate's glow centring with the blob near ``near`` moved by ``shift_px`` and its
-    centre as unsure as ``sigma_px`` says (as a glowing lamp's may be)."""
+    centre as unsure as ``sigma_px`` says (as a glowing lamp's may be); with ``border``,
+    taken as cut by the photo's border."""
     real = _CENTRED_ON_GLOW
 
     def fake(img, blobs, axis):
@@ -275,7 +279,9 @@ def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray):
         for b in real(img, blobs, axis):
             if np.hypot(*(b.pixel - near)) < 5:
                 cov = np.eye(2) * sigma_px**2
-                b = dataclasses.replace(b, pixel=b.pixel + shift_px, centre_cov_px2=cov)
+                b = dataclasses.replace(
+                    b, pixel=b.pixel + shift_px, centre_cov_px2=cov, touches_border=border
+                )
             out.append(b)
         return out
 
@@ -303,3 +309,26 @@ def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
     res = locate(small_render.image, small_camera, small_room)
     f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
     assert f.id is None and "almost equally" in f.reason
+
+
+def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_pose(
+    monkeypatch, small_camera, small_room, small_render
+):
+    # fixture 9 refused between 5 and 9 and taken as cut by the border: told by the pose of
+    # the others (no other fixture of the ceiling is centred within its disc), not used
+    nine = where(small_camera, small_room, 9)
+    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    still = np.zeros(2)
+    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(still, 1.0, nine, True))
+    res = locate(small_render.image, small_camera, small_room)
+    assert res
+    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine)) < 5)
+    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
+    assert "cut by the image border" in f.reason
+    assert sum(f.used for f in res.fixtures) == 4
+    # it seeds no joint assignment of look-alikes: the four others are one too few (a
+    # fixture beyond the seeds must confirm them)
+    ids = tuple(f.id for f in small_room.fixtures)
+    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
+    res = locate(small_render.image, small_camera, small_room)
+    assert not res and all(f.id is None for f in res.fixtures)

@@ -83,8 +83,9 @@ def with_told(
     when none is told."""
     if est is not None and est.pose is None:
         return found, est, {}
+    # (a disc cut by the border is told by a pose, never a seed of one)
     cands = [
-        getattr(d, "candidates", ()) if i is None and not b.touches_border else ()
+        getattr(d, "candidates", ()) if i is None and (est or not b.touches_border) else ()
         for b, d, i in zip(blobs, decodes, found.ids, strict=True)
     ]
     if not any(len(c) >= 2 for c in cands):
@@ -151,7 +152,7 @@ def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_
             camera, cur_est.pose, [fixture_map.get(i).position for i in new.values()]
         )
         off = dict(zip(new, np.hypot(*(where - pixels[list(new)]).T).tolist(), strict=True))
-        add = {k: i for k, i in new.items() if off[k] <= outlier_px}
+        add = {k: i for k, i in new.items() if off[k] <= outlier_px and not blobs[k].touches_border}
         nxt, est2 = _given(found, {**fixed, **near, **add}), cur_est
         if add:
             est2, _ = solve(nxt)
@@ -160,9 +161,10 @@ def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_
         told.update(new)
         near.update(add)
         for k in set(new) - set(add):
-            far[k] = (
-                f"told by the pose from its look-alikes, {off[k]:.1f} px from where ID "
-                f"{new[k]} projects (beyond the outlier distance): not used"
+            far[k] = f"told by the pose from its look-alikes, {off[k]:.1f} px from where ID " + (
+                f"{new[k]} projects; cut by the image border (its centre would be biased)"
+                if blobs[k].touches_border
+                else f"{new[k]} projects (beyond the outlier distance): not used"
             )
         cur_found, cur_est = nxt, est2
         if not add:  # the same pose: nothing more to tell
