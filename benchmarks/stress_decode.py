@@ -188,7 +188,9 @@ def one_photo(
     return photo, res, cond, dt, fmap
 
 
-def separation(profile, true_id: int, fmap: FixtureMap, rpc: float, exposure: float, blur: float):
+def separation(
+    profile, weights, true_id: int, fmap: FixtureMap, rpc: float, exposure: float, blur: float
+):
     """How well an ideal decoder that knows the photo's true chip length, exposure and blur
     could tell the true ID from the map's others on this profile.
 
@@ -204,7 +206,7 @@ def separation(profile, true_id: int, fmap: FixtureMap, rpc: float, exposure: fl
     kn = np.asarray(FIXTURE_KNEES)
     one = np.ones(kn.size)
     t = _templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
-    p, w = _prepare(profile, None)
+    p, w = _prepare(profile, weights)
     x = np.arange(p.size) / rpc * s
     phases = np.arange(t.shape[2], dtype=float)
 
@@ -218,9 +220,9 @@ def separation(profile, true_id: int, fmap: FixtureMap, rpc: float, exposure: fl
     rss, g, o, v, j = best_fit(p, it)
     xs = (x + j) % t.shape[2]
     ideal = g * np.interp(xs, np.arange(t.shape[2] + 1), np.append(t[v, it], t[v, it][0])) + o
-    r = p - ideal
+    r = ((p - ideal) * np.sqrt(w))[w > 0]  # alike in variance, as the decoder takes them
     rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))
-    var = max(rss / max(p.size - 4, 1), 1e-12) * (1 + rho) / (1 - rho)
+    var = max(rss / max(r.size - 4, 1), 1e-12) * (1 + rho) / (1 - rho)
     seps = [
         (best_fit(ideal, k)[0] / (2 * var) / np.log(10), ids[k]) for k in range(len(ids)) if k != it
     ]
@@ -295,11 +297,12 @@ def main() -> int:
                 sep = None
                 if elig and not ok and res.stages is not None:
                     prof = res.stages.profiles[k_fr]
+                    wts = res.stages.profile_weights[k_fr]
                     if str(res.readout).endswith("reversed") != cond["readout"].endswith(
                         "reversed"
                     ):
-                        prof = prof[::-1]  # the true sensor order
-                    sep = separation(prof, t.id, fmap, rpc, exposure, cond["blur"])
+                        prof, wts = prof[::-1], wts[::-1]  # the true sensor order
+                    sep = separation(prof, wts, t.id, fmap, rpc, exposure, cond["blur"])
                     ambiguous += int(sep[0] < MIN_MARGIN)
                 if (elig and not ok) or bad:
                     records.append(

@@ -196,7 +196,7 @@ def _profiles(
         [b.axes_px for b in blobs],
         [b.angle_deg for b in blobs],
     )
-    return gray_rois, extents, [p[::step] for p, _ in shaped]
+    return gray_rois, extents, [p[::step] for p, _, _ in shaped], [w[::step] for _, _, w in shaped]
 
 
 def _decode(
@@ -353,8 +353,8 @@ def readout_direction(
     """
     if fixture_map.mode == "frequency":
         return readout if any(b.stripe_contrast > 2.0 for b in blobs) else None
-    profiles = _profiles(img, blobs, readout)[2]
-    man = decode_manchester(profiles, readout, False, camera, fixture_map)
+    _, _, profiles, weights = _profiles(img, blobs, readout)
+    man = decode_manchester(profiles, readout, False, camera, fixture_map, weights)
     if man.other is None:
         found = identify(blobs, list(man.decodes), fixture_map)
         return man.readout if found.usable else None
@@ -441,14 +441,14 @@ def locate(
     if fixture_map.mode != "frequency":  # (a frequency-coded light is centred as it is measured)
         blobs = centred_on_glow(img, blobs, readout.axis)
     t1 = time.perf_counter()
-    gray_rois, extents, profiles = _profiles(img, blobs, readout)
+    gray_rois, extents, profiles, weights = _profiles(img, blobs, readout)
     man: Manchester | None = None
     if fixture_map.mode == "frequency":
         decodes, frequencies, notes, blobs = _decode(
             blobs, gray_rois, profiles, readout, camera, fixture_map
         )
     else:
-        man = decode_manchester(profiles, readout, given is not None, camera, fixture_map)
+        man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
         decodes, frequencies, notes = list(man.decodes), np.full(len(blobs), np.nan), []
     t2 = time.perf_counter()
 
@@ -490,7 +490,9 @@ def locate(
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
         notes=tuple(notes),
-        stages=LocateStages(detection, tuple(gray_rois), tuple(profiles), tuple(decodes))
+        stages=LocateStages(
+            detection, tuple(gray_rois), tuple(profiles), tuple(decodes), tuple(weights)
+        )
         if st.keep_stages
         else None,
         solver=est.solver

@@ -145,17 +145,18 @@ def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     return (ref if np.isfinite(ref) else None), kept
 
 
-def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None):
+def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weights=None):
     """The fast decodes, completed by the model fit for the fixtures they lack."""
     refused = [k for k, d in enumerate(fast) if d is None]
     if not refused:
         return list(fast), None
     sub = [profiles[k] for k in refused]
+    sub_w = None if weights is None else [weights[k] for k in refused]
     try:  # the photo-wide parameters from every fixture, seeded by the chip length
-        model, _ = estimate_photo_model(profiles, frame, ids, rows_per_chip=t)
-        photo = decode_photo(sub, frame, ids, model=model)
+        model, _ = estimate_photo_model(profiles, frame, ids, weights=weights, rows_per_chip=t)
+        photo = decode_photo(sub, frame, ids, weights=sub_w, model=model)
     except ValueError:
-        photo = decode_photo(sub, frame, ids, rows_per_chip=t)
+        photo = decode_photo(sub, frame, ids, weights=sub_w, rows_per_chip=t)
     out = list(fast)
     for k, d in zip(refused, photo.decodes, strict=True):
         out[k] = d
@@ -163,14 +164,21 @@ def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None):
 
 
 def _one_way(
-    profiles, fast, frame: FrameFormat, ids, seed: float | None, fallback, readout: Readout
+    profiles,
+    fast,
+    frame: FrameFormat,
+    ids,
+    seed: float | None,
+    fallback,
+    readout: Readout,
+    weights=None,
 ) -> Manchester:
     """The decode of one readout direction taken as known: its run-length decodes ``fast``
     whose chip lengths agree (with ``seed`` or each other), the model fit for the rest, seeded
     by that chip length, else ``seed``, else ``fallback`` (rows)."""
     t, (kept,) = _agreeing([fast], seed)
     t = t or seed or fallback
-    decodes, model = _with_model(profiles, kept, frame, ids, t)
+    decodes, model = _with_model(profiles, kept, frame, ids, t, weights)
     return _manchester(decodes, readout, model, t)
 
 
@@ -205,7 +213,9 @@ def _direction_votes(a: PhotoDecode, b: PhotoDecode, rev: np.ndarray) -> tuple[i
     return for_a, for_b
 
 
-def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed) -> Manchester:
+def _model_directions(
+    profiles, readout: Readout, frame: FrameFormat, ids, seed, weights=None
+) -> Manchester:
     """Model-based decode of every profile both ways (see the module's docstring).
 
     The profiles are decoded both ways (first with one way's parameters, refitted if that
@@ -213,8 +223,9 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
     when two or more fixtures fit a frame clearly better read that way and none the other
     way (:func:`_direction_votes`); otherwise both are kept for the pose to decide.
     """
-    fwd = decode_photo(profiles, frame, ids, rows_per_chip=seed)
+    fwd = decode_photo(profiles, frame, ids, weights=weights, rows_per_chip=seed)
     backwards = [p[::-1] for p in profiles]
+    bw = None if weights is None else [w[::-1] for w in weights]
     rev = _reversed_ids(frame)
     flipped = Readout.of(readout.axis, not readout.reversed)
 
@@ -230,16 +241,16 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
         return Manchester(p.decodes, r, p.model.rows_per_chip, p.model)
 
     # the parameters do not depend on the direction: first try the other way with them
-    back = decode_photo(backwards, frame, ids, model=fwd.model)
+    back = decode_photo(backwards, frame, ids, weights=bw, model=fwd.model)
     if better(fwd, back):
         return done(fwd, readout)
     # refitted, from this way's chip length (it does not depend on the direction either);
     # the two directions are then compared under the same parameters, those that fit best
     # either way (fits under two different estimates would compare the estimates)
     t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
-    back2 = decode_photo(backwards, frame, ids, rows_per_chip=t_fwd)
+    back2 = decode_photo(backwards, frame, ids, weights=bw, rows_per_chip=t_fwd)
     if back2.fit_cost < min(fwd.fit_cost, back.fit_cost):
-        fwd, back = decode_photo(profiles, frame, ids, model=back2.model), back2
+        fwd, back = decode_photo(profiles, frame, ids, weights=weights, model=back2.model), back2
     if better(fwd, back):
         return done(fwd, readout)
     if better(back, fwd):
@@ -251,7 +262,12 @@ def _model_directions(profiles, readout: Readout, frame: FrameFormat, ids, seed)
 
 
 def decode_manchester(
-    profiles, readout: Readout, direction_known: bool, camera: Camera, fixture_map: FixtureMap
+    profiles,
+    readout: Readout,
+    direction_known: bool,
+    camera: Camera,
+    fixture_map: FixtureMap,
+    weights=None,
 ) -> Manchester:
     """Decode every profile: the run-length decoder's sure IDs, the model fit for the rest.
 
@@ -267,6 +283,9 @@ def decode_manchester(
         Its row time (with the map's chip rate) seeds the chip length.
     fixture_map : FixtureMap
         The map's frame format and IDs.
+    weights : list of ndarray, each shape (n_k,), optional
+        Each profile's row weights for the model fit (the inverse of each row's variance,
+        up to a constant per profile); None weighs every row alike.
 
     Returns
     -------
@@ -280,9 +299,10 @@ def decode_manchester(
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
     fwd, lengths = _fast(profiles, frame, map_ids)
     if direction_known:
-        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout)
+        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout, weights)
     fast_f = fwd  # (fwd is narrowed below to the chip lengths both ways agree on)
     backwards = [p[::-1] for p in profiles]
+    bw = None if weights is None else [w[::-1] for w in weights]
     flipped = Readout.of(readout.axis, not readout.reversed)
     # read backwards, the chips of an ID read forwards with none in error are that ID's frame
     # reversed: a frame (rev[id], which does not say the direction) or none
@@ -293,20 +313,20 @@ def decode_manchester(
     firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
     firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
     if firm_f >= 2 and firm_b == 0:
-        decodes, model = _with_model(profiles, fwd, frame, ids, t)
+        decodes, model = _with_model(profiles, fwd, frame, ids, t, weights)
         return _manchester(decodes, readout, model, t)
     if firm_b >= 2 and firm_f == 0:
-        decodes, model = _with_model(backwards, bwd, frame, ids, t)
+        decodes, model = _with_model(backwards, bwd, frame, ids, t, bw)
         return _manchester(decodes, flipped, model, t)
-    man = _model_directions(profiles, readout, frame, ids, t)
+    man = _model_directions(profiles, readout, frame, ids, t, weights)
     if man.other is None:
         return man
     # the stripes do not say the direction: each is read as if it were known (its sure
     # run-length IDs, the model fitted to it for the rest), and the pose decides.  Parameters
     # fitted one way can blur the other way's IDs into look-alikes
-    one = _one_way(profiles, fast_f, frame, ids, seed, man.rows_per_chip, readout)
+    one = _one_way(profiles, fast_f, frame, ids, seed, man.rows_per_chip, readout, weights)
     bwd_all = _fast(backwards, frame, map_ids)[0]
-    other = _one_way(backwards, bwd_all, frame, ids, seed, man.rows_per_chip, flipped)
+    other = _one_way(backwards, bwd_all, frame, ids, seed, man.rows_per_chip, flipped, bw)
     return Manchester(
         one.decodes, readout, one.rows_per_chip, one.model, other.decodes, other.model
     )

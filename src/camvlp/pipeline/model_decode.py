@@ -266,12 +266,14 @@ def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, s
 
 def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, float, int]:
     """The best fit's own weighted residual sum of squares, the noise variance it implies, the
-    variance inflation of its correlated residuals (AR(1)) and its degrees of freedom."""
+    variance inflation of its correlated residuals (AR(1), of the residuals each scaled by
+    the square root of its row's weight, which makes them alike in variance) and its degrees
+    of freedom."""
     wn = w > 0
     rss1 = float(np.sum(w * resid * resid))  # the best fit's own residual, not the parabola's
     dof = max(int(wn.sum()) - 4, 1)
     sigma2 = max(rss1 / dof, 1e-12 * max(fit.tss / max(fit.n, 1), 1e-300))
-    r = resid[wn]
+    r = (resid * np.sqrt(w))[wn]
     rho = 0.0
     if r.size > 3:
         rho = float(np.clip(np.dot(r[1:], r[:-1]) / max(np.dot(r, r), 1e-300), 0.0, 0.95))

@@ -64,12 +64,19 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
 
 def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int]:
     """:func:`row_profile` of a mask already trimmed (uint8 0/1)."""
+    prof, first, _ = _mean_profile_weighted(gray, m, axis)
+    return prof, first
+
+
+def _mean_profile_weighted(gray: np.ndarray, m: np.ndarray, axis: str):
+    """:func:`_mean_profile` and each line's weight (its pixels: a mean of ``c`` pixels of
+    equal noise has ``1 / c`` of their variance)."""
     dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
     counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
-        return np.zeros(0), 0
+        return np.zeros(0), 0, np.zeros(0)
     first, last = int(rows[0]), int(rows[-1]) + 1
     c = counts[first:last].astype(np.float64)
     if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
@@ -81,7 +88,7 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
-    return _filled(prof), first
+    return _filled(prof), first, c
 
 
 #: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
@@ -224,17 +231,19 @@ def shape_profile(
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    return shape_profiles([gray], [mask], axis, [centre], [axes], [angle_deg])[0]
+    return shape_profiles([gray], [mask], axis, [centre], [axes], [angle_deg])[0][:2]
 
 
 def shape_profiles(
     grays: list, masks: list, axis: str, centres: list, axes: list, angles: list
-) -> list[tuple[np.ndarray, int]]:
+) -> list[tuple[np.ndarray, int, np.ndarray]]:
     """:func:`shape_profile` of several lights (one entry each in every list): whether each
-    light is flat is told for all of them at once."""
+    light is flat is told for all of them at once.  Each entry also gives its lines'
+    weights (shape (n,)): the inverse of their variance under pixels of equal noise, up to
+    a constant, 0 for a line without pixels."""
     trimmed = [_trimmed(m) for m in masks]
     counts = [cv2.countNonZero(m) for m in trimmed]
-    out: list[tuple[np.ndarray, int]] = [(np.zeros(0), 0)] * len(masks)
+    out: list[tuple[np.ndarray, int, np.ndarray]] = [(np.zeros(0), 0, np.zeros(0))] * len(masks)
     live = [k for k, n in enumerate(counts) if n]
     if not live:
         return out
@@ -247,7 +256,7 @@ def shape_profiles(
     )
     for k, (middle, level) in zip(live, envelopes, strict=True):
         if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
-            out[k] = _mean_profile(grays[k], trimmed[k], axis)
+            out[k] = _mean_profile_weighted(grays[k], trimmed[k], axis)
         else:
             out[k] = _shaped(
                 grays[k],
@@ -280,7 +289,7 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     counts = np.bincount(line)
     rows = np.flatnonzero(counts >= 2)
     if rows.size == 0:
-        return np.zeros(0), 0
+        return np.zeros(0), 0, np.zeros(0)
     first, last = int(rows[0]), int(rows[-1]) + 1
     num = np.bincount(line, weights=values, minlength=last)[first:last]
     den = np.bincount(line, weights=level, minlength=last)[first:last]
@@ -289,7 +298,9 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     calm = np.flatnonzero(noise <= _NOISIEST_END * np.nanmedian(noise))
     a, b = (int(calm[0]), int(calm[-1]) + 1) if calm.size >= 2 else (0, den.size)
     prof = num[a:b] / den[a:b] * float(level.max())  # between the calm end lines
-    return _filled(prof), first + a
+    # a line's weight: 1 / its variance, (on-levels' sum)^2 / pixels up to a constant
+    weight = np.nan_to_num(1.0 / np.square(noise[a:b]), nan=0.0, posinf=0.0)
+    return _filled(prof), first + a, weight
 
 
 def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:

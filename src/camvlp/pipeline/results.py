@@ -233,9 +233,14 @@ class LocateStages:
         Each blob's row profile, in the order the sensor read it.
     decodes : tuple of ModelDecode or StripeDecode
         Each blob's decode (the model fit's in Manchester mode).
+    profile_weights : tuple of ndarray, each (n,)
+        Each profile's row weights, in the same order: the inverse of each row's variance
+        under pixels of equal noise, up to a constant
+        (:func:`~camvlp.pipeline.profile.shape_profiles`).
     """
 
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
     profiles: tuple[np.ndarray, ...]
     decodes: tuple[ModelDecode | StripeDecode, ...]
+    profile_weights: tuple[np.ndarray, ...] = ()

@@ -205,7 +205,7 @@ class Tracker:
     def _decode(self, img, blobs, readout, skip: set[int]):
         todo = [k for k in range(len(blobs)) if k not in skip]
         sub = [blobs[k] for k in todo]
-        gray_rois, _, profiles = _profiles(img, sub, readout)
+        gray_rois, _, profiles, _ = _profiles(img, sub, readout)
         carry = self.settings.carry_chip_length and self.map.mode != "frequency"
         if carry and len(self._chip_rows) >= 3:
             rpc = float(np.median(self._chip_rows[-50:]))
