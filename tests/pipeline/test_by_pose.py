@@ -181,8 +181,8 @@ def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[
     real = _DECODE_MANCHESTER
     refused = (true_id,) if isinstance(true_id, int) else true_id
 
-    def fake(profiles, readout, direction_known, camera, fixture_map):
-        man = real(profiles, readout, direction_known, camera, fixture_map)
+    def fake(profiles, readout, direction_known, camera, fixture_map, *weights):
+        man = real(profiles, readout, direction_known, camera, fixture_map, *weights)
         decodes = list(man.decodes)
         for t in refused:
             k = [d.id for d in decodes].index(t)
