@@ -126,8 +126,8 @@ def _unread(true_pixel: np.ndarray):
 
     real = locate_module.decode_manchester
 
-    def fake(profiles, readout, direction_known, camera, fixture_map):
-        man = real(profiles, readout, direction_known, camera, fixture_map)
+    def fake(profiles, readout, direction_known, camera, fixture_map, *weights):
+        man = real(profiles, readout, direction_known, camera, fixture_map, *weights)
         assert man.other is not None  # (the stripes alone leave the direction open)
         k = int(np.argmin([np.hypot(*(p - true_pixel)) for p in _PIXELS]))
         nothing = ModelDecode(
