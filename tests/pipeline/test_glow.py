@@ -229,3 +229,68 @@ def test_a_lamp_whose_disc_the_border_cuts_stays_set_aside(gap):
     assert blob.touches_border
     (moved,) = centred_on_glow(photo.image, [blob], "rows")
     assert moved.touches_border
+
+
+def _two_lamps(apart_radii: float, seed: int):
+    """Two lamps of radius 40 px, ``apart_radii`` radii apart on a slant, their glows
+    clipping about their rims (halo 0.33 at 2.9 times full scale, the LED fully off in its
+    dark chips); the photo."""
+    f, r = CAM.matrix[0, 0], 40.0
+    d = apart_radii * r * np.array([np.cos(0.45), np.sin(0.45)])
+    fixtures = []
+    for i, (u, v) in enumerate(
+        (np.array([320.0, 240.0]) - 0.5 * d, np.array([320.0, 240.0]) + 0.5 * d)
+    ):
+        ray = CAM.undistort_pixels(np.array([[u, v]]))[0]
+        fixtures.append(
+            Fixture(i, np.array([ray[0], ray[1], 1.0]) * 2.0, 4.0 * r / f, np.array([0, 0, -1.0]))
+        )
+    settings = RenderSettings(
+        seed=seed,
+        chip_rate_hz=5000.0,
+        exposure_s=0.3 / 5000.0,
+        halo=0.33,
+        brightness=2.9,
+        off_level=0.003,
+    )
+    return render(CAM, FixtureMap(tuple(fixtures)), Pose(np.eye(3), np.zeros(3)), settings)
+
+
+def _grown(blob, img: np.ndarray, by: int):
+    """The blob with its region of interest grown by ``by`` px on every side, as a decimated
+    search's padding makes it (its mask padded, its gray levels taken again)."""
+    x0, y0, x1, y1 = blob.box
+    h, w = img.shape[:2]
+    box = (max(0, x0 - by), max(0, y0 - by), min(w, x1 + by), min(h, y1 + by))
+    mask = np.zeros((box[3] - box[1], box[2] - box[0]), bool)
+    mask[y0 - box[1] : y1 - box[1], x0 - box[0] : x1 - box[0]] = blob.mask
+    return dataclasses.replace(blob, box=box, mask=mask, gray=None)
+
+
+def test_a_light_whose_region_holds_a_neighbours_glow_is_centred_on_its_own_shape():
+    # two lamps whose regions stay apart, each region of interest grown over the other's
+    # glow and rim: each is fitted within its own cell of the two (the whole region drew
+    # the fit 0.3 to 15 px towards or away from the other)
+    errors = []
+    for seed in range(4):
+        photo = _two_lamps(4.6, seed)
+        blobs = detect_fixtures(photo.image, readout="rows").blobs
+        assert len(blobs) == 2 and all(b.cell is None for b in blobs)
+        moved = centred_on_glow(photo.image, [_grown(b, photo.image, 50) for b in blobs], "rows")
+        errors += list(_centre_errors(photo, moved))
+    assert np.max(errors) < 0.2
+
+
+def test_lights_whose_regions_join_are_centred_whatever_their_outlines_glow_level(monkeypatch):
+    # lamps whose glows join into one region: each outline, cut by its cell and pulled by the
+    # other's glow, is 1 to 3 px off; the glow test measured on such an outline may find no
+    # glow (its ring and background on the other light), and they are centred all the same
+    import camvlp.pipeline.glow as glow
+
+    photo = _two_lamps(3.6, 3)
+    blobs = detect_fixtures(photo.image, readout="rows").blobs
+    assert len(blobs) == 2 and all(b.cell is not None and not b.face for b in blobs)
+    monkeypatch.setattr(glow, "glow_levels", lambda img, bs: np.full(len(bs), -0.06))
+    before = _centre_errors(photo, blobs)
+    after = _centre_errors(photo, centred_on_glow(photo.image, blobs, "rows"))
+    assert np.max(after) < 0.4 < 1.0 < np.min(before)

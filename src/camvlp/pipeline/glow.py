@@ -26,6 +26,7 @@ import numpy as np
 
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.radial import radial_fit
+from camvlp.pipeline.touching import power_cell
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
@@ -147,7 +148,11 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     which : array_like of bool, shape (len(blobs),), optional
         The blobs to centre, when already told (e.g. once per light along a video); None:
         those whose :func:`glow_levels` is at least :data:`GLOW_LEVEL`, those touching the
-        border included (measured on a round outline, see :func:`_round`).
+        border included (measured on a round outline, see :func:`_round`), and those whose
+        region joined other lights' (:attr:`Blob.cell`) and whose disc is not their face
+        (:attr:`Blob.face`): light joins theirs, and their outline, cut by their cell and
+        pulled by the others' glow, says neither where they are nor whether they glow (its
+        ring and background fall on the other lights).
 
     Returns
     -------
@@ -158,11 +163,38 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     """
     if which is None:
         levels = glow_levels(img, [_round(b) for b in blobs])
-        which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
+        joined = np.array([b.cell is not None and not b.face for b in blobs], dtype=bool)
+        which = (np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL) | joined
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
-    return [_centred(img, b, axis) if w else b for b, w in zip(blobs, which, strict=True)]
+    return [
+        _centred(img, b, axis, _own_cell(blobs, k)) if w else b
+        for k, (b, w) in enumerate(zip(blobs, which, strict=True))
+    ]
+
+
+def _own_cell(blobs, k: int) -> np.ndarray | None:
+    """The part of light ``k``'s region of interest that is its own among the photo's other
+    lights whose regions overlap it: its cell of their power diagram (each light its outline's
+    centre and half its smaller axis, :func:`~camvlp.pipeline.touching.power_cell`); None
+    when no other light's region overlaps its own, or when it has a cell from detection
+    (:attr:`Blob.cell`, drawn from its joined region's shape, which its outline is not).  A
+    glow reaches further than the region the detection gave its light, so a light's region
+    may hold a neighbour's disc or its brightest glow, which the radial shape must not be
+    fitted to."""
+    if blobs[k].cell is not None:
+        return None
+    x0, y0, x1, y1 = blobs[k].box
+    near = [
+        j
+        for j, o in enumerate(blobs)
+        if j == k or (o.box[0] < x1 and x0 < o.box[2] and o.box[1] < y1 and y0 < o.box[3])
+    ]
+    if len(near) < 2:
+        return None
+    seeds = np.array([(*blobs[j].pixel, 0.5 * float(np.min(blobs[j].axes_px))) for j in near])
+    return power_cell(blobs[k].box, seeds, near.index(k))
 
 
 def _round(b: Blob) -> Blob:
@@ -174,8 +206,9 @@ def _round(b: Blob) -> Blob:
     return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
-def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
-    """The blob moved to the centre of its radial shape (as detected when that fails).
+def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None) -> Blob:
+    """The blob moved to the centre of its radial shape (as detected when that fails), fitted
+    within ``cell`` (bool, its region's shape) when given, else its :attr:`Blob.cell`.
 
     A blob whose region reaches the photo's border is searched for from further off (its
     outline is pulled away from the border where the border cuts its glow), then moved, and
@@ -188,7 +221,7 @@ def _centred(img: np.ndarray, b: Blob, axis: str) -> Blob:
     x0, y0, x1, y1 = b.box
     height, width = img.shape[:2]
     gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
-    support = light_support(gray, b.mask, axis, cell=b.cell)
+    support = light_support(gray, b.mask, axis, cell=b.cell if cell is None else cell)
     r = _round(b)
     ellipse = ((r.pixel[0] - x0, r.pixel[1] - y0), tuple(r.axes_px), r.angle_deg)
     far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
