@@ -103,6 +103,10 @@ _FLAT = 0.05
 #: on-level is at the clipping level) are more than this fraction of the pixels of the lines
 #: they span: most of them.
 _FACE = 0.5
+#: ... and when, in the lines where they do not reach full scale, they read at least this many
+#: times the on-fraction that the light's other pixels of those lines read: their on-level is
+#: twice full scale or more, so that a dark chip leaves them a dip under half as deep.
+_OWN_RESPONSE = 2.0
 
 #: A shaped profile's first and last lines are dropped while their noise is more than this
 #: many times the median line's: a line's value is its pixels' sum divided by their on-levels'
@@ -281,9 +285,10 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
         ((middle, level),) = _radial_envelopes([gray[ys, xs]], [rho])
     ((ys, xs, rho),) = _radii([m], [1], [centre], [axes], [angle_deg])
     values = gray[ys, xs]
+    rings = middle[level < _CLIP]  # the rings that do not clip
     level = np.maximum(np.interp(rho, middle, level), 1.0)
     line = ys if axis != "columns" else xs
-    face = _clipped_face(level, line)
+    face = _clipped_face(level, line, values, rho, rings)
     if face is not None:
         values, level, line = values[face], level[face], line[face]
     counts = np.bincount(line)
@@ -303,7 +308,9 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     return _filled(prof), first + a, weight
 
 
-def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
+def _clipped_face(
+    level: np.ndarray, line: np.ndarray, values: np.ndarray, rho: np.ndarray, rings: np.ndarray
+) -> np.ndarray | None:
     """The pixels of a light whose face clips, or None when it does not.
 
     A pixel of on-level ``L`` reads ``min(L * s, full scale)`` for an on-fraction ``s``: where
@@ -313,10 +320,11 @@ def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
     stripes through two responses, which no single saturation knee describes (the model's
     fit leaves half of such a profile unexplained).  When most pixels of the lines the
     clipped pixels span are clipped ones (:data:`_FACE`: the face clips, not only a hot core
-    at its centre), the profile is taken over the clipped pixels alone, all read through the
-    disc's own knee; else over all of them, as a light that clips at its core only is mostly
-    read unclipped.  A light whose brightest ring does not reach the sensor's full scale
-    (:data:`~camvlp.pipeline.light_wave._FULL`) does not clip at all.
+    at its centre) and they read the stripes through a response of their own
+    (:func:`_own_response`), the profile is taken over the clipped pixels alone, all read
+    through the disc's own knee; else over all of them, as a light that clips at its core
+    only, or barely, is read as one.  A light whose brightest ring does not reach the
+    sensor's full scale (:data:`~camvlp.pipeline.light_wave._FULL`) does not clip at all.
 
     Parameters
     ----------
@@ -325,6 +333,13 @@ def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
         :data:`~camvlp.pipeline.light_wave._CLIP` or more counts as clipped.
     line : ndarray of int, shape (n,)
         Each pixel's line along the readout.
+    values : ndarray, shape (n,)
+        Each pixel's gray level.
+    rho : ndarray, shape (n,)
+        Each pixel's radius (in its outline's radii).
+    rings : ndarray, shape (k,)
+        The radii of the envelope's rings that do not clip, ascending (each pixel's on-level
+        is interpolated between the two rings about it).
 
     Returns
     -------
@@ -336,4 +351,39 @@ def _clipped_face(level: np.ndarray, line: np.ndarray) -> np.ndarray | None:
     clipped = level >= _CLIP
     lines = line[clipped]
     span = (line >= lines.min()) & (line <= lines.max())
-    return clipped if np.count_nonzero(clipped) > _FACE * np.count_nonzero(span) else None
+    if np.count_nonzero(clipped) <= _FACE * np.count_nonzero(span):
+        return None
+    # the others: beyond the clipped pixels' rings (whose on-levels are their own ring's,
+    # not drawn from a clipped one's)
+    beyond = rings[rings > rho[clipped].max()]
+    other = span & ~clipped & (rho >= (beyond[0] if beyond.size else np.inf))
+    return clipped if _own_response(level, line, values, clipped, other) else None
+
+
+def _own_response(level, line, values, clipped, other) -> bool:
+    """Whether a light's clipped pixels read the stripes through a response of their own
+    (:data:`_OWN_RESPONSE`), each array (n,) as in :func:`_clipped_face` (``clipped``: the
+    clipped pixels, ``other``: the unclipped ones of the lines they span, beyond them).
+
+    In a line whose clipped pixels all read under full scale (a dark chip's), a pixel of
+    on-level ``L`` reads ``L * s``, the light's other pixels of the line ``s`` times their
+    on-levels: the clipped ones' reading over their on-level (full scale: their true on-level
+    is not seen) over the others' gives how many times full scale the clipped pixels' true
+    on-level is (a least-squares ratio over such lines, three pixels of each kind at least).
+    True when it is :data:`_OWN_RESPONSE` or more, or when no line tells (the face clips
+    wherever the light has other pixels).
+    """
+    n = int(line.max()) + 1
+
+    def per_line(pick: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return np.bincount(line[pick], weights=w[pick], minlength=n)
+
+    ones = np.ones(line.size)
+    top = np.zeros(n)
+    np.maximum.at(top, line[clipped], values[clipped])
+    told = (per_line(clipped, ones) >= 3) & (per_line(other, ones) >= 3) & (top < _CLIP)
+    if not told.any():
+        return True
+    c = per_line(clipped, values)[told] / per_line(clipped, level)[told]
+    u = per_line(other, values)[told] / per_line(other, level)[told]
+    return float(np.dot(c, u)) >= _OWN_RESPONSE * float(np.dot(u, u))
