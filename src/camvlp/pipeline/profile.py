@@ -379,8 +379,8 @@ def _own_response(level, line, values, clipped, other) -> bool:
         return np.bincount(line[pick], weights=w[pick], minlength=n)
 
     ones = np.ones(line.size)
-    full = per_line(clipped & (values >= _CLIP), ones) == 0  # no clipped pixel at full scale
-    told = (per_line(clipped, ones) >= 3) & (per_line(other, ones) >= 3) & full
+    under = per_line(clipped & (values >= _CLIP), ones) == 0  # no clipped pixel at full scale
+    told = (per_line(clipped, ones) >= 3) & (per_line(other, ones) >= 3) & under
     if not told.any():
         return True
     c = per_line(clipped, values)[told] / per_line(clipped, level)[told]
