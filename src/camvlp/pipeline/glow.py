@@ -177,12 +177,13 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 def _own_cell(blobs, k: int) -> np.ndarray | None:
     """The part of light ``k``'s region of interest that is its own among the photo's other
     lights whose regions overlap it: its cell of their power diagram (each light its outline's
-    centre and half its smaller axis, :func:`~camvlp.pipeline.touching.power_cell`); None
-    when no other light's region overlaps its own, or when it has a cell from detection
-    (:attr:`Blob.cell`, drawn from its joined region's shape, which its outline is not).  A
-    glow reaches further than the region the detection gave its light, so a light's region
-    may hold a neighbour's disc or its brightest glow, which the radial shape must not be
-    fitted to."""
+    centre and half its smaller axis, :func:`~camvlp.pipeline.touching.power_cell`) and its
+    own disc (:attr:`Blob.mask`: lit in a region of its own, whatever an outline that is off
+    puts in another's cell); None when no other light's region overlaps its own, or when it
+    has a cell from detection (:attr:`Blob.cell`, drawn from its joined region's shape, which
+    its outline is not).  A glow reaches further than the region the detection gave its
+    light, so a light's region may hold a neighbour's disc or its brightest glow, which the
+    radial shape must not be fitted to."""
     if blobs[k].cell is not None:
         return None
     x0, y0, x1, y1 = blobs[k].box
@@ -194,7 +195,7 @@ def _own_cell(blobs, k: int) -> np.ndarray | None:
     if len(near) < 2:
         return None
     seeds = np.array([(*blobs[j].pixel, 0.5 * float(np.min(blobs[j].axes_px))) for j in near])
-    return power_cell(blobs[k].box, seeds, near.index(k))
+    return power_cell(blobs[k].box, seeds, near.index(k)) | blobs[k].mask
 
 
 def _round(b: Blob) -> Blob:
