@@ -148,11 +148,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     which : array_like of bool, shape (len(blobs),), optional
         The blobs to centre, when already told (e.g. once per light along a video); None:
         those whose :func:`glow_levels` is at least :data:`GLOW_LEVEL`, those touching the
-        border included (measured on a round outline, see :func:`_round`), and those whose
-        region joined other lights' (:attr:`Blob.cell`) and whose disc is not their face
-        (:attr:`Blob.face`): light joins theirs, and their outline, cut by their cell and
-        pulled by the others' glow, says neither where they are nor whether they glow (its
-        ring and background fall on the other lights).
+        border included (measured on a round outline, see :func:`_round`).
 
     Returns
     -------
@@ -163,8 +159,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     """
     if which is None:
         levels = glow_levels(img, [_round(b) for b in blobs])
-        joined = np.array([b.cell is not None and not b.face for b in blobs], dtype=bool)
-        which = (np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL) | joined
+        which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
