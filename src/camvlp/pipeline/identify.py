@@ -94,7 +94,7 @@ def with_told(
     fixed = {k: found.ids[k] for k in found.usable}
     if est is not None:
         return _told_round_by_round(
-            camera, fixture_map, blobs, found, est, cands, outlier_px, solve
+            camera, fixture_map, blobs, pixels, fixed, found, est, cands, outlier_px, solve
         )
 
     def pose_of(assigned: dict[int, int]):
@@ -124,7 +124,9 @@ def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, e
     )
 
 
-def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_px, solve):
+def _told_round_by_round(
+    camera, fixture_map, blobs, pixels, fixed, found, est, cands, outlier_px, solve
+):
     """Look-alikes told by the pose of the identified fixtures (:func:`with_told`), the pose
     solved again with those told and the others told by it, until none is left to tell.
 
@@ -132,9 +134,8 @@ def _told_round_by_round(camera, fixture_map, blobs, found, est, cands, outlier_
     fixture told whose centre lies beyond the pose's outlier distance from where its ID
     projects (a glowing lamp's centre may be tens of pixels off) keeps its ID, left out of
     the pose with that reason (within its tolerance, see
-    :func:`~camvlp.pipeline.by_pose.told_by_pose`, it would otherwise pull the pose)."""
-    pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
-    fixed = {k: found.ids[k] for k in found.usable}
+    :func:`~camvlp.pipeline.by_pose.told_by_pose`, it would otherwise pull the pose).
+    ``pixels`` (n, 2) are the blobs' centres, ``fixed`` the identified fixtures (index -> ID)."""
     told: dict[int, int] = {}
     near: dict[int, int] = {}
     far: dict[int, str] = {}

@@ -59,18 +59,12 @@ def row_profile(gray: np.ndarray, mask: np.ndarray, axis: str = "rows") -> tuple
     first : int
         Index, in the region of interest, of the first row of the profile.
     """
-    return _mean_profile(gray, _trimmed(mask), axis)
+    return _mean_profile(gray, _trimmed(mask), axis)[:2]
 
 
-def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int]:
-    """:func:`row_profile` of a mask already trimmed (uint8 0/1)."""
-    prof, first, _ = _mean_profile_weighted(gray, m, axis)
-    return prof, first
-
-
-def _mean_profile_weighted(gray: np.ndarray, m: np.ndarray, axis: str):
-    """:func:`_mean_profile` and each line's weight (its pixels: a mean of ``c`` pixels of
-    equal noise has ``1 / c`` of their variance)."""
+def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarray, int, np.ndarray]:
+    """:func:`row_profile` of a mask already trimmed (uint8 0/1), and each line's weight (its
+    pixels: a mean of ``c`` pixels of equal noise has ``1 / c`` of their variance)."""
     dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
     counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
@@ -260,7 +254,7 @@ def shape_profiles(
     )
     for k, (middle, level) in zip(live, envelopes, strict=True):
         if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
-            out[k] = _mean_profile_weighted(grays[k], trimmed[k], axis)
+            out[k] = _mean_profile(grays[k], trimmed[k], axis)
         else:
             out[k] = _shaped(
                 grays[k],
