@@ -279,3 +279,51 @@ def test_a_light_whose_region_holds_a_neighbours_glow_is_centred_on_its_own_shap
         moved = centred_on_glow(photo.image, [_grown(b, photo.image, 50) for b in blobs], "rows")
         errors += list(_centre_errors(photo, moved))
     assert np.max(errors) < 0.2
+
+
+#: Six lamps of a 1080p photo at an exposure of a whole chip (a drawn scene of
+#: ``benchmarks/stress_decode.py``): ``(id, x, y, diameter)``, metres, 2 m above the camera.
+_SIX = (
+    (0, -0.2900929, 0.46426791, 0.2630701518044549),
+    (2, 0.75069164, -0.56201829, 0.2951784809711555),
+    (14, -0.63758367, 0.01534708, 0.3899603020015486),
+    (10, 0.65054525, -0.03412685, 0.3423608015779199),
+    (6, 0.26788705, -0.1686601, 0.21828197262226703),
+    (4, 0.66191538, 0.38198573, 0.1975911404044686),
+)
+
+
+CHIP_RATE = 1e5 / 9  # Hz: 6 rows of 15 us per chip
+
+
+@pytest.mark.parametrize("seed", [745061531, 4])
+def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
+    # lamp 6's radial fit ran 98 and 73 px off (onto lamp 10's glow, a rim of 240 px
+    # where the outline is 210 px across): a disc wider than its light's outline, or
+    # reaching beyond it, is another feature's, and the outline's centre (3 px off) stays
+    cam = Camera.from_focal(1920, 1080, 1400.0, row_time_s=1.5e-5)
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0])) for i, x, y, d in _SIX
+        ),
+        chip_rate_hz=CHIP_RATE,
+    )
+    settings = RenderSettings(
+        chip_rate_hz=CHIP_RATE,
+        exposure_s=1.0 / CHIP_RATE,  # a whole chip
+        brightness=4.455268144677289,
+        off_level=0.004029935574773636,
+        halo=0.13713920018937598,
+        blur_px=1.3419953248473957,
+        readout="rows",
+        seed=seed,
+    )
+    photo = render(cam, room, Pose(np.eye(3), np.zeros(3)), settings)
+    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, 90])
+    image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    blobs = detect_fixtures(image).blobs
+    truth = next(f.pixel for f in photo.fixtures if f.id == 6)
+    k = int(np.argmin([np.hypot(*(b.pixel - truth)) for b in blobs]))
+    assert np.hypot(*(blobs[k].pixel - truth)) < 5.0
+    moved = centred_on_glow(image, blobs, "rows")
+    assert np.hypot(*(moved[k].pixel - truth)) < 5.0

@@ -202,9 +202,33 @@ def _round(b: Blob) -> Blob:
     return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
+#: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
+#: found to a pixel or two (:func:`~camvlp.pipeline.radial.radial_fit`).
+_OUTLINE_SLACK_PX = 3.0
+
+
+def _within_outline(b: Blob, centre: np.ndarray, rim: np.ndarray) -> bool:
+    """Whether a disc fitted at ``centre`` (photo pixels, shape (2,)) with rim half-extents
+    ``rim`` (pixels, shape (2,), NaN when not found) can lie within the light's outline
+    ellipse (:attr:`Blob.pixel`, :attr:`Blob.axes_px`), up to :data:`_OUTLINE_SLACK_PX`.
+
+    The outline is drawn around the lit pixels, the disc and whatever glow is bright enough,
+    bridged across the dark stripes: the disc lies within it.  So the disc's farthest point
+    from the outline's centre (the centre's offset plus the rim) is no farther than the
+    outline's larger semi-axis; a fit that ran off to a neighbour's glow, or took a
+    neighbour's disc for its rim, is not."""
+    offset = float(np.hypot(*(np.asarray(centre, dtype=float) - b.pixel)))
+    r = float(np.max(rim)) if np.all(np.isfinite(rim)) else 0.0
+    return offset + r <= 0.5 * float(np.max(b.axes_px)) + _OUTLINE_SLACK_PX
+
+
 def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None) -> Blob:
     """The blob moved to the centre of its radial shape (as detected when that fails), fitted
     within ``cell`` (bool, its region's shape) when given, else its :attr:`Blob.cell`.
+
+    The fit fails when its centre is off the light's disc (:attr:`Blob.mask`), or when the
+    disc it found would not lie within the light's outline (:func:`_within_outline`): a fit
+    drawn to a neighbour's glow.
 
     A blob whose region reaches the photo's border is searched for from further off (its
     outline is pulled away from the border where the border cuts its glow), then moved, and
@@ -228,10 +252,11 @@ def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None
     if not (np.all(np.isfinite(centre)) and 0 <= centre[0] < w and 0 <= centre[1] < h):
         return b
     # a light's centre lies on its disc: a fit that left it (drawn to a neighbour's glow)
-    # failed
-    if not b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]:
-        return dataclasses.replace(b, touches_border=True) if far else b
+    # failed; so did one whose disc is not within the light's lit outline
     pixel = centre + np.array([x0, y0], dtype=float)
+    on_disc = b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]
+    if not on_disc or (not far and not _within_outline(b, pixel, fit.rim)):
+        return dataclasses.replace(b, touches_border=True) if far else b
     if not far:
         return dataclasses.replace(b, pixel=pixel)
     size = np.array([width, height], dtype=float)
