@@ -10,6 +10,8 @@ points of the lit rows, so it comes from the disc and not from the stripes.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -26,7 +28,13 @@ from camvlp.pipeline.refine import (
     refine_regions,
     to_gray,
 )
-from camvlp.pipeline.touching import dark_level, not_convex, one_per_light, power_cell
+from camvlp.pipeline.touching import (
+    codes_differ,
+    dark_level,
+    not_convex,
+    one_per_light,
+    power_cell,
+)
 
 __all__ = [
     "Blob",
@@ -180,8 +188,15 @@ def detect_fixtures(
         level = dark_level(gray, lit, axis)
         return None if level is None else cv2.resize(level, (w, h), interpolation=cv2.INTER_AREA)
 
+    def differ_of(box: tuple[int, int, int, int], inside: np.ndarray, axis) -> Callable:
+        """Whether two peaks of a region spell different codes (:func:`codes_differ`),
+        worked at full resolution (its gray levels taken once, when first asked)."""
+        x, y, w, h = box
+        gray = functools.cache(lambda: to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s]))
+        return lambda a, b: codes_differ(gray(), inside, a, b, axis(), s)
+
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw, dark_of)
+    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw, dark_of, differ_of)
     boxes, cells, seeds_in = [], [], []
     for (x, y, w, h), cell in lights:
         box = (

@@ -19,8 +19,11 @@ import cv2
 import numpy as np
 
 __all__ = [
+    "CODES_APART",
+    "CODES_CLEAR",
     "NECK",
     "SOLIDITY",
+    "codes_differ",
     "dark_level",
     "dark_seeds",
     "faces",
@@ -89,12 +92,95 @@ def _along(a: np.ndarray, b: np.ndarray, axis: str) -> bool:
     return dy > dx if axis == "rows" else dx > dy
 
 
+#: Two peaks are two lights when the stripes along the readout through them correlate less
+#: than this fraction of what each one's stripes correlate with a line nearby in its own light.
+CODES_APART = 0.5
+#: Least correlation of a line's stripes with a nearby line of its own light for the stripes
+#: to tell two lights apart (below it, noise would).
+CODES_CLEAR = 0.8
+#: Fewest stripes (runs) two lines along the readout must share to be compared.
+_CODE_RUNS = 8
+
+
+def _correlation(a: np.ndarray, b: np.ndarray) -> float:
+    """Pearson correlation of two 1-D arrays (0 when one is constant)."""
+    a, b = a - a.mean(), b - b.mean()
+    den = float(np.sqrt(np.dot(a, a) * np.dot(b, b)))
+    return float(np.dot(a, b)) / den if den > 0 else 0.0
+
+
+def codes_differ(
+    gray: np.ndarray, inside: np.ndarray, a: np.ndarray, b: np.ndarray, axis: str, scale: int
+) -> bool:
+    """Whether two peaks of one lit region show different codes in their stripes.
+
+    Every line along the readout is exposed at the same instants, so one light's stripes
+    are the same on every line through it, and two lights (two IDs, or two frequencies)
+    make different ones.  The lines through the two peaks (three lines each, averaged) are
+    compared over the stretch of the readout both lie in the region, their smooth shape
+    (the light's envelope) taken out; they differ when their correlation is under
+    :data:`CODES_APART` times the least of each line's correlation with a line half its
+    peak's radius towards the other peak (within its own light), and that is at least
+    :data:`CODES_CLEAR`.  Peaks apart along the readout share too little of it: False.
+
+    Parameters
+    ----------
+    gray : ndarray of uint8, shape (h * scale, w * scale) or larger
+        The region at full resolution, gray levels.
+    inside : ndarray of uint8, shape (h, w)
+        The region (nonzero) in the reduced photo's pixels.
+    a, b : ndarray, shape (3,)
+        The peaks ``[x, y, r]`` in ``inside``'s pixels.
+    axis : {"rows", "columns"}
+        The readout axis.
+    scale : int
+        Full-resolution pixels per reduced pixel.
+    """
+    g = gray if axis == "columns" else gray.T  # g[line, t]: t along the readout
+    m = inside if axis == "columns" else inside.T
+    ia = 1 if axis == "columns" else 0  # the peaks' coordinate across the readout
+    n_lines, n_t = g.shape
+
+    def line(p: np.ndarray, toward: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        at = round(float(p[ia]) * scale)
+        step = 0.5 * p[2] * scale * np.sign(toward[ia] - p[ia])
+        near = round(float(p[ia]) * scale + float(step))
+        if not (1 <= at < n_lines - 1 and 1 <= near < n_lines - 1):
+            return np.zeros(0), np.zeros(0), np.zeros(0, bool)
+        lit = np.repeat(m[min(int(p[ia]), m.shape[0] - 1)] > 0, scale)[:n_t]
+        lit = np.pad(lit, (0, n_t - lit.size))
+        return (
+            g[at - 1 : at + 2].mean(axis=0),
+            g[near - 1 : near + 2].mean(axis=0),
+            lit,
+        )
+
+    la, na, lit_a = line(a, b)
+    lb, nb, lit_b = line(b, a)
+    if not la.size or not lb.size:
+        return False
+    common = lit_a & lit_b
+    if np.count_nonzero(common) < 4 * _CODE_RUNS:
+        return False
+    cut = la[common] > np.median(la[common])
+    runs = np.count_nonzero(cut[1:] != cut[:-1]) + 1
+    if runs < _CODE_RUNS:
+        return False
+    sigma = 2.0 * np.count_nonzero(common) / runs  # two runs' length
+    lines = np.stack([la, na, lb, nb]).astype(np.float32)
+    smooth = cv2.GaussianBlur(lines, (0, 0), sigmaX=sigma, sigmaY=1e-3)
+    hp = (lines - smooth)[:, common]
+    ref = min(_correlation(hp[0], hp[1]), _correlation(hp[2], hp[3]))
+    return ref >= CODES_CLEAR and _correlation(hp[0], hp[2]) < CODES_APART * ref
+
+
 def light_seeds(
     region: np.ndarray,
     min_radius: float = 2.0,
     outline: np.ndarray | None = None,
     axis: str | Callable[[], str] = "rows",
     raw: np.ndarray | None = None,
+    differ: Callable[[np.ndarray, np.ndarray], bool] | None = None,
 ) -> np.ndarray:
     """The lights in one lit region: the peaks of its distance transform.
 
@@ -107,7 +193,10 @@ def light_seeds(
     lower threshold, their stripes bridged, where one light has no neck), unless nothing
     dark cuts the segment between them: they are joined by a neck in ``region``, or the gap
     between them there holds pixels lit in ``raw`` (a dark stripe through one light is dark,
-    where two lights whose glows join show glow between them).
+    where two lights whose glows join show glow between them).  Without a neck, two peaks
+    are two lights when their stripes spell different codes (``differ``, e.g.
+    :func:`codes_differ`): glows that clip together at the threshold hide the neck, not
+    the codes.
 
     Parameters
     ----------
@@ -120,6 +209,9 @@ def light_seeds(
     axis : {"rows", "columns"} or callable
         The readout axis: ``"rows"`` when the stripes are horizontal; or a function giving
         it, called (once) only when two peaks could be apart along it.
+    differ : callable, optional
+        ``differ(a, b)``: whether two peaks ``[x, y, r]`` show different codes in their
+        stripes (called only for peaks that no neck separates).
 
     Returns
     -------
@@ -155,7 +247,7 @@ def light_seeds(
         apart = all(
             np.hypot(*(c[:2] - s[:2])) > max(s[2], c[2])
             and (wide is None or outside(wide, s, c))
-            and necked(dist, s, c)
+            and (necked(dist, s, c) or (differ is not None and differ(s, c)))
             and (
                 wide is None
                 or not _along(s, c, readout())
@@ -207,6 +299,7 @@ def one_per_light(
     axis_of: Callable,
     raw: np.ndarray | None = None,
     dark_of: Callable | None = None,
+    differ_of: Callable | None = None,
 ):
     """The lights of the detection's candidate regions.
 
@@ -228,6 +321,12 @@ def one_per_light(
         of a region, from its pixels ``inside`` (uint8 0/1 of the box).
     raw : ndarray of uint8, shape (h, w), optional
         ``binary`` before its stripes were bridged (see :func:`light_seeds`).
+    dark_of : callable, optional
+        ``dark_of((x, y, w, h), axis)``: a region's dark-stripe levels (:func:`dark_level`),
+        in ``binary``'s pixels, or None.
+    differ_of : callable, optional
+        ``differ_of((x, y, w, h), inside, axis)``: the ``differ`` of :func:`light_seeds` for
+        a region (e.g. :func:`codes_differ` on its pixels at full resolution).
 
     Yields
     ------
@@ -251,7 +350,10 @@ def one_per_light(
         inside = (labels == main).astype(np.uint8)
         axis = functools.partial(axis_of, inside, (x, y, w, h))  # when needed
         lit = None if raw is None else raw[y : y + h, x : x + w]
-        seeds = light_seeds(inside * high[y : y + h, x : x + w], min_radius, inside, axis, lit)
+        differ = None if differ_of is None else differ_of((x, y, w, h), inside, axis)
+        seeds = light_seeds(
+            inside * high[y : y + h, x : x + w], min_radius, inside, axis, lit, differ
+        )
         if dark_of is not None:  # more lights apart in the dark stripes?
             level = dark_of((x, y, w, h), axis())
             dark = None if level is None else dark_seeds(level, inside, min_radius)
