@@ -11,7 +11,7 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.touching import light_seeds, power_cell
+from camvlp.pipeline.touching import codes_differ, light_seeds, power_cell
 from camvlp.sim.render import RenderSettings, render
 
 
@@ -193,3 +193,90 @@ def test_lamps_with_hot_cores_whose_glows_join_are_centred_from_their_faces():
         centred = centred_on_glow(photo.image, blobs, "rows")
         for b in centred:
             assert min(np.linalg.norm(b.pixel - t.pixel) for t in photo.fixtures) < 2.0
+
+
+#: Fifteen lamps of a portrait 1080p photo (a drawn scene of ``benchmarks/stress_decode.py``):
+#: ``(id, x, y, diameter)``, metres, 2 m above the camera.
+_FIFTEEN = (
+    (13, -0.2403687185754484, -1.2330000984867149, 0.12626945031018574),
+    (6, -0.13269031424499125, 0.08638933813610541, 0.16878823641131016),
+    (9, -0.34130459896622833, 0.734250249382727, 0.1589793615873968),
+    (2, 0.312244824186517, -1.0704836769970818, 0.1507757924115368),
+    (0, -0.10743846407508857, -0.6203210377548196, 0.15889414705222268),
+    (3, -0.18629674867443943, -0.19621400466023065, 0.24393419428078078),
+    (10, 0.4440863438911137, -0.7145910929058104, 0.18286627100675884),
+    (7, 0.40267558864709063, -0.48439400744451305, 0.13357485301705607),
+    (11, -0.5826465569821246, 0.2945793770686178, 0.1431412037549429),
+    (5, 0.48332413229507437, 0.21965641146496995, 0.259907843828526),
+    (14, 0.2383736629587658, 0.4853280556604825, 0.2630756908719781),
+    (4, -0.48764204512018133, -0.618862795455335, 0.22108903654163056),
+    (12, 0.610195157924867, 1.2909940635493757, 0.11654198386113805),
+    (15, -0.45352183741862373, -0.9460584324743487, 0.2052902620167132),
+    (8, 0.20784206574161057, 0.7622448746558845, 0.12039754998448493),
+)
+
+
+@pytest.mark.parametrize("seed", [773888642, 1])
+def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(seed):
+    # hot cores (1.9) and halos (0.32) at 5.7 times full scale, read along the columns of a
+    # portrait photo: lamps 3 and 6 (and 14 and 8), apart along the stripes, join into one
+    # region with no neck between them at any threshold, and were one light, read as
+    # neither (or not at all); the stripes through them spell two codes, so they are two
+    cam = Camera.from_focal(1080, 1920, 1400.0, row_time_s=1.5e-5)
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0]))
+            for i, x, y, d in _FIFTEEN
+        )
+    )
+    rate = 1e5 / 6  # Hz: 4 rows of 15 us per chip
+    look = dict(core=1.923343238847005, halo=0.31819223621413256, blur_px=0.7954364704138273)
+    settings = RenderSettings(
+        chip_rate_hz=rate,
+        exposure_s=0.3 / rate,
+        brightness=5.694599038378063,
+        off_level=0.016928248085646812,
+        readout="columns-reversed",
+        seed=seed,
+        **look,
+    )
+    photo = render(cam, room, Pose(np.eye(3), np.zeros(3)), settings)
+    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, 82])
+    res = locate(cv2.imdecode(buf, cv2.IMREAD_COLOR), cam, room)
+    truth = {t.id: t.pixel for t in photo.fixtures}
+    read = {f.id: f.pixel for f in res.fixtures if f.id is not None and not f.reason}
+    assert all(np.linalg.norm(p - truth[i]) < 8.0 for i, p in read.items())  # none wrong
+    assert {3, 6, 8} <= set(read)
+
+
+def _striped(codes, noise: float, seed: int = 0):
+    """Two discs side by side along the stripes (rows readout), each lit by its own code
+    (0/1 per chip of 4 rows), with Gaussian noise: the gray levels and the region."""
+    rng = np.random.default_rng(seed)
+    gray = np.full((120, 200), 20.0)
+    region = np.zeros((120, 200), np.uint8)
+    for (x, r), code in zip(((60, 32), (128, 32)), codes, strict=True):
+        disc = _circles((x, 60, r))
+        rows = np.repeat(np.resize(code, 30), 4)[:120, None]  # each row's chip
+        gray += disc * (40.0 + 150.0 * rows)
+        region |= disc
+    gray += rng.normal(0.0, noise, gray.shape)
+    return np.clip(gray, 0, 255).astype(np.uint8), region
+
+
+def test_two_peaks_apart_along_the_stripes_differ_by_their_codes():
+    rng = np.random.default_rng(3)
+    a, b = rng.integers(0, 2, 30), rng.integers(0, 2, 30)
+    peaks = np.array([60.0, 60.0, 30.0]), np.array([128.0, 60.0, 30.0])
+    gray, region = _striped((a, b), 4.0)
+    assert codes_differ(gray, region, *peaks, "rows", 1)
+    # one code on both: one light's stripes
+    gray, region = _striped((a, a), 4.0)
+    assert not codes_differ(gray, region, *peaks, "rows", 1)
+    # stripes under the noise: nothing to tell by
+    gray, region = _striped((a, b), 200.0)
+    assert not codes_differ(gray, region, *peaks, "rows", 1)
+    # read along the other axis, the peaks lie apart along the readout: the lines along it
+    # through them are one line
+    gray, region = _striped((a, b), 4.0)
+    assert not codes_differ(gray, region, *peaks, "columns", 1)

@@ -141,35 +141,35 @@ def codes_differ(
     ia = 1 if axis == "columns" else 0  # the peaks' coordinate across the readout
     n_lines, n_t = g.shape
 
-    def line(p: np.ndarray, toward: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        at = round(float(p[ia]) * scale)
-        step = 0.5 * p[2] * scale * np.sign(toward[ia] - p[ia])
-        near = round(float(p[ia]) * scale + float(step))
-        if not (1 <= at < n_lines - 1 and 1 <= near < n_lines - 1):
-            return np.zeros(0), np.zeros(0), np.zeros(0, bool)
-        lit = np.repeat(m[min(int(p[ia]), m.shape[0] - 1)] > 0, scale)[:n_t]
-        lit = np.pad(lit, (0, n_t - lit.size))
-        return (
-            g[at - 1 : at + 2].mean(axis=0),
-            g[near - 1 : near + 2].mean(axis=0),
-            lit,
-        )
+    def lines(p: np.ndarray, toward: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """The line through ``p`` and the line half its radius towards ``toward`` (each
+        three lines averaged), and where each lies in the region, along the readout."""
+        step = 0.5 * float(p[2]) * np.sign(toward[ia] - p[ia])
+        at = [float(p[ia]), float(p[ia]) + step]  # reduced pixels
+        full = [round(a * scale) for a in at]
+        if not all(1 <= f < n_lines - 1 for f in full):
+            return None
+        rows = [min(round(a), m.shape[0] - 1) for a in at]
+        lit = np.repeat(m[rows] > 0, scale, axis=1)[:, :n_t]
+        lit = np.pad(lit, ((0, 0), (0, n_t - lit.shape[1])))
+        return np.stack([g[f - 1 : f + 2].mean(axis=0) for f in full]), lit
 
-    la, na, lit_a = line(a, b)
-    lb, nb, lit_b = line(b, a)
-    if not la.size or not lb.size:
+    got_a, got_b = lines(a, b), lines(b, a)
+    if got_a is None or got_b is None:
         return False
-    common = lit_a & lit_b
+    (pair_a, lit_a), (pair_b, lit_b) = got_a, got_b
+    common = np.all(lit_a, axis=0) & np.all(lit_b, axis=0)
     if np.count_nonzero(common) < 4 * _CODE_RUNS:
         return False
+    la = pair_a[0]
     cut = la[common] > np.median(la[common])
     runs = np.count_nonzero(cut[1:] != cut[:-1]) + 1
     if runs < _CODE_RUNS:
         return False
     sigma = 2.0 * np.count_nonzero(common) / runs  # two runs' length
-    lines = np.stack([la, na, lb, nb]).astype(np.float32)
-    smooth = cv2.GaussianBlur(lines, (0, 0), sigmaX=sigma, sigmaY=1e-3)
-    hp = (lines - smooth)[:, common]
+    four = np.concatenate([pair_a, pair_b]).astype(np.float32)
+    smooth = cv2.GaussianBlur(four, (0, 0), sigmaX=sigma, sigmaY=1e-3)
+    hp = (four - smooth)[:, common]
     ref = min(_correlation(hp[0], hp[1]), _correlation(hp[2], hp[3]))
     return ref >= CODES_CLEAR and _correlation(hp[0], hp[2]) < CODES_APART * ref
 
