@@ -99,7 +99,7 @@ CODES_APART = 0.5
 #: to tell two lights apart (below it, noise would).
 CODES_CLEAR = 0.8
 #: Fewest stripes (runs) two lines along the readout must share to be compared.
-_CODE_RUNS = 8
+_CODE_RUNS = 6
 
 
 def _correlation(a: np.ndarray, b: np.ndarray) -> float:
@@ -161,8 +161,8 @@ def codes_differ(
     common = np.all(lit_a, axis=0) & np.all(lit_b, axis=0)
     if np.count_nonzero(common) < 4 * _CODE_RUNS:
         return False
-    la = pair_a[0]
-    cut = la[common] > np.median(la[common])
+    la = pair_a[0][common]
+    cut = la > 0.5 * (la.min() + la.max())  # (a median is the clipping level where it clips)
     runs = np.count_nonzero(cut[1:] != cut[:-1]) + 1
     if runs < _CODE_RUNS:
         return False
