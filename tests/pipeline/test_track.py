@@ -247,3 +247,22 @@ def test_the_readout_direction_is_found_never_guessed(readout):
     assert len(given) >= 16 and all(a == b for a, b in given)
     statuses = [r.status for r in results]
     assert set(statuses) <= {"fix", "tracked"} and statuses[0] == "fix"
+
+
+def test_the_tracker_weighs_the_rows_as_locate_does(video, monkeypatch):
+    # the model fit weighs each profile line by its inverse variance (its pixels): the
+    # tracker decodes the stripes it must with the same weights as camvlp.locate
+    import camvlp.pipeline.locate as loc
+
+    cam, room, frames = video
+    seen = []
+    real = loc.decode_manchester
+
+    def spy(profiles, readout, known, camera, fixture_map, weights=None):
+        seen.append((len(profiles), None if weights is None else len(weights)))
+        return real(profiles, readout, known, camera, fixture_map, weights)
+
+    monkeypatch.setattr(loc, "decode_manchester", spy)
+    tracker = Tracker(cam, room, TrackSettings(carry_chip_length=False))
+    tracker.update(frames[0].image, 0.0)
+    assert seen and all(n == w for n, w in seen)

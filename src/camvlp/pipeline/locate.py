@@ -200,14 +200,20 @@ def _profiles(
 
 
 def _decode(
-    blobs, gray_rois, profiles, readout: Readout, camera: Camera, fixture_map: FixtureMap
+    blobs,
+    gray_rois,
+    profiles,
+    readout: Readout,
+    camera: Camera,
+    fixture_map: FixtureMap,
+    weights=None,
 ) -> tuple[list, np.ndarray, list[str], list[Blob]]:
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
     NaN in Manchester mode), notes, and the blobs (new ones, where a frequency-coded light's
-    centre moved to its whole striped area).  (:func:`locate` itself decides an unknown
-    direction.)"""
+    centre moved to its whole striped area); ``weights``, the profiles' row weights for the
+    model fit (:func:`_profiles`).  (:func:`locate` itself decides an unknown direction.)"""
     if fixture_map.mode != "frequency":
-        man = decode_manchester(profiles, readout, True, camera, fixture_map)
+        man = decode_manchester(profiles, readout, True, camera, fixture_map, weights)
         return list(man.decodes), np.full(len(blobs), np.nan), [], list(blobs)
     decodes, frequencies, centres, note = decode_frequencies(
         blobs, gray_rois, readout.axis, camera, fixture_map

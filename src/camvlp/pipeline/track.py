@@ -205,13 +205,15 @@ class Tracker:
     def _decode(self, img, blobs, readout, skip: set[int]):
         todo = [k for k in range(len(blobs)) if k not in skip]
         sub = [blobs[k] for k in todo]
-        gray_rois, _, profiles, _ = _profiles(img, sub, readout)
+        gray_rois, _, profiles, weights = _profiles(img, sub, readout)
         carry = self.settings.carry_chip_length and self.map.mode != "frequency"
         if carry and len(self._chip_rows) >= 3:
             rpc = float(np.median(self._chip_rows[-50:]))
             done = decode_profiles(profiles, self.map.frame, rows_per_chip=rpc)
         else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
-            done, _, _, sub = _decode(sub, gray_rois, profiles, readout, self.camera, self.map)
+            done, _, _, sub = _decode(
+                sub, gray_rois, profiles, readout, self.camera, self.map, weights
+            )
         for d in done:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
