@@ -24,6 +24,7 @@ import dataclasses
 
 import numpy as np
 
+from camvlp.pipeline.crowded import centred_jointly
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.radial import radial_fit
 from camvlp.pipeline.touching import power_cell
@@ -163,10 +164,15 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
-    return [
+    moved = [
         _centred(img, b, axis, _own_cell(blobs, k)) if w else b
         for k, (b, w) in enumerate(zip(blobs, which, strict=True))
     ]
+    # a light whose region joined others' at the detection's threshold, in a photo where
+    # lights glow, is fitted with them: its outline (its cell's) may hide its glow
+    joined = np.array([b.cell is not None for b in blobs], dtype=bool)
+    fitted = which | (joined & which.any())
+    return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted)
 
 
 def _own_cell(blobs, k: int) -> np.ndarray | None:

@@ -207,17 +207,17 @@ def _shape_fit(agg, g0, iters: int):
     return rss, s, den, g
 
 
-def _pixels(g: np.ndarray, m: np.ndarray):
+def _pixels(g: np.ndarray, m: np.ndarray, background: float | None = None):
     """The pixels within 2 px of the support ``m``: ``(ly, lx, value)`` of the unclipped ones
     (``value`` above the background), ``(ly, lx)`` of the clipped ones, and the background
     (the median gray level beyond 4 px of it; the region's least when it has too few pixels
-    there).  A pixel that is not finite is left out."""
+    there; ``background`` when given).  A pixel that is not finite is left out."""
     finite = np.isfinite(g)
     near = cv2.dilate(m.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool) & finite
     outside = (cv2.dilate(m.astype(np.uint8), np.ones((9, 9), np.uint8)) == 0) & finite
-    if outside.sum() >= 50:
+    if background is None and outside.sum() >= 50:
         background = float(np.median(g[outside]))
-    else:
+    elif background is None:
         background = float(g[finite].min()) if finite.any() else float("nan")
     ly, lx = np.nonzero(near & (g < _CLIP))
     return (ly, lx, g[ly, lx] - background), np.nonzero(near & (g >= _CLIP)), background
@@ -277,10 +277,16 @@ class _Radial(NamedTuple):
 
 
 def _radial(
-    gray: np.ndarray, support: np.ndarray, ellipse, axis: str, refine: bool = True
+    gray: np.ndarray,
+    support: np.ndarray,
+    ellipse,
+    axis: str,
+    refine: bool = True,
+    background: float | None = None,
 ) -> _Radial | LightWave:
     """The light's radial shape and its centre fitted (see :func:`light_wave`), or a failed
-    :class:`LightWave`; without ``refine``, ``best`` is the start (the centre not fitted)."""
+    :class:`LightWave`; without ``refine``, ``best`` is the start (the centre not fitted);
+    ``background`` (gray level) when known, else measured around the support."""
     nan = float("nan")
     g = np.asarray(gray, dtype=np.float64)
     m = np.asarray(support, dtype=bool)
@@ -291,7 +297,7 @@ def _radial(
     theta = np.deg2rad(angle)
     if axis == "columns":  # work in readout coordinates: lines down axis 0
         g, m, cx, cy, theta = g.T, m.T, cy, cx, 0.5 * np.pi - theta
-    (ly, lx, value), clipped, background = _pixels(g, m)
+    (ly, lx, value), clipped, background = _pixels(g, m, background)
     radius = 0.25 * (aw + ah)
     if ly.size < 30 or not np.isfinite(background) or radius <= 0:
         return _failed(np.array([nan, nan]), "too few pixels")

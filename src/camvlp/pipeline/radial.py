@@ -39,7 +39,7 @@ from camvlp.pipeline.light_wave import (
     _shape_fit,
 )
 
-__all__ = ["RadialFit", "radial_centre", "radial_fit"]
+__all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model"]
 
 #: Width of the radial shape's bins, pixels: finer than a rim blurred over a pixel.
 _BIN_PX = 0.5
@@ -55,8 +55,27 @@ _RIM_PIXELS = 8
 #: blurred by up to 2 px falls over some 3 px; the noise of a few knots does not grow with
 #: the distance).
 _RIM_SMOOTH, _RIM_SPAN = 2, 6
+#: Pixels (every k-th), first step (a share of the radius) and steps of the shape's fit at
+#: each trial centre of the search on all the light's pixels (:func:`_wide_search`).
+_WIDE_PIXELS, _WIDE_STEP, _WIDE_ITERS = 8000, 0.05, 4
+#: How far along the readout the search on all the pixels looks first, in radii.
+_WIDE_REACH = 0.3
+#: Steps of the shape's fit that compare the search's end with its start.
+_SETTLED_ITERS = 30
 #: Steps of the shape's fit at the start, and at each trial centre.
 _WARM_ITERS, _ITERS = 8, 12
+
+
+class RadialModel(NamedTuple):
+    """A light's fitted look ``g(rho) * s(line)`` above the background, in readout
+    coordinates of its region (lines down axis 0; see :func:`radial_model`)."""
+
+    geometry: np.ndarray  # shape (3,): centre (x, y) and log axis ratio, as _radius takes it
+    cs: tuple[float, float]  # cos, sin of the outline's angle
+    shape: np.ndarray  # g per knot, bin_px apart from the centre (0 beyond)
+    stripes: np.ndarray  # s per line of the region, gray levels (0 beyond)
+    rim: float  # the disc's rim, in the shape's radius (pixels); NaN when not found
+    bin_px: float = _BIN_PX  # the knots' spacing, pixels
 
 
 class RadialFit(NamedTuple):
@@ -65,6 +84,20 @@ class RadialFit(NamedTuple):
     centre: np.ndarray  # shape (2,): the shape's centre, pixels; NaN when not fitted
     rim: np.ndarray  # shape (2,): half-extents of the disc's rim along x and y (its larger
     # semi-axis both ways), pixels; NaN when not fitted
+    model: RadialModel | None = None  # the look fitted at the centre; None when not fitted
+
+
+def radial_model(model: RadialModel, x: np.ndarray, y: np.ndarray, axis: str):
+    """A fitted light's look (gray levels above the background) and its radius at pixels
+    ``(x, y)`` of its region (float arrays of one shape, pixels): ``(level, rho)``, the
+    level 0 beyond its shape's last knot and on lines outside its region."""
+    lx, ly = (y, x) if axis == "columns" else (x, y)
+    rho = _radius(_axes(lx.ravel(), ly.ravel(), model.cs), model.geometry, model.cs)
+    g = np.interp(rho / model.bin_px, np.arange(model.shape.size), model.shape, right=0.0)
+    line = np.rint(ly.ravel()).astype(np.intp)
+    inside = (line >= 0) & (line < model.stripes.size)
+    s = np.where(inside, model.stripes[np.clip(line, 0, model.stripes.size - 1)], 0.0)
+    return (g * s).reshape(x.shape), rho.reshape(x.shape)
 
 
 def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> np.ndarray:
@@ -73,7 +106,16 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
 
 
 def radial_fit(
-    gray: np.ndarray, support: np.ndarray, ellipse, axis: str, far: bool = False
+    gray: np.ndarray,
+    support: np.ndarray,
+    ellipse,
+    axis: str,
+    far: bool = False,
+    background: float | None = None,
+    search: bool = True,
+    wide: bool = False,
+    local: bool = True,
+    keep_start: bool = False,
 ) -> RadialFit:
     """The centre of a round light's radial shape (core, disc and glow), separated from its
     stripes (the square wave is not fitted), from the pixels that tell it best, and its
@@ -99,6 +141,24 @@ def radial_fit(
     far : bool
         The outline's centre may be far from the shape's (e.g. a glow the photo's border
         cuts): a coarse search on every k-th pixel first, in steps of a tenth of the radius.
+    background : float, optional
+        The photo's background (gray level) under the light, when known (e.g. where glows
+        fill the region); else measured around the support.
+    search : bool
+        Whether to fit the centre; else the shape is fitted at the outline's centre (on
+        every k-th pixel, as with ``local`` False).
+    wide : bool
+        The outline's centre may be off by tenths of the radius (a light whose neighbours'
+        glows pulled it): the centre is first searched for on the cost of all the pixels
+        (every k-th of :data:`_WIDE_PIXELS`), from steps of :data:`_WIDE_STEP` of the
+        radius, and kept when that cost is lower there than at the start.
+    local : bool
+        Whether the centre is then refined on the pixels that tell it best, and the shape
+        fitted on all the pixels in bins of :data:`_BIN_PX` (the rim found); else the
+        shape (its bins those of the coarse fit) on every k-th pixel, and no rim.
+    keep_start : bool
+        Start from the outline's centre (with the better of a round outline and its axis
+        ratio), not from the better of it and the support's outline's.
 
     Returns
     -------
@@ -107,7 +167,7 @@ def radial_fit(
         ellipse of the shape's axis ratio and angle), pixels; NaN when the region has too
         few pixels with signal.
     """
-    fitted = _radial(gray, support, ellipse, axis, refine=False)
+    fitted = _radial(gray, support, ellipse, axis, refine=False, background=background)
     if isinstance(fitted, LightWave):
         return RadialFit(fitted.centre, np.full(2, np.nan))
     ly, lx, value = fitted.pixels
@@ -119,6 +179,11 @@ def radial_fit(
         return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
     start = np.asarray(fitted.best, dtype=float)  # not refined: the coarse fit's start
+    if not search or keep_start:
+        start = np.array([*ellipse[0][:: -1 if axis == "columns" else 1], start[2]], dtype=float)
+    radius = 0.25 * float(sum(ellipse[1]))
+    if not search or not local:
+        return _coarse(fitted, _wide_search(fitted, start, radius) if search else start, axis)
     if far:  # a coarse search first, in steps of a tenth of the radius
         every = max(1, ly.size // _PIXELS)
         radius = 0.25 * float(sum(ellipse[1]))
@@ -128,6 +193,8 @@ def radial_fit(
             return fitted.fit(p, coarse, 2, every)[0]
 
         start = _search_centre(cost, start, max(1.0, 0.1 * radius))
+    if wide:
+        start = _wide_search(fitted, start, radius)
     _, s, _, g = fit(start, None, _WARM_ITERS)
     pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
@@ -143,12 +210,49 @@ def radial_fit(
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
     best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
-    g = fit(best, None, _WARM_ITERS)[3]
+    _, s, _, g = fit(best, None, _WARM_ITERS)
     per_bin = np.bincount((_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size)
     rim = _rim_extents(g, per_bin[: g.size], best[2])
+    r = float(np.clip(abs(best[2]), 0.0, _MAX_LOG_RATIO))
+    model = RadialModel(best.copy(), cs, g, s, float(rim[0]) * np.exp(-0.5 * r))
     if axis == "columns":
-        return RadialFit(best[1::-1].copy(), rim[::-1])
-    return RadialFit(best[:2].copy(), rim)
+        return RadialFit(best[1::-1].copy(), rim[::-1], model)
+    return RadialFit(best[:2].copy(), rim, model)
+
+
+def _coarse(fitted, p: np.ndarray, axis: str) -> RadialFit:
+    """A light's look at ``p`` (readout coordinates and log axis ratio) fitted on every k-th
+    pixel (of :data:`_WIDE_PIXELS`) in the coarse fit's bins, without its rim."""
+    every = max(1, fitted.pixels[0].size // _WIDE_PIXELS)
+    _, s, _, g = fitted.fit(p, fitted.warm, _SETTLED_ITERS, every)
+    model = RadialModel(p.copy(), fitted.cs, g, s, float("nan"), fitted.bin_px)
+    nan = np.full(2, np.nan)
+    return RadialFit(p[1::-1].copy() if axis == "columns" else p[:2].copy(), nan, model)
+
+
+def _wide_search(fitted, start: np.ndarray, radius: float) -> np.ndarray:
+    """The centre of the least cost of all the light's pixels (every k-th of
+    :data:`_WIDE_PIXELS`, the shape refitted in :data:`_WIDE_ITERS` steps at each trial
+    centre) from ``start`` (readout coordinates and log axis ratio): first along the readout
+    (the stripes leave the cost a local minimum every stripe period that way), over
+    :data:`_WIDE_REACH` of ``radius`` (pixels) either side in steps of a pixel or a 40th of
+    it, then in all three from the best of those; ``start`` when the cost, the shape fitted
+    in :data:`_SETTLED_ITERS` steps, is not lower there."""
+    every = max(1, fitted.pixels[0].size // _WIDE_PIXELS)
+    warm = fitted.warm
+
+    def cost(p: np.ndarray) -> float:
+        return fitted.fit(p, warm, _WIDE_ITERS, every)[0]
+
+    reach = _WIDE_REACH * radius
+    steps = np.arange(-reach, reach + 1e-9, max(1.0, radius / 40.0))
+    trials = [start + np.array([0.0, d, 0.0]) for d in steps]
+    found = _search_centre(cost, min(trials, key=cost), max(1.0, _WIDE_STEP * radius))
+
+    def settled(p: np.ndarray) -> float:  # the shape fitted to the end
+        return fitted.fit(p, None, _SETTLED_ITERS, every)[0]
+
+    return found if settled(found) < settled(start) else start
 
 
 def _rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndarray:

@@ -1,0 +1,196 @@
+"""Glowing lights whose glows overlap: each centred on what its neighbours' looks leave.
+
+The photo is the sum of its lights' looks through the sensor's clipping: each light shines
+``g_i(rho_i) * s_i(line)`` (its radially symmetric shape, disc and glow, times its own
+stripes, :mod:`camvlp.pipeline.light_wave`), so where two glows overlap a pixel holds
+``A + g_i s_i + g_j s_j``.  A light fitted alone within its own cell of the joined region
+(:func:`camvlp.pipeline.glow.centred_on_glow`) explains its neighbour's glow in its lines
+with its own shape, and since its stripes are free per line, a neighbour's glow in a line
+where the light itself is dark pulls its centre along the readout (10 to 20 px on the stress
+benchmark's crowded photos).  Here the lights' looks are fitted together, by blocks: each
+light in turn is fitted (its shape, stripes and centre, :func:`radial_fit`) over its whole
+region, grown beyond its cell, to the photo less its neighbours' fitted looks, with their
+discs (where a fitted look is least sure: hot cores, clipping) and the clipped pixels left
+out, and so round after round.  Nothing is assumed of the glow's profile: each light's shape
+is the one its own pixels give.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from camvlp.pipeline.light_wave import _CLIP
+from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
+from camvlp.pipeline.refine import Blob, light_support, to_gray
+
+__all__ = ["Fitted", "centred_jointly"]
+
+#: Rounds of the block fit (each light refitted once a round).
+ROUNDS = 3
+#: How far a light's region is grown beyond its box for the joint fit, as a share of the
+#: box's smaller side each way: its cell of the joined region may cut its own disc.
+GROW = 0.25
+#: A neighbour's disc left out of a light's fit, in radii of its fitted rim.
+DISC = 1.15
+
+
+@dataclasses.dataclass(frozen=True)
+class Fitted:
+    """A light's radial fit and the region (``(x0, y0, x1, y1)``, photo pixels) it was
+    fitted in."""
+
+    fit: RadialFit
+    box: tuple[int, int, int, int]
+
+
+def _overlap(a, b) -> bool:
+    """Whether two boxes ``(x0, y0, x1, y1)`` overlap."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def _grown(box, shape) -> tuple[int, int, int, int]:
+    """``box`` grown by :data:`GROW` of its smaller side each way, within a photo of
+    ``shape`` (h, w, ...)."""
+    x0, y0, x1, y1 = box
+    m = int(GROW * min(x1 - x0, y1 - y0))
+    return max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, shape[1]), min(y1 + m, shape[0])
+
+
+def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.ndarray) -> list[Blob]:
+    """The blobs, each glowing light whose region meets another glowing light's centred on
+    its own look, fitted jointly with theirs.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, 3) or (H, W)
+        The photo.
+    blobs : list of Blob
+        The lights, the glowing ones centred each on its own (:func:`centred_on_glow`).
+    axis : {"rows", "columns"}
+        The readout axis.
+    glows : ndarray of bool, shape (len(blobs),)
+        The glowing lights.
+
+    Returns
+    -------
+    list of Blob
+        The blobs; a light refitted has its new ``pixel`` (all else as given).
+    """
+    blobs = list(blobs)
+    grown = [_grown(b.box, img.shape) for b in blobs]
+    near = [
+        [j for j in np.flatnonzero(glows) if j != k and _overlap(grown[k], grown[j])]
+        for k in range(len(blobs))
+    ]
+    # lights found by their faces in the dark stripes have glows that clip together in
+    # their bright ones: what those leave unclipped tells little of the shape, the faces
+    # more (:func:`~camvlp.pipeline.touching.own_face`); they and their neighbours stay
+    # and a light whose region stayed apart from the others' is centred on its own, unless
+    # it meets one whose region joined others' (those split into cells)
+    joined = [
+        blobs[k].cell is not None or any(blobs[j].cell is not None for j in near[k])
+        for k in range(len(blobs))
+    ]
+    crowded = [
+        k
+        for k in np.flatnonzero(glows)
+        if near[k] and joined[k] and not blobs[k].face and not any(blobs[j].face for j in near[k])
+    ]
+    if not crowded:
+        return blobs
+    small = to_gray(img[::4, ::4])
+    background = float(np.percentile(small, 5))
+    fits: list[Fitted | None] = [None] * len(blobs)
+    for k in crowded:  # each one's look where it was centred alone
+        refit = _refitted(img, blobs, fits, k, axis, background, search=False)
+        fits[k] = None if refit is None else refit[1]
+    for r in range(ROUNDS):
+        for k in crowded:
+            last = r == ROUNDS - 1
+            refit = _refitted(img, blobs, fits, k, axis, background, local=last)
+            if refit is not None:
+                blobs[k], fits[k] = refit
+    return blobs
+
+
+def _refitted(
+    img: np.ndarray,
+    blobs: list[Blob],
+    fits: list[Fitted | None],
+    k: int,
+    axis: str,
+    background: float,
+    search: bool = True,
+    local: bool = False,
+) -> tuple[Blob, Fitted] | None:
+    """Light ``k`` fitted over its grown region to the photo less its neighbours' looks
+    (their discs and the clipped pixels left out); None when the fit fails or its centre
+    leaves the light's disc.  Without ``search``, its look at its centre as given; else its
+    centre searched for widely, then (``local``) refined (:func:`radial_fit`)."""
+    b = blobs[k]
+    x0, y0, x1, y1 = box = _grown(b.box, img.shape)
+    gray = to_gray(img[y0:y1, x0:x1]).astype(np.float64)
+    clipped = gray >= _CLIP
+    out = np.zeros(gray.shape, dtype=bool)  # neighbours' discs
+    for j, o in enumerate(blobs):
+        if j == k or not _overlap(box, o.box if fits[j] is None else fits[j].box):
+            continue
+        _paste(out, o.mask, o.box, box)
+        f = fits[j]
+        if f is None or f.fit.model is None:  # no look to take away
+            continue
+        fx0, fy0, fx1, fy1 = f.box
+        ox0, oy0, ox1, oy1 = max(x0, fx0), max(y0, fy0), min(x1, fx1), min(y1, fy1)
+        if ox0 >= ox1 or oy0 >= oy1:
+            continue
+        ys, xs = np.mgrid[oy0:oy1, ox0:ox1].astype(np.float64)
+        level, rho = radial_model(f.fit.model, xs - fx0, ys - fy0, axis)
+        gray[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0] -= level
+        rim = f.fit.model.rim
+        if np.isfinite(rim):
+            out[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0] |= rho < DISC * rim
+    mask = np.zeros(gray.shape, dtype=bool)
+    _paste(mask, b.mask, b.box, box, grow=False)
+    out &= ~mask
+    if not mask.any():
+        return None
+    kept = ~out & ~clipped
+    shown = np.where(clipped, 255.0, np.where(out, background, gray))  # for the support only
+    support = light_support(shown, mask, axis) & ~out
+    r = np.full(2, float(np.min(b.axes_px))) if b.touches_border else b.axes_px
+    ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(float(v) for v in r), b.angle_deg)
+    fit = radial_fit(
+        np.where(kept, gray, np.nan),
+        support,
+        ellipse,
+        axis,
+        wide=True,
+        local=local,
+        background=background,
+        search=search,
+    )
+    c = fit.centre
+    if fit.model is None or not np.all(np.isfinite(c)):
+        return None
+    cx, cy = int(c[0] + x0 + 0.5) - b.box[0], int(c[1] + y0 + 0.5) - b.box[1]
+    h, w = b.mask.shape
+    if not (0 <= cx < w and 0 <= cy < h and b.mask[cy, cx]):  # drawn off its disc: failed
+        return None
+    pixel = c + np.array([x0, y0], dtype=float)
+    return dataclasses.replace(b, pixel=pixel), Fitted(fit, box)
+
+
+def _paste(dst: np.ndarray, src: np.ndarray, src_box, dst_box, grow: bool = True) -> None:
+    """``dst`` (bool, ``dst_box``'s shape) |= ``src`` (bool, ``src_box``'s) where the two
+    boxes ``(x0, y0, x1, y1)`` overlap, dilated by 2 px (the disc's blur) when ``grow``."""
+    x0, y0 = max(src_box[0], dst_box[0]), max(src_box[1], dst_box[1])
+    x1, y1 = min(src_box[2], dst_box[2]), min(src_box[3], dst_box[3])
+    if x0 >= x1 or y0 >= y1:
+        return
+    part = src[y0 - src_box[1] : y1 - src_box[1], x0 - src_box[0] : x1 - src_box[0]]
+    if grow:
+        part = cv2.dilate(part.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    dst[y0 - dst_box[1] : y1 - dst_box[1], x0 - dst_box[0] : x1 - dst_box[0]] |= part
