@@ -1,4 +1,4 @@
-"""Glowing lights whose glows overlap: each centred on what its neighbours' looks leave.
+"""Glowing lights whose glows joined: each centred on what its neighbours' looks leave.
 
 The photo is the sum of its lights' looks through the sensor's clipping: each light shines
 ``g_i(rho_i) * s_i(line)`` (its radially symmetric shape, disc and glow, times its own
@@ -6,13 +6,15 @@ stripes, :mod:`camvlp.pipeline.light_wave`), so where two glows overlap a pixel 
 ``A + g_i s_i + g_j s_j``.  A light fitted alone within its own cell of the joined region
 (:func:`camvlp.pipeline.glow.centred_on_glow`) explains its neighbour's glow in its lines
 with its own shape, and since its stripes are free per line, a neighbour's glow in a line
-where the light itself is dark pulls its centre along the readout (10 to 20 px on the stress
+where the light itself is dark pulls its centre along the readout (10 to 26 px on the stress
 benchmark's crowded photos).  Here the lights' looks are fitted together, by blocks: each
-light in turn is fitted (its shape, stripes and centre, :func:`radial_fit`) over its whole
-region, grown beyond its cell, to the photo less its neighbours' fitted looks, with their
-discs (where a fitted look is least sure: hot cores, clipping) and the clipped pixels left
-out, and so round after round.  Nothing is assumed of the glow's profile: each light's shape
-is the one its own pixels give.
+light in turn is fitted (its shape, stripes and centre, :func:`radial_fit`) over its region
+grown beyond its box, to the photo less its neighbours' fitted looks, with their discs (where
+a fitted look is least sure: hot cores, clipping) and the clipped pixels left out, and so
+round after round (:data:`ROUNDS`).  The first rounds search each centre widely on all its
+pixels, along the readout first (:func:`radial_fit`'s ``wide``), and fit the looks on every
+k-th pixel; the last one also refines the centre on the pixels that tell it best.  Nothing
+is assumed of the glow's profile: each light's shape is the one its own pixels give.
 """
 
 from __future__ import annotations
@@ -60,8 +62,15 @@ def _grown(box, shape) -> tuple[int, int, int, int]:
 
 
 def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.ndarray) -> list[Blob]:
-    """The blobs, each glowing light whose region meets another glowing light's centred on
-    its own look, fitted jointly with theirs.
+    """The blobs, each glowing light whose region meets another glowing light's, where
+    glows joined, centred on its own look, fitted jointly with theirs.
+
+    A light is refitted when its grown region overlaps another glowing light's, and it or
+    one of those has a cell of a joined region (:attr:`Blob.cell`; a light whose region
+    stayed apart is centred on its own, within the cell :func:`centred_on_glow` gives it),
+    unless it or one of those was found by its face in the dark stripes
+    (:attr:`Blob.face`): there glows clip together in the bright stripes, and what those
+    leave unclipped tells little of the shape, the face more.
 
     Parameters
     ----------
@@ -85,11 +94,6 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
         [j for j in np.flatnonzero(glows) if j != k and _overlap(grown[k], grown[j])]
         for k in range(len(blobs))
     ]
-    # lights found by their faces in the dark stripes have glows that clip together in
-    # their bright ones: what those leave unclipped tells little of the shape, the faces
-    # more (:func:`~camvlp.pipeline.touching.own_face`); they and their neighbours stay
-    # and a light whose region stayed apart from the others' is centred on its own, unless
-    # it meets one whose region joined others' (those split into cells)
     joined = [
         blobs[k].cell is not None or any(blobs[j].cell is not None for j in near[k])
         for k in range(len(blobs))

@@ -13,7 +13,8 @@ of 105 px, halo 0.4); a light
 without a glow (its ring beyond the outline at the background) is left as detected, at the
 cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
 centres every light of a photo (a light whose glow the photo's border cuts too, fitted to
-the pixels in the photo, and used when its disc's rim lies within the photo);
+the pixels in the photo, and used when its disc's rim lies within the photo; lights whose
+glows joined fitted together, :mod:`camvlp.pipeline.crowded`);
 :class:`camvlp.pipeline.track.Tracker` tells each fixture's glow once and centres the
 glowing ones it uses, frame after frame.
 """
@@ -157,6 +158,11 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         The blobs; a moved one has its new ``pixel``, and a centred one whose region reaches
         the photo's border says in ``touches_border`` whether its disc does (all else as
         detected).
+
+    Each glowing light is centred alone within its own cell first; those whose glows joined
+    (and, where some light glows, any light whose region joined others': its outline, its
+    cell's, may hide its glow from :func:`glow_levels`) are then fitted together
+    (:func:`~camvlp.pipeline.crowded.centred_jointly`).
     """
     if which is None:
         levels = glow_levels(img, [_round(b) for b in blobs])
@@ -168,8 +174,6 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         _centred(img, b, axis, _own_cell(blobs, k)) if w else b
         for k, (b, w) in enumerate(zip(blobs, which, strict=True))
     ]
-    # a light whose region joined others' at the detection's threshold, in a photo where
-    # lights glow, is fitted with them: its outline (its cell's) may hide its glow
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
     fitted = which | (joined & which.any())
     return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted)
