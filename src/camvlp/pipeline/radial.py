@@ -19,7 +19,10 @@ centre and refitted in two steps holds the centre near the outline's.
 :data:`_BIN_PX`, on the pixels whose shape and stripe say the most about the centre (the
 largest ``(s(line) g'(rho)) ** 2``, the centre's Fisher information per pixel under the
 model, from the shape fitted at the start: chosen by the model, not by the pixels' values),
-and with the shape refitted in :data:`_ITERS` steps at each trial centre.
+and with the shape refitted in :data:`_ITERS` steps at each trial centre.  The fit keeps the
+light's look, its shape and stripes (:class:`RadialModel`), which :func:`radial_model`
+renders: lights whose glows joined are fitted each to what its neighbours' looks leave
+(:mod:`camvlp.pipeline.crowded`), their centres searched for widely first (``wide``).
 """
 
 from __future__ import annotations
