@@ -143,3 +143,27 @@ def one_error_line(result_or_stderr, stdout: str = "") -> str:
     assert lines[0].startswith("error: "), err
     assert "Traceback" not in err + out
     return lines[0]
+
+
+def stress_scene(size, lamps, settings, quality: int, chip_rate_hz=None):
+    """A drawn scene of ``benchmarks/stress_decode.py``: a camera of ``size`` (w, h; f = 1400
+    px, 15 us rows) at the origin looking up at ``lamps`` ``(id, x, y, diameter)`` 2 m above
+    it (metres, facing down), rendered with ``settings`` and saved as a JPEG of ``quality``;
+    returns the camera, the map, the render and the decoded JPEG."""
+    import cv2
+    import numpy as np
+
+    from camvlp.model.camera import Camera, Pose
+    from camvlp.model.fixtures import Fixture, FixtureMap
+    from camvlp.sim.render import render
+
+    cam = Camera.from_focal(*size, 1400.0, row_time_s=1.5e-5)
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0])) for i, x, y, d in lamps
+        ),
+        chip_rate_hz=chip_rate_hz,
+    )
+    photo = render(cam, room, Pose(np.eye(3), np.zeros(3)), settings)
+    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    return cam, room, photo, cv2.imdecode(buf, cv2.IMREAD_COLOR)

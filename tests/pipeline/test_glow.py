@@ -15,6 +15,7 @@ from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import GLOW_LEVEL, centred_on_glow, glow_level, glow_levels
 from camvlp.sim.render import RenderSettings, render
+from conftest import stress_scene
 
 CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
 ROOM = FixtureMap(
@@ -301,13 +302,6 @@ def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
     # lamp 6's radial fit ran 98 and 73 px off (onto lamp 10's glow, a rim of 240 px
     # where the outline is 210 px across): a disc wider than its light's outline, or
     # reaching beyond it, is another feature's, and the outline's centre (3 px off) stays
-    cam = Camera.from_focal(1920, 1080, 1400.0, row_time_s=1.5e-5)
-    room = FixtureMap(
-        tuple(
-            Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0])) for i, x, y, d in _SIX
-        ),
-        chip_rate_hz=CHIP_RATE,
-    )
     settings = RenderSettings(
         chip_rate_hz=CHIP_RATE,
         exposure_s=1.0 / CHIP_RATE,  # a whole chip
@@ -318,9 +312,7 @@ def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
         readout="rows",
         seed=seed,
     )
-    photo = render(cam, room, Pose(np.eye(3), np.zeros(3)), settings)
-    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, 90])
-    image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    _, _, photo, image = stress_scene((1920, 1080), _SIX, settings, 90, CHIP_RATE)
     blobs = detect_fixtures(image).blobs
     truth = next(f.pixel for f in photo.fixtures if f.id == 6)
     k = int(np.argmin([np.hypot(*(b.pixel - truth)) for b in blobs]))

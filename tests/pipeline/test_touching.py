@@ -13,6 +13,7 @@ from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.touching import codes_differ, light_seeds, power_cell
 from camvlp.sim.render import RenderSettings, render
+from conftest import stress_scene
 
 
 def _circles(*circles, shape=(120, 200)) -> np.ndarray:
@@ -222,13 +223,6 @@ def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(see
     # portrait photo: lamps 3 and 6 (and 14 and 8), apart along the stripes, join into one
     # region with no neck between them at any threshold, and were one light, read as
     # neither (or not at all); the stripes through them spell two codes, so they are two
-    cam = Camera.from_focal(1080, 1920, 1400.0, row_time_s=1.5e-5)
-    room = FixtureMap(
-        tuple(
-            Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0]))
-            for i, x, y, d in _FIFTEEN
-        )
-    )
     rate = 1e5 / 6  # Hz: 4 rows of 15 us per chip
     look = dict(core=1.923343238847005, halo=0.31819223621413256, blur_px=0.7954364704138273)
     settings = RenderSettings(
@@ -240,9 +234,8 @@ def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(see
         seed=seed,
         **look,
     )
-    photo = render(cam, room, Pose(np.eye(3), np.zeros(3)), settings)
-    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, 82])
-    res = locate(cv2.imdecode(buf, cv2.IMREAD_COLOR), cam, room)
+    cam, room, photo, image = stress_scene((1080, 1920), _FIFTEEN, settings, 82)
+    res = locate(image, cam, room)
     truth = {t.id: t.pixel for t in photo.fixtures}
     read = {f.id: f.pixel for f in res.fixtures if f.id is not None and not f.reason}
     assert all(np.linalg.norm(p - truth[i]) < 8.0 for i, p in read.items())  # none wrong

@@ -28,7 +28,7 @@ from camvlp.pipeline.light_wave import _CLIP
 from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
 from camvlp.pipeline.refine import Blob, light_support, to_gray
 
-__all__ = ["Fitted", "centred_jointly"]
+__all__ = ["Fitted", "boxes_overlap", "centred_jointly"]
 
 #: Rounds of the block fit (each light refitted once a round).
 ROUNDS = 3
@@ -48,7 +48,7 @@ class Fitted:
     box: tuple[int, int, int, int]
 
 
-def _overlap(a, b) -> bool:
+def boxes_overlap(a, b) -> bool:
     """Whether two boxes ``(x0, y0, x1, y1)`` overlap."""
     return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
@@ -91,7 +91,7 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
     blobs = list(blobs)
     grown = [_grown(b.box, img.shape) for b in blobs]
     near = [
-        [j for j in np.flatnonzero(glows) if j != k and _overlap(grown[k], grown[j])]
+        [j for j in np.flatnonzero(glows) if j != k and boxes_overlap(grown[k], grown[j])]
         for k in range(len(blobs))
     ]
     joined = [
@@ -140,7 +140,7 @@ def _refitted(
     clipped = gray >= _CLIP
     out = np.zeros(gray.shape, dtype=bool)  # neighbours' discs
     for j, o in enumerate(blobs):
-        if j == k or not _overlap(box, o.box if fits[j] is None else fits[j].box):
+        if j == k or not boxes_overlap(box, o.box if fits[j] is None else fits[j].box):
             continue
         _paste(out, o.mask, o.box, box)
         f = fits[j]

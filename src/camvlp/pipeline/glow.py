@@ -25,7 +25,7 @@ import dataclasses
 
 import numpy as np
 
-from camvlp.pipeline.crowded import centred_jointly
+from camvlp.pipeline.crowded import boxes_overlap, centred_jointly
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.radial import radial_fit
 from camvlp.pipeline.touching import power_cell
@@ -191,12 +191,7 @@ def _own_cell(blobs, k: int) -> np.ndarray | None:
     radial shape must not be fitted to."""
     if blobs[k].cell is not None:
         return None
-    x0, y0, x1, y1 = blobs[k].box
-    near = [
-        j
-        for j, o in enumerate(blobs)
-        if j == k or (o.box[0] < x1 and x0 < o.box[2] and o.box[1] < y1 and y0 < o.box[3])
-    ]
+    near = [j for j, o in enumerate(blobs) if j == k or boxes_overlap(blobs[k].box, o.box)]
     if len(near) < 2:
         return None
     seeds = np.array([(*blobs[j].pixel, 0.5 * float(np.min(blobs[j].axes_px))) for j in near])
