@@ -357,7 +357,7 @@ def one_per_light(
         if dark_of is not None:  # more lights apart in the dark stripes?
             level = dark_of((x, y, w, h), axis())
             dark = None if level is None else dark_seeds(level, inside, min_radius)
-            if dark is not None and len(dark) > len(seeds):
+            if dark is not None and len(dark) > len(_lamp_sized(seeds)):
                 seeds = dark
         if len(seeds) < 2:
             yield (x, y, w, h), None
@@ -421,7 +421,7 @@ def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | Non
         shallow dip).
     """
     lit_mode, dark_mode = _run_modes(lit, axis)
-    if dark_mode < 2 or 2 * dark_mode < lit_mode:
+    if dark_mode < 2:
         return None
     n = 3 * (lit_mode + dark_mode) | 1
     ksize = (n, 1) if axis == "columns" else (1, n)
@@ -441,6 +441,12 @@ def faces(dark: np.ndarray, inside: np.ndarray) -> np.ndarray | None:
     if above.all() or not above.any() or vals[above].mean() - vals[~above].mean() < 12:
         return None
     return ((dark > thr) & (inside > 0)).astype(np.uint8)
+
+
+def _lamp_sized(seeds: np.ndarray) -> np.ndarray:
+    """The seeds ``[x, y, r]`` (k, 3) whose radius is half their median's or more: the
+    others are pieces between lights (of a glow, or of a face), not lights."""
+    return seeds[seeds[:, 2] >= 0.5 * np.median(seeds[:, 2])] if len(seeds) else seeds
 
 
 def dark_seeds(dark: np.ndarray, inside: np.ndarray, min_radius: float) -> np.ndarray | None:
@@ -472,7 +478,7 @@ def dark_seeds(dark: np.ndarray, inside: np.ndarray, min_radius: float) -> np.nd
     seeds = light_seeds(face, min_radius)
     if len(seeds) < 2:
         return None
-    seeds = seeds[seeds[:, 2] >= 0.5 * np.median(seeds[:, 2])]
+    seeds = _lamp_sized(seeds)
     h, w = face.shape
     for i in range(len(seeds)):
         area = np.count_nonzero(face & power_cell((0, 0, w, h), seeds, i))
