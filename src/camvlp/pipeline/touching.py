@@ -357,6 +357,8 @@ def one_per_light(
         if dark_of is not None:  # more lights apart in the dark stripes?
             level = dark_of((x, y, w, h), axis())
             dark = None if level is None else dark_seeds(level, inside, min_radius)
+            # (more than the bright part's peaks of a lamp's size: its small ones are
+            # pieces of glow between lamps, which the faces leave out)
             if dark is not None and len(dark) > len(_lamp_sized(seeds)):
                 seeds = dark
         if len(seeds) < 2:
@@ -401,7 +403,11 @@ def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | Non
     whatever the exposure (a chip's bright stripe grows by the exposure, a dark one shrinks
     by it), while no bright run of the default frame is longer than four chips.  The window
     then holds a dark chip of the light wherever it lies within its face, and a face as long
-    as the window along the readout keeps its extent.
+    as the window along the readout keeps its extent.  At long exposures (a third of a chip
+    or more) a single dark chip leaves only a shallow dip, but where a face clips it stays
+    bright across its dark chips (the LED not fully off, or the chip smeared by the
+    exposure) while its glow, dimmer by about the halo, goes dark: the faces stand out all
+    the same, and :func:`faces` and the callers' disc tests tell where they do not.
 
     Parameters
     ----------
@@ -415,10 +421,8 @@ def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | Non
     Returns
     -------
     ndarray of uint8, shape (h, w), or None
-        The dark-stripe levels; None where the dark stripes do not show the off level: dark
-        runs shorter than 2 pixels (stripes the pixels do not resolve) or than half the lit
-        runs (an exposure of a third of a chip or more, where a single dark chip leaves a
-        shallow dip).
+        The dark-stripe levels; None where the dark runs are shorter than 2 pixels (stripes
+        the pixels do not resolve).
     """
     lit_mode, dark_mode = _run_modes(lit, axis)
     if dark_mode < 2:
