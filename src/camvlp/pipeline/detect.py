@@ -179,14 +179,17 @@ def detect_fixtures(
         x, y, w, h = box
         return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
-    def dark_of(box: tuple[int, int, int, int], axis: str) -> np.ndarray | None:
-        """A region's dark-stripe levels (:func:`dark_level`), worked at full resolution
-        (the decimated image does not resolve the stripes), averaged down to the region."""
+    def dark_of(box: tuple[int, int, int, int], axis: str) -> tuple[np.ndarray, float] | None:
+        """A region's dark-stripe levels and the level its faces must reach
+        (:func:`dark_level`), worked at full resolution (the decimated image does not
+        resolve the stripes), the levels averaged down to the region."""
         x, y, w, h = box
         gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
         lit = cv2.threshold(gray, thr, 1, cv2.THRESH_BINARY)[1]
-        level = dark_level(gray, lit, axis)
-        return None if level is None else cv2.resize(level, (w, h), interpolation=cv2.INTER_AREA)
+        got = dark_level(gray, lit, axis)
+        if got is None:
+            return None
+        return cv2.resize(got[0], (w, h), interpolation=cv2.INTER_AREA), got[1]
 
     def differ_of(box: tuple[int, int, int, int], inside: np.ndarray, axis) -> Callable:
         """Whether two peaks of a region spell different codes (:func:`codes_differ`),

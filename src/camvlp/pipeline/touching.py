@@ -322,8 +322,8 @@ def one_per_light(
     raw : ndarray of uint8, shape (h, w), optional
         ``binary`` before its stripes were bridged (see :func:`light_seeds`).
     dark_of : callable, optional
-        ``dark_of((x, y, w, h), axis)``: a region's dark-stripe levels (:func:`dark_level`),
-        in ``binary``'s pixels, or None.
+        ``dark_of((x, y, w, h), axis)``: a region's dark-stripe levels in ``binary``'s
+        pixels and the level its faces must reach (:func:`dark_level`), or None.
     differ_of : callable, optional
         ``differ_of((x, y, w, h), inside, axis)``: the ``differ`` of :func:`light_seeds` for
         a region (e.g. :func:`codes_differ` on its pixels at full resolution).
@@ -355,8 +355,8 @@ def one_per_light(
             inside * high[y : y + h, x : x + w], min_radius, inside, axis, lit, differ
         )
         if dark_of is not None:  # more lights apart in the dark stripes?
-            level = dark_of((x, y, w, h), axis())
-            dark = None if level is None else dark_seeds(level, inside, min_radius)
+            got = dark_of((x, y, w, h), axis())
+            dark = None if got is None else dark_seeds(got[0], inside, min_radius, got[1])
             # (more than the bright part's peaks of a lamp's size: its small ones are
             # pieces of glow between lamps, which the faces leave out)
             if dark is not None and len(dark) > len(_lamp_sized(seeds)):
@@ -391,7 +391,12 @@ def _run_modes(lit: np.ndarray, axis: str) -> tuple[int, int]:
     return lit_mode, dark_mode
 
 
-def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | None:
+#: At long exposures a face counts only when its dark-stripe levels reach this fraction of
+#: the region's brightest level (where it clips; JPEG's ringing lowers a clipped area a little).
+CLIPPED = 0.95
+
+
+def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> tuple[np.ndarray, float] | None:
     """Each pixel's level in its light's dark stripes.
 
     Lights whose glows clip together in their bright stripes stay apart in their dark ones:
@@ -403,11 +408,15 @@ def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | Non
     whatever the exposure (a chip's bright stripe grows by the exposure, a dark one shrinks
     by it), while no bright run of the default frame is longer than four chips.  The window
     then holds a dark chip of the light wherever it lies within its face, and a face as long
-    as the window along the readout keeps its extent.  At long exposures (a third of a chip
-    or more) a single dark chip leaves only a shallow dip, but where a face clips it stays
-    bright across its dark chips (the LED not fully off, or the chip smeared by the
-    exposure) while its glow, dimmer by about the halo, goes dark: the faces stand out all
-    the same, and :func:`faces` and the callers' disc tests tell where they do not.
+    as the window along the readout keeps its extent.
+
+    At long exposures (a third of a chip or more: dark runs under half the lit ones) a single
+    dark chip leaves only a shallow dip, and a face that does not clip shows there at levels
+    that change with the chips the window holds (bands along the stripes, which cut a face
+    in pieces).  But a face that clips stays clipped across its dark chips (the LED not
+    fully off, or the chip smeared by the exposure) where its glow, dimmer by about the
+    halo, goes dark: there only the faces that reach the clipping level count
+    (:data:`CLIPPED` of the region's brightest level).
 
     Parameters
     ----------
@@ -420,23 +429,27 @@ def dark_level(gray: np.ndarray, lit: np.ndarray, axis: str) -> np.ndarray | Non
 
     Returns
     -------
-    ndarray of uint8, shape (h, w), or None
-        The dark-stripe levels; None where the dark runs are shorter than 2 pixels (stripes
-        the pixels do not resolve).
+    tuple, or None
+        The dark-stripe levels (uint8, shape (h, w)) and the least level a face must reach
+        somewhere to count (0 at short exposures; gray levels); None where the dark runs are
+        shorter than 2 pixels (stripes the pixels do not resolve).
     """
     lit_mode, dark_mode = _run_modes(lit, axis)
     if dark_mode < 2:
         return None
     n = 3 * (lit_mode + dark_mode) | 1
     ksize = (n, 1) if axis == "columns" else (1, n)
-    return cv2.morphologyEx(gray, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, ksize))
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, ksize)
+    reach = CLIPPED * float(gray.max()) if 2 * dark_mode < lit_mode else 0.0
+    return cv2.morphologyEx(gray, cv2.MORPH_OPEN, kernel), reach
 
 
-def faces(dark: np.ndarray, inside: np.ndarray) -> np.ndarray | None:
+def faces(dark: np.ndarray, inside: np.ndarray, reach: float = 0.0) -> np.ndarray | None:
     """The lights' faces in a region's dark-stripe levels (:func:`dark_level`): the levels
-    inside it (``inside``, nonzero) above Otsu's threshold of them, as uint8 0 and 1; None
-    when the two classes' means lie under 12 gray levels apart (no face stands out of the
-    glow and the background, e.g. an LED fully off)."""
+    inside it (``inside``, nonzero) above Otsu's threshold of them, as uint8 0 and 1, each
+    face (8-connected) one whose levels reach ``reach`` somewhere; None when the two
+    classes' means lie under 12 gray levels apart (no face stands out of the glow and the
+    background, e.g. an LED fully off) or no face is left."""
     vals = dark[inside > 0]
     if vals.size < 16:
         return None
@@ -444,7 +457,15 @@ def faces(dark: np.ndarray, inside: np.ndarray) -> np.ndarray | None:
     above = vals > thr
     if above.all() or not above.any() or vals[above].mean() - vals[~above].mean() < 12:
         return None
-    return ((dark > thr) & (inside > 0)).astype(np.uint8)
+    face = ((dark > thr) & (inside > 0)).astype(np.uint8)
+    if reach > 0:
+        n, labels = cv2.connectedComponents(face, connectivity=8)
+        top = np.zeros(n, dark.dtype)
+        np.maximum.at(top, labels.ravel(), dark.ravel())
+        face = (top >= reach)[labels].astype(np.uint8) & face
+        if not face.any():
+            return None
+    return face
 
 
 def _lamp_sized(seeds: np.ndarray) -> np.ndarray:
@@ -453,7 +474,9 @@ def _lamp_sized(seeds: np.ndarray) -> np.ndarray:
     return seeds[seeds[:, 2] >= 0.5 * np.median(seeds[:, 2])] if len(seeds) else seeds
 
 
-def dark_seeds(dark: np.ndarray, inside: np.ndarray, min_radius: float) -> np.ndarray | None:
+def dark_seeds(
+    dark: np.ndarray, inside: np.ndarray, min_radius: float, reach: float = 0.0
+) -> np.ndarray | None:
     """The lights of one lit region from its faces in the dark stripes (:func:`faces`).
 
     Each face is a disc: its peak of the faces' distance transform (:func:`light_seeds`) is
@@ -470,13 +493,15 @@ def dark_seeds(dark: np.ndarray, inside: np.ndarray, min_radius: float) -> np.nd
         The region (nonzero).
     min_radius : float
         Smallest radius of a light, pixels.
+    reach : float
+        The level each face must reach somewhere (:func:`dark_level`, :func:`faces`).
 
     Returns
     -------
     ndarray, shape (k, 3), or None
         ``[x, y, r]`` of each light, as :func:`light_seeds`; None when fewer than two.
     """
-    face = faces(dark, inside)
+    face = faces(dark, inside, reach)
     if face is None:
         return None
     seeds = light_seeds(face, min_radius)
@@ -521,10 +546,11 @@ def own_face(
         shape); None when the dark stripes show no face, when it covers less than 0.6 of its
         inscribed circle, or when it does not hold the seed's centre (another light's).
     """
-    level = dark_level(gray, lit, axis)
-    face = None if level is None else faces(level, cell.view(np.uint8))
+    got = dark_level(gray, lit, axis)
+    face = None if got is None else faces(got[0], cell.view(np.uint8), got[1])
     if face is None:
         return None
+    level = got[0]
     dist = _distances(face)
     y, x = np.unravel_index(int(np.argmax(dist)), dist.shape)
     depth = float(dist[y, x])
