@@ -186,10 +186,8 @@ def detect_fixtures(
         x, y, w, h = box
         gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
         lit = cv2.threshold(gray, thr, 1, cv2.THRESH_BINARY)[1]
-        got = dark_level(gray, lit, axis)
-        if got is None:
-            return None
-        return cv2.resize(got[0], (w, h), interpolation=cv2.INTER_AREA), got[1]
+        got = dark_level(gray, lit, axis)  # None, or the levels and the level to reach
+        return got and (cv2.resize(got[0], (w, h), interpolation=cv2.INTER_AREA), got[1])
 
     def differ_of(box: tuple[int, int, int, int], inside: np.ndarray, axis) -> Callable:
         """Whether two peaks of a region spell different codes (:func:`codes_differ`),
