@@ -24,11 +24,12 @@ import dataclasses
 import cv2
 import numpy as np
 
+from camvlp.geometry.disc import _sampson
 from camvlp.pipeline.light_wave import _CLIP
 from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
 from camvlp.pipeline.refine import Blob, light_support, to_gray
 
-__all__ = ["Fitted", "boxes_overlap", "centred_jointly"]
+__all__ = ["Fitted", "boxes_overlap", "centred_jointly", "rim_from_chords"]
 
 #: Rounds of the block fit (each light refitted once a round).
 ROUNDS = 3
@@ -37,6 +38,14 @@ ROUNDS = 3
 GROW = 0.25
 #: A neighbour's disc left out of a light's fit, in radii of its fitted rim.
 DISC = 1.15
+#: Where a line's chord of a light's disc ends: this share of the line's peak (or the
+#: clipping level, where the line clips), on the disc's blurred edge, above its glow.
+RIM_SHARE = 0.85
+#: Fewest lines whose chords make a rim.
+RIM_LINES = 6
+#: Root-mean-square distance (px) of a clean rim's chord ends from their ellipse: the ends
+#: are whole pixels (a uniform error of 1 px has an RMS of 0.29 px), blurred and noisy.
+RIM_RMS_PX = 1.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -107,17 +116,83 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
         return blobs
     small = to_gray(img[::4, ::4])
     background = float(np.percentile(small, 5))
+    rims = {k: rim_from_chords(img, blobs, k, axis) for k in crowded}
+    for k, rim in rims.items():  # a clean rim is where the light is
+        if rim is not None:
+            blobs[k] = dataclasses.replace(blobs[k], pixel=rim[0])
     fits: list[Fitted | None] = [None] * len(blobs)
-    for k in crowded:  # each one's look where it was centred alone
+    for k in crowded:  # each one's look where it was centred alone (or by its rim)
         refit = _refitted(img, blobs, fits, k, axis, background, search=False)
         fits[k] = None if refit is None else refit[1]
     for r in range(ROUNDS):
         for k in crowded:
-            last = r == ROUNDS - 1
-            refit = _refitted(img, blobs, fits, k, axis, background, local=last)
+            last, held = r == ROUNDS - 1, rims[k] is not None  # (held: its look refitted)
+            refit = _refitted(img, blobs, fits, k, axis, background, search=not held, local=last)
             if refit is not None:
                 blobs[k], fits[k] = refit
     return blobs
+
+
+def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
+    """The centre and radius of light ``k``'s disc from its rim, where each line shows it:
+    None when the rim does not show as a clean ellipse.
+
+    Every line along the readout is exposed at the same instants, so along one line the
+    light is its radial shape times one level: in each line its stripes leave bright, the
+    pixels at :data:`RIM_SHARE` of the line's own peak or more are one chord of its disc
+    (or of its hot core, concentric), whatever the stripes, since the glow stays under
+    the disc's level; where the disc clips, the chord is its clipped part, or more where
+    the glow clips too, still concentric.  The chords' ends, two per line, lie on an
+    ellipse about the light's centre: they fix it along the readout by how their lengths
+    change from line to line, and across it by their middles.  Ends that a neighbour's glow
+    (in lines where the light itself is dark) or a cell's edge put off any ellipse make
+    the fit's root-mean-square distance exceed :data:`RIM_RMS_PX`, and then the rim says
+    nothing.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, 3) or (H, W)
+        The photo.
+    blobs : list of Blob
+        The lights; ``k``'s own pixels are those of its mask (its cell of a joined region)
+        outside the others' masks (grown by the blur).
+    k : int
+        The light.
+    axis : {"rows", "columns"}
+        The readout axis (the lines are rows, or columns).
+
+    Returns
+    -------
+    tuple of (ndarray, shape (2,), float) or None
+        The rim's centre (photo pixels) and the mean of its semi-axes (px).
+    """
+    b = blobs[k]
+    x0, y0, x1, y1 = b.box
+    gray = to_gray(img[y0:y1, x0:x1]).astype(np.float32)
+    others = np.zeros(gray.shape, dtype=bool)
+    for j, o in enumerate(blobs):
+        if j != k and boxes_overlap(b.box, o.box):
+            _paste(others, o.mask, o.box, b.box)
+    gray[~b.mask | others] = 0.0
+    lines = gray if axis == "rows" else gray.T  # one line per row of ``lines``
+    peak = lines.max(axis=1)
+    bright = peak >= RIM_SHARE * peak.max()  # the lines the stripes leave bright
+    chord = (lines >= np.minimum(RIM_SHARE * peak, _CLIP)[:, None]) & bright[:, None]
+    shown = np.flatnonzero(chord.any(axis=1))
+    if shown.size < RIM_LINES:
+        return None
+    first = chord[shown].argmax(axis=1) - 0.5
+    last = chord.shape[1] - 0.5 - chord[shown, ::-1].argmax(axis=1)
+    ends = np.stack([np.concatenate([first, last]), np.concatenate([shown, shown])], axis=1)
+    (cu, cv), (w, h), angle = cv2.fitEllipse(ends.astype(np.float32))
+    if not (np.all(np.isfinite([cu, cv, w, h])) and min(w, h) > 0):
+        return None
+    p = np.array([[cu, cv, 0.5 * w, 0.5 * h, np.radians(angle)]])
+    d, _ = _sampson(p, ends[None, :, 0], ends[None, :, 1])
+    if not np.sqrt(np.mean(np.square(d))) <= RIM_RMS_PX:
+        return None
+    centre = np.array([cu, cv] if axis == "rows" else [cv, cu]) + np.array([x0, y0], float)
+    return centre, 0.25 * (w + h)
 
 
 def _refitted(
