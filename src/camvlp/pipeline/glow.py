@@ -25,7 +25,7 @@ import dataclasses
 
 import numpy as np
 
-from camvlp.pipeline.crowded import boxes_overlap, centred_jointly
+from camvlp.pipeline.crowded import boxes_overlap, centred_jointly, rim_from_chords
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.radial import radial_fit
 from camvlp.pipeline.touching import power_cell
@@ -171,12 +171,23 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
     moved = [
-        _centred(img, b, axis, _own_cell(blobs, k)) if w else b
+        (_on_rim(img, blobs, k, axis) or _centred(img, b, axis, _own_cell(blobs, k))) if w else b
         for k, (b, w) in enumerate(zip(blobs, which, strict=True))
     ]
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
     fitted = which | (joined & which.any())
     return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted)
+
+
+def _on_rim(img: np.ndarray, blobs, k: int, axis: str) -> Blob | None:
+    """Light ``k`` centred on its disc's rim (:func:`rim_from_chords`), when the rim shows
+    clean and the light's region does not reach the photo's border; else None."""
+    b = blobs[k]
+    x0, y0, x1, y1 = b.box
+    if b.touches_border or x0 == 0 or y0 == 0 or x1 == img.shape[1] or y1 == img.shape[0]:
+        return None
+    rim = rim_from_chords(img, blobs, k, axis)
+    return None if rim is None else dataclasses.replace(b, pixel=rim[0])
 
 
 def _own_cell(blobs, k: int) -> np.ndarray | None:
