@@ -43,9 +43,15 @@ DISC = 1.15
 RIM_SHARE = 0.85
 #: Fewest lines whose chords make a rim.
 RIM_LINES = 6
+#: A chord's end further than this (px) from the ellipse of all ends is set aside, and the
+#: ellipse fitted again: one in :data:`RIM_KEPT` may be.
+RIM_OUT_PX = 3.0
+RIM_KEPT = 0.9
 #: Root-mean-square distance (px) of a clean rim's chord ends from their ellipse: the ends
-#: are whole pixels (a uniform error of 1 px has an RMS of 0.29 px), blurred and noisy.
-RIM_RMS_PX = 1.0
+#: are whole pixels (a uniform error of 1 px has an RMS of 0.29 px), where a blurred edge
+#: (0.5 to 2 px), noise, JPEG and a phone's sharpening cross the line's share: 0.5 to 1.2 px
+#: on clean rims, rendered plain or through a phone's processing.
+RIM_RMS_PX = 1.5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -169,30 +175,62 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     b = blobs[k]
     x0, y0, x1, y1 = b.box
     gray = to_gray(img[y0:y1, x0:x1]).astype(np.float32)
-    others = np.zeros(gray.shape, dtype=bool)
+    own = np.ones(gray.shape, dtype=bool) if b.cell is None else b.cell.copy()
     for j, o in enumerate(blobs):
         if j != k and boxes_overlap(b.box, o.box):
+            others = np.zeros(gray.shape, dtype=bool)
             _paste(others, o.mask, o.box, b.box)
-    gray[~b.mask | others] = 0.0
-    lines = gray if axis == "rows" else gray.T  # one line per row of ``lines``
+            own &= ~others
+    lines, own = (gray, own) if axis == "rows" else (gray.T, own.T)  # a line per row
+    lines = np.where(own, lines, 0.0)
+    c = int(np.round(b.pixel[0] - x0 if axis == "rows" else b.pixel[1] - y0))
+    if not 0 < c < lines.shape[1] - 1:
+        return None
     peak = lines.max(axis=1)
     bright = peak >= RIM_SHARE * peak.max()  # the lines the stripes leave bright
-    chord = (lines >= np.minimum(RIM_SHARE * peak, _CLIP)[:, None]) & bright[:, None]
-    shown = np.flatnonzero(chord.any(axis=1))
+    chord = lines >= np.minimum(RIM_SHARE * peak, _CLIP)[:, None]
+    shown = np.flatnonzero(bright & chord[:, c])  # the lines whose chord holds the centre
     if shown.size < RIM_LINES:
         return None
-    first = chord[shown].argmax(axis=1) - 0.5
-    last = chord.shape[1] - 0.5 - chord[shown, ::-1].argmax(axis=1)
-    ends = np.stack([np.concatenate([first, last]), np.concatenate([shown, shown])], axis=1)
-    (cu, cv), (w, h), angle = cv2.fitEllipse(ends.astype(np.float32))
-    if not (np.all(np.isfinite([cu, cv, w, h])) and min(w, h) > 0):
+    # each line's chord through the centre: its ends where the level first falls below
+    # the line's share, on each side; an end that is the region's edge, a neighbour's or a
+    # cell's, is a cut, not the rim
+    left = c - np.argmin(chord[shown, c::-1], axis=1)  # first below, leftwards (or -1...)
+    right = c + np.argmin(chord[shown, c:], axis=1)
+    left = np.where(chord[shown, 0] & (left == c), -1, left)  # no fall: runs off the edge
+    right = np.where(chord[shown, -1] & (right == c), lines.shape[1], right)
+    n = lines.shape[1]
+    ok_l = (left >= 0) & own[shown, np.clip(left, 0, n - 1)]
+    ok_r = (right < n) & own[shown, np.clip(right, 0, n - 1)]
+    ends = np.concatenate(
+        [
+            np.stack([left[ok_l] + 0.5, shown[ok_l]], axis=1),
+            np.stack([right[ok_r] - 0.5, shown[ok_r]], axis=1),
+        ]
+    ).astype(np.float64)
+    if ends.shape[0] < 2 * RIM_LINES:
         return None
-    p = np.array([[cu, cv, 0.5 * w, 0.5 * h, np.radians(angle)]])
-    d, _ = _sampson(p, ends[None, :, 0], ends[None, :, 1])
+    fit = _ellipse(ends)
+    if fit is None:
+        return None
+    d = _sampson(fit[None], ends[None, :, 0], ends[None, :, 1])[0][0]
+    kept = np.abs(d) <= RIM_OUT_PX  # a few ends a neighbour's glow or a ring moved
+    if RIM_KEPT * d.size > kept.sum() or (not kept.all() and (fit := _ellipse(ends[kept])) is None):
+        return None
+    d = _sampson(fit[None], ends[kept, 0][None], ends[kept, 1][None])[0][0]
     if not np.sqrt(np.mean(np.square(d))) <= RIM_RMS_PX:
         return None
+    cu, cv, a, b_ = fit[:4]
     centre = np.array([cu, cv] if axis == "rows" else [cv, cu]) + np.array([x0, y0], float)
-    return centre, 0.25 * (w + h)
+    return centre, 0.5 * (a + b_)
+
+
+def _ellipse(points: np.ndarray) -> np.ndarray | None:
+    """:func:`cv2.fitEllipse` of ``points`` (M, 2) as (centre, semi-axes, angle in radians),
+    shape (5,); None when degenerate."""
+    (cu, cv), (w, h), angle = cv2.fitEllipse(points.astype(np.float32))
+    p = np.array([cu, cv, 0.5 * w, 0.5 * h, np.radians(angle)])
+    return p if np.all(np.isfinite(p)) and min(w, h) > 0 else None
 
 
 def _refitted(

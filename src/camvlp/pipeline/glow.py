@@ -180,14 +180,21 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 
 
 def _on_rim(img: np.ndarray, blobs, k: int, axis: str) -> Blob | None:
-    """Light ``k`` centred on its disc's rim (:func:`rim_from_chords`), when the rim shows
-    clean and the light's region does not reach the photo's border; else None."""
+    """Light ``k`` centred on its disc's rim (:func:`rim_from_chords`) when the rim shows
+    clean; else None.  A light whose region reaches the photo's border counts as touching
+    it unless its rim lies :data:`RIM_MARGIN_PX` or more within the photo."""
     b = blobs[k]
-    x0, y0, x1, y1 = b.box
-    if b.touches_border or x0 == 0 or y0 == 0 or x1 == img.shape[1] or y1 == img.shape[0]:
-        return None
     rim = rim_from_chords(img, blobs, k, axis)
-    return None if rim is None else dataclasses.replace(b, pixel=rim[0])
+    if rim is None:
+        return None
+    (centre, radius), (x0, y0, x1, y1) = rim, b.box
+    height, width = img.shape[:2]
+    if not (x0 == 0 or y0 == 0 or x1 == width or y1 == height):
+        return dataclasses.replace(b, pixel=centre)
+    size = np.array([width, height], dtype=float)
+    low, high = centre - radius, centre + radius  # the photo: -0.5 to size - 0.5
+    inside = np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX)
+    return dataclasses.replace(b, pixel=centre, touches_border=False) if inside else None
 
 
 def _own_cell(blobs, k: int) -> np.ndarray | None:
