@@ -15,6 +15,12 @@ round after round (:data:`ROUNDS`).  The first rounds search each centre widely 
 pixels, along the readout first (:func:`radial_fit`'s ``wide``), and fit the looks on every
 k-th pixel; the last one also refines the centre on the pixels that tell it best.  Nothing
 is assumed of the glow's profile: each light's shape is the one its own pixels give.
+
+A light whose disc's rim shows clean (:func:`rim_from_chords`: each line's chord at a share
+of its own peak, whatever its stripes) is centred on its rim instead, and only its look is
+refitted: the sum of looks holds for levels that are light, and a phone's tone curve, which
+a camera file may not give, bends it (lamps 10 to 67 px off through such a curve, where
+their rims put them within 0.3 px).
 """
 
 from __future__ import annotations
@@ -85,7 +91,8 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
     stayed apart is centred on its own, within the cell :func:`centred_on_glow` gives it),
     unless it or one of those was found by its face in the dark stripes
     (:attr:`Blob.face`): there glows clip together in the bright stripes, and what those
-    leave unclipped tells little of the shape, the face more.
+    leave unclipped tells little of the shape, the face more.  A light whose rim shows clean
+    (:func:`rim_from_chords`) is centred on it and keeps that centre; its look is refitted.
 
     Parameters
     ----------
@@ -153,7 +160,11 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     change from line to line, and across it by their middles.  Ends that a neighbour's glow
     (in lines where the light itself is dark) or a cell's edge put off any ellipse make
     the fit's root-mean-square distance exceed :data:`RIM_RMS_PX`, and then the rim says
-    nothing.
+    nothing.  Only the chord through the light's centre counts in each line, and an end
+    that is an edge of the light's own pixels (its region's, its cell's, a neighbour's mask)
+    is a cut, not the rim, and is left out; so are up to one end in ten lying
+    :data:`RIM_OUT_PX` or more off the ellipse of all (a ring, a neighbour's glow), the
+    ellipse fitted again without them.
 
     Parameters
     ----------

@@ -159,7 +159,9 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         the photo's border says in ``touches_border`` whether its disc does (all else as
         detected).
 
-    Each glowing light is centred alone within its own cell first; those whose glows joined
+    Each glowing light is centred on its disc's rim where that shows clean
+    (:func:`~camvlp.pipeline.crowded.rim_from_chords`), else alone within its own cell
+    first (its radial shape); those whose glows joined
     (and, where some light glows, any light whose region joined others': its outline, its
     cell's, may hide its glow from :func:`glow_levels`) are then fitted together
     (:func:`~camvlp.pipeline.crowded.centred_jointly`).
