@@ -112,7 +112,8 @@ def test_lamps_through_a_phone_are_centred_on_their_rims(seed):
     # sharpening, vignetting), where halos sum before the curve, a lamp's look less its
     # neighbours' is not its own: the joint fit alone put the joined lamps 10 to 67 px off,
     # and neither photo was located; the chords of each line at 0.85 of its peak are the
-    # disc's, whatever the curve, and centre the four joined lamps within half a pixel
+    # disc's, whatever the curve, and keep the four joined lamps within a pixel of their
+    # centres (where the joint fit agrees with the rims to a pixel, its centre is kept)
     chip = 1.0 / (3 * 1.5e-5)
     settings = RenderSettings(
         chip_rate_hz=chip,
@@ -136,7 +137,7 @@ def test_lamps_through_a_phone_are_centred_on_their_rims(seed):
         f = min(res.fixtures, key=lambda f: np.hypot(*(f.pixel - t.pixel)))
         assert f.id == t.id
         if t.id != 2:  # (the lamp apart is not centred jointly)
-            assert np.hypot(*(f.pixel - t.pixel)) < 0.5
+            assert np.hypot(*(f.pixel - t.pixel)) < 1.0
 
 
 def test_a_rim_is_not_taken_from_a_mask_that_cuts_the_disc():

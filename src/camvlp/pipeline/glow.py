@@ -25,7 +25,7 @@ import dataclasses
 
 import numpy as np
 
-from camvlp.pipeline.crowded import boxes_overlap, centred_jointly, rim_from_chords
+from camvlp.pipeline.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.detect import Blob, light_support, to_gray
 from camvlp.pipeline.radial import radial_fit
 from camvlp.pipeline.touching import power_cell
@@ -159,9 +159,9 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         the photo's border says in ``touches_border`` whether its disc does (all else as
         detected).
 
-    Each glowing light is centred on its disc's rim where that shows clean
-    (:func:`~camvlp.pipeline.crowded.rim_from_chords`), else alone within its own cell
-    first (its radial shape); those whose glows joined
+    Each glowing light is centred alone within its own cell first (its radial shape), or on
+    its disc's rim where that shows clean and the shape's centre lies off it
+    (:func:`~camvlp.pipeline.crowded.rim_from_chords`); those whose glows joined
     (and, where some light glows, any light whose region joined others': its outline, its
     cell's, may hide its glow from :func:`glow_levels`) are then fitted together
     (:func:`~camvlp.pipeline.crowded.centred_jointly`).
@@ -173,7 +173,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")
     moved = [
-        (_on_rim(img, blobs, k, axis) or _centred(img, b, axis, _own_cell(blobs, k))) if w else b
+        _on_rim(img, blobs, k, axis, _centred(img, b, axis, _own_cell(blobs, k))) if w else b
         for k, (b, w) in enumerate(zip(blobs, which, strict=True))
     ]
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
@@ -181,22 +181,23 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted)
 
 
-def _on_rim(img: np.ndarray, blobs, k: int, axis: str) -> Blob | None:
-    """Light ``k`` centred on its disc's rim (:func:`rim_from_chords`) when the rim shows
-    clean; else None.  A light whose region reaches the photo's border counts as touching
-    it unless its rim lies :data:`RIM_MARGIN_PX` or more within the photo."""
-    b = blobs[k]
+def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
+    """Light ``k`` as its radial shape centred it (``fitted``), or centred on its disc's rim
+    (:func:`rim_from_chords`) when the rim shows clean and the fit's centre is not on it
+    (:func:`on_rim`).  A light whose region reaches the photo's border so centred counts as
+    touching it unless its rim lies :data:`RIM_MARGIN_PX` or more within the photo."""
     rim = rim_from_chords(img, blobs, k, axis)
-    if rim is None:
-        return None
-    (centre, radius), (x0, y0, x1, y1) = rim, b.box
+    if on_rim(fitted.pixel, rim):
+        return fitted
+    b, (centre, radius) = blobs[k], rim
+    x0, y0, x1, y1 = b.box
     height, width = img.shape[:2]
     if not (x0 == 0 or y0 == 0 or x1 == width or y1 == height):
         return dataclasses.replace(b, pixel=centre)
     size = np.array([width, height], dtype=float)
     low, high = centre - radius, centre + radius  # the photo: -0.5 to size - 0.5
     inside = np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX)
-    return dataclasses.replace(b, pixel=centre, touches_border=False) if inside else None
+    return dataclasses.replace(b, pixel=centre, touches_border=not inside)
 
 
 def _own_cell(blobs, k: int) -> np.ndarray | None:
