@@ -145,11 +145,12 @@ def one_error_line(result_or_stderr, stdout: str = "") -> str:
     return lines[0]
 
 
-def stress_scene(size, lamps, settings, quality: int, chip_rate_hz=None):
+def stress_scene(size, lamps, settings, quality: int, chip_rate_hz=None, k1: float = 0.0):
     """A drawn scene of ``benchmarks/stress_decode.py``: a camera of ``size`` (w, h; f = 1400
-    px, 15 us rows) at the origin looking up at ``lamps`` ``(id, x, y, diameter)`` 2 m above
-    it (metres, facing down), rendered with ``settings`` and saved as a JPEG of ``quality``;
-    returns the camera, the map, the render and the decoded JPEG."""
+    px, 15 us rows, radial distortion ``k1``) at the origin looking up at ``lamps``
+    ``(id, x, y, diameter)`` 2 m above it (metres, facing down), rendered with ``settings``
+    and saved as a JPEG of ``quality``; returns the camera, the map, the render and the
+    decoded JPEG."""
     import cv2
     import numpy as np
 
@@ -157,7 +158,8 @@ def stress_scene(size, lamps, settings, quality: int, chip_rate_hz=None):
     from camvlp.model.fixtures import Fixture, FixtureMap
     from camvlp.sim.render import render
 
-    cam = Camera.from_focal(*size, 1400.0, row_time_s=1.5e-5)
+    distortion = np.array([k1, 0.0, 0.0, 0.0, 0.0]) if k1 else np.zeros(0)
+    cam = Camera.from_focal(*size, 1400.0, row_time_s=1.5e-5, distortion=distortion)
     room = FixtureMap(
         tuple(
             Fixture(i, np.array([x, y, 2.0]), d, np.array([0.0, 0.0, -1.0])) for i, x, y, d in lamps

@@ -157,3 +157,33 @@ def test_a_rim_is_not_taken_from_a_mask_that_cuts_the_disc():
         cut = [*blobs[:k], dataclasses.replace(b, mask=hole & b.mask), *blobs[k + 1 :]]
         rim = crowded.rim_from_chords(photo.image, cut, k, "rows")
         assert rim is not None and np.hypot(*(rim[0] - centre)) < 0.3
+
+
+#: Three lamps of a portrait 1080p photo of ``benchmarks/stress_decode.py`` (seed 11, 0.85
+#: chip at 2 rows per chip): ``(id, x, y, diameter)``, metres, 2 m above the camera; lamps 0
+#: and 12 some 120 px apart, their glows joined.
+_THREE = ((15, 0.4656, 0.5915, 0.0654), (12, 0.2011, 0.8439, 0.0811), (0, 0.3263, 0.7362, 0.1034))
+
+
+def test_a_lamp_is_not_drawn_off_its_clipped_disc():
+    # lamp 0 (clipping at 4 times full scale, halo 0.39) was centred 2 px off alone and drawn
+    # 16.5 px off by the joint fit, toward lamp 12, by what lamp 12's look left in its lines
+    # (27 px on the stress photo itself): its own clipped pixels, centred on its disc, hold it
+    chip = 1e5 / 3  # Hz: 2 rows of 15 us per chip
+    settings = RenderSettings(
+        chip_rate_hz=chip,
+        exposure_s=0.85 / chip,
+        brightness=4.0,
+        off_level=0.0116,
+        core=1.163,
+        halo=0.393,
+        blur_px=0.77,
+        readout="columns-reversed",
+        seed=1,
+    )
+    _, _, photo, image = stress_scene((1080, 1920), _THREE, settings, 94, chip, k1=0.105)
+    blobs = detect_fixtures(image, readout="columns").blobs
+    assert len(blobs) == 3 and sum(b.cell is not None for b in blobs) >= 2
+    moved = centred_on_glow(image, blobs, "columns")
+    truth = next(f.pixel for f in photo.fixtures if f.id == 0)
+    assert min(np.hypot(*(b.pixel - truth)) for b in moved) < 3.0
