@@ -14,7 +14,9 @@ a fitted look is least sure: hot cores, clipping) and the clipped pixels left ou
 round after round (:data:`ROUNDS`).  The first rounds search each centre widely on all its
 pixels, along the readout first (:func:`radial_fit`'s ``wide``), and fit the looks on every
 k-th pixel; the last one also refines the centre on the pixels that tell it best.  Nothing
-is assumed of the glow's profile: each light's shape is the one its own pixels give.
+is assumed of the glow's profile: each light's shape is the one its own pixels give.  A light
+whose joint centre is drawn away from its own clipped pixels keeps its centre alone
+(:func:`_held_by_clipped`).
 
 A light whose disc's rim shows clean (:func:`rim_from_chords`: each line's chord at a share
 of its own peak, whatever its stripes) is kept within a pixel of its rim's centre: the
