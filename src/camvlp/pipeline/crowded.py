@@ -212,12 +212,11 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     b = blobs[k]
     x0, y0, x1, y1 = b.box
     gray = to_gray(img[y0:y1, x0:x1]).astype(np.float32)
-    own = np.ones(gray.shape, dtype=bool) if b.cell is None else b.cell.copy()
+    others = np.zeros(gray.shape, dtype=bool)
     for j, o in enumerate(blobs):
         if j != k and boxes_overlap(b.box, o.box):
-            others = np.zeros(gray.shape, dtype=bool)
             _paste(others, o.mask, o.box, b.box)
-            own &= ~others
+    own = ~others if b.cell is None else b.cell & ~others
     lines, own = (gray, own) if axis == "rows" else (gray.T, own.T)  # a line per row
     lines = np.where(own, lines, 0.0)
     c = int(np.round(b.pixel[0] - x0 if axis == "rows" else b.pixel[1] - y0))
@@ -232,11 +231,11 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     # each line's chord through the centre: its ends where the level first falls below
     # the line's share, on each side; an end that is the region's edge, a neighbour's or a
     # cell's, is a cut, not the rim
-    left = c - np.argmin(chord[shown, c::-1], axis=1)  # first below, leftwards (or -1...)
-    right = c + np.argmin(chord[shown, c:], axis=1)
-    left = np.where(chord[shown, 0] & (left == c), -1, left)  # no fall: runs off the edge
-    right = np.where(chord[shown, -1] & (right == c), lines.shape[1], right)
     n = lines.shape[1]
+    left = c - np.argmin(chord[shown, c::-1], axis=1)  # first below, leftwards
+    right = c + np.argmin(chord[shown, c:], axis=1)
+    left = np.where(left == c, -1, left)  # (chord[:, c] holds: no fall, it runs off the edge)
+    right = np.where(right == c, n, right)
     ok_l = (left >= 0) & own[shown, np.clip(left, 0, n - 1)]
     ok_r = (right < n) & own[shown, np.clip(right, 0, n - 1)]
     ends = np.concatenate(

@@ -190,14 +190,24 @@ def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
     if on_rim(fitted.pixel, rim):
         return fitted
     b, (centre, radius) = blobs[k], rim
-    x0, y0, x1, y1 = b.box
-    height, width = img.shape[:2]
-    if not (x0 == 0 or y0 == 0 or x1 == width or y1 == height):
+    if not _reaches_border(b.box, img.shape):
         return dataclasses.replace(b, pixel=centre)
-    size = np.array([width, height], dtype=float)
-    low, high = centre - radius, centre + radius  # the photo: -0.5 to size - 0.5
-    inside = np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX)
+    inside = _rim_inside(centre, radius, img.shape)
     return dataclasses.replace(b, pixel=centre, touches_border=not inside)
+
+
+def _reaches_border(box, shape) -> bool:
+    """Whether a region ``(x0, y0, x1, y1)`` reaches the border of a photo of ``shape``."""
+    x0, y0, x1, y1 = box
+    return x0 == 0 or y0 == 0 or x1 == shape[1] or y1 == shape[0]
+
+
+def _rim_inside(centre: np.ndarray, radius, shape) -> bool:
+    """Whether a rim of ``radius`` (px) about ``centre`` (photo pixels) lies
+    :data:`RIM_MARGIN_PX` or more within a photo of ``shape`` (its pixels: -0.5 to size)."""
+    size = np.array([shape[1], shape[0]], dtype=float)
+    low, high = centre - radius, centre + radius
+    return bool(np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX))
 
 
 def _own_cell(blobs, k: int) -> np.ndarray | None:
@@ -265,13 +275,11 @@ def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None
     bright part missed the border (the part cut off in a dark stripe).
     """
     x0, y0, x1, y1 = b.box
-    height, width = img.shape[:2]
     gray = b.gray if b.gray is not None else to_gray(img[y0:y1, x0:x1])
     support = light_support(gray, b.mask, axis, cell=b.cell if cell is None else cell)
     r = _round(b)
     ellipse = ((r.pixel[0] - x0, r.pixel[1] - y0), tuple(r.axes_px), r.angle_deg)
-    far = x0 == 0 or y0 == 0 or x1 == width or y1 == height
-    far = far and not (b.face and not b.touches_border)
+    far = _reaches_border(b.box, img.shape) and not (b.face and not b.touches_border)
     fit = radial_fit(gray, support, ellipse, axis, far)
     centre = fit.centre
     h, w = b.mask.shape
@@ -285,8 +293,6 @@ def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None
         return dataclasses.replace(b, touches_border=True) if far else b
     if not far:
         return dataclasses.replace(b, pixel=pixel)
-    size = np.array([width, height], dtype=float)
-    low, high = pixel - fit.rim, pixel + fit.rim  # the rim's extent; the photo: -0.5 to size
-    if np.all(low >= RIM_MARGIN_PX - 0.5) and np.all(high <= size - 0.5 - RIM_MARGIN_PX):
+    if _rim_inside(pixel, fit.rim, img.shape):
         return dataclasses.replace(b, pixel=pixel, touches_border=False)
     return dataclasses.replace(b, touches_border=True)  # its disc cut (or its rim not found)
