@@ -171,6 +171,51 @@ def test_look_alikes_are_assigned_only_from_every_way_for_the_fixtures_tried(
     assert len(_assigned(small_camera, small_room, NEXT, 0)) == 5
 
 
+def _with_unread(camera, room, look_alike, unread: int, seed: int, witnesses: bool, move=None):
+    """assigned_by_pose as :func:`_assigned`, fixture ``unread`` (an index) with no
+    candidates (its stripes fit no ID) and, with ``witnesses``, allowed to witness a pose;
+    ``move`` (px, shape (2,)) moves its centre."""
+    ids = [f.id for f in room.fixtures]
+    rng = np.random.default_rng(seed)
+    px = project_points(camera, POSE, [room.get(i).position for i in ids])
+    px = px + rng.normal(0.0, 0.3, px.shape)
+    if move is not None:
+        px[unread] += move
+    cands = [() if k == unread else (i, look_alike[i]) for k, i in enumerate(ids)]
+
+    def pose_of(given: dict[int, int]):
+        ks = sorted(given)
+        obj = [room.get(given[k]).position for k in ks]
+        est = estimate_pose(px[ks], obj, camera, outlier_px=10.0)
+        return est.pose if est and all(est.used) else None
+
+    wit = [k == unread for k in range(len(ids))] if witnesses else None
+    return assigned_by_pose(camera, room, px, {}, cands, 10.0, pose_of, 4, wit)
+
+
+@pytest.mark.parametrize("unread", [0, 2, 4])
+def test_a_fixture_whose_stripes_fit_no_id_witnesses_the_pose_of_four_look_alikes(
+    small_camera, small_room, unread
+):
+    # four look-alikes are as many as a pose needs: alone, nothing confirms their
+    # assignment; the fifth fixture, unread, lies where the map has a fixture and confirms it
+    # (it is given no ID)
+    ids = [f.id for f in small_room.fixtures]
+    want = {k: i for k, i in enumerate(ids) if k != unread}
+    assert _with_unread(small_camera, small_room, NEXT, unread, 0, witnesses=False) == {}
+    assert _with_unread(small_camera, small_room, NEXT, unread, 0, witnesses=True) == want
+    # an unread fixture where no fixture of the map projects witnesses nothing
+    far = np.array([0.0, 60.0])
+    assert _with_unread(small_camera, small_room, NEXT, unread, 0, True, far) == {}
+
+
+def test_a_witness_does_not_settle_look_alikes_that_two_assignments_fit(small_camera, small_room):
+    # turned half a turn about the middle light the room is itself: both assignments of the
+    # four look-alikes put a map fixture on the unread one
+    for unread in (0, 4):
+        assert _with_unread(small_camera, small_room, TURNED, unread, 1, witnesses=True) == {}
+
+
 _DECODE_MANCHESTER = locate_module.decode_manchester
 
 
@@ -252,6 +297,38 @@ def test_locate_assigns_look_alikes_when_no_fixture_is_identified(
     for f in res.fixtures:
         i = min(ids, key=lambda i: np.hypot(*(f.pixel - where(small_camera, small_room, i))))
         assert f.id == i and f.used and f.look_alikes == tuple(sorted((i, NEXT[i])))
+    assert np.linalg.norm(res.position - POSE.position) < 0.01
+
+
+def test_locate_assigns_four_look_alikes_that_an_unread_fixture_witnesses(
+    monkeypatch, small_camera, small_room, small_render
+):
+    # IDs 5, 6, 9, 10 refused between look-alikes, 12's stripes fit no ID: the four are as
+    # many as a pose needs, and the fifth, where the map has fixture 12, confirms them
+    look = (5, 6, 9, 10)
+    real = _refused(look, NEXT)
+
+    def fake(*args, **kwargs):
+        man = real(*args, **kwargs)
+        decodes = list(man.decodes)
+        k = [d.id for d in decodes].index(12)
+        unread = _refusal((12, 5), man.rows_per_chip)
+        decodes[k] = dataclasses.replace(
+            unread, reason="the stripes fit no ID's model", runner_up=None, candidates=()
+        )
+        return dataclasses.replace(man, decodes=tuple(decodes))
+
+    monkeypatch.setattr(locate_module, "decode_manchester", fake)
+    res = locate(small_render.image, small_camera, small_room)
+    assert res
+    for f in res.fixtures:
+        i = min(
+            small_room.ids, key=lambda i: np.hypot(*(f.pixel - where(small_camera, small_room, i)))
+        )
+        if i == 12:  # a witness is given no ID
+            assert f.id is None and not f.used and "fit no ID" in f.reason
+        else:
+            assert f.id == i and f.used and f.look_alikes == tuple(sorted((i, NEXT[i])))
     assert np.linalg.norm(res.position - POSE.position) < 0.01
 
 

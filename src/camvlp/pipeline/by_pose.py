@@ -17,13 +17,16 @@ When the fixtures the stripes identified are too few for a pose, the pose comes 
 look-alikes themselves (:func:`assigned_by_pose`): every way of giving a few of them one of
 their candidates is a hypothesis, solved and checked against the others.  An assignment is
 taken when the fixtures it explains are more than a pose needs and no assignment that
-contradicts it explains as many.
+contradicts it explains as many.  A fixture whose stripes fit no ID (or only look-alikes the
+pose does not tell) still explains a pose where exactly one fixture of the map the
+assignment left free projects onto it (:func:`_witnessed`); it witnesses the pose and is
+given no ID (the geometry alone never names a fixture).
 """
 
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -205,18 +208,19 @@ def told_by_pose(
 
 
 def _hypotheses(
-    fixed: dict[int, int], candidates: list[tuple[int, ...]], needed: int
+    fixed: dict[int, int], candidates: list[tuple[int, ...]], needed: int, spare: int = 0
 ) -> list[dict[int, int]]:
     """Seeds of :func:`assigned_by_pose`: the fixed IDs and one candidate each for as many
     ambiguous fixtures as a pose needs besides (fewest candidates first), no ID twice; every
     way for a set of fixtures or none of them (so that an assignment and those that
-    contradict it on those fixtures are all tried), at most :data:`HYPOTHESES` in all."""
+    contradict it on those fixtures are all tried), at most :data:`HYPOTHESES` in all.
+    ``spare`` fixtures besides the ambiguous ones may witness a pose."""
     free = [k for k, c in enumerate(candidates) if len(c) >= 2 and k not in fixed]
     free.sort(key=lambda k: len(candidates[k]))
     m = needed - len(fixed)
     out: list[dict[int, int]] = []
-    if m <= 0 or len(free) <= m:  # a fixture beyond the seeds must confirm them
-        return out
+    if m <= 0 or len(free) < m or len(free) + spare <= m:  # a fixture beyond the seeds
+        return out  # must confirm them
     used = set(fixed.values())
     for seeds in itertools.combinations(free, m):
         ways = [
@@ -239,6 +243,7 @@ def assigned_by_pose(
     outlier_px: float,
     pose_of: Callable[[dict[int, int]], Pose | None],
     needed: int = 4,
+    witnesses: Sequence[bool] | None = None,
 ) -> dict[int, int]:
     """IDs for look-alike fixtures when those the stripes identified are too few for a pose.
 
@@ -259,30 +264,70 @@ def assigned_by_pose(
         Fixture index -> ID assignment -> the pose that every one of them fits, or None.
     needed : int
         Fixtures a pose needs (4; 2 with gravity).
+    witnesses : sequence of bool, length n, optional
+        The fixtures that may witness a pose (:func:`_witnessed`) when the stripes told
+        nothing of them, or only look-alikes the pose does not tell: fixtures whose stripes
+        fit no ID, not cut by the border.  None: no fixture does.
 
     Returns
     -------
     dict
         Fixture index -> ID for the look-alike fixtures assigned (empty when none).
     """
-    found: set[frozenset] = set()
+    found: dict[frozenset, int] = {}  # assignment -> the most fixtures it explains
     taken = set(fixed.values())
-    for seed in _hypotheses(fixed, candidates, needed):
+    may = [False] * len(candidates) if witnesses is None else [bool(w) for w in witnesses]
+    spare = sum(w and k not in fixed and len(candidates[k]) < 2 for k, w in enumerate(may))
+    for seed in _hypotheses(fixed, candidates, needed, spare):
         pose = pose_of(seed)
         if pose is None:
             continue
         told = told_by_pose(camera, pose, fixture_map, pixels, candidates, taken, outlier_px)
         if all(told.get(k) == i for k, i in seed.items() if k not in fixed):
-            found.add(frozenset(told.items()))
+            seen = [w and k not in fixed and k not in told for k, w in enumerate(may)]
+            n = len(told) + _witnessed(
+                camera, pose, fixture_map, pixels, seen, taken | set(told.values()), outlier_px
+            )
+            key = frozenset(told.items())
+            found[key] = max(found.get(key, 0), n)
     if not found:
         return {}
-    best = max(found, key=len)
-    if len(best) + len(fixed) <= needed:
+    best = max(found, key=lambda a: (found[a], len(a)))
+    if found[best] + len(fixed) <= needed:
         return {}
     given = dict(best)
     by_id = {i: k for k, i in best}
-    for other in found:
+    for other, n in found.items():
         contradicts = any(given.get(k, i) != i or by_id.get(i, k) != k for k, i in other)
-        if contradicts and len(other) + len(fixed) > needed:
+        if contradicts and n + len(fixed) > needed:
             return {}
     return given
+
+
+def _witnessed(
+    camera: Camera,
+    pose: Pose,
+    fixture_map: FixtureMap,
+    pixels: np.ndarray,
+    seen: Sequence[bool],
+    taken: set[int],
+    outlier_px: float,
+) -> int:
+    """How many of the fixtures ``seen`` flags lie where ``pose`` projects a fixture of the
+    map not ``taken``: within ``outlier_px`` of it, every other fixture of the map projecting
+    farther than :data:`TOLD_APART` times that, each such ID onto one fixture at most.
+    Fixtures whose stripes say nothing of their ID still lie where the map has a fixture, and
+    so witness the pose without being given an ID."""
+    k = np.flatnonzero(np.asarray(seen, dtype=bool))
+    if k.size == 0 or len(fixture_map.fixtures) < 2:
+        return 0
+    ids = np.array([f.id for f in fixture_map.fixtures])
+    where = project_points(camera, pose, [f.position for f in fixture_map.fixtures])
+    dist = np.hypot(*(where[None, :, :] - np.asarray(pixels, dtype=float)[k, None, :]).T).T
+    dist = np.where(np.isfinite(dist), dist, np.inf)  # (K, M); behind the camera: not there
+    two = np.sort(dist, axis=1)[:, :2]
+    near = ids[np.argmin(dist, axis=1)]
+    free = ~np.isin(near, list(taken))
+    ok = free & (two[:, 0] <= outlier_px) & (two[:, 1] > TOLD_APART * outlier_px)
+    count = np.unique(near[ok], return_counts=True)[1]
+    return int(np.sum(count == 1))

@@ -101,7 +101,10 @@ def with_told(
         e, _ = solve(_given(found, assigned))
         return e.pose if e and all(e.used) else None
 
-    told = assigned_by_pose(camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed)
+    unread = [i is None and not b.touches_border for b, i in zip(blobs, found.ids, strict=True)]
+    told = assigned_by_pose(
+        camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed, unread
+    )
     if not told:
         return found, est, {}
     found2 = _given(found, {**fixed, **told})
