@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 from camvlp.locate import locate
-from tests.conftest import LOOK_UP
+from tests.conftest import LOOK_UP, SMALL_ROOM_IDS, SMALL_ROOM_XZ, make_small_room, small_settings
 
 import camvlp.pipeline.locate as locate_module
 from camvlp.model.camera import Pose, project_points
@@ -20,6 +20,7 @@ from camvlp.pipeline.by_pose import (
 )
 from camvlp.pipeline.model_decode import ModelDecode
 from camvlp.pipeline.pose import estimate_pose
+from camvlp.sim.render import render
 
 POSE = Pose.from_euler([0, 0, 0], LOOK_UP)
 
@@ -409,3 +410,24 @@ def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_po
     monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
     res = locate(small_render.image, small_camera, small_room)
     assert not res and all(f.id is None for f in res.fixtures)
+
+
+def test_the_pose_of_assigned_look_alikes_tells_an_off_centre_one(monkeypatch, small_camera):
+    # six lights, none identified: five look-alikes, each beside the next round the room, are
+    # assigned by the pose; the sixth (9, between 5 and 9) lies 30 px off, beyond the
+    # outlier distance, with its centre known to 12 px: no seed of the assignment, it is told
+    # by the assignment's pose, and left out of it
+    room = make_small_room((*SMALL_ROOM_IDS, 3), (*SMALL_ROOM_XZ, (0.0, 0.9)))
+    photo = render(small_camera, room, POSE, small_settings(seed=1))
+    ring = {5: 6, 6: 10, 10: 12, 12: 3, 3: 5, 9: 5}
+    monkeypatch.setattr(locate_module, "decode_manchester", _refused(tuple(ring), ring))
+    nine = where(small_camera, room, 9)
+    shift = np.array([0.0, 30.0])
+    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 12.0, nine))
+    res = locate(photo.image, small_camera, room)
+    assert res
+    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
+    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
+    assert "told by the pose" in f.reason and "not used" in f.reason
+    assert sorted(f.id for f in res.fixtures if f.used) == [3, 5, 6, 10, 12]
+    assert np.linalg.norm(res.position - POSE.position) < 0.01

@@ -78,7 +78,8 @@ def with_told(
 ):
     """Fixtures the stripes leave between look-alike IDs, told apart by the pose
     (:mod:`camvlp.pipeline.by_pose`; when the identified ones are too few for a pose, by the
-    only assignment of look-alikes that gives one) and the pose solved again with them.
+    only assignment of look-alikes that gives one, whose pose then tells the others) and the
+    pose solved again with them.
     Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
     when none is told."""
     if est is not None and est.pose is None:
@@ -111,7 +112,16 @@ def with_told(
     est2, _ = solve(found2)
     if not est2 or not all(est2.used[found2.usable.index(k)] for k in told):
         return found, est, {}
-    return found2, est2, {k: cands[k] for k in told}
+    # the look-alikes left, told by that pose as by one the stripes gave (round by round,
+    # with what the pose and their centres are unsure of)
+    left = [
+        getattr(d, "candidates", ()) if i is None else ()
+        for d, i in zip(decodes, found2.ids, strict=True)
+    ]
+    found3, est3, more = _told_round_by_round(
+        camera, fixture_map, blobs, pixels, {**fixed, **told}, found2, est2, left, outlier_px, solve
+    )
+    return found3, est3, {**{k: cands[k] for k in told}, **more}
 
 
 def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, est) -> Spread:
