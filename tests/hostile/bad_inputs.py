@@ -190,6 +190,9 @@ def make_files(root: Path) -> dict[str, Path]:
     put("camera_196mp.yaml", "image_width: 14000\nimage_height: 14000\nfocal_length_px: 1e4\n")
     put("nan_map.yaml", SMALL_MAP.replace("[0.5, 0.5, 2.7]", "[.nan, 0.5, 2.7]"))
     put("idbits12_map.yaml", SMALL_MAP.replace("units: m", "units: m\nframe: {id_bits: 12}"))
+    put(  # three years at 30 frames/s: 3e9 frames, of which --frames asks for 2
+        "years.csv", "t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,0,0,0\n1e8,0.1,0,0,0,0,0\n"
+    )
     put("survey.csv", "photo,x,y,z\nphoto.jpg,0,0,0\nphoto.jpg,1,0,0\n")
     put("survey1.csv", "photo,x,y,z\nphoto.jpg,0,0,0\n")
     for folder in ("study_blocked", "evaluate_blocked"):  # summary.json cannot be written
@@ -352,6 +355,15 @@ def cases(root: Path) -> list[Case]:
             out / "cal.yaml",
         ],
         left_behind=[out / "cal.yaml"],
+    )
+    add(
+        "render-video --frames 2 of a years-long trajectory",
+        "memory: frame times",
+        [
+            *("render-video", "--camera", cam, "--map", fmap),
+            *("--trajectory", f["years.csv"], "--frames", "2", "--out", out / "years"),
+        ],
+        code=0,
     )
     add(
         "evaluate --jobs 1000",

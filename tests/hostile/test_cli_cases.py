@@ -28,6 +28,7 @@ ISOLATED = {
     "locate -m laughs_map.yaml",
     "locate -m idbits12_map.yaml",
     "render huge camera",
+    "render-video --frames 2 of a years-long trajectory",
     "study image-error --trials 1e9",
     "encode > /dev/full",
 }

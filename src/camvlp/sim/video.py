@@ -289,12 +289,16 @@ def render_frame(
     )
 
 
-def frame_times(trajectory: Trajectory, fps: float) -> np.ndarray:
-    """The times of a video's frames at ``fps`` along a trajectory, starting at its start, s."""
+def frame_count(trajectory: Trajectory, fps: float, max_frames: int | None = None) -> int:
+    """How many frames a video at ``fps`` along ``trajectory`` has (at most ``max_frames``).
+
+    Frame ``i`` is at ``trajectory.t[0] + i / fps``, s; the times are made one frame at a time,
+    never all at once (a trajectory of years at 30 frames/s is billions of frames).
+    """
     if not (fps > 0 and math.isfinite(fps)):
         raise ValueError(f"fps must be a positive number, got {fps!r}")
     n = math.floor(trajectory.duration_s * fps + 1e-9) + 1
-    return trajectory.t[0] + np.arange(n) / fps
+    return n if max_frames is None else min(n, max(int(max_frames), 0))
 
 
 def truth_paths(out: str | Path) -> tuple[Path, Path]:
@@ -311,12 +315,16 @@ def iter_frames(
     trajectory: Trajectory,
     fps: float,
     settings: RenderSettings | None = None,
+    max_frames: int | None = None,
 ) -> Iterator[VideoFrame]:
-    """Render the frames of a video at ``fps`` along ``trajectory``, one after another."""
+    """Render the frames of a video at ``fps`` along ``trajectory``, one after another (at most
+    ``max_frames``; frame ``i`` at ``trajectory.t[0] + i / fps``, s)."""
     base = int((settings or RenderSettings()).seed)
-    for i, t in enumerate(frame_times(trajectory, fps)):
+    t0 = float(trajectory.t[0])
+    for i in range(frame_count(trajectory, fps, max_frames)):
+        t = t0 + i / fps
         yield render_frame(
-            camera, fixture_map, trajectory, float(t), settings, noise_seed=base * 100003 + i + 1
+            camera, fixture_map, trajectory, t, settings, noise_seed=base * 100003 + i + 1
         )
 
 
@@ -360,10 +368,7 @@ def render_video(
         Frames written.
     """
     out = Path(out)
-    times = frame_times(trajectory, fps)
-    if max_frames is not None:
-        times = times[: max(int(max_frames), 0)]
-    total = len(times)
+    total = frame_count(trajectory, fps, max_frames)
     is_video = out.suffix.lower() in VIDEO_SUFFIXES
     if is_video:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -381,9 +386,9 @@ def render_video(
             sw = csv.writer(stamps)
             sw.writerow(("frame", "t"))
         try:
-            frames = iter_frames(camera, fixture_map, trajectory, fps, settings)
-            for i, (frame, t) in enumerate(zip(frames, times, strict=False)):
-                t_video = float(t - times[0])
+            frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
+            for i, frame in enumerate(frames):
+                t_video = i / fps
                 name = f"frame_{i:06d}.png"
                 if writer is not None:
                     writer.write(frame.image)
