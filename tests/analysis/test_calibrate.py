@@ -162,6 +162,14 @@ def test_rejected_photos_are_listed_with_reasons(tmp_path: Path):
     assert "image" in reasons["corrupt.png"]
 
 
+def test_a_photo_too_small_for_the_board_shows_none():
+    """A photo too small to hold the board's squares is rejected, not an OpenCV error."""
+    for shape in [(4, 4), (1, 1), (14, 640), (480, 14), (16, 16)]:
+        assert find_board_corners(np.zeros(shape, np.uint8), BOARD) is None, shape
+    result = calibrate_camera([*_photos()[:3], np.zeros((4, 4), np.uint8)], BOARD, SQUARE_M)
+    assert result and dict(result.rejected) == {"image 4": "no 9x6 board found"}
+
+
 def test_fewer_than_three_usable_photos_is_a_failure_value():
     blank = np.zeros((480, 640), np.uint8)
     result = calibrate_camera([*_photos()[:2], blank], BOARD, SQUARE_M)
@@ -175,6 +183,7 @@ def test_fewer_than_three_usable_photos_is_a_failure_value():
     ("kwargs", "word"),
     [
         ({"board": (1, 6)}, "board"),
+        ({"board": (2, 6)}, "board"),
         ({"board": "9x6"}, "board"),
         ({"square_m": -0.03}, "square_m"),
         ({"images": []}, "images"),

@@ -190,6 +190,7 @@ def make_files(root: Path) -> dict[str, Path]:
     put("camera_196mp.yaml", "image_width: 14000\nimage_height: 14000\nfocal_length_px: 1e4\n")
     put("nan_map.yaml", SMALL_MAP.replace("[0.5, 0.5, 2.7]", "[.nan, 0.5, 2.7]"))
     put("idbits12_map.yaml", SMALL_MAP.replace("units: m", "units: m\nframe: {id_bits: 12}"))
+    put("tiny_4x4.png", cv2.imencode(".png", np.zeros((4, 4), np.uint8))[1].tobytes())
     put(  # three years at 30 frames/s: 3e9 frames, of which --frames asks for 2
         "years.csv", "t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,0,0,0\n1e8,0.1,0,0,0,0,0\n"
     )
@@ -355,6 +356,22 @@ def cases(root: Path) -> list[Case]:
             out / "cal.yaml",
         ],
         left_behind=[out / "cal.yaml"],
+    )
+    add(
+        "calibrate 4 x 4 photo",
+        "traceback: tiny photo",
+        [
+            *("calibrate", f["tiny_4x4.png"], "--board", "9x6"),
+            *("--square", "0.02", "--out", out / "c3.yaml"),
+        ],
+        code=1,  # the photo is rejected: fewer than 3 photos show the board
+        left_behind=[out / "c3.yaml"],
+    )
+    add(
+        "calibrate --board 3x2",
+        "traceback: board size",
+        ["calibrate", photo, "--board", "3x2", "--square", "0.02", "--out", out / "c4.yaml"],
+        left_behind=[out / "c4.yaml"],
     )
     add(
         "render-video --frames 2 of a years-long trajectory",

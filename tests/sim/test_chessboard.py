@@ -20,8 +20,10 @@ def test_board_points_run_row_by_row_in_the_board_plane():
         [[0, 0, 0], [0.04, 0, 0], [0.08, 0, 0], [0.12, 0, 0], [0.16, 0, 0], [0, 0.04, 0]],
         atol=1e-7,
     )
-    with pytest.raises(ValueError, match="2 x 2"):
+    with pytest.raises(ValueError, match="3 x 3"):
         parse_board((1, 4))
+    with pytest.raises(ValueError, match="3 x 3"):  # OpenCV's detectors refuse a side of 2
+        parse_board((2, 4))
     with pytest.raises(ValueError, match="square_m"):
         board_object_points(BOARD, 0.0)
 

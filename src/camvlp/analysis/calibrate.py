@@ -48,6 +48,12 @@ MIN_CALIBRATION_PHOTOS = 3
 
 #: Longest image side (px) the board search runs at; corners are refined at full size.
 DETECT_MAX_SIDE_PX = 1600
+#: Fewest pixels per square along each side for a board to show at all (light and dark must
+#: alternate: at least one sample of each per square).
+MIN_SQUARE_PX = 2
+#: Shortest image side OpenCV's classic ``findChessboardCorners`` accepts: its adaptive
+#: threshold's block, a tenth of the shorter side, must round to 3 pixels or more.
+CLASSIC_MIN_SIDE_PX = 15
 
 
 # --------------------------------------------------------------------------------------
@@ -115,6 +121,11 @@ def find_board_corners(image: np.ndarray, board: tuple[int, int]) -> np.ndarray 
     """
     cols, rows = parse_board(board)
     gray = to_gray(image)
+    short, long = sorted(gray.shape[:2])
+    if short < max(MIN_SQUARE_PX * (min(cols, rows) + 1), CLASSIC_MIN_SIDE_PX) or (
+        long < MIN_SQUARE_PX * (max(cols, rows) + 1)
+    ):
+        return None  # too small to show (cols + 1) x (rows + 1) squares
     scale = min(1.0, DETECT_MAX_SIDE_PX / max(gray.shape))
     small = (
         gray

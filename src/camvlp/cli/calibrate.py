@@ -13,6 +13,7 @@ import typer
 from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
 from camvlp.io import InputError, load_camera, load_image, save_camera
 from camvlp.io.atomic import check_output_file, strict_json
+from camvlp.sim.chessboard import MIN_BOARD_SIDE
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
 
@@ -48,9 +49,10 @@ MAX_BOARD = 100
 
 def _parse_board(text: str) -> tuple[int, int]:
     m = re.fullmatch(r"\s*(\d{1,4})\s*[xX*,]\s*(\d{1,4})\s*", text)
-    if not m or not all(2 <= int(m.group(k)) <= MAX_BOARD for k in (1, 2)):
+    if not m or not all(MIN_BOARD_SIDE <= int(m.group(k)) <= MAX_BOARD for k in (1, 2)):
         fail(
-            f"--board must be COLSxROWS inner corners, from 2x2 to {MAX_BOARD}x{MAX_BOARD}, "
+            f"--board must be COLSxROWS inner corners, from {MIN_BOARD_SIDE}x{MIN_BOARD_SIDE} "
+            f"to {MAX_BOARD}x{MAX_BOARD}, "
             f"e.g. 9x6; got {text[:40]!r}"
         )
     return int(m.group(1)), int(m.group(2))

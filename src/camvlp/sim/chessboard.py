@@ -17,14 +17,22 @@ from camvlp.model.camera import Camera, Pose
 __all__ = ["board_object_points", "parse_board", "render_chessboard"]
 
 
+#: Fewest inner corners along each side of a board: OpenCV's board detectors
+#: (``findChessboardCorners`` and ``findChessboardCornersSB``) refuse 2.
+MIN_BOARD_SIDE = 3
+
+
 def parse_board(board) -> tuple[int, int]:
-    """``(cols, rows)`` inner corners as two ints >= 2, else ValueError."""
+    """``(cols, rows)`` inner corners as two ints >= ``MIN_BOARD_SIDE``, else ValueError."""
     try:
         cols, rows = (int(v) for v in board)
     except (TypeError, ValueError):
         raise ValueError(f"board must be (cols, rows) inner corners, got {board!r}") from None
-    if cols < 2 or rows < 2:
-        raise ValueError(f"board must have at least 2 x 2 inner corners, got {cols} x {rows}")
+    if cols < MIN_BOARD_SIDE or rows < MIN_BOARD_SIDE:
+        raise ValueError(
+            f"board must have at least {MIN_BOARD_SIDE} x {MIN_BOARD_SIDE} inner corners, "
+            f"got {cols} x {rows}"
+        )
     return cols, rows
 
 
