@@ -201,6 +201,31 @@ def test_every_site_request_needs_the_sites_key(client, photo_png):
     assert client.get(f"/api/v1/sites/{a}/fixes/1", headers=key_a).status_code == 200
 
 
+def test_ids_beyond_64_bits_are_422_not_a_server_error(tmp_path):
+    """A site or fix id, or a paging id, past what a database row id can hold is bad input."""
+    with make_client(tmp_path, stream_max_s=0.1) as c:
+        site_id, headers = create_site(c)
+        big = str(2**63)
+        urls = [
+            f"/api/v1/sites/{big}",
+            f"/api/v1/sites/-{2**63 + 1}",
+            f"/api/v1/sites/{big}/fixes",
+            f"/api/v1/sites/{site_id}/fixes/{big}",
+            f"/api/v1/sites/{site_id}/fixes/{big}/picture",
+            f"/api/v1/sites/{site_id}/fixes?before={big}",
+            f"/api/v1/sites/{site_id}/fixes?before=-{2**63 + 1}",
+            f"/api/v1/sites/{site_id}/fixes/stream?after={big}",
+        ]
+        for url in urls:
+            r = c.get(url, headers=headers)
+            assert r.status_code == 422, (url, r.status_code, r.text)
+        stream = f"/api/v1/sites/{site_id}/fixes/stream"
+        r = c.get(stream, headers={**headers, "Last-Event-ID": big})
+        assert r.status_code == 422 and "Last-Event-ID" in detail(r)
+        # the largest id is fine: there is no such site
+        assert c.get(f"/api/v1/sites/{2**63 - 1}", headers=headers).status_code == 404
+
+
 # --- locate --------------------------------------------------------------------------------------
 
 

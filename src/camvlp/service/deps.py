@@ -9,7 +9,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Path, Request
 from fastapi.exceptions import HTTPException
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
@@ -18,9 +18,11 @@ from camvlp.service.db import Store
 from camvlp.service.settings import ServiceSettings
 
 __all__ = [
+    "MAX_ROW_ID",
     "Gate",
     "GateDep",
     "PoolDep",
+    "RowId",
     "SettingsDep",
     "Site",
     "StoreDep",
@@ -75,8 +77,14 @@ PoolDep = Annotated[ThreadPoolExecutor, Depends(get_pool)]
 GateDep = Annotated[Gate, Depends(get_gate)]
 
 
+#: Largest id of a database row (SQL's BIGINT, SQLite's INTEGER: signed 64 bits).
+MAX_ROW_ID = 2**63 - 1
+#: A row id in a path: beyond 64 bits it is a 422, not an overflow in the database driver.
+RowId = Annotated[int, Path(ge=-MAX_ROW_ID - 1, le=MAX_ROW_ID)]
+
+
 def site_access(
-    site_id: int,
+    site_id: RowId,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
     store: StoreDep,
 ) -> int:

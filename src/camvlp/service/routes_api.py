@@ -27,7 +27,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.service.auth import new_key
 from camvlp.service.db import FixRow, Store
-from camvlp.service.deps import GateDep, PoolDep, SettingsDep, Site, StoreDep
+from camvlp.service.deps import MAX_ROW_ID, GateDep, PoolDep, RowId, SettingsDep, Site, StoreDep
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
 from camvlp.service.schemas import (
@@ -299,7 +299,12 @@ def list_fixes(
         datetime | None, Query(description="Only fixes at or after this time (ISO 8601).")
     ] = None,
     before: Annotated[
-        int | None, Query(description="Only fixes older than this fix id (paging).")
+        int | None,
+        Query(
+            ge=-MAX_ROW_ID - 1,
+            le=MAX_ROW_ID,
+            description="Only fixes older than this fix id (paging).",
+        ),
     ] = None,
     limit: Annotated[int, Query(ge=1, le=1000)] = 50,
 ) -> FixPage:
@@ -323,7 +328,8 @@ async def stream_fixes(
     store: StoreDep,
     cfg: SettingsDep,
     after: Annotated[
-        int | None, Query(ge=0, description="Send fixes after this id (default: new ones).")
+        int | None,
+        Query(ge=0, le=MAX_ROW_ID, description="Send fixes after this id (default: new ones)."),
     ] = None,
 ) -> StreamingResponse:
     """Server-sent events: one ``fix`` event per new fix of the site (``id:`` its id).
@@ -335,6 +341,8 @@ async def stream_fixes(
     last_event = request.headers.get("last-event-id", "")
     if after is None and last_event.isdigit():
         after = int(last_event)
+        if after > MAX_ROW_ID:
+            raise HTTPException(422, f"Last-Event-ID must be at most {MAX_ROW_ID}")
     if after is None:
         after = await run_in_threadpool(store.last_fix_id, site_id)
     view = await run_in_threadpool(_site_view, store, site_id)
@@ -366,7 +374,7 @@ async def stream_fixes(
 
 
 @router.get("/sites/{site_id}/fixes/{fix_id}", response_model=FixOut, tags=["fixes"])
-def get_fix(site_id: Site, fix_id: int, store: StoreDep) -> FixOut:
+def get_fix(site_id: Site, fix_id: RowId, store: StoreDep) -> FixOut:
     """One fix, with the whole locate JSON in ``result``."""
     row = store.fix(site_id, fix_id)
     if row is None:
@@ -380,7 +388,7 @@ def get_fix(site_id: Site, fix_id: int, store: StoreDep) -> FixOut:
     responses={200: {"content": {"image/jpeg": {}}}},
     tags=["fixes"],
 )
-def get_picture(site_id: Site, fix_id: int, store: StoreDep) -> Response:
+def get_picture(site_id: Site, fix_id: RowId, store: StoreDep) -> Response:
     """The annotated picture of a fix located with ``annotate``, JPEG."""
     jpeg = store.picture(site_id, fix_id)
     if jpeg is None:
