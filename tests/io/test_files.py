@@ -173,6 +173,21 @@ def test_malformed_camera_files_name_the_file_and_key(tmp_path: Path, text: str,
     _raises_naming(load_camera, _write(tmp_path / "bad.yaml", text), *words)
 
 
+@pytest.mark.parametrize(
+    ("name", "text", "words"),
+    [
+        ("a.yaml", FOCAL + "image_width: 64\n", ("'image_width' is given twice", "line 4")),
+        ("b.yaml", "%YAML:1.0\n---\n" + FOCAL + "row_time_s: 2e-5\nrow_time_s: 3e-5\n",
+         ("'row_time_s' is given twice", "line 7")),
+        ("c.json", '{"image_width": 640, "image_height": 480, "focal_length_px": 500, '
+                   '"focal_length_px": 900}', ("'focal_length_px' is given twice",)),
+    ],
+)  # fmt: skip
+def test_a_key_given_twice_is_refused_not_the_last_taken(tmp_path: Path, name, text, words):
+    """YAML and JSON parsers keep the last of two equal keys silently; camvlp refuses them."""
+    _raises_naming(load_camera, _write(tmp_path / name, text), "malformed", *words)
+
+
 def test_missing_camera_file_and_directory(tmp_path: Path):
     _raises_naming(load_camera, tmp_path / "nope.yaml", "not found")
     _raises_naming(load_camera, tmp_path, "directory")
@@ -241,6 +256,18 @@ def test_malformed_fixtures_name_the_file_and_fixture(tmp_path: Path, body: str,
 )
 def test_malformed_frames_and_units(tmp_path: Path, head: str, words):
     _raises_naming(load_map, _map(tmp_path, "  - {id: 3, position: [0, 0, 0]}\n", head), *words)
+
+
+def test_a_map_key_given_twice_is_refused(tmp_path: Path):
+    """A fixture's second ``position`` (or a second ``fixtures`` list) is not silently taken."""
+    body = (
+        "  - {id: 3, position: [0, 0, 0]}\n  - {id: 4, position: [1, 0, 0], position: [5, 5, 5]}\n"
+    )
+    _raises_naming(load_map, _map(tmp_path, body), "'position' is given twice", "line 4")
+    twice = "fixtures:\n  - {id: 4, position: [1, 0, 0]}\n"
+    _raises_naming(load_map, _map(tmp_path, twice + twice, head=""), "'fixtures' is given twice")
+    as_json = '{"fixtures": [{"id": 3, "id": 4, "position": [0, 0, 0]}]}'
+    _raises_naming(load_map, _write(tmp_path / "m.json", as_json), "'id' is given twice")
 
 
 def test_empty_or_missing_fixtures(tmp_path: Path):

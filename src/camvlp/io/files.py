@@ -120,15 +120,52 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else exc.__class__.__name__
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a mapping that gives a key twice (YAML says keys are
+    unique; PyYAML would keep the last one silently, e.g. a fixture's second ``position``)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict:
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=True)
+            if isinstance(key, (str, int, float, bool)) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    f"the key {key!r} is given twice (line {key_node.start_mark.line + 1})",
+                    key_node.start_mark,
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object as a dict, refusing a key given twice (``json`` keeps the last one)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"the key {key!r} is given twice")
+        out[key] = value
+    return out
+
+
 def parse_mapping(text: str, path: Path, kind: str) -> dict:
-    """Parse JSON, YAML, or OpenCV FileStorage YAML (``%YAML:1.0``, ``!!opencv-matrix``)."""
-    if text.lstrip().startswith("%YAML"):
-        lines = text.lstrip().splitlines()[1:]
-        text = "\n".join(lines).replace("!!opencv-matrix", "").replace("!!opencv-nd-matrix", "")
+    """Parse JSON, YAML, or OpenCV FileStorage YAML (``%YAML:1.0``, ``!!opencv-matrix``).
+
+    A mapping that gives a key twice is refused (naming the key), in YAML and in JSON.
+    """
+    if text.lstrip().startswith("%YAML"):  # drop the directive, keep its line (line numbers)
+        lead = len(text) - len(text.lstrip())
+        end = text.find("\n", lead)
+        text = text[:lead] + (text[end:] if end >= 0 else "")
+        text = text.replace("!!opencv-matrix", "").replace("!!opencv-nd-matrix", "")
     as_json = path.suffix.lower() == ".json"
     _check_text(text, path, kind, as_json)
     try:
-        data = json.loads(text) if as_json else yaml.safe_load(text)
+        if as_json:
+            data = json.loads(text, object_pairs_hook=_unique_keys)
+        else:
+            data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader
     except (json.JSONDecodeError, yaml.YAMLError, ValueError, RecursionError) as exc:
         raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
     if not isinstance(data, dict):
