@@ -230,6 +230,8 @@ def _map(tmp_path: Path, body: str, head: str = MAP_HEAD, name: str = "map.yaml"
         ("  - {id: 5, position: [0, 0, 0]}\n  - {id: 5, position: [1, 0, 0]}\n",
          ("duplicate", "fixture 5")),
         ("  - {id: 16, position: [0, 0, 0]}\n", ("fixture 16", "4 bits")),
+        ("  - {id: 3, position: [1, 2, 3]}\n  - {id: 4, position: [1, 2, 3.0]}\n",
+         ("fixtures 3 and 4", "both at position [1, 2, 3]")),
         ("  - {id: 3}\n", ("fixture 3", "position")),
         ("  - {id: 3, position: [0, x, 0]}\n", ("fixture 3", "position")),
         ("  - {id: 3, position: [0, 1]}\n", ("fixture 3", "position")),

@@ -111,6 +111,15 @@ class FixtureMap:
         if len(set(ids)) != len(ids):
             dup = sorted({i for i in ids if ids.count(i) > 1})
             raise ValueError(f"duplicate fixture ID {dup[0]}")
+        # two fixtures at one point: a copied line (the pose would be solved from a map in
+        # which one lamp stands for two)
+        pos = np.array([f.position for f in self.fixtures], dtype=float).reshape(-1, 3)
+        _, first, counts = np.unique(pos, axis=0, return_index=True, return_counts=True)
+        if np.any(counts > 1):
+            twin = pos[first[counts > 1].min()]
+            a, b = [f.id for f, q in zip(self.fixtures, pos, strict=True) if np.all(q == twin)][:2]
+            where = ", ".join(f"{v:g}" for v in twin)
+            raise ValueError(f"fixtures {a} and {b} are both at position [{where}]")
         if self.mode == "manchester":
             for f in self.fixtures:
                 self.frame.check_id(f.id)
