@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from camvlp.io import InputError
-from camvlp.model.camera import Pose
+from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.pose import estimate_pose
@@ -245,6 +245,16 @@ def test_wrong_size_photo_raises_input_error(small_camera, small_room):
         locate(np.zeros((480, 640, 3), np.uint8), small_camera, small_room)
     with pytest.raises(InputError, match="rotated"):
         locate(np.zeros((1280, 960, 3), np.uint8), small_camera, small_room)
+
+
+@pytest.mark.parametrize("size", [(4, 4), (1, 1), (7, 640)])
+def test_a_photo_too_small_to_locate_raises_input_error(small_room, size):
+    """A camera and photo of a few pixels: bad input naming the size, not a bare ValueError
+    from the detector (which the command line printed without the file)."""
+    h, w = size
+    camera = Camera.from_focal(w, h, 3.0)
+    with pytest.raises(InputError, match=f"image is {w} x {h} pixels, too small"):
+        locate(np.zeros((h, w), np.uint8), camera, small_room)
 
 
 def test_gray_16_bit_photo_is_located(small_render, small_camera, small_room):

@@ -37,6 +37,7 @@ from camvlp.pipeline.touching import (
 )
 
 __all__ = [
+    "MIN_IMAGE_SIDE_PX",
     "Blob",
     "Detection",
     "detect_fixtures",
@@ -45,6 +46,10 @@ __all__ = [
     "light_support",
     "to_gray",
 ]
+
+
+#: Smallest image side, pixels, the detector works on.
+MIN_IMAGE_SIDE_PX = 8
 
 
 @dataclass(frozen=True)
@@ -139,8 +144,11 @@ def detect_fixtures(
     if readout not in (None, "rows", "columns"):
         raise ValueError(f"readout must be 'rows', 'columns' or None, got {readout!r}")
     img = np.asarray(image)
-    if img.ndim not in (2, 3) or img.shape[0] < 8 or img.shape[1] < 8:
-        raise ValueError(f"image must be at least 8 x 8 pixels, got shape {img.shape}")
+    if img.ndim not in (2, 3) or min(img.shape[:2]) < MIN_IMAGE_SIDE_PX:
+        raise ValueError(
+            f"image must be at least {MIN_IMAGE_SIDE_PX} x {MIN_IMAGE_SIDE_PX} pixels, "
+            f"got shape {img.shape}"
+        )
     height, width = img.shape[:2]
     s = _reduction(img.shape)
     # Candidates on every s-th pixel: a decimated view costs nothing, where averaging a
