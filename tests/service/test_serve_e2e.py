@@ -68,10 +68,29 @@ def test_serve_refuses_bad_options_in_one_line(tmp_path: Path, capsys):
         (["--max-upload-mb", "-1"], "--max-upload-mb must be a positive number"),
         (["--db", "nosuchdb://x"], "cannot open the database"),
         (["--db", f"sqlite:///{tmp_path / 'no' / 'such' / 'dir.db'}"], "cannot open the database"),
+        (["--log-level", "loud"], "--log-level must be one of critical, error"),
+        (["--host", "256.1.1.1"], "cannot listen on 256.1.1.1:8000"),
     ):
         code = main(["serve", *(["--db", db] if "--db" not in args else []), *args])
         assert code == 2, args
         assert words in one_error_line(capsys.readouterr().err), args
+
+
+def test_serve_refuses_a_port_in_use_in_one_line(tmp_path: Path, capsys, monkeypatch):
+    """A port another process listens on: one line and exit 2, before the service starts."""
+    import os
+    import socket
+
+    from camvlp.cli import main
+
+    monkeypatch.setattr(os, "environ", dict(os.environ))  # serve exports its settings
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        code = main(["serve", "--db", f"sqlite:///{tmp_path / 'x.db'}", "--port", str(port)])
+    assert code == 2
+    assert f"cannot listen on 127.0.0.1:{port}" in one_error_line(capsys.readouterr().err)
 
 
 def test_the_stream_carries_fixes_of_every_worker(tmp_path: Path, photo_png):

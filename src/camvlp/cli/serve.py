@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import socket
 from typing import Annotated
 
 import typer
@@ -44,6 +45,7 @@ def serve_command(
     """
     import sqlalchemy as sa
     import uvicorn
+    from uvicorn.config import LOG_LEVELS
 
     from camvlp.service import ServiceSettings
     from camvlp.service.db import Store, make_engine
@@ -54,6 +56,9 @@ def serve_command(
     check_positive(max_megapixels, "--max-megapixels")
     if not 0 < port < 65536:
         fail(f"--port must be 1 to 65535, got {port}")
+    if log_level not in LOG_LEVELS:
+        fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
+    _check_listen(host, port)
     try:
         settings = ServiceSettings(
             db=db,
@@ -78,3 +83,16 @@ def serve_command(
         workers=workers,
         log_level=log_level,
     )
+
+
+def _check_listen(host: str, port: int) -> None:
+    """A usage error (exit 2, one line) unless ``host:port`` can be listened on: an address
+    that does not resolve, a port in use or not allowed (uvicorn would log several lines
+    after starting the application and exit 3)."""
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind, proto) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
+            probe.bind(address)
+    except OSError as exc:
+        fail(f"cannot listen on {host}:{port}: {exc.strerror or exc} (--host, --port)")
