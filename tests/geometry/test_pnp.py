@@ -119,6 +119,16 @@ def test_iterative_with_four_non_coplanar_points():
     np.testing.assert_allclose(batch[0], pose.position, atol=1e-6)
 
 
+def test_points_on_the_camera_plane_are_not_imaged():
+    """Fixtures at the camera's own height, seen edge-on: their depth is rotation round-off
+    (about 1e-16 m), and they are NaN like points behind the camera, not pixels 1e19 out."""
+    r = euler_to_matrix([90.0, 0.0, 0.0])
+    uv = project_batch(THESIS_CAM, r, [0.0, -2.7, 0.0], THESIS_ROOM)
+    assert np.all(np.isnan(uv))
+    lower = project_batch(THESIS_CAM, r, [0.0, -2.69, 0.0], THESIS_ROOM)  # 1 cm below: imaged
+    assert np.all(np.isfinite(lower)) and np.all(np.abs(lower) < 1e6)
+
+
 def test_project_batch_matches_opencv():
     rng = np.random.default_rng(6)
     cams = [

@@ -336,6 +336,11 @@ def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, n
     return xd, yd
 
 
+#: Relative depth under which :func:`project_batch` takes a point as on the camera plane:
+#: 64 float64 roundings (the rotation of a point at distance d is good to a few eps * d).
+_PLANE_ROUNDING = 64 * np.finfo(np.float64).eps
+
+
 def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.ndarray:
     """Project the same world points for many camera poses at once.
 
@@ -384,8 +389,11 @@ def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.
     # camera coordinates: X_c = R^T (X - C), for every pose and point
     xc = np.einsum("bji,bnj->bni", r, p[None, :, :] - c[:, None, :])
     z = xc[..., 2]
+    # "on the camera plane" within float64 rounding of the rotation: a point the camera sees
+    # edge-on at 1e-16 of its distance would land 1e16 focal lengths out, not be imaged
+    on_plane = z <= _PLANE_ROUNDING * np.linalg.norm(xc, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z_safe = np.where(z > 0, z, np.nan)
+        z_safe = np.where(on_plane, np.nan, z)
         x = xc[..., 0] / z_safe
         y = xc[..., 1] / z_safe
     if distort and camera.distortion.size and np.any(camera.distortion):

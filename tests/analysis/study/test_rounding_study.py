@@ -48,6 +48,15 @@ def test_rounding_reproduces_thesis_figure_4_2(cam, room, euler, thesis_mm):
     assert res.max_error_m < 0.01  # "always in the order of millimetres"
 
 
+def test_a_camera_in_the_fixtures_plane_is_a_failure_not_a_huge_error(cam, room):
+    """At the ceiling's height the fixtures lie on the camera plane: none is imaged, so every
+    pose fails (their rotation left depths of 1e-16 m, projected 1e16 focal lengths out and
+    solved into errors of 1e20 mm)."""
+    res = rounding_study(cam, room, euler_deg=(90, 0, 0), step_m=0.5, height_m=2.7)
+    assert res.summary()["failures"] == res.errors_m.size
+    assert not np.any(np.isfinite(res.errors_m))
+
+
 def test_rounding_error_grows_with_tilt(cam, room):
     # thesis: tilting in both axes gives the largest mean error (fig. 4.2d vs 4.2a)
     level = rounding_study(cam, room, euler_deg=(90, 0, 0)).mean_error_m
