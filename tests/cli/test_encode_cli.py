@@ -75,6 +75,20 @@ def test_frame_from_a_map(tmp_path: Path):
     assert _run("64", "--map", str(path)).exit_code == 2
 
 
+def test_a_frequency_map_has_no_frame_to_encode(tmp_path: Path):
+    """A frequency-coded map is refused, not encoded with the default Manchester frame."""
+    path = tmp_path / "lights.yaml"
+    path.write_text(
+        "frame: {mode: frequency}\n"
+        "fixtures:\n  - {id: 1, frequency_hz: 2500, position: [0, 0, 0]}\n"
+    )
+    result = _run("1", "--map", str(path))
+    assert result.exit_code == 2
+    line = one_error_line(result)
+    assert "frequency-coded" in line and str(path) in line
+    assert result.stdout == ""
+
+
 def test_bad_map_is_one_line_naming_the_file(tmp_path: Path):
     path = tmp_path / "broken.yaml"
     path.write_text("fixtures: [\n")

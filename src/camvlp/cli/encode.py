@@ -27,7 +27,13 @@ def encode(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Print a fixture's frame bits, its Manchester chips, and the LED's on/off schedule."""
-    frame = load_map(map_path).frame if map_path else FrameFormat()
+    fixture_map = load_map(map_path) if map_path else None
+    if fixture_map is not None and fixture_map.mode != "manchester":
+        fail(
+            f"the map's fixtures are {fixture_map.mode}-coded: each blinks its frequency_hz, "
+            f"they send no Manchester frame ({map_path})"
+        )
+    frame = fixture_map.frame if fixture_map is not None else FrameFormat()
     if chip_rate <= 0:
         fail(f"--chip-rate must be positive, got {chip_rate}")
     try:
