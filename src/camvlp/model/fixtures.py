@@ -46,7 +46,8 @@ class Fixture:
         if self.normal is not None:
             n = np.asarray(self.normal, dtype=float).reshape(-1)
             if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
-                raise ValueError(f"normal must be a non-zero 3-vector, got {self.normal!r}")
+                got = n.tolist() if n.size <= 8 else f"{n.size} numbers"
+                raise ValueError(f"normal must be a non-zero 3-vector, got {got}")
             object.__setattr__(self, "normal", n / np.linalg.norm(n))
         if self.diameter is not None and not (np.isfinite(self.diameter) and self.diameter > 0):
             raise ValueError(f"diameter must be a positive number, got {self.diameter!r}")
