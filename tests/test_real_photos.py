@@ -148,3 +148,12 @@ def test_mirrored_photo_on_the_command_line(files, tmp_path):
     out = subprocess.run([*base, "--mirrored"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout)["position"][2] < -150
+
+
+def test_row_time_is_refused_on_a_photo_of_five_lights():
+    """calibrate-rows measured the largest light (the 4500 Hz one) whatever frequency it was
+    given: 47.7 us per row at 2500 Hz against the 26.5 us the source recorded."""
+    from camvlp.analysis.calibrate import estimate_row_time
+
+    est = estimate_row_time(load_image(REAL / DEMO), frequency_hz=2500)
+    assert not est and "different stripe periods" in est.reason

@@ -294,6 +294,21 @@ def test_no_light_and_steady_light_are_failure_values():
         estimate_row_time(blank, 0.0)
 
 
+def test_lights_of_different_frequencies_are_refused_not_the_largest_taken():
+    """Two lights side by side: the row time of the given frequency cannot be told when their
+    stripe periods differ (the largest light was measured, whatever it blinked at); lights
+    that agree give it."""
+    row_time = 20e-6
+    big = _striped_light(120, 100, row_time, 1 / (12.0 * row_time), seed=5)  # 12 px period
+    other = _striped_light(120, 80, row_time, 1 / (8.0 * row_time), seed=6)  # 8 px period
+    est = estimate_row_time(np.hstack([big, other]), 1 / (8.0 * row_time))
+    assert not est and np.isnan(est.row_time_s)
+    assert "different stripe periods" in est.reason and "alone" in est.reason
+    same = _striped_light(120, 80, row_time, 1 / (12.0 * row_time), seed=7)
+    est = estimate_row_time(np.hstack([big, same]), 1 / (12.0 * row_time))
+    assert est and abs(est.row_time_s / row_time - 1) < 0.02
+
+
 def test_row_time_from_a_simulated_frequency_fixture():
     simulate = pytest.importorskip("camvlp.sim.render")
     from camvlp.model.fixtures import Fixture, FixtureMap

@@ -36,6 +36,7 @@ __all__ = [
     "StripePeriod",
     "board_object_points",
     "bright_blob_mask",
+    "bright_blob_masks",
     "calibrate_camera",
     "estimate_row_time",
     "estimate_stripe_period",
@@ -316,11 +317,7 @@ def _calibrate(
 def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
     """The pixels of the largest bright light in a photo, its dark stripes included.
 
-    Otsu's threshold of the lightly blurred image and a 3 x 3 opening against specks give
-    the bright stripes; starting from the largest, the stripes whose bounding boxes lie
-    within one and a half stripe thicknesses of the group join it (the dark gap between
-    two stripes of a 50 % square wave is about one stripe thick); the group's convex hull,
-    eroded by ``erode_px`` pixels to drop the blurred rim, is the light.
+    The first of :func:`bright_blob_masks` (all False when nothing stands out).
 
     Parameters
     ----------
@@ -331,27 +328,73 @@ def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
     Returns
     -------
     ndarray of bool, shape (H, W)
-        All False when nothing stands out from the background.
+    """
+    masks = bright_blob_masks(image, erode_px=erode_px, most=1)
+    return masks[0] if masks else np.zeros(np.asarray(image).shape[:2], dtype=bool)
+
+
+def bright_blob_masks(image: np.ndarray, *, erode_px: int = 2, most: int = 8) -> list[np.ndarray]:
+    """The pixels of each bright light in a photo, its dark stripes included, largest first.
+
+    Otsu's threshold of the lightly blurred image and a 3 x 3 opening against specks give
+    the bright stripes; starting from the largest, the stripes whose bounding boxes lie
+    within one and a half stripe thicknesses of the group join it (the dark gap between
+    two stripes of a 50 % square wave is about one stripe thick); the group's convex hull,
+    eroded by ``erode_px`` pixels to drop the blurred rim, is the light.  The next light
+    starts from the largest stripe left, up to ``most`` lights.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+    erode_px : int
+        Pixels to erode from the hull's edge.
+    most : int
+        At most this many lights.
+
+    Returns
+    -------
+    list of ndarray of bool, shape (H, W)
+        Empty when nothing stands out from the background.
     """
     img = gray_float(image)
-    empty = np.zeros(img.shape, dtype=bool)
     lo, hi = float(img.min()), float(img.max())
     if hi - lo <= 0:
-        return empty
+        return []
     u8 = np.clip((img - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
     u8 = cv2.GaussianBlur(u8, (3, 3), 0)
     _, binary = cv2.threshold(u8, 0, 255, cv2.THRESH_BINARY | cv2.THRESH_OTSU)
     binary = cv2.morphologyEx(binary, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
-    if n < 2:
-        return empty
-    x0 = stats[1:, cv2.CC_STAT_LEFT].astype(float)
-    y0 = stats[1:, cv2.CC_STAT_TOP].astype(float)
-    x1 = x0 + stats[1:, cv2.CC_STAT_WIDTH]
-    y1 = y0 + stats[1:, cv2.CC_STAT_HEIGHT]
-    thick = np.minimum(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT])
-    member = np.zeros(n - 1, dtype=bool)
-    member[int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))] = True
+    left = np.ones(n - 1, dtype=bool)  # stripes not yet in a light
+    masks: list[np.ndarray] = []
+    for _ in range(most):
+        if not left.any():
+            break
+        member = _stripe_group(stats[1:], left)
+        left &= ~member
+        pts = np.column_stack(np.nonzero(np.isin(labels, np.flatnonzero(member) + 1)))[:, ::-1]
+        if len(pts) < 3:
+            continue
+        hull = cv2.convexHull(pts.astype(np.int32))
+        out = np.zeros(img.shape, dtype=np.uint8)
+        cv2.fillConvexPoly(out, hull, 1)
+        if erode_px > 0:
+            e = 2 * int(erode_px) + 1
+            out = cv2.erode(out, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (e, e)))
+        masks.append(out.astype(bool))
+    return masks
+
+
+def _stripe_group(stats: np.ndarray, left: np.ndarray) -> np.ndarray:
+    """The stripes (rows of ``stats``, OpenCV's component statistics) of one light: the
+    largest of those ``left``, grown by the ones within 1.5 stripe thicknesses of the group."""
+    x0 = stats[:, cv2.CC_STAT_LEFT].astype(float)
+    y0 = stats[:, cv2.CC_STAT_TOP].astype(float)
+    x1 = x0 + stats[:, cv2.CC_STAT_WIDTH]
+    y1 = y0 + stats[:, cv2.CC_STAT_HEIGHT]
+    thick = np.minimum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    member = np.zeros(len(stats), dtype=bool)
+    member[int(np.argmax(np.where(left, stats[:, cv2.CC_STAT_AREA], -1)))] = True
     while True:
         gx0, gy0 = x0[member].min(), y0[member].min()
         gx1, gy1 = x1[member].max(), y1[member].max()
@@ -359,20 +402,10 @@ def bright_blob_mask(image: np.ndarray, *, erode_px: int = 2) -> np.ndarray:
         gap = np.maximum(
             np.maximum(gx0 - x1, x0 - gx1).clip(0), np.maximum(gy0 - y1, y0 - gy1).clip(0)
         )
-        grown = member | (gap <= reach)
+        grown = member | (left & (gap <= reach))
         if grown.sum() == member.sum():
-            break
+            return member
         member = grown
-    pts = np.column_stack(np.nonzero(np.isin(labels, np.flatnonzero(member) + 1)))[:, ::-1]
-    if len(pts) < 3:
-        return empty
-    hull = cv2.convexHull(pts.astype(np.int32))
-    out = np.zeros(img.shape, dtype=np.uint8)
-    cv2.fillConvexPoly(out, hull, 1)
-    if erode_px > 0:
-        e = 2 * int(erode_px) + 1
-        out = cv2.erode(out, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (e, e)))
-    return out.astype(bool)
 
 
 @dataclass(frozen=True)
@@ -426,6 +459,10 @@ class RowTimeEstimate:
 
 #: Weakest periodic component :func:`estimate_row_time` accepts as stripes.
 MIN_STRIPE_STRENGTH = 0.3
+#: Largest relative difference between the stripe periods of two lights that may blink at
+#: the same frequency: twice the largest error of :func:`estimate_stripe_period`'s precision
+#: table (1.7 %, two periods seen), one for each light.
+SAME_PERIOD_REL = 2 * 0.017
 
 
 def estimate_row_time(
@@ -460,7 +497,8 @@ def estimate_row_time(
     if not (np.isfinite(frequency_hz) and frequency_hz > 0):
         raise ValueError(f"frequency_hz must be a positive number, got {frequency_hz!r}")
     nan = float("nan")
-    mask = bright_blob_mask(image)
+    lights = bright_blob_masks(image)
+    mask = lights[0] if lights else np.zeros(np.asarray(image).shape[:2], dtype=bool)
     area = int(mask.sum())
     if area < 16:
         return RowTimeEstimate(
@@ -473,6 +511,19 @@ def estimate_row_time(
     if not sp:
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
     weak = sp.strength < MIN_STRIPE_STRENGTH
+    other = None if weak else _other_period(image, lights[1:], sp)
+    if other is not None:
+        return RowTimeEstimate(
+            nan,
+            sp.period_px,
+            sp.axis,
+            sp.strength,
+            sp.periods_seen,
+            area,
+            frequency_hz,
+            f"the photo shows lights of different stripe periods ({sp.period_px:.2f} and "
+            f"{other:.2f} px): photograph the one blinking at {frequency_hz:g} Hz alone",
+        )
     return RowTimeEstimate(
         nan if weak else 1.0 / (frequency_hz * sp.period_px),
         sp.period_px,
@@ -483,3 +534,21 @@ def estimate_row_time(
         frequency_hz,
         f"no clear stripes in the light (periodic strength {sp.strength:.2f})" if weak else "",
     )
+
+
+def _other_period(image: np.ndarray, others: list[np.ndarray], first: StripePeriod) -> float | None:
+    """The stripe period (px) of another light in the photo that cannot blink at the first
+    light's frequency (its period differs by more than ``SAME_PERIOD_REL``), or None: which
+    light blinks at the given frequency is then unknown."""
+    img = np.asarray(image)
+    for mask in others:
+        if mask.sum() < 16:
+            continue
+        rows = np.flatnonzero(mask.any(axis=1))
+        cols = np.flatnonzero(mask.any(axis=0))
+        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+        sp = estimate_stripe_period(img[box], mask[box], first.axis)
+        if sp and sp.strength >= MIN_STRIPE_STRENGTH:
+            if abs(sp.period_px / first.period_px - 1.0) > SAME_PERIOD_REL:
+                return float(sp.period_px)
+    return None
