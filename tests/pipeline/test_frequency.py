@@ -124,11 +124,14 @@ def test_frequencies_one_percent_apart_are_told_apart_over_many_periods():
 def test_assign_frequencies_rules():
     room = _room()
     rt = ROW_TIME_S
-    periods = 1.0 / (np.array([2510.0, 3490.0, 9000.0, np.nan]) * rt)
+    periods = 1.0 / (np.array([2510.0, 3490.0, 9000.0, np.nan, 847.0]) * rt)
     fa = assign_frequencies(periods, room, rt)
     assert fa.ids[:2] == (1, 3)
     assert fa.ids[2] is None and "9000 Hz" in fa.reasons[2]
     assert fa.ids[3] is None and fa.reasons[3]
+    # how far off, as the relative difference (a log ratio of 108 % was printed for 847 Hz)
+    assert "9000 Hz is +100.0 % off the nearest map frequency (4500 Hz" in fa.reasons[2]
+    assert "847 Hz is -66.1 % off the nearest map frequency (2500 Hz" in fa.reasons[4]
     # two lights measuring the same frequency: neither is trusted
     fa = assign_frequencies(1.0 / (np.array([3000.0, 3010.0]) * rt), room, rt)
     assert fa.ids == (None, None)

@@ -104,9 +104,11 @@ def _match(
         resid[i] = d[j]
         limit = min(tolerance, 0.5 * gaps[j] - 2.0 * sig[i])
         if d[j] > limit:
+            # the distance is a log ratio; said as the relative difference it stands for
             reasons[i] = (
-                f"{f:.0f} Hz is {100 * d[j]:.1f} % from the nearest map frequency "
-                f"({map_freqs[j]:.0f} Hz; at most {100 * max(limit, 0):.2f} % accepted here)"
+                f"{f:.0f} Hz is {100 * (f / map_freqs[j] - 1):+.1f} % off the nearest map "
+                f"frequency ({map_freqs[j]:.0f} Hz; at most {100 * np.expm1(max(limit, 0)):.2f} "
+                "% accepted here)"
             )
             continue
         picks[i] = j
