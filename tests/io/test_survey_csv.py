@@ -26,6 +26,15 @@ def test_read_survey_keeps_extra_columns_and_resolves_paths(tmp_path):
         read_survey(path)
 
 
+def test_some_but_not_all_angle_columns_are_refused(tmp_path):
+    """theta_x and theta_y without theta_z: refused, not read as a survey without angles
+    (whose orientation error evaluate then leaves out without a word)."""
+    path = tmp_path / "s.csv"
+    path.write_text("photo,x,y,z,theta_x,theta_y\na.jpg,0,0,0,90,0\n")
+    with pytest.raises(InputError, match="theta_x, theta_y but not theta_z"):
+        read_survey(path)
+
+
 def test_a_written_survey_reads_back(tmp_path):
     pos = np.array([[0.1234567, -1.0, 2.0], [3.0, 4.0, -5.5]])
     eul = np.array([[90.0, 0.0, 12.34567], [70.0, 20.0, 0.0]])

@@ -132,6 +132,13 @@ def read_survey(path: str | Path) -> Survey:
         raise InputError("survey file has no photos, only a header", p)
     col = {h: i for i, h in enumerate(header)}
     has_angles = all(c in col for c in ANGLE_COLUMNS)
+    some = [c for c in ANGLE_COLUMNS if c in col]
+    if some and not has_angles:  # the orientation error would be left out without a word
+        missing = ", ".join(c for c in ANGLE_COLUMNS if c not in col)
+        raise InputError(
+            f"survey file has {', '.join(some)} but not {missing}: give all three angles or none",
+            p,
+        )
     extra_columns = tuple(
         h for h in header if h not in REQUIRED_COLUMNS and not (has_angles and h in ANGLE_COLUMNS)
     )
