@@ -102,6 +102,14 @@ def test_bad_frames_become_lost_rows(scene, tmp_path):
     assert "warning: skipped 1 file(s) that are not images: readme.txt" in result.stderr
 
 
+def test_a_start_after_the_last_frame_says_so(scene, tmp_path):
+    """--start past the input's end: no frame is read, and the error says that rather than
+    "no frame could be located"."""
+    result = track(scene, scene / "frames", tmp_path / "out", "--start", "100")
+    assert result.exit_code == 1
+    assert "no frame at or after --start 100 s" in one_error_line(result)
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

@@ -139,7 +139,10 @@ def track_command(
         _print_human(summary, fixture_map.units, out)
     located = summary["fix"] + summary["tracked"]
     if not located:
-        print(f"error: no frame could be located ({source})", file=sys.stderr)
+        why = "no frame could be located"
+        if not summary["frames"]:  # nothing was read: say why rather than "not located"
+            why = f"no frame at or after --start {start:g} s" if start else "no frame was read"
+        print(f"error: {why} ({source})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
 
 
