@@ -15,6 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import yaml
 
 from camvlp.cli import main
 from camvlp.io import save_map
@@ -78,6 +79,23 @@ def test_located_prints_the_position(capsys, small_files, small_render):
     numbers = [float(v) for v in line.split("(")[1].split(")")[0].split(",")]
     assert np.linalg.norm(np.array(numbers) - small_render.pose.position) < 3e-3
     assert "5 detected, 5 used" in out
+
+
+def test_a_chip_rate_the_stripes_disagree_with_is_noted(capsys, tmp_path, small_files):
+    """The map's chip_rate_hz 10 % off the 10 kHz the lights send: nothing decodes, and the
+    output says which chip length the files give and which the stripes show (it said only
+    that the stripes fit no ID's model); the note is printed, not only in --json."""
+    room = yaml.safe_load(small_files["map"].read_text())
+    room["frame"]["chip_rate_hz"] = 9000
+    wrong = tmp_path / "room.yaml"
+    wrong.write_text(yaml.safe_dump(room))
+    code, out, err = run(capsys, small_files["photo"], small_files["camera"], wrong)
+    assert code == 1, err
+    note = next(ln for ln in out.splitlines() if ln.startswith("note"))
+    assert "chip_rate_hz and the camera's row_time_s give 4.44 rows per chip" in note
+    assert "the stripes 4.00" in note
+    code, out, _ = run(capsys, small_files["photo"], small_files["camera"], wrong, "--json")
+    assert "the stripes 4.00" in json.loads(out)["notes"][0]
 
 
 def test_located_json(capsys, small_files, small_render):

@@ -185,3 +185,5 @@ def _print_human(result, units: str, photo: Path) -> None:
         f"time          {t['total']:.0f} ms (detect {t['detect']:.0f}, decode {t['decode']:.0f}, "
         f"pose {t['pose']:.0f})"
     )
+    for note in result.notes:
+        print(f"note          {note}")

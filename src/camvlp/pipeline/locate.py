@@ -460,7 +460,8 @@ def locate(
         )
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
-        decodes, frequencies, notes = list(man.decodes), np.full(len(blobs), np.nan), []
+        decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
+        notes = [man.note] if man.note else []
     t2 = time.perf_counter()
 
     def solve(f: Identified):

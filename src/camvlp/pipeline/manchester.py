@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -65,6 +65,10 @@ class Manchester:
         pose decides).
     other_model : SensorModel or None
         The parameters fitted under the other direction.
+    note : str
+        Something the user should know ("" when nothing): the chip length the map's
+        ``chip_rate_hz`` and the camera's ``row_time_s`` give against the one the stripes'
+        runs show, when no fixture was identified and they disagree.
     """
 
     decodes: tuple[ModelDecode | StripeDecode, ...]
@@ -73,6 +77,7 @@ class Manchester:
     model: SensorModel | None = None
     other: tuple[ModelDecode | StripeDecode, ...] | None = None
     other_model: SensorModel | None = None
+    note: str = ""
 
     @property
     def exposure_chips(self) -> float:
@@ -292,11 +297,31 @@ def decode_manchester(
     Manchester
         The decodes, the readout they were read with, the photo-wide parameters.
     """
-    frame, ids = fixture_map.frame, fixture_map.ids
-    map_ids = {int(i) for i in ids}
     seed = None
     if camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
+    man = _decode_manchester(profiles, readout, direction_known, fixture_map, seed, weights)
+    if seed is None or any(d.id is not None for d in man.decodes):
+        return man
+    # nothing identified with the chip length the files give: do the stripes' runs say
+    # another?  (the run-length IDs that disagree with it were dropped)
+    measured = _measured(_fast(profiles, fixture_map.frame, set(fixture_map.ids))[1])
+    if measured is None or abs(measured / seed - 1) <= CHIP_AGREEMENT:
+        return man
+    note = (
+        f"the map's chip_rate_hz and the camera's row_time_s give {seed:.2f} rows per chip, "
+        f"the stripes {measured:.2f}: check both"
+    )
+    return replace(man, note=note)
+
+
+def _decode_manchester(
+    profiles, readout: Readout, direction_known: bool, fixture_map: FixtureMap, seed, weights
+) -> Manchester:
+    """:func:`decode_manchester` with the chip length the files give (``seed``, rows, or
+    None)."""
+    frame, ids = fixture_map.frame, fixture_map.ids
+    map_ids = {int(i) for i in ids}
     fwd, lengths = _fast(profiles, frame, map_ids)
     if direction_known:
         return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout, weights)
