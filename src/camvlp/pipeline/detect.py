@@ -37,7 +37,7 @@ from camvlp.pipeline.touching import (
 )
 
 __all__ = [
-    "MIN_IMAGE_SIDE_PX",
+    "MIN_SIDE_PX",
     "Blob",
     "Detection",
     "detect_fixtures",
@@ -49,7 +49,7 @@ __all__ = [
 
 
 #: Smallest image side, pixels, the detector works on.
-MIN_IMAGE_SIDE_PX = 8
+MIN_SIDE_PX = 8
 
 
 @dataclass(frozen=True)
@@ -144,11 +144,8 @@ def detect_fixtures(
     if readout not in (None, "rows", "columns"):
         raise ValueError(f"readout must be 'rows', 'columns' or None, got {readout!r}")
     img = np.asarray(image)
-    if img.ndim not in (2, 3) or min(img.shape[:2]) < MIN_IMAGE_SIDE_PX:
-        raise ValueError(
-            f"image must be at least {MIN_IMAGE_SIDE_PX} x {MIN_IMAGE_SIDE_PX} pixels, "
-            f"got shape {img.shape}"
-        )
+    if img.ndim not in (2, 3) or min(img.shape[:2]) < MIN_SIDE_PX:
+        raise ValueError(f"image must be {MIN_SIDE_PX} x {MIN_SIDE_PX} px or more, got {img.shape}")
     height, width = img.shape[:2]
     s = _reduction(img.shape)
     # Candidates on every s-th pixel: a decimated view costs nothing, where averaging a

@@ -28,7 +28,7 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.detect import MIN_IMAGE_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
+from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.identify import Identified, decided, identifier, identify
@@ -136,10 +136,10 @@ def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
         raise InputError(
             f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}{hint}"
         )
-    if min(h, w) < MIN_IMAGE_SIDE_PX:
+    if min(h, w) < MIN_SIDE_PX:
         raise InputError(
             f"image is {w} x {h} pixels, too small to locate "
-            f"(at least {MIN_IMAGE_SIDE_PX} x {MIN_IMAGE_SIDE_PX})"
+            f"(at least {MIN_SIDE_PX} x {MIN_SIDE_PX})"
         )
     return img
 
