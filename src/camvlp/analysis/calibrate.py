@@ -459,6 +459,8 @@ class RowTimeEstimate:
 
 #: Weakest periodic component :func:`estimate_row_time` accepts as stripes.
 MIN_STRIPE_STRENGTH = 0.3
+#: Fewest pixels of a light whose stripes :func:`estimate_row_time` measures.
+MIN_LIGHT_PX = 16
 #: Largest relative difference between the stripe periods of two lights that may blink at
 #: the same frequency: twice the largest error of :func:`estimate_stripe_period`'s precision
 #: table (1.7 %, two periods seen), one for each light.
@@ -500,54 +502,49 @@ def estimate_row_time(
     lights = bright_blob_masks(image)
     mask = lights[0] if lights else np.zeros(np.asarray(image).shape[:2], dtype=bool)
     area = int(mask.sum())
-    if area < 16:
+    if area < MIN_LIGHT_PX:
         return RowTimeEstimate(
             nan, nan, axis or "rows", 0.0, nan, area, frequency_hz, "no bright light found"
         )
-    rows = np.flatnonzero(mask.any(axis=1))
-    cols = np.flatnonzero(mask.any(axis=0))
-    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-    sp = estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
+    sp = _light_period(image, mask, axis)
     if not sp:
         return RowTimeEstimate(nan, nan, sp.axis, 0.0, nan, area, frequency_hz, sp.message)
-    weak = sp.strength < MIN_STRIPE_STRENGTH
-    other = None if weak else _other_period(image, lights[1:], sp)
-    if other is not None:
-        return RowTimeEstimate(
-            nan,
-            sp.period_px,
-            sp.axis,
-            sp.strength,
-            sp.periods_seen,
-            area,
-            frequency_hz,
+    reason = ""
+    if sp.strength < MIN_STRIPE_STRENGTH:
+        reason = f"no clear stripes in the light (periodic strength {sp.strength:.2f})"
+    elif (other := _other_period(image, lights[1:], sp)) is not None:
+        reason = (
             f"the photo shows lights of different stripe periods ({sp.period_px:.2f} and "
-            f"{other:.2f} px): photograph the one blinking at {frequency_hz:g} Hz alone",
+            f"{other:.2f} px): photograph the one blinking at {frequency_hz:g} Hz alone"
         )
     return RowTimeEstimate(
-        nan if weak else 1.0 / (frequency_hz * sp.period_px),
+        nan if reason else 1.0 / (frequency_hz * sp.period_px),
         sp.period_px,
         sp.axis,
         sp.strength,
         sp.periods_seen,
         area,
         frequency_hz,
-        f"no clear stripes in the light (periodic strength {sp.strength:.2f})" if weak else "",
+        reason,
     )
+
+
+def _light_period(image: np.ndarray, mask: np.ndarray, axis: str | None) -> StripePeriod:
+    """The stripe period of the light ``mask`` (H, W) covers, from its bounding box."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    return estimate_stripe_period(np.asarray(image)[box], mask[box], axis)
 
 
 def _other_period(image: np.ndarray, others: list[np.ndarray], first: StripePeriod) -> float | None:
     """The stripe period (px) of another light in the photo that cannot blink at the first
     light's frequency (its period differs by more than ``SAME_PERIOD_REL``), or None: which
     light blinks at the given frequency is then unknown."""
-    img = np.asarray(image)
     for mask in others:
-        if mask.sum() < 16:
+        if mask.sum() < MIN_LIGHT_PX:
             continue
-        rows = np.flatnonzero(mask.any(axis=1))
-        cols = np.flatnonzero(mask.any(axis=0))
-        box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-        sp = estimate_stripe_period(img[box], mask[box], first.axis)
+        sp = _light_period(image, mask, first.axis)
         if sp and sp.strength >= MIN_STRIPE_STRENGTH:
             if abs(sp.period_px / first.period_px - 1.0) > SAME_PERIOD_REL:
                 return float(sp.period_px)
