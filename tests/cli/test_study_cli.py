@@ -134,6 +134,21 @@ def test_cli_bad_input(args, needle):
     assert needle in one_error_line(result)
 
 
+@pytest.mark.parametrize("study", ["rounding", "coverage"])
+def test_a_tilted_sensor_camera_is_refused_naming_the_file(tmp_path, study):
+    """14 distortion coefficients (OpenCV's tilted sensor) load, but the studies cannot project
+    them: one line naming the camera file (it named an internal function, and no file)."""
+    camera = tmp_path / "tilted.yaml"
+    camera.write_text(
+        "image_width: 640\nimage_height: 480\nfocal_length_px: 500\n"
+        "distortion_coefficients: [0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0.01, 0.01]\n"
+    )
+    result = runner.invoke(app, ["study", study, "--camera", str(camera), "--step", "0.5"])
+    assert result.exit_code == 2
+    line = one_error_line(result)
+    assert "tilted sensor" in line and str(camera) in line
+
+
 def test_study_cli_accepts_the_locate_solver_and_refuses_others():
     res = runner.invoke(app, ["study", "rounding", "--step", "0.5", "--solver", "locate", "--json"])
     assert res.exit_code == 0, res.output

@@ -12,7 +12,7 @@ import typer
 
 from camvlp.analysis import study as st
 from camvlp.format import format_length
-from camvlp.io import load_camera, load_map
+from camvlp.io import InputError, load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.io.writers import write_outputs
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
@@ -114,10 +114,15 @@ def _check(
 
 
 def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]:
-    return (
-        load_camera(_default_file(camera, "thesis_camera.yaml")),
-        load_map(_default_file(fmap, "thesis_room.yaml")),
-    )
+    camera_path = _default_file(camera, "thesis_camera.yaml")
+    cam = load_camera(camera_path)
+    if cam.distortion.size > 12:  # the studies' batched projection has no tilted sensor
+        raise InputError(
+            "the studies do not model a tilted sensor (a camera file with 14 distortion "
+            "coefficients)",
+            camera_path,
+        )
+    return cam, load_map(_default_file(fmap, "thesis_room.yaml"))
 
 
 def _triples(text: str, name: str) -> list[list[float]]:
