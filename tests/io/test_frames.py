@@ -30,6 +30,25 @@ def test_folder_in_name_order_with_timestamps_and_skipped_files(tmp_path):
     assert any("notes.txt" in w for w in src.warnings)
 
 
+@pytest.mark.parametrize(
+    ("stamps", "message"),
+    [
+        ("f00.png,0.5\nf01.png,0.4\nf02.png,0.6\n", "f01.png is not later than f00.png"),
+        ("f00.png,0.5\nf01.png,0.5\nf02.png,0.6\n", "f01.png is not later than f00.png"),
+        ("f00.png,0.5\nf00.png,0.7\nf01.png,0.8\nf02.png,0.9\n", "'f00.png' has two times"),
+        ("f00.png,0\nf01.png,1e300\nf02.png,2e300\n", "a time beyond"),
+    ],
+)
+def test_times_that_do_not_increase_in_name_order_are_refused(tmp_path, stamps, message):
+    """The frames are taken in name order: times going back or standing still, a frame
+    given twice, a time of 1e300 s are refused (they were taken as given; 1e300 s ended in
+    'Numerical result out of range')."""
+    d = write_folder(tmp_path / "frames")
+    (d / "timestamps.csv").write_text("frame,t\n" + stamps)
+    with pytest.raises(InputError, match=message):
+        open_frames(d)
+
+
 def test_folder_start_and_frames(tmp_path):
     d = write_folder(tmp_path / "frames", n=5)
     frames = list(open_frames(d, fps=10, start_s=0.15, max_frames=2))

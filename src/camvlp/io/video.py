@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -25,7 +26,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import read_text_file
+from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.io.images import load_image
 
 __all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_frames", "read_truth"]
@@ -184,7 +185,12 @@ def _read_timestamps(path: Path) -> dict[str, float]:
             raise InputError(f"a time that is not a number: {r['t']!r}", path) from None
         if not math.isfinite(t):
             raise InputError(f"a time that is not finite: {r['t']!r}", path)
-        out[str(r["frame"]).strip()] = t
+        if abs(t) > MAX_MAGNITUDE:
+            raise InputError(f"a time beyond +-{MAX_MAGNITUDE:g} s: {r['t']!r}", path)
+        name = str(r["frame"]).strip()
+        if name in out:
+            raise InputError(f"frame {name!r} has two times", path)
+        out[name] = t
     return out
 
 
@@ -272,6 +278,12 @@ def _open_folder(p: Path, fps: float | None, start_s: float, max_frames: int | N
         raise InputError("the folder has no images", p)
     stamps = p / "timestamps.csv"
     times = _read_timestamps(stamps) if stamps.is_file() else {}
+    given = [(f.name, times[f.name]) for f in images if f.name in times]
+    for (a, ta), (b, tb) in itertools.pairwise(given):
+        if tb <= ta:  # the frames are taken in name order: their times must increase
+            raise InputError(
+                f"{b} is not later than {a} (times must increase in name order)", stamps
+            )
     missing = [f.name for f in images if f.name not in times]
     if missing and fps is None:
         what = "no timestamps.csv" if not times else f"no time for {missing[0]} in timestamps.csv"
