@@ -98,6 +98,11 @@ def test_trajectory_file_errors(tmp_path):
     bad.write_text("t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,90,0,0\n1,a,0,0,90,0,0\n")
     with pytest.raises(InputError, match="not a number"):
         load_trajectory(bad)
+    # a camera 1e300 map units away (or a trajectory 1e300 s long) was rendered as asked
+    for row in ("1,1e300,0,0,90,0,0", "1e300,0,0,0,90,0,0"):
+        bad.write_text(f"t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,90,0,0\n{row}\n")
+        with pytest.raises(InputError, match="beyond"):
+            load_trajectory(bad)
 
 
 @pytest.mark.parametrize("out_name", ["frames", "video.mp4"])

@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import read_text_file
+from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
@@ -131,6 +131,8 @@ def load_trajectory(path: str | Path) -> Trajectory:
         data = np.array([[float(r[c]) for c in TRAJECTORY_COLUMNS] for r in rows])
     except (TypeError, ValueError):
         raise InputError("the trajectory has a value that is not a number", p) from None
+    if np.any(np.abs(data) > MAX_MAGNITUDE):  # as every number of camera and map files
+        raise InputError(f"the trajectory has a value beyond +-{MAX_MAGNITUDE:g}", p)
     try:
         return Trajectory(data[:, 0], data[:, 1:4], data[:, 4:7])
     except ValueError as exc:
