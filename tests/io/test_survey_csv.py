@@ -24,6 +24,11 @@ def test_read_survey_keeps_extra_columns_and_resolves_paths(tmp_path):
     path.write_text("photo,x,y,z\na.jpg,nan,0,0\n")
     with pytest.raises(InputError, match="finite"):
         read_survey(path)
+    # within +-1e9 as every number of camera and map files (1e300 was evaluated as given)
+    for row in ("a.jpg,1e300,0,0,90,0,0", "a.jpg,0,0,0,-1e12,0,0"):
+        path.write_text(f"photo,x,y,z,theta_x,theta_y,theta_z\n{row}\n")
+        with pytest.raises(InputError, match=r"within \+-1e\+09"):
+            read_survey(path)
 
 
 def test_some_but_not_all_angle_columns_are_refused(tmp_path):

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.io.limits import limit, read_regular_file
 
 __all__ = [
@@ -171,9 +172,11 @@ def _cell(text: str, column: str, line_no: int, path: Path) -> float:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not math.isfinite(value):
+    if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
         raise InputError(
-            f"line {line_no}: {column} must be a finite number, got {text.strip()!r}", path
+            f"line {line_no}: {column} must be a finite number within +-{MAX_MAGNITUDE:g}, "
+            f"got {text.strip()!r}",
+            path,
         )
     return value
 
