@@ -101,10 +101,10 @@ def track_command(
         ),
     ] = True,
 ) -> None:
-    """Track the camera along a video: DIR/trajectory.csv, fixtures.csv, summary.json and
-    trajectory.png.
+    """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
-    Exit code 0 when at least one frame was located, 1 when none was, 2 on bad input.
+    Writes DIR/trajectory.csv, fixtures.csv, summary.json and trajectory.png. Exit code 0
+    when at least one frame was located, 1 when none was, 2 on bad input.
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
@@ -260,10 +260,11 @@ def render_video_command(
         typer.Option("--readout", help="rows, columns, rows-reversed or columns-reversed."),
     ] = None,
 ) -> None:
-    """Render a rolling-shutter video of a camera moving along a trajectory, each sensor row
-    seen from the pose at its own time, with the true trajectory beside it; the lights look
-    as in ``camvlp render`` (off level, hot core, halo, soft stripes, blur, a phone's
-    processing, readout)."""
+    """Render a rolling-shutter video of a camera moving along a trajectory, with its truth.
+
+    Each sensor row is seen from the pose at its own time, and the true trajectory is
+    written beside the video; the lights look as in `camvlp render` (off level, hot core,
+    halo, soft stripes, blur, a phone's processing, readout)."""
     check_positive(fps, "--fps")
     check_positive(chip_rate, "--chip-rate")
     check_positive(row_time, "--row-time")
