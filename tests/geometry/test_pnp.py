@@ -220,3 +220,23 @@ def test_project_batch_bad_input():
         project_batch(CAM, np.eye(3), np.zeros(3), np.zeros((4, 2)))
     with pytest.raises(ValueError, match="R has 2 poses"):
         project_batch(CAM, np.stack([np.eye(3)] * 2), np.zeros((3, 3)), np.zeros((4, 3)))
+
+
+def test_one_pose_and_the_renderer_take_the_camera_plane_as_project_batch_does(
+    small_camera, small_room
+):
+    """project_points (and so Camera.project and the renderer's truth) and project_batch
+    share one test of "in front": lamps on the camera's plane are not imaged."""
+    from tests.conftest import CEILING_Y, LOOK_UP, small_settings
+
+    from camvlp.model.camera import project_points
+    from camvlp.sim.render import render
+
+    points = [f.position for f in small_room.fixtures]
+    level = Pose.from_euler([0.0, CEILING_Y, 0.0], LOOK_UP)  # the lamps' own height
+    assert np.all(np.isnan(project_points(small_camera, level, points)))
+    lower = Pose.from_euler([0.0, CEILING_Y + 0.01, 0.0], LOOK_UP)  # 1 cm below: imaged
+    assert np.all(np.isfinite(project_points(small_camera, lower, points)))
+    truth = render(small_camera, small_room, level, small_settings(seed=0)).fixtures
+    assert not any(t.in_front for t in truth)
+    assert all(np.all(np.isnan(t.pixel)) for t in truth)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera, Pose, in_front
 
 __all__ = [
     "IPPE_JITTER_PX",
@@ -336,11 +336,6 @@ def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, n
     return xd, yd
 
 
-#: Relative depth under which :func:`project_batch` takes a point as on the camera plane:
-#: 64 float64 roundings (the rotation of a point at distance d is good to a few eps * d).
-_PLANE_ROUNDING = 64 * np.finfo(np.float64).eps
-
-
 def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.ndarray:
     """Project the same world points for many camera poses at once.
 
@@ -389,9 +384,7 @@ def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.
     # camera coordinates: X_c = R^T (X - C), for every pose and point
     xc = np.einsum("bji,bnj->bni", r, p[None, :, :] - c[:, None, :])
     z = xc[..., 2]
-    # "on the camera plane" within float64 rounding of the rotation: a point the camera sees
-    # edge-on at 1e-16 of its distance would land 1e16 focal lengths out, not be imaged
-    on_plane = z <= _PLANE_ROUNDING * np.linalg.norm(xc, axis=-1)
+    on_plane = ~in_front(xc)  # (within float64 rounding of the camera's plane: not imaged)
     with np.errstate(divide="ignore", invalid="ignore"):
         z_safe = np.where(on_plane, np.nan, z)
         x = xc[..., 0] / z_safe

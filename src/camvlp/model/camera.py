@@ -24,9 +24,11 @@ from camvlp.model.readout import Readout
 
 __all__ = [
     "DEFAULT_ROW_TIME_S",
+    "PLANE_ROUNDING",
     "Camera",
     "Pose",
     "euler_to_matrix",
+    "in_front",
     "matrix_to_euler",
     "project_points",
     "rotation_x",
@@ -384,6 +386,20 @@ def project_camera_points(camera: Camera, points_camera) -> np.ndarray:
     return uv.reshape(-1, 2)
 
 
+#: Depth, as a share of a point's distance, at or under which a point counts as on the
+#: camera's plane, not imaged: 64 float64 roundings (a point turned into the camera's frame
+#: at distance d is good to a few eps * d; one seen edge-on at 1e-16 of its distance would
+#: land 1e16 focal lengths out).
+PLANE_ROUNDING = 64 * np.finfo(np.float64).eps
+
+
+def in_front(points_camera) -> np.ndarray:
+    """Whether points in camera coordinates, shape (..., 3), lie in front of the camera,
+    beyond float64 rounding of its plane (:data:`PLANE_ROUNDING`): bool, shape (...)."""
+    p = np.asarray(points_camera, dtype=float)
+    return p[..., 2] > PLANE_ROUNDING * np.linalg.norm(p, axis=-1)
+
+
 def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:
     """Project world points with a camera at a pose; see :meth:`Camera.project`."""
     p = np.asarray(points_world, dtype=float).reshape(-1, 3)
@@ -393,7 +409,7 @@ def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:
     # rotations below 1e-5 rad would come out as none (OpenCV's cv2.Rodrigues rounds them)
     cam = pose.to_camera(p)
     uv = project_camera_points(camera, cam)
-    behind = cam[:, 2] <= 0
+    behind = ~in_front(cam)
     if behind.any():
         uv[behind] = np.nan
     return uv

@@ -45,7 +45,7 @@ import numpy as np
 
 from camvlp.geometry.disc import disc_normals, rim_points
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
-from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose
+from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose, in_front
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
@@ -356,13 +356,13 @@ def _truths(
         period = chips.size * chip_s
         phase = float(rng.uniform(0.0, period))
         centre_px = camera.project(pose, f.position[None, :])[0]
-        in_front = bool(pose.to_camera(f.position[None, :])[0, 2] > 0)
+        ahead = bool(in_front(pose.to_camera(f.position[None, :]))[0])
         rim = _rim_points(f, n)
         rim_px, clamped = _project_within_field(camera, pose, rim, field)
         rims.append(rim_px)
         ok = np.all(np.isfinite(rim_px))
         fully = bool(
-            in_front
+            ahead
             and ok
             and not np.any(clamped)
             and np.all((rim_px[:, 0] >= -0.5) & (rim_px[:, 0] <= w - 0.5))
@@ -373,7 +373,7 @@ def _truths(
             FixtureTruth(
                 id=f.id,
                 pixel=centre_px,
-                in_front=in_front,
+                in_front=ahead,
                 fully_inside=fully,
                 rows_spanned=span,
                 frames_spanned=span * s.row_time_s / period,
