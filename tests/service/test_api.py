@@ -144,6 +144,26 @@ def test_put_map_replaces_the_map_after_checking_it(client):
     assert r.status_code == 422
 
 
+def test_a_json_body_that_gives_a_key_twice_is_422_naming_it(client):
+    site_id, headers = create_site(client)
+    before = client.get(f"/api/v1/sites/{site_id}", headers=headers).json()["map"]
+    twice = (
+        '{"fixtures": [{"id": 5, "position": [0, 0, 3], "position": [9, 9, 3]},'
+        ' {"id": 6, "position": [1, 0, 3]}, {"id": 9, "position": [0, 1, 3]},'
+        ' {"id": 10, "position": [1, 1, 3]}]}'
+    )
+    json_type = {**headers, "Content-Type": "application/json"}
+    r = client.put(f"/api/v1/sites/{site_id}/map", headers=json_type, content=twice)
+    assert r.status_code == 422 and "'position' is given twice" in detail(r)
+    assert client.get(f"/api/v1/sites/{site_id}", headers=headers).json()["map"] == before
+    once = twice.replace(', "position": [9, 9, 3]', "")
+    r = client.put(f"/api/v1/sites/{site_id}/map", headers=json_type, content=once)
+    assert r.status_code == 200 and r.json()["fixtures"] == 4
+    # a body that is not JSON at all is the route's to refuse, as before
+    r = client.put(f"/api/v1/sites/{site_id}/map", headers=json_type, content="{not json")
+    assert r.status_code == 422
+
+
 def test_put_camera_adds_then_replaces(client):
     site_id, headers = create_site(client)
     url = f"/api/v1/sites/{site_id}/cameras/phone-2"

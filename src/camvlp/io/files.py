@@ -31,6 +31,7 @@ __all__ = [
     "map_from_dict",
     "save_camera",
     "save_map",
+    "unique_keys",
 ]
 
 
@@ -139,7 +140,7 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
-def _unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict:
     """A JSON object as a dict, refusing a key given twice (``json`` keeps the last one)."""
     out: dict = {}
     for key, value in pairs:
@@ -163,7 +164,7 @@ def parse_mapping(text: str, path: Path, kind: str) -> dict:
     _check_text(text, path, kind, as_json)
     try:
         if as_json:
-            data = json.loads(text, object_pairs_hook=_unique_keys)
+            data = json.loads(text, object_pairs_hook=unique_keys)
         else:
             data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader
     except (json.JSONDecodeError, yaml.YAMLError, ValueError, RecursionError) as exc:

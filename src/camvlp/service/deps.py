@@ -5,6 +5,7 @@
 (``store: StoreDep``), and for an authorised site with ``site_id: Site``.
 """
 
+import json
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Annotated
@@ -13,6 +14,7 @@ from fastapi import Depends, Path, Request
 from fastapi.exceptions import HTTPException
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
+from camvlp.io.files import unique_keys
 from camvlp.service.auth import hash_key, keys_match
 from camvlp.service.db import Store
 from camvlp.service.settings import ServiceSettings
@@ -30,6 +32,7 @@ __all__ = [
     "get_pool",
     "get_settings",
     "get_store",
+    "keys_once",
     "site_access",
 ]
 
@@ -49,6 +52,21 @@ class Gate:
 
 # The getters are ``async`` so that FastAPI calls them on the event loop instead of handing
 # each one to a worker thread: they only read ``app.state``.
+
+
+async def keys_once(request: Request) -> None:
+    """A JSON body whose objects give a key twice is refused (422, naming the key), as the
+    camera and map files are: JSON keeps the last one without a word, so a map with a
+    fixture's ``position`` given twice would be stored as one of them.  A body that is not
+    JSON is left to the route's own parsing."""
+    if "json" not in request.headers.get("content-type", ""):
+        return
+    try:
+        json.loads(await request.body(), object_pairs_hook=unique_keys)
+    except json.JSONDecodeError:
+        return  # malformed: the route's parsing says so
+    except (ValueError, RecursionError) as err:
+        raise HTTPException(422, f"malformed JSON body: {err}") from None
 
 
 async def get_settings(request: Request) -> ServiceSettings:

@@ -13,7 +13,7 @@ from typing import Annotated, Any
 
 import cv2
 import numpy as np
-from fastapi import APIRouter, Body, File, Form, Query, Request, UploadFile
+from fastapi import APIRouter, Body, Depends, File, Form, Query, Request, UploadFile
 from fastapi import Path as PathParam
 from fastapi.exceptions import HTTPException
 from fastapi.responses import Response, StreamingResponse
@@ -27,7 +27,16 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.service.auth import new_key
 from camvlp.service.db import FixRow, Store
-from camvlp.service.deps import MAX_ROW_ID, GateDep, PoolDep, RowId, SettingsDep, Site, StoreDep
+from camvlp.service.deps import (
+    MAX_ROW_ID,
+    GateDep,
+    PoolDep,
+    RowId,
+    SettingsDep,
+    Site,
+    StoreDep,
+    keys_once,
+)
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
 from camvlp.service.schemas import (
@@ -44,7 +53,7 @@ from camvlp.viz.annotate import annotate as annotate_photo
 
 __all__ = ["router"]
 
-router = APIRouter(prefix="/api/v1")
+router = APIRouter(prefix="/api/v1", dependencies=[Depends(keys_once)])
 
 
 class _LocateRefused(Exception):
