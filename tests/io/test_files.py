@@ -273,6 +273,22 @@ def test_a_map_key_given_twice_is_refused(tmp_path: Path):
     _raises_naming(load_map, _write(tmp_path / "m.json", as_json), "'id' is given twice")
 
 
+def test_a_key_that_reads_almost_as_a_known_one_is_refused_naming_both(tmp_path: Path):
+    """A typo (``diametre``) would be ignored and its value lost; a note the file carries
+    (``name``) is not a typo and is left alone."""
+    body = "  - {id: 3, position: [0, 0, 0], diametre: 0.2}\n"
+    _raises_naming(load_map, _map(tmp_path, body), "fixture 3", "'diametre'", "'diameter'")
+    head = "frame: {chip_rate: 10000}\nfixtures:\n"
+    clean = "  - {id: 3, position: [0, 0, 0]}\n"
+    _raises_naming(load_map, _map(tmp_path, clean, head), "frame", "'chip_rate_hz'")
+    fm = load_map(_map(tmp_path, "  - {id: 3, position: [0, 0, 0], name: hall}\n"))
+    assert fm.fixtures[0].id == 3 and fm.fixtures[0].diameter is None
+    cam = "image_width: 640\nimage_height: 480\nfocal_length_px: 500\nrow_time: 2.0e-5\n"
+    _raises_naming(load_camera, _write(tmp_path / "c.yaml", cam), "'row_time'", "'row_time_s'")
+    noted = cam.replace("row_time", "calibration_rms_px")
+    assert load_camera(_write(tmp_path / "d.yaml", noted)).row_time_s is None
+
+
 def test_empty_or_missing_fixtures(tmp_path: Path):
     _raises_naming(load_map, _write(tmp_path / "a.yaml", "fixtures: []\n"), "fixtures")
     _raises_naming(load_map, _write(tmp_path / "b.yaml", "units: m\n"), "fixtures")

@@ -6,6 +6,7 @@ the file and, where it applies, the fixture or key at fault.
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import re
@@ -261,6 +262,35 @@ def load_camera(path: str | Path) -> Camera:
     return camera_from_dict(read_mapping(path, "camera"), Path(path))
 
 
+#: The keys a camera file, a map, its frame and its fixtures are read for.
+CAMERA_KEYS = (
+    "image_width",
+    "image_height",
+    "camera_matrix",
+    "focal_length_px",
+    "principal_point",
+    "distortion_coefficients",
+    "row_time_s",
+    "mirrored",
+    "readout",
+    "tone_gamma",
+)
+MAP_KEYS = ("units", "frame", "fixtures", "up")
+FRAME_KEYS = ("mode", "line_code", "preamble", "id_bits", "postamble", "chip_rate_hz")
+FIXTURE_KEYS = ("id", "position", "diameter", "normal", "frequency_hz")
+
+
+def _misspelled(data: Mapping[str, Any], known: tuple[str, ...], where: str, path) -> None:
+    """Refuse a key of ``data`` that is not one of ``known`` but reads almost as one (a typo
+    such as ``diametre``, which would otherwise be ignored without a word); other keys
+    (notes a file may carry) are left alone."""
+    for key in data:
+        if isinstance(key, str) and key not in known:
+            close = difflib.get_close_matches(key, known, n=1, cutoff=0.8)
+            if close:
+                raise InputError(f"{where}unknown key {key!r} (did you mean {close[0]!r}?)", path)
+
+
 def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> Camera:
     """Build a camera from an already-parsed mapping with a camera file's keys.
 
@@ -275,6 +305,7 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
     p = source
     if not isinstance(data, Mapping):
         raise InputError("malformed camera: expected a mapping of keys", p)
+    _misspelled(data, CAMERA_KEYS, "", p)
     try:
         width = _integer(data.get("image_width"), "image_width", p, most=MAX_SIDE_PX)
         height = _integer(data.get("image_height"), "image_height", p, most=MAX_SIDE_PX)
@@ -387,6 +418,7 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
     p = source
     if not isinstance(data, Mapping):
         raise InputError("malformed map: expected a mapping of keys", p)
+    _misspelled(data, MAP_KEYS, "", p)
     units = data.get("units", "m")
     mode, frame, chip_rate = _frame_from_dict(data.get("frame") or {}, p)
     entries = data.get("fixtures")
@@ -417,6 +449,7 @@ def _frame_from_dict(frame_spec: Any, p: str | Path) -> tuple[str, FrameFormat, 
     """A map's ``frame`` key: the line code's mode, its frame format and chip rate (Hz)."""
     if not isinstance(frame_spec, dict):
         raise InputError("frame must be a mapping", p)
+    _misspelled(frame_spec, FRAME_KEYS, "frame: ", p)
     mode = str(frame_spec.get("mode", frame_spec.get("line_code", "manchester"))).lower()
     if mode not in ("manchester", "frequency"):
         raise InputError(f"frame mode must be manchester or frequency, got {mode!r}", p)
@@ -454,6 +487,7 @@ def _fixture_from_dict(
     if isinstance(fid, bool) or not isinstance(fid, int):
         raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
     where = f"fixture {fid}"
+    _misspelled(entry, FIXTURE_KEYS, f"{where}: ", p)
     if fid in seen:
         raise InputError(f"duplicate ID in {where}", p)
     seen.add(fid)
