@@ -22,6 +22,7 @@ from hypothesis.extra import numpy as hnp
 import camvlp
 from camvlp.cli import main
 from camvlp.io import load_camera, load_image, load_map
+from camvlp.io.files import CAMERA_KEYS, MAP_KEYS
 
 #: Hypothesis settings shared by the tests: reproducible, modest, explicit deadline.
 FAST = settings(
@@ -120,20 +121,8 @@ values = st.recursive(
     ),
     max_leaves=20,
 )
-camera_keys = st.sampled_from(
-    [
-        "image_width",
-        "image_height",
-        "camera_matrix",
-        "focal_length_px",
-        "principal_point",
-        "distortion_coefficients",
-        "row_time_s",
-        "mirrored",
-        "readout",
-    ]
-)
-map_keys = st.sampled_from(["units", "frame", "fixtures"])
+camera_keys = st.sampled_from(CAMERA_KEYS)
+map_keys = st.sampled_from(MAP_KEYS)
 fixture = st.fixed_dictionaries(
     {},
     optional={
