@@ -273,6 +273,21 @@ def test_a_map_key_given_twice_is_refused(tmp_path: Path):
     _raises_naming(load_map, _write(tmp_path / "m.json", as_json), "'id' is given twice")
 
 
+@pytest.mark.parametrize(
+    ("where", "refused"),
+    [("[-100000, 3]", True), ("[320, 5000]", True), ("[-320, 240]", False), ("[700, 10]", False)],
+)
+def test_a_principal_point_far_outside_the_image_is_refused(tmp_path: Path, where, refused):
+    """A principal point in other units or swapped far off the photo made locate give a
+    position tens of metres off with exit 0; a lens shift or a crop moves it by a share."""
+    text = f"image_width: 640\nimage_height: 480\nfocal_length_px: 500\nprincipal_point: {where}\n"
+    path = _write(tmp_path / "c.yaml", text)
+    if refused:
+        _raises_naming(load_camera, path, "principal point", "640 x 480")
+    else:
+        assert load_camera(path).width == 640
+
+
 def test_a_key_that_reads_almost_as_a_known_one_is_refused_naming_both(tmp_path: Path):
     """A typo (``diametre``) would be ignored and its value lost; a note the file carries
     (``name``) is not a typo and is left alone."""

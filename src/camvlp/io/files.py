@@ -334,6 +334,14 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
         k[0, 2], k[1, 2] = (width - 1) / 2, (height - 1) / 2
     elif pp is not None:
         k[0, 2], k[1, 2] = _matrix(pp, (2,), "principal_point", p)
+    cx, cy = float(k[0, 2]), float(k[1, 2])
+    if not (-0.5 * width <= cx <= 1.5 * width and -0.5 * height <= cy <= 1.5 * height):
+        # (a lens shifted off the sensor's middle, or a crop, moves it by a share of a side)
+        raise InputError(
+            f"the principal point ({cx:g}, {cy:g}) lies half the image or more outside the "
+            f"{width} x {height} image: check its numbers (pixels, x then y)",
+            p,
+        )
     dist_value = data.get("distortion_coefficients")
     dist = (
         np.zeros(0)
