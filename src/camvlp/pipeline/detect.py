@@ -29,6 +29,7 @@ from camvlp.pipeline.refine import (
     to_gray,
 )
 from camvlp.pipeline.touching import (
+    chord_seeds,
     codes_differ,
     dark_level,
     not_convex,
@@ -201,8 +202,17 @@ def detect_fixtures(
         gray = functools.cache(lambda: to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s]))
         return lambda a, b: codes_differ(gray(), inside, a, b, axis(), s)
 
+    def chords_of(box: tuple[int, int, int, int], inside: np.ndarray, axis: str) -> np.ndarray:
+        """A region's lights from the chords its lines clip (:func:`chord_seeds`), worked
+        at full resolution, in the box's reduced pixels."""
+        x, y, w, h = box
+        gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
+        return chord_seeds(gray, inside, axis, s, 3.0)
+
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(comps, several, binary, high, 3.0, axis_of, raw, dark_of, differ_of)
+    lights = one_per_light(
+        comps, several, binary, high, 3.0, axis_of, raw, dark_of, differ_of, chords_of
+    )
     boxes, cells, seeds_in = [], [], []
     for (x, y, w, h), cell in lights:
         box = (
