@@ -665,7 +665,7 @@ def chord_seeds(
     for top in tops:
         near = np.flatnonzero(np.abs(bins - top) <= 2)
         near = near[np.argsort(line[near], kind="stable")]
-        cut = np.flatnonzero(np.diff(line[near]) > 0.5 * np.median(half[near])) + 1
+        cut = np.flatnonzero(np.diff(line[near]) > np.percentile(half[near], 90)) + 1
         for part in np.split(near, cut):
             r = float(np.percentile(half[part], 90)) if part.size else 0.0
             if part.size >= CHORD_LINES and part.size >= CHORD_SHARE * 2.0 * r:
