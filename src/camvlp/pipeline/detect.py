@@ -221,10 +221,10 @@ def detect_fixtures(
             min(width, (x + w) * s + pad),
             min(height, (y + h) * s + pad),
         )
-        seeds = None if cell is None else cell[0] * float(s)  # [x, y, r] at full resolution
+        seeds = None if cell is None else cell[0] * float(s)  # [x, y, r, reach], full res.
         boxes.append(box)
         cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))
-        seeds_in.append(None if seeds is None else seeds[cell[1]] - [box[0], box[1], 0.0])
+        seeds_in.append(None if seeds is None else seeds[cell[1], :3] - [box[0], box[1], 0.0])
     blobs = refine_regions(
         img, boxes, readout, kernel_px, min_diameter_px, cells, (background, peak), seeds_in
     )

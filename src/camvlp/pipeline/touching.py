@@ -276,15 +276,17 @@ def power_cell(box: tuple[int, int, int, int], seeds: np.ndarray, i: int) -> np.
     ----------
     box : tuple of int
         ``(x0, y0, x1, y1)``, pixels (end exclusive), in the seeds' frame.
-    seeds : ndarray, shape (k, 3)
-        ``[x, y, r]`` of each light, pixels.
+    seeds : ndarray, shape (k, 3) or (k, 4)
+        ``[x, y, r]`` of each light, pixels; a fourth column, when given, bounds each
+        light's cell to the disc of that radius about it (inf: no bound).
     i : int
         The light.
 
     Returns
     -------
     ndarray of bool, shape (y1 - y0, x1 - x0)
-        The pixels nearer light ``i`` than any other in power distance.
+        The pixels nearer light ``i`` than any other in power distance (and within its
+        bound).
     """
     x0, y0, x1, y1 = box
     x = np.arange(x0, x1, dtype=np.float32)[None, :]
@@ -292,6 +294,8 @@ def power_cell(box: tuple[int, int, int, int], seeds: np.ndarray, i: int) -> np.
     s = seeds.astype(np.float32)
     own = (x - s[i, 0]) ** 2 + (y - s[i, 1]) ** 2 - s[i, 2] ** 2
     cell = np.ones(own.shape, dtype=bool)
+    if s.shape[1] > 3 and np.isfinite(s[i, 3]):
+        cell = own + s[i, 2] ** 2 <= s[i, 3] ** 2
     for j in range(len(s)):
         if j != i:
             cell &= own <= (x - s[j, 0]) ** 2 + (y - s[j, 1]) ** 2 - s[j, 2] ** 2
@@ -347,8 +351,10 @@ def one_per_light(
         ``(x, y, w, h)``: a region's box, or one light's part of it.
     cell : tuple or None
         None for a region that holds one light; else ``(seeds, i)``: the region's lights'
-        ``[x, y, r]`` (k, 3) in ``binary``'s pixels (:func:`light_seeds` of its part of
-        ``high``), and which of them the box is.
+        ``[x, y, r, reach]`` (k, 4) in ``binary``'s pixels (:func:`light_seeds` of its part
+        of ``high``, or of its faces or clipped chords; ``reach`` bounds a light's cell,
+        :func:`power_cell`: its clipped disc's radius for a light found by its chords, else
+        inf), and which of them the box is.
     """
     for (x, y, w, h), look in zip(comps, several, strict=True):
         if not look or high is None:
@@ -374,12 +380,13 @@ def one_per_light(
             # pieces of glow between lamps, which the faces leave out)
             if dark is not None and len(dark) > len(_lamp_sized(seeds)):
                 seeds = dark
+        seeds = np.column_stack([seeds, np.full(len(seeds), np.inf)])  # (no bound)
         if chords_of is not None:  # more lights in the chords their lines clip?
             seeds = _with_chords(seeds, chords_of((x, y, w, h), inside, axis()))
         if len(seeds) < 2:
             yield (x, y, w, h), None
             continue
-        seeds = seeds + np.array([x, y, 0.0])
+        seeds[:, :2] += [x, y]
         for i in range(len(seeds)):
             ys, xs = np.nonzero(inside & power_cell((x, y, x + w, y + h), seeds, i))
             if ys.size:
@@ -393,15 +400,17 @@ def one_per_light(
 
 
 def _with_chords(seeds: np.ndarray, chords: np.ndarray) -> np.ndarray:
-    """A region's lights ``[x, y, r]`` (k, 3): its clipped chords' lights (:func:`chord_seeds`)
-    with the peaks' lights ``seeds`` that hold none of theirs and lie in none of their
-    circles (a light that does not clip), when the chords show more lights than the peaks
-    of a lamp's size; else ``seeds``."""
+    """A region's lights ``[x, y, r, reach]`` (k, 4): when its clipped chords show more
+    lights (:func:`chord_seeds`) than its peaks ``seeds`` of a lamp's size, the chords'
+    lights, each bounded by its clipped disc (``reach`` its radius: the region's pixels
+    beyond are glow, its own or its neighbours', which says nothing of where its disc
+    lies), and the peaks that hold none of theirs and lie in none of their circles (a
+    light that does not clip); else ``seeds``."""
     if len(chords) <= len(_lamp_sized(seeds)):
         return seeds
     d = np.hypot(seeds[:, None, 0] - chords[None, :, 0], seeds[:, None, 1] - chords[None, :, 1])
     apart = (d > np.maximum(seeds[:, None, 2], chords[None, :, 2])).all(axis=1)
-    return np.concatenate([chords, seeds[apart]])
+    return np.concatenate([np.column_stack([chords, chords[:, 2]]), seeds[apart]])
 
 
 def _run_modes(lit: np.ndarray, axis: str) -> tuple[int, int]:
@@ -615,6 +624,41 @@ def _clipped_chords(gray: np.ndarray, axis: str, min_len: float):
     return line, 0.5 * (start + end - 1), 0.5 * (end - start)
 
 
+#: How far (px) a chord's end may lie from its light's clipped disc (:func:`_chords_circle`):
+#: the ends are whole pixels, on an edge blurred by 0.5 to 2 px.
+CHORD_END_PX = 1.5
+
+
+def _chords_circle(line: np.ndarray, half: np.ndarray, step: int) -> tuple[float, float]:
+    """Where along the readout a light's chords (their lines and half-lengths, pixels, all
+    with their middles at its centre) put its centre, and its clipped disc's radius.
+
+    In a line where the light is fully on, its chord is its clipped disc's: its ends lie on
+    the disc's circle, ``half**2 + (line - centre)**2 = radius**2``.  Lines caught on a
+    stripe's edge (the light part on) clip a shorter chord, inside it, and a neighbour's
+    glow that makes a line clip further does so on one side, off the middle, or now and
+    then on both, outside it: so the centre is where most chords' ends lie on one circle,
+    within :data:`CHORD_END_PX` (searched every ``step`` lines, then to the line)."""
+
+    def best(centres: np.ndarray) -> tuple[int, float, float]:
+        rho = np.sqrt(half[None, :] ** 2 + (line[None, :] - centres[:, None]) ** 2)
+        width = 2.0 * CHORD_END_PX
+        top = (-1, 0.0, 0.0)
+        for shift in (0.0, 0.5 * width):  # two binnings, so that no pile falls on an edge
+            bins = np.floor((rho + shift) / width).astype(np.intp)
+            counts = np.zeros((len(centres), int(bins.max()) + 1), np.int32)
+            np.add.at(counts, (np.arange(len(centres))[:, None], bins), 1)
+            k, b = np.unravel_index(int(np.argmax(counts)), counts.shape)
+            if counts[k, b] > top[0]:
+                top = (int(counts[k, b]), float(centres[k]), (b + 0.5) * width - shift)
+        return top
+
+    line = line.astype(np.float64)
+    _, centre, _ = best(np.arange(line.min(), line.max() + 1.0, step))
+    _, centre, radius = best(np.arange(centre - step, centre + step + 1.0))
+    return centre, radius
+
+
 def chord_seeds(
     gray: np.ndarray, inside: np.ndarray, axis: str, scale: int, min_radius: float
 ) -> np.ndarray:
@@ -669,7 +713,8 @@ def chord_seeds(
         for part in np.split(near, cut):
             r = float(np.percentile(half[part], 90)) if part.size else 0.0
             if part.size >= CHORD_LINES and part.size >= CHORD_SHARE * 2.0 * r:
-                across, along = float(np.median(middle[part])), float(np.median(line[part]))
+                along, r = _chords_circle(line[part], half[part], max(1, scale // 3))
+                across = float(np.median(middle[part]))
                 xy = (across, along) if axis == "rows" else (along, across)
                 found.append([*xy, r, part.size])
     if not found:
