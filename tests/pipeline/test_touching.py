@@ -9,6 +9,7 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.chords import chord_seeds
 from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.touching import codes_differ, light_seeds, power_cell
@@ -314,3 +315,46 @@ def test_two_peaks_apart_along_the_stripes_differ_by_their_codes():
     # through them are one line
     gray, region = _striped((a, b), 4.0)
     assert not codes_differ(gray, region, *peaks, "columns", 1)
+
+
+def _clipped_glows(centres, rows_per_chip: int = 8, seed: int = 0, axis: str = "rows"):
+    """Lamps whose glows clip together: each a disc of 50 px radius with a halo falling
+    off over 30 px, at 4 times full scale, lit in each line across the readout by its own
+    random Manchester code (one chip per ``rows_per_chip`` lines), summed, clipped: gray
+    levels."""
+    rng = np.random.default_rng(seed)
+    h, w = 360, 640
+    yy, xx = np.mgrid[0:h, 0:w].astype(np.float64)
+    level = np.full((h, w), 12.0)
+    n_chips = -(-h // rows_per_chip)
+    for x, y in centres:
+        r = np.hypot(xx - x, yy - y)
+        shape = np.clip(50.5 - r, 0.0, 1.0) + 0.35 * np.exp(-np.maximum(r - 50.0, 0.0) / 30.0)
+        bits = rng.integers(0, 2, n_chips // 2 + 1)
+        chips = np.stack([bits, 1 - bits], axis=1).ravel()  # Manchester: on half the chips
+        on = np.repeat(chips, rows_per_chip)[:h, None]
+        level += 4.0 * 255.0 * shape * (0.02 + 0.98 * on)
+    gray = np.clip(level, 0, 255).astype(np.uint8)
+    return gray if axis == "rows" else np.ascontiguousarray(gray.T)
+
+
+@pytest.mark.parametrize("axis", ["rows", "columns"])
+def test_lights_whose_glows_clip_together_are_found_by_the_middles_of_their_chords(axis):
+    # three lamps 125 to 135 px apart, two side by side across the readout and one between
+    # them further along it: their glows clip together into one region (each clipped disc
+    # some 65 px in radius), yet in each line the lamps that are on clip chords centred on
+    # them where their neighbours along the line are dark
+    centres = [(200.0, 120.0), (330.0, 125.0), (262.0, 240.0)]
+    gray = _clipped_glows(centres, axis=axis)
+    scale = 3
+    inside = np.ones((-(-gray.shape[0] // scale), -(-gray.shape[1] // scale)), np.uint8)
+    seeds = chord_seeds(gray, inside, axis, scale, 3.0) * scale
+    assert len(seeds) == 3
+    if axis == "columns":  # back to the lamps' frame: (across the readout, along it)
+        seeds = seeds[:, [1, 0, 2]]
+    for x, y in centres:
+        got = seeds[np.argmin(np.hypot(seeds[:, 0] - x, seeds[:, 1] - y))]
+        print(got, x, y)
+        assert abs(got[0] - x) < 2.0 and abs(got[1] - y) < 3.0
+    # one lamp alone: one light
+    assert len(chord_seeds(_clipped_glows(centres[:1], axis=axis), inside, axis, scale, 3.0)) == 1

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.pipeline.chords import chord_seeds
 from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
 from camvlp.pipeline.refine import (
     Blob,
@@ -29,7 +30,6 @@ from camvlp.pipeline.refine import (
     to_gray,
 )
 from camvlp.pipeline.touching import (
-    chord_seeds,
     codes_differ,
     dark_level,
     not_convex,
@@ -82,6 +82,13 @@ def _median_u8(gray: np.ndarray) -> float:
     if gray.ndim != 2 or gray.size < 4096:
         return _percentiles_u8(gray, [50])[0]
     return _counted_percentiles(gray, [50], _percentiles_u8(gray[::16], [50]))[0]
+
+
+def _full_gray(img: np.ndarray, box: tuple[int, int, int, int], s: int) -> np.ndarray:
+    """:func:`to_gray` of the photo's pixels under a box ``(x, y, w, h)`` of its copy
+    reduced ``s`` times."""
+    x, y, w, h = box
+    return to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
 
 
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
@@ -189,25 +196,20 @@ def detect_fixtures(
         """A region's dark-stripe levels and the level its faces must reach
         (:func:`dark_level`), worked at full resolution (the decimated image does not
         resolve the stripes), the levels averaged down to the region."""
-        x, y, w, h = box
-        gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
+        gray = _full_gray(img, box, s)
         lit = cv2.threshold(gray, thr, 1, cv2.THRESH_BINARY)[1]
         got = dark_level(gray, lit, axis)  # None, or the levels and the level to reach
-        return got and (cv2.resize(got[0], (w, h), interpolation=cv2.INTER_AREA), got[1])
+        return got and (cv2.resize(got[0], box[2:], interpolation=cv2.INTER_AREA), got[1])
 
     def differ_of(box: tuple[int, int, int, int], inside: np.ndarray, axis) -> Callable:
         """Whether two peaks of a region spell different codes (:func:`codes_differ`),
         worked at full resolution (its gray levels taken once, when first asked)."""
-        x, y, w, h = box
-        gray = functools.cache(lambda: to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s]))
+        gray = functools.cache(lambda: _full_gray(img, box, s))
         return lambda a, b: codes_differ(gray(), inside, a, b, axis(), s)
 
     def chords_of(box: tuple[int, int, int, int], inside: np.ndarray, axis: str) -> np.ndarray:
-        """A region's lights from the chords its lines clip (:func:`chord_seeds`), worked
-        at full resolution, in the box's reduced pixels."""
-        x, y, w, h = box
-        gray = to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
-        return chord_seeds(gray, inside, axis, s, 3.0)
+        """A region's lights from its clipped chords (:func:`chord_seeds`, full resolution)."""
+        return chord_seeds(_full_gray(img, box, s), inside, axis, s, 3.0)
 
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
     lights = one_per_light(
@@ -215,12 +217,8 @@ def detect_fixtures(
     )
     boxes, cells, seeds_in = [], [], []
     for (x, y, w, h), cell in lights:
-        box = (
-            max(0, x * s - pad),
-            max(0, y * s - pad),
-            min(width, (x + w) * s + pad),
-            min(height, (y + h) * s + pad),
-        )
+        box = (max(0, x * s - pad), max(0, y * s - pad))
+        box += (min(width, (x + w) * s + pad), min(height, (y + h) * s + pad))
         seeds = None if cell is None else cell[0] * float(s)  # [x, y, r, reach], full res.
         boxes.append(box)
         cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))

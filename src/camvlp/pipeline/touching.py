@@ -19,13 +19,10 @@ import cv2
 import numpy as np
 
 __all__ = [
-    "CHORD_LINES",
-    "CHORD_SHARE",
     "CODES_APART",
     "CODES_CLEAR",
     "NECK",
     "SOLIDITY",
-    "chord_seeds",
     "codes_differ",
     "dark_level",
     "dark_seeds",
@@ -103,11 +100,6 @@ CODES_APART = 0.5
 CODES_CLEAR = 0.8
 #: Fewest stripes (runs) two lines along the readout must share to be compared.
 _CODE_RUNS = 6
-#: Fewest clipped chords (lines) that make a light of :func:`chord_seeds`.
-CHORD_LINES = 6
-#: Least share of its lines (two per radius) in which a light of :func:`chord_seeds` shows
-#: a chord of its own: a light is on in about half of them.
-CHORD_SHARE = 0.1
 
 
 def _correlation(a: np.ndarray, b: np.ndarray) -> float:
@@ -342,8 +334,9 @@ def one_per_light(
         a region (e.g. :func:`codes_differ` on its pixels at full resolution).
     chords_of : callable, optional
         ``chords_of((x, y, w, h), inside, axis)``: a region's lights from the chords its
-        lines clip (:func:`chord_seeds`), ``[x, y, r]`` (k, 3) in the box's pixels; taken
-        when they are more lights than the region's peaks found (:func:`_with_chords`).
+        lines clip (:func:`~camvlp.pipeline.chords.chord_seeds`), ``[x, y, r]`` (k, 3) in
+        the box's pixels; taken when they are more lights than the region's peaks found
+        (:func:`_with_chords`).
 
     Yields
     ------
@@ -401,11 +394,11 @@ def one_per_light(
 
 def _with_chords(seeds: np.ndarray, chords: np.ndarray) -> np.ndarray:
     """A region's lights ``[x, y, r, reach]`` (k, 4): when its clipped chords show more
-    lights (:func:`chord_seeds`) than its peaks ``seeds`` of a lamp's size, the chords'
-    lights, each bounded by its clipped disc (``reach`` its radius: the region's pixels
-    beyond are glow, its own or its neighbours', which says nothing of where its disc
-    lies), and the peaks that hold none of theirs and lie in none of their circles (a
-    light that does not clip); else ``seeds``."""
+    lights (:func:`~camvlp.pipeline.chords.chord_seeds`) than its peaks ``seeds`` of a
+    lamp's size, the chords' lights, each bounded by its clipped disc (``reach`` its
+    radius: the region's pixels beyond are glow, its own or its neighbours', which says
+    nothing of where its disc lies), and the peaks that hold none of theirs and lie in none
+    of their circles (a light that does not clip); else ``seeds``."""
     if len(chords) <= len(_lamp_sized(seeds)):
         return seeds
     d = np.hypot(seeds[:, None, 0] - chords[None, :, 0], seeds[:, None, 1] - chords[None, :, 1])
@@ -605,128 +598,3 @@ def own_face(
     if not face[sy, sx]:  # another light's
         return None
     return face, level
-
-
-def _clipped_chords(gray: np.ndarray, axis: str, min_len: float):
-    """The clipped runs of each line across the readout (a line exposed at one instant),
-    as their lines, middles and half-lengths (pixels, 1-D arrays); runs shorter than
-    ``min_len`` or cut by the box's ends are left out."""
-    from camvlp.pipeline.light_wave import _CLIP  # (light_wave imports detect, which imports this)
-
-    lines = gray if axis == "rows" else gray.T  # a line per row
-    clip = (lines >= _CLIP).astype(np.int8)
-    d = np.diff(np.pad(clip, ((0, 0), (1, 1))), axis=1)
-    r, c = np.nonzero(d)  # along a line the changes alternate: up, down, up, ...
-    up = d[r, c] > 0
-    line, start, end = r[up], c[up], c[~up]  # the run [start, end)
-    keep = (end - start >= min_len) & (start > 0) & (end < lines.shape[1])
-    line, start, end = line[keep], start[keep], end[keep]
-    return line, 0.5 * (start + end - 1), 0.5 * (end - start)
-
-
-#: How far (px) a chord's end may lie from its light's clipped disc (:func:`_chords_circle`):
-#: the ends are whole pixels, on an edge blurred by 0.5 to 2 px.
-CHORD_END_PX = 1.5
-
-
-def _chords_circle(line: np.ndarray, half: np.ndarray, step: int) -> tuple[float, float]:
-    """Where along the readout a light's chords (their lines and half-lengths, pixels, all
-    with their middles at its centre) put its centre, and its clipped disc's radius.
-
-    In a line where the light is fully on, its chord is its clipped disc's: its ends lie on
-    the disc's circle, ``half**2 + (line - centre)**2 = radius**2``.  Lines caught on a
-    stripe's edge (the light part on) clip a shorter chord, inside it, and a neighbour's
-    glow that makes a line clip further does so on one side, off the middle, or now and
-    then on both, outside it: so the centre is where most chords' ends lie on one circle,
-    within :data:`CHORD_END_PX` (searched every ``step`` lines, then to the line)."""
-
-    def best(centres: np.ndarray) -> tuple[int, float, float]:
-        rho = np.sqrt(half[None, :] ** 2 + (line[None, :] - centres[:, None]) ** 2)
-        width = 2.0 * CHORD_END_PX
-        top = (-1, 0.0, 0.0)
-        for shift in (0.0, 0.5 * width):  # two binnings, so that no pile falls on an edge
-            bins = np.floor((rho + shift) / width).astype(np.intp)
-            counts = np.zeros((len(centres), int(bins.max()) + 1), np.int32)
-            np.add.at(counts, (np.arange(len(centres))[:, None], bins), 1)
-            k, b = np.unravel_index(int(np.argmax(counts)), counts.shape)
-            if counts[k, b] > top[0]:
-                top = (int(counts[k, b]), float(centres[k]), (b + 0.5) * width - shift)
-        return top
-
-    line = line.astype(np.float64)
-    _, centre, _ = best(np.arange(line.min(), line.max() + 1.0, step))
-    _, centre, radius = best(np.arange(centre - step, centre + step + 1.0))
-    return centre, radius
-
-
-def chord_seeds(
-    gray: np.ndarray, inside: np.ndarray, axis: str, scale: int, min_radius: float
-) -> np.ndarray:
-    """The lights of a region whose glows clip together, from the chords their lines clip.
-
-    Each line across the readout is exposed at one instant, when some lights are on and the
-    others dark: where a light is on and its neighbours along the line are not, the line's
-    clipped run is a chord of its own clipped disc, and whatever the line, that chord's
-    middle is the light's centre across the readout.  Glows that clip together into one
-    region hide every neck between the lights, not these middles: counted over the region's
-    lines, they pile up at each light's centre, one pile per light (a run that joins two
-    lights, in lines where both are on, has its middle between them, where it piles up
-    less, and its half-length holds their centres).  Each pile's lines, split where a gap
-    wider than half their typical chord separates them (lights one above the other along
-    the readout), is one light: its centre along the readout the median of its lines, its
-    radius the 90th percentile of its half-lengths.  A light whose circle holds the centre
-    of a smaller one is a run that joined two lights (or a duplicate) and is left out.
-
-    Parameters
-    ----------
-    gray : ndarray of uint8, shape (h * scale, w * scale) or larger
-        The region at full resolution, gray levels.
-    inside : ndarray of uint8, shape (h, w)
-        The region (nonzero) in the reduced photo's pixels.
-    axis : {"rows", "columns"}
-        The readout axis.
-    scale : int
-        Full-resolution pixels per reduced pixel.
-    min_radius : float
-        Smallest radius of a light, reduced pixels.
-
-    Returns
-    -------
-    ndarray, shape (k, 3)
-        ``[x, y, r]`` of each light in ``inside``'s pixels, the most lines first.
-    """
-    line, middle, half = _clipped_chords(gray, axis, 2.0 * min_radius * scale)
-    none = np.zeros((0, 3))
-    if line.size < CHORD_LINES:
-        return none
-    bins = np.rint(middle / scale).astype(np.intp)
-    pile = np.bincount(bins).astype(np.float32)
-    pile = cv2.GaussianBlur(pile[None], (0, 0), 1.0, borderType=cv2.BORDER_CONSTANT).ravel()
-    tops = np.flatnonzero(
-        (pile >= np.maximum(np.roll(pile, 1), np.roll(pile, -1))) & (pile >= CHORD_LINES / 2)
-    )
-    found = []
-    for top in tops:
-        near = np.flatnonzero(np.abs(bins - top) <= 2)
-        near = near[np.argsort(line[near], kind="stable")]
-        cut = np.flatnonzero(np.diff(line[near]) > np.percentile(half[near], 90)) + 1
-        for part in np.split(near, cut):
-            r = float(np.percentile(half[part], 90)) if part.size else 0.0
-            if part.size >= CHORD_LINES and part.size >= CHORD_SHARE * 2.0 * r:
-                along, r = _chords_circle(line[part], half[part], max(1, scale // 3))
-                across = float(np.median(middle[part]))
-                xy = (across, along) if axis == "rows" else (along, across)
-                found.append([*xy, r, part.size])
-    if not found:
-        return none
-    c = np.array(found) / [scale, scale, scale, 1]
-    d = np.hypot(c[:, None, 0] - c[None, :, 0], c[:, None, 1] - c[None, :, 1])
-    smaller = (c[None, :, 2] < c[:, None, 2]) | (
-        (c[None, :, 2] == c[:, None, 2]) & (np.arange(len(c))[None, :] < np.arange(len(c))[:, None])
-    )
-    holds = (d < c[:, None, 2]) & smaller
-    c = c[~holds.any(axis=1)]
-    h, w = inside.shape
-    ix, iy = np.clip(np.rint(c[:, 0]), 0, w - 1), np.clip(np.rint(c[:, 1]), 0, h - 1)
-    c = c[inside[iy.astype(np.intp), ix.astype(np.intp)] > 0]
-    return c[np.argsort(-c[:, 3], kind="stable"), :3]
