@@ -199,6 +199,14 @@ def test_lamps_with_hot_cores_whose_glows_join_are_centred_from_their_faces():
             assert min(np.linalg.norm(b.pixel - t.pixel) for t in photo.fixtures) < 2.0
 
 
+def _stress(rows_per_chip: float, exposure_chips: float, **look) -> RenderSettings:
+    """The render settings of a stress photo (rows of 15 us): ``rows_per_chip`` rows per
+    chip, an exposure of ``exposure_chips`` chips, and the ``look`` (brightness, off level,
+    halo, core, blur, readout, noise seed)."""
+    rate = 1e5 / (1.5 * rows_per_chip)  # Hz
+    return RenderSettings(chip_rate_hz=rate, exposure_s=exposure_chips / rate, **look)
+
+
 #: Fifteen lamps of a portrait 1080p photo (a drawn scene of ``benchmarks/stress_decode.py``):
 #: ``(id, x, y, diameter)``, metres, 2 m above the camera.
 _FIFTEEN = (
@@ -226,11 +234,10 @@ def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(see
     # portrait photo: lamps 3 and 6 (and 14 and 8), apart along the stripes, join into one
     # region with no neck between them at any threshold, and were one light, read as
     # neither (or not at all); the stripes through them spell two codes, so they are two
-    rate = 1e5 / 6  # Hz: 4 rows of 15 us per chip
     look = dict(core=1.923343238847005, halo=0.31819223621413256, blur_px=0.7954364704138273)
-    settings = RenderSettings(
-        chip_rate_hz=rate,
-        exposure_s=0.3 / rate,
+    settings = _stress(
+        4,
+        0.3,
         brightness=5.694599038378063,
         off_level=0.016928248085646812,
         readout="columns-reversed",
@@ -266,10 +273,9 @@ def test_lamps_whose_glows_fill_the_ceiling_are_found_by_their_faces_at_long_exp
     # chips (off level 9.4 %, smeared by the exposure), where the glow goes dark: lamps 0,
     # 10 and 14 were found 14 to 292 px off with either noise seed (lamp 4 53 px with one),
     # and glow between lamps was taken for lamps
-    rate = 1e5 / 18  # Hz: 12 rows of 15 us per chip
-    settings = RenderSettings(
-        chip_rate_hz=rate,
-        exposure_s=0.85 / rate,
+    settings = _stress(
+        12,
+        0.85,
         brightness=6.89,
         off_level=0.094,
         core=2.64,
@@ -383,17 +389,8 @@ def test_lamps_whose_glows_clip_together_side_by_side_are_found_by_their_chords(
     # apart along it; the peaks of the region's bright part gave two lights, each lamp 55 to
     # 280 px from the nearer (lamp 2 read 55 px off, the photo not located).  The middles of
     # the lines' clipped chords give the five, each found within 15 px and read
-    rate = 1e5 / 12  # Hz: 8 rows of 15 us per chip
-    settings = RenderSettings(
-        chip_rate_hz=rate,
-        exposure_s=0.5 / rate,
-        brightness=7.17,
-        off_level=0.009,
-        blur_px=1.5,
-        halo=0.35,
-        readout="rows-reversed",
-        seed=0,
-    )
+    look = dict(brightness=7.17, off_level=0.009, blur_px=1.5, halo=0.35, seed=0)
+    settings = _stress(8, 0.5, readout="rows-reversed", **look)
     cam, room, photo, image = stress_scene((1920, 1080), _FIVE, settings, 85)
     truth = {t.id: t.pixel for t in photo.fixtures}
     found = np.array([b.pixel for b in detect_fixtures(image).blobs])
