@@ -84,6 +84,26 @@ def _median_u8(gray: np.ndarray) -> float:
     return _counted_percentiles(gray, [50], _percentiles_u8(gray[::16], [50]))[0]
 
 
+def _region_chords(
+    img: np.ndarray,
+    reduced: tuple[int, int],
+    s: int,
+    box: tuple[int, int, int, int],
+    inside: np.ndarray,
+    axis: str,
+) -> np.ndarray:
+    """A region's lights from its clipped chords (:func:`chord_seeds`, at full resolution),
+    ``[x, y, r]`` in its box ``(x, y, w, h)`` of the photo reduced ``s`` times (of shape
+    ``reduced``), worked on the box grown by two reduced pixels: a chord the box cut is left
+    out, where a light's clipped disc may reach past its region's reduced pixels."""
+    x, y, w, h = box
+    x0, y0 = max(0, x - 2), max(0, y - 2)
+    x1, y1 = min(reduced[1], x + w + 2), min(reduced[0], y + h + 2)
+    grown = np.pad(inside, ((y - y0, y1 - y - h), (x - x0, x1 - x - w)))
+    got = chord_seeds(_full_gray(img, (x0, y0, x1 - x0, y1 - y0), s), grown, axis, s, 3.0)
+    return got - [x - x0, y - y0, 0.0]
+
+
 def _full_gray(img: np.ndarray, box: tuple[int, int, int, int], s: int) -> np.ndarray:
     """:func:`to_gray` of the photo's pixels under a box ``(x, y, w, h)`` of its copy
     reduced ``s`` times."""
@@ -207,9 +227,7 @@ def detect_fixtures(
         gray = functools.cache(lambda: _full_gray(img, box, s))
         return lambda a, b: codes_differ(gray(), inside, a, b, axis(), s)
 
-    def chords_of(box: tuple[int, int, int, int], inside: np.ndarray, axis: str) -> np.ndarray:
-        """A region's lights from its clipped chords (:func:`chord_seeds`, full resolution)."""
-        return chord_seeds(_full_gray(img, box, s), inside, axis, s, 3.0)
+    chords_of = functools.partial(_region_chords, img, small.shape, s)
 
     # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
     lights = one_per_light(
