@@ -96,10 +96,10 @@ def chord_seeds(
 
     Parameters
     ----------
-    gray : ndarray of uint8, shape (h * scale, w * scale) or larger
-        The region at full resolution, gray levels.
+    gray : ndarray of uint8, shape (h * scale, w * scale) (less where the photo ends)
+        The photo's gray levels under ``inside``'s box, at full resolution.
     inside : ndarray of uint8, shape (h, w)
-        The region (nonzero) in the reduced photo's pixels.
+        The region (nonzero), in pixels of the photo reduced ``scale`` times.
     axis : {"rows", "columns"}
         The readout axis.
     scale : int
