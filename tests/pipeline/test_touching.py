@@ -401,6 +401,6 @@ def test_lamps_whose_glows_clip_together_side_by_side_are_found_by_their_chords(
     assert res
     read = {f.id: f.pixel for f in res.fixtures if f.id is not None}
     assert set(read) == set(truth)
-    # (centred within 0.1 to 6.8 px: where glows clip together the joint fit of their
+    # (centred within 0.0 to 6.8 px: where glows clip together the joint fit of their
     # looks has little unclipped glow to go by)
     assert all(np.linalg.norm(p - truth[i]) < 10.0 for i, p in read.items())
