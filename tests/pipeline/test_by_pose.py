@@ -366,6 +366,15 @@ def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=
     return fake
 
 
+def _told_nine_not_used(res, at: np.ndarray) -> None:
+    """``res`` is located, and its fixture at ``at`` (px) was told ID 9 from its look-alikes
+    5 and 9 by the pose and left out of it (beyond the outlier distance)."""
+    assert res
+    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - at)) < 5)
+    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
+    assert "told by the pose" in f.reason and "not used" in f.reason
+
+
 def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
     monkeypatch, small_camera, small_room, small_render
 ):
@@ -376,10 +385,7 @@ def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
     shift = np.array([0.0, 14.0])
     monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 6.0, nine))
     res = locate(small_render.image, small_camera, small_room)
-    assert res
-    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
-    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
-    assert "told by the pose" in f.reason and "not used" in f.reason
+    _told_nine_not_used(res, nine + shift)
     assert sum(f.used for f in res.fixtures) == 4
     assert np.linalg.norm(res.position - POSE.position) < 0.01
     # known to 3 px, it is not told
@@ -425,9 +431,6 @@ def test_the_pose_of_assigned_look_alikes_tells_an_off_centre_one(monkeypatch, s
     shift = np.array([0.0, 30.0])
     monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 12.0, nine))
     res = locate(photo.image, small_camera, room)
-    assert res
-    f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
-    assert f.id == 9 and not f.used and f.look_alikes == (5, 9)
-    assert "told by the pose" in f.reason and "not used" in f.reason
+    _told_nine_not_used(res, nine + shift)
     assert sorted(f.id for f in res.fixtures if f.used) == [3, 5, 6, 10, 12]
     assert np.linalg.norm(res.position - POSE.position) < 0.01
