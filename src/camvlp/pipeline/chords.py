@@ -10,6 +10,7 @@ line by line, each clipped run a chord about its lamp's centre (:func:`chord_see
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 __all__ = ["CHORD_END_PX", "CHORD_LINES", "CHORD_SHARE", "chord_seeds"]
@@ -19,6 +20,8 @@ CHORD_LINES = 6
 #: Least share of its lines (two per radius) in which a light of :func:`chord_seeds` shows
 #: a chord of its own: a light is on in about half of them.
 CHORD_SHARE = 0.1
+#: Closing along each line that fills holes of up to 2 px in its clipped runs.
+_GAP_KERNEL = np.ones((1, 3), np.uint8)
 #: How far (px) a chord's end may lie from its light's clipped disc (:func:`_chords_circle`):
 #: the ends are whole pixels, on an edge blurred by 0.5 to 2 px.
 CHORD_END_PX = 1.5
@@ -33,7 +36,10 @@ def _clipped_chords(gray: np.ndarray, axis: str, min_len: float):
     from camvlp.pipeline.light_wave import _CLIP
 
     lines = gray if axis == "rows" else gray.T  # a line per row
-    clip = (lines >= _CLIP).astype(np.int8)
+    clip = (lines >= _CLIP).astype(np.uint8)
+    # a clipped disc's line is clipped from rim to rim; a pixel or two under the level inside
+    # it is noise, JPEG or a colour mosaic's, not its end: such holes are closed along the line
+    clip = cv2.morphologyEx(clip, cv2.MORPH_CLOSE, _GAP_KERNEL).astype(np.int8)
     d = np.diff(np.pad(clip, ((0, 0), (1, 1))), axis=1)
     r, c = np.nonzero(d)  # along a line the changes alternate: up, down, up, ...
     up = d[r, c] > 0
