@@ -145,6 +145,16 @@ def one_error_line(result_or_stderr, stdout: str = "") -> str:
     return lines[0]
 
 
+def stress_settings(rows_per_chip: float, exposure_chips: float, **look):
+    """The render settings of a stress photo (rows of 15 us): ``rows_per_chip`` rows per
+    chip, an exposure of ``exposure_chips`` chips, and the ``look`` (brightness, off level,
+    halo, core, blur, readout, noise seed)."""
+    from camvlp.sim.render import RenderSettings
+
+    rate = 1e5 / (1.5 * rows_per_chip)  # Hz
+    return RenderSettings(chip_rate_hz=rate, exposure_s=exposure_chips / rate, **look)
+
+
 def stress_scene(size, lamps, settings, quality: int, chip_rate_hz=None, k1: float = 0.0):
     """A drawn scene of ``benchmarks/stress_decode.py``: a camera of ``size`` (w, h; f = 1400
     px, 15 us rows, radial distortion ``k1``) at the origin looking up at ``lamps``

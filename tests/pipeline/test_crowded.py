@@ -17,7 +17,7 @@ from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.radial import radial_fit, radial_model
 from camvlp.pipeline.refine import light_support, to_gray
 from camvlp.sim.render import RenderSettings, render
-from conftest import stress_scene
+from conftest import stress_scene, stress_settings
 
 W, H, F = 960, 540, 700.0
 CAM = Camera(
@@ -114,10 +114,9 @@ def test_lamps_through_a_phone_are_centred_on_their_rims(seed):
     # and neither photo was located; the chords of each line at 0.85 of its peak are the
     # disc's, whatever the curve, and keep the four joined lamps within a pixel of their
     # centres (where the joint fit agrees with the rims to a pixel, its centre is kept)
-    chip = 1.0 / (3 * 1.5e-5)
-    settings = RenderSettings(
-        chip_rate_hz=chip,
-        exposure_s=0.5 / chip,
+    settings = stress_settings(
+        3,
+        0.5,
         brightness=4.15,
         off_level=0.032,
         blur_px=1.64,
@@ -130,6 +129,7 @@ def test_lamps_through_a_phone_are_centred_on_their_rims(seed):
         vignetting=0.35,
         black_point=0.041,
     )
+    chip = settings.chip_rate_hz
     cam, room, photo, image = stress_scene((1280, 720), _PHONE_LAMPS, settings, 88, chip)
     res = locate(image, cam, room)
     assert res
@@ -169,10 +169,9 @@ def test_a_lamp_is_not_drawn_off_its_clipped_disc():
     # lamp 0 (clipping at 4 times full scale, halo 0.39) was centred 2 px off alone and drawn
     # 16.5 px off by the joint fit, toward lamp 12, by what lamp 12's look left in its lines
     # (27 px on the stress photo itself): its own clipped pixels, centred on its disc, hold it
-    chip = 1e5 / 3  # Hz: 2 rows of 15 us per chip
-    settings = RenderSettings(
-        chip_rate_hz=chip,
-        exposure_s=0.85 / chip,
+    settings = stress_settings(
+        2,
+        0.85,
         brightness=4.0,
         off_level=0.0116,
         core=1.163,
@@ -181,6 +180,7 @@ def test_a_lamp_is_not_drawn_off_its_clipped_disc():
         readout="columns-reversed",
         seed=1,
     )
+    chip = settings.chip_rate_hz
     _, _, photo, image = stress_scene((1080, 1920), _THREE, settings, 94, chip, k1=0.105)
     blobs = detect_fixtures(image, readout="columns").blobs
     assert len(blobs) == 3 and sum(b.cell is not None for b in blobs) >= 2

@@ -16,7 +16,7 @@ from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.touching import codes_differ, light_seeds, power_cell
 from camvlp.sim.render import RenderSettings, render
-from conftest import stress_scene
+from conftest import stress_scene, stress_settings
 
 
 def _circles(*circles, shape=(120, 200)) -> np.ndarray:
@@ -199,14 +199,6 @@ def test_lamps_with_hot_cores_whose_glows_join_are_centred_from_their_faces():
             assert min(np.linalg.norm(b.pixel - t.pixel) for t in photo.fixtures) < 2.0
 
 
-def _stress(rows_per_chip: float, exposure_chips: float, **look) -> RenderSettings:
-    """The render settings of a stress photo (rows of 15 us): ``rows_per_chip`` rows per
-    chip, an exposure of ``exposure_chips`` chips, and the ``look`` (brightness, off level,
-    halo, core, blur, readout, noise seed)."""
-    rate = 1e5 / (1.5 * rows_per_chip)  # Hz
-    return RenderSettings(chip_rate_hz=rate, exposure_s=exposure_chips / rate, **look)
-
-
 #: Fifteen lamps of a portrait 1080p photo (a drawn scene of ``benchmarks/stress_decode.py``):
 #: ``(id, x, y, diameter)``, metres, 2 m above the camera.
 _FIFTEEN = (
@@ -235,7 +227,7 @@ def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(see
     # region with no neck between them at any threshold, and were one light, read as
     # neither (or not at all); the stripes through them spell two codes, so they are two
     look = dict(core=1.923343238847005, halo=0.31819223621413256, blur_px=0.7954364704138273)
-    settings = _stress(
+    settings = stress_settings(
         4,
         0.3,
         brightness=5.694599038378063,
@@ -273,7 +265,7 @@ def test_lamps_whose_glows_fill_the_ceiling_are_found_by_their_faces_at_long_exp
     # chips (off level 9.4 %, smeared by the exposure), where the glow goes dark: lamps 0,
     # 10 and 14 were found 14 to 292 px off with either noise seed (lamp 4 53 px with one),
     # and glow between lamps was taken for lamps
-    settings = _stress(
+    settings = stress_settings(
         12,
         0.85,
         brightness=6.89,
@@ -390,7 +382,7 @@ def test_lamps_whose_glows_clip_together_side_by_side_are_found_by_their_chords(
     # 280 px from the nearer (lamp 2 read 55 px off, the photo not located).  The middles of
     # the lines' clipped chords give the five, each found within 15 px and read
     look = dict(brightness=7.17, off_level=0.009, blur_px=1.5, halo=0.35, seed=0)
-    settings = _stress(8, 0.5, readout="rows-reversed", **look)
+    settings = stress_settings(8, 0.5, readout="rows-reversed", **look)
     cam, room, photo, image = stress_scene((1920, 1080), _FIVE, settings, 85)
     truth = {t.id: t.pixel for t in photo.fixtures}
     found = np.array([b.pixel for b in detect_fixtures(image).blobs])
