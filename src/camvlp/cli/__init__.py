@@ -15,7 +15,7 @@ from . import render as _render  # noqa: F401  (registers commands)
 from . import serve as _serve  # noqa: F401  (registers commands)
 from . import study as _study  # noqa: F401  (registers commands)
 from . import track as _track  # noqa: F401  (registers commands)
-from ._app import EXIT_BAD_INPUT, app
+from ._app import EXIT_BAD_INPUT, EXIT_BROKEN_PIPE, app
 
 __all__ = ["app", "main"]
 
@@ -24,8 +24,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``camvlp`` console script.
 
     Usage errors (an unknown option, a missing argument, a value of the wrong type) are
-    printed as one line, ``error: ...``, with exit code 2, like every other bad input.
+    printed as one line, ``error: ...``, with exit code 2, like every other bad input.  Stdout
+    closed early (``camvlp ... | head -1``) ends the command quietly with status 141
+    (128 + SIGPIPE), as a Unix tool that the signal ended.
     """
+    stdout = sys.stdout
     try:
         code = app(args=argv, prog_name="camvlp", standalone_mode=False)
     except typer.TyperException as exc:  # usage errors (the parser's ClickException)
@@ -39,13 +42,37 @@ def main(argv: list[str] | None = None) -> int:
     except typer.Abort:
         print("error: interrupted", file=sys.stderr)
         code = 130
+    except SystemExit as exc:
+        # The parser's and rich's own answer to a closed stdout (a command's output, the help
+        # text): exit 1, which here means "not located".  The parser wraps sys.stdout first;
+        # rich exits while handling the BrokenPipeError.
+        if sys.stdout is stdout and not isinstance(exc.__context__, BrokenPipeError):
+            raise
+        code = EXIT_BROKEN_PIPE
     code = code if isinstance(code, int) else 0
     try:  # stdout to a full device or a closed pipe: one line, not a traceback at exit
         sys.stdout.flush()
+    except BrokenPipeError:
+        code = EXIT_BROKEN_PIPE
     except OSError as exc:
-        sys.stdout = open(os.devnull, "w")
+        _stdout_to_devnull()
         print(f"error: cannot write the output: {exc.strerror or exc}", file=sys.stderr)
         code = EXIT_BAD_INPUT
+    if code == EXIT_BROKEN_PIPE:
+        _stdout_to_devnull()
     if argv is None:
         sys.exit(code)
     return code
+
+
+def _stdout_to_devnull() -> None:
+    """Send stdout, and what its buffer still holds, to the null device: the interpreter's
+    last flush at exit then has nothing to complain about."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.__stdout__.fileno())
+    except (AttributeError, OSError, ValueError):  # no real stdout (an embedding, a test)
+        pass
+    finally:
+        os.close(devnull)
+    sys.stdout = open(os.devnull, "w")

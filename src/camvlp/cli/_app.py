@@ -29,6 +29,9 @@ app = typer.Typer(
 
 #: Exit codes (docs/cli.md): located / not located / bad input or usage.
 EXIT_OK, EXIT_NOT_LOCATED, EXIT_BAD_INPUT = 0, 1, 2
+#: Exit code when stdout was closed early (``camvlp ... | head -1``): 128 + SIGPIPE, what a
+#: shell shows for a tool that SIGPIPE ended (as 130 = 128 + SIGINT after Ctrl-C).
+EXIT_BROKEN_PIPE = 141
 
 #: Largest magnitude of a number option (a float, or an item of a comma-separated list).
 MAX_OPTION_MAGNITUDE = 1e9
@@ -50,7 +53,8 @@ def handle_errors(func: F) -> F:
 
     The library's ValueError (InputError and the checks of its arguments), a number too large
     to compute with, a nesting too deep, memory exhausted and a file that cannot be read or
-    written all end as ``error: <what>``.  Library warnings (NumPy's RuntimeWarning on a
+    written all end as ``error: <what>``; stdout closed early (a broken pipe) is left to
+    :func:`camvlp.cli.main`.  Library warnings (NumPy's RuntimeWarning on a
     degenerate value ...) are silenced: the command's checks report what matters, once.
     """
 
@@ -69,6 +73,8 @@ def handle_errors(func: F) -> F:
             fail("input nested too deeply")
         except MemoryError:
             fail("out of memory; use a smaller input or option value")
+        except BrokenPipeError:  # stdout closed early: main() ends quietly, EXIT_BROKEN_PIPE
+            raise
         except OSError as exc:
             reason = exc.strerror or exc.__class__.__name__
             where = f" ({exc.filename})" if exc.filename else ""
