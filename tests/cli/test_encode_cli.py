@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from camvlp.cli import app
+from camvlp.cli import app, main
 from conftest import one_error_line
 
 runner = CliRunner()
@@ -120,3 +120,34 @@ def test_console_script():
     )
     assert done.returncode == 0
     assert json.loads(done.stdout)["bits"] == "111101000"
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["encode", "-1"],
+        ["encode", "-1", "--json"],
+        ["encode", "--json", "-3"],
+        ["encode", "--chip-rate", "20000", "-7"],
+        ["encode", "--", "-1"],
+    ],
+)
+def test_a_negative_id_is_refused_as_an_id(argv, capsys):
+    """``camvlp encode -1``: the parser would take -1 for an unknown option; it is the ID, and
+    out of range."""
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    line = one_error_line(err)
+    assert "fixture ID -" in line and "(0 to 15)" in line, line
+
+
+def test_an_unknown_option_is_still_named(capsys):
+    for argv, named in (
+        (["encode", "5", "-x"], "-x"),
+        (["encode", "--chip-rate", "-100", "5"], "--chip-rate"),  # an option's value
+        (["encode", "-1", "-2"], "extra argument(s) (-2)"),  # two IDs
+    ):
+        assert main(argv) == 2
+        out, err = capsys.readouterr()
+        assert named in one_error_line(err) and out == ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 import sys
 
 import typer
@@ -32,6 +33,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         code = app(args=argv, prog_name="camvlp", standalone_mode=False)
     except typer.TyperException as exc:  # usage errors (the parser's ClickException)
+        retry = _negative_numbers_as_arguments(exc, sys.argv[1:] if argv is None else argv)
+        if retry is not None:  # ``camvlp encode -1``: -1 is the ID, not an unknown option
+            code = main(retry)
+            if argv is None:
+                sys.exit(code)
+            return code
         ctx = getattr(exc, "ctx", None)
         where = f" (camvlp {ctx.info_name})" if ctx is not None and ctx.parent else ""
         message = " ".join(exc.format_message().split())
@@ -63,6 +70,32 @@ def main(argv: list[str] | None = None) -> int:
     if argv is None:
         sys.exit(code)
     return code
+
+
+#: A negative number as a command line writes it (``-1``, ``-0.5``, ``-2e-3``).
+_NEGATIVE_NUMBER = re.compile(r"-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def _negative_numbers_as_arguments(exc: Exception, args: list[str]) -> list[str] | None:
+    """``args`` with its negative numbers moved after ``--``, where they are arguments, when
+    the parser took one for an unknown option of a command that has one argument (so moving
+    them keeps the arguments' order); None otherwise.  An option's value stays in place."""
+    name, ctx = getattr(exc, "option_name", None), getattr(exc, "ctx", None)
+    if not (name and _NEGATIVE_NUMBER.match(name)) or ctx is None or "--" in args:
+        return None
+    params = ctx.command.params
+    arguments = [p for p in params if p.param_type_name == "argument"]
+    if len(arguments) != 1 or arguments[0].nargs != 1:
+        return None
+    valued = {o for p in params if p.param_type_name == "option" and not p.is_flag for o in p.opts}
+    free = [
+        i
+        for i, a in enumerate(args)
+        if _NEGATIVE_NUMBER.fullmatch(a) and (i == 0 or args[i - 1] not in valued)
+    ]
+    if not free:
+        return None
+    return [a for i, a in enumerate(args) if i not in free] + ["--"] + [args[i] for i in free]
 
 
 def _stdout_to_devnull() -> None:
