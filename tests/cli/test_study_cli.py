@@ -149,6 +149,32 @@ def test_a_tilted_sensor_camera_is_refused_naming_the_file(tmp_path, study):
     assert "tilted sensor" in line and str(camera) in line
 
 
+@pytest.mark.parametrize(
+    ("args", "flat"),
+    [
+        (["rounding"], True),
+        (["coverage"], True),
+        (["image-error", "--height", "1"], True),
+        (["rounding", "--plane", "xy", "--y-range", "-1,1"], False),
+    ],
+    ids=["rounding", "coverage", "image-error --height", "rounding --plane xy"],
+)
+def test_fixtures_at_the_floors_level_are_refused_naming_the_map(
+    tmp_path, thesis_room_path, args, flat
+):
+    """Fixtures whose mean vertical is 0 (the floor's level: in the camera's plane, or the map
+    has another vertical axis than --plane's) cannot say which way is up: one line naming the
+    map file and the option (it named neither)."""
+    room = thesis_room_path  # with --plane xy its vertical is z, from -0.59 to 0.59
+    if flat:
+        room = tmp_path / "flat.yaml"
+        room.write_text(thesis_room_path.read_text().replace("-2.7", "0"))
+    result = runner.invoke(app, ["study", *args, "--map", str(room), "--step", "0.5"])
+    assert result.exit_code == 2
+    line = one_error_line(result)
+    assert "not above the floor" in line and str(room) in line and "--plane" in line, line
+
+
 def test_study_cli_accepts_the_locate_solver_and_refuses_others():
     res = runner.invoke(app, ["study", "rounding", "--step", "0.5", "--solver", "locate", "--json"])
     assert res.exit_code == 0, res.output

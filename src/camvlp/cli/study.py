@@ -17,6 +17,7 @@ from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.io.writers import write_outputs
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.sim.grid import plane_axes, up_sign
 from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats
@@ -113,7 +114,12 @@ def _check(
             fail(f"--{name.replace('_', '-')} must be positive, got {value}")
 
 
-def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]:
+def _inputs(
+    camera: Path | None, fmap: Path | None, plane: str | None = None
+) -> tuple[Camera, FixtureMap]:
+    """The camera and the map (the thesis' by default), refused naming the file when the
+    studies cannot use them; with ``plane`` (``--plane``, for a floor or a height), the
+    fixtures must lie off the floor's level, on the side that is up."""
     camera_path = _default_file(camera, "thesis_camera.yaml")
     cam = load_camera(camera_path)
     if cam.distortion.size > 12:  # the studies' batched projection has no tilted sensor
@@ -122,7 +128,15 @@ def _inputs(camera: Path | None, fmap: Path | None) -> tuple[Camera, FixtureMap]
             "coefficients)",
             camera_path,
         )
-    return cam, load_map(_default_file(fmap, "thesis_room.yaml"))
+    map_path = _default_file(fmap, "thesis_room.yaml")
+    fixture_map = load_map(map_path)
+    if plane is not None:
+        try:
+            up_sign(fixture_map.positions, plane_axes(plane)[2])
+        except ValueError as exc:
+            what = str(exc).removeprefix("plane: ")  # the library names its argument
+            raise InputError(f"--plane {plane}: {what}", map_path) from None
+    return cam, fixture_map
 
 
 def _triples(text: str, name: str) -> list[list[float]]:
@@ -330,7 +344,7 @@ def rounding(
     _check(solver, noise_px, survey_error_m, trials, step=step)
     angles = parse_floats(euler, 3, "--euler")
     grid = _grid_options(plane, x_range, y_range, z_range, step, height)
-    cam, fmap = _inputs(camera, map_path)
+    cam, fmap = _inputs(camera, map_path, plane)
     noise = _noise_options(noise_px, survey_error_m, trials, seed)
     est = _grid_points(grid) * (trials if noise_px > 0 or survey_error_m > 0 else 1)
     res = _study(
@@ -399,7 +413,7 @@ def _forced(
         )
     if height is None and figure is not None:
         height = fig_h
-    cam, fmap = _inputs(camera, map_path)
+    cam, fmap = _inputs(camera, map_path, plane if height is not None else None)
     if height is not None:
         pos = _run(
             st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane, height_m=height
@@ -611,7 +625,7 @@ def coverage(
     )
     base = parse_floats(euler, 3, "--euler")
     grid = _grid_options(plane, x_range, y_range, z_range, step, height)
-    cam, fmap = _inputs(camera, map_path)
+    cam, fmap = _inputs(camera, map_path, plane)
     n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
     res = _study(
         st.coverage_study,
