@@ -188,6 +188,25 @@ def test_a_key_given_twice_is_refused_not_the_last_taken(tmp_path: Path, name, t
     _raises_naming(load_camera, _write(tmp_path / name, text), "malformed", *words)
 
 
+@pytest.mark.parametrize(
+    ("name", "text", "got"),
+    [
+        ("a.json", "[1, 2, 3]", "a list"),
+        ("b.json", '"room"', "a string"),
+        ("c.json", "3.5", "a number"),
+        ("d.json", "true", "true or false"),
+        ("e.json", "null", "nothing"),
+        ("f.yaml", "- 1\n- 2\n", "a list"),
+        ("g.yaml", "# only a comment\n", "nothing"),
+    ],
+)
+def test_a_file_that_is_not_a_mapping_says_what_it_holds(tmp_path: Path, name, text, got):
+    """Camera, map and sidecar files alike: one line, the file named, what was found."""
+    path = _write(tmp_path / name, text)
+    for load in (load_camera, load_map):
+        _raises_naming(load, path, f"expected a mapping of keys, got {got}")
+
+
 def test_missing_camera_file_and_directory(tmp_path: Path):
     _raises_naming(load_camera, tmp_path / "nope.yaml", "not found")
     _raises_naming(load_camera, tmp_path, "directory")

@@ -148,6 +148,9 @@ def test_cli_gravity_and_sidecar(two_and_three, small_files, capsys) -> None:
             ("{not json", "malformed sidecar file"),
             ('{"gravity": [0, 0, 0]}', "zero length"),
             ('{"gravity": [1, 2]}', "three numbers"),
+            # JSON but not an object: gravity alone, as the sidecar is easily mistaken to be
+            ("[0.12, -0.31, -9.8]", "sidecar file: expected a mapping of keys, got a list"),
+            ('"up"', "got a string"),
         ):
             sidecar.write_text(text)
             code, out, err = run(capsys, "locate", photo, "--camera", cam, "--map", room)

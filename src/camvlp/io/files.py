@@ -170,9 +170,22 @@ def parse_mapping(text: str, path: Path, kind: str) -> dict:
             data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader
     except (json.JSONDecodeError, yaml.YAMLError, ValueError, RecursionError) as exc:
         raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
-    if not isinstance(data, dict):
-        raise InputError(f"malformed {kind} file: expected a mapping of keys", path)
+    expect_mapping(data, f"{kind} file", path)
     return data
+
+
+#: What a parsed value that is not a mapping is, for an error message, by type.
+_KINDS = ((bool, "true or false"), ((int, float), "a number"), (str, "a string"), (list, "a list"))
+
+
+def expect_mapping(data: Any, what: str, source: str | Path) -> Mapping[str, Any]:
+    """``data`` if it is a mapping, else an InputError "malformed ``what``: expected a mapping
+    of keys, got a list" (saying what it is: a list, a string, a number, nothing...)."""
+    if isinstance(data, Mapping):
+        return data
+    got = "nothing" if data is None else next((k for t, k in _KINDS if isinstance(data, t)), None)
+    got = got or type(data).__name__
+    raise InputError(f"malformed {what}: expected a mapping of keys, got {got}", source)
 
 
 def read_mapping(path: str | Path, kind: str) -> dict:
@@ -303,8 +316,7 @@ def camera_from_dict(data: Mapping[str, Any], source: str | Path = "camera") -> 
         A missing or malformed key, naming ``source`` and the key.
     """
     p = source
-    if not isinstance(data, Mapping):
-        raise InputError("malformed camera: expected a mapping of keys", p)
+    expect_mapping(data, "camera", p)
     _misspelled(data, CAMERA_KEYS, "", p)
     try:
         width = _integer(data.get("image_width"), "image_width", p, most=MAX_SIDE_PX)
@@ -424,8 +436,7 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
     it raises InputError as :func:`load_map` does, naming ``source`` and the fixture at fault.
     """
     p = source
-    if not isinstance(data, Mapping):
-        raise InputError("malformed map: expected a mapping of keys", p)
+    expect_mapping(data, "map", p)
     _misspelled(data, MAP_KEYS, "", p)
     units = data.get("units", "m")
     mode, frame, chip_rate = _frame_from_dict(data.get("frame") or {}, p)
