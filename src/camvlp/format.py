@@ -1,22 +1,38 @@
-"""How lengths are shown to people: one rule for metres, centimetres and millimetres.
+"""How figures are shown to people: no negative zero, one rule for metres, centimetres and
+millimetres.
 
-Errors span six decades (a rounding error of 0.2 mm, a forced world error of 1 m), so what a
-command prints and what a plot's axis shows pick the unit from the size of the value: metres
-from 0.5 m, centimetres from 1 cm, millimetres below.
+A figure that rounds to zero shows as ``0.00``, never ``-0.00`` (:func:`format_number`, for
+every number a command prints).  Errors span six decades (a rounding error of 0.2 mm, a forced
+world error of 1 m), so what a command prints and what a plot's axis shows pick the unit from
+the size of the value: metres from 0.5 m, centimetres from 1 cm, millimetres below.
 """
 
 from __future__ import annotations
 
 import math
+from numbers import Integral
 
 from camvlp.model.fixtures import UNITS_TO_M
 
-__all__ = ["format_length", "length_unit", "mm_per_unit"]
+__all__ = ["format_length", "format_number", "length_unit", "mm_per_unit"]
 
 #: (smallest value in metres, factor from metres, unit name), largest first.
 _UNITS = ((0.5, 1.0, "m"), (0.01, 100.0, "cm"), (0.0, 1000.0, "mm"))
 _FACTOR = {unit: factor for _, factor, unit in _UNITS}
 _DIGITS = {"m": 3, "cm": 2, "mm": 2}
+
+
+def format_number(value: float, spec: str = "") -> str:
+    """``format(value, spec)``, except that a value which shows as zero has no minus sign.
+
+    ``format(-0.0001, ".2f")`` is ``"-0.00"``: a pose at the origin prints ``-0.0000`` for half
+    its coordinates.  Here it is ``"0.00"``, as ``format(0.0, spec)`` (same width and sign
+    option); a value that does not round to zero keeps its sign (``-0.01``).
+    """
+    if isinstance(value, Integral) or math.copysign(1.0, value) > 0:  # no negative zero
+        return format(value, spec)
+    zero = format(0.0, spec)
+    return zero if format(-value, spec) == zero else format(value, spec)
 
 
 def length_unit(largest_m: float) -> tuple[float, str]:
@@ -43,7 +59,7 @@ def format_length(value_m: float | None, unit: str | None = None) -> str:
     if value_m is None or not math.isfinite(value_m):
         return "n/a"
     name = unit or length_unit(abs(value_m))[1]
-    return f"{value_m * _FACTOR[name]:.{_DIGITS[name]}f} {name}"
+    return f"{format_number(value_m * _FACTOR[name], f'.{_DIGITS[name]}f')} {name}"
 
 
 def mm_per_unit(units: str) -> tuple[float, str]:

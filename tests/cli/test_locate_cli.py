@@ -8,6 +8,7 @@ A position is printed only when four decoded fixtures back it.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -79,6 +80,9 @@ def test_located_prints_the_position(capsys, small_files, small_render):
     numbers = [float(v) for v in line.split("(")[1].split(")")[0].split(",")]
     assert np.linalg.norm(np.array(numbers) - small_render.pose.position) < 3e-3
     assert "5 detected, 5 used" in out
+    # at the origin looking straight up, x, y and two angles are about zero, some below it:
+    # they show as 0.0000 and 0.00, never with a minus sign ("-0.0000")
+    assert not re.search(r"-0(\.0+)?(?![\d.])", out), out
 
 
 def test_a_chip_rate_the_stripes_disagree_with_is_noted(capsys, tmp_path, small_files):

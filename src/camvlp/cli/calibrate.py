@@ -11,6 +11,7 @@ from typing import Annotated, NoReturn
 import typer
 
 from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
+from camvlp.format import format_number
 from camvlp.io import InputError, load_camera, load_image, save_camera
 from camvlp.io.atomic import check_output_file, strict_json
 from camvlp.sim.chessboard import MIN_BOARD_SIDE
@@ -207,7 +208,8 @@ def _print_calibration(result: CalibrationResult, out: Path) -> None:
     print(f"camera     {camera.width} x {camera.height} px, written to {out}")
     print(f"focal      fx {k[0, 0]:.2f}  fy {k[1, 1]:.2f} px")
     print(f"centre     cx {k[0, 2]:.2f}  cy {k[1, 2]:.2f} px")
-    print("distortion " + " ".join(f"{v:.5g}" for v in camera.distortion) + "  (k1 k2 p1 p2 k3)")
+    coefficients = " ".join(format_number(v, ".5g") for v in camera.distortion)
+    print(f"distortion {coefficients}  (k1 k2 p1 p2 k3)")
     if camera.row_time_s is not None:
         print(f"row time   {camera.row_time_s * 1e6:.3f} us")
     print(f"rms        {result.rms_px:.3f} px over {len(result.used)} photos")

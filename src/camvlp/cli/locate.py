@@ -9,6 +9,7 @@ from typing import Annotated
 import cv2
 import typer
 
+from camvlp.format import format_number
 from camvlp.io import (
     InputError,
     decode_image,
@@ -160,10 +161,10 @@ def _tilt(result) -> str:
 
 def _print_human(result, units: str, photo: Path) -> None:
     if result:
-        x, y, z = result.position
-        tx, ty, tz = result.euler_deg
-        print(f"position      ({x:.4f}, {y:.4f}, {z:.4f}) {units}")
-        print(f"orientation   theta = ({tx:.2f}, {ty:.2f}, {tz:.2f}) deg")
+        position = ", ".join(format_number(v, ".4f") for v in result.position)
+        angles = ", ".join(format_number(v, ".2f") for v in result.euler_deg)
+        print(f"position      ({position}) {units}")
+        print(f"orientation   theta = ({angles}) deg")
         print(f"reprojection  {result.reprojection_rms_px:.3f} px RMS")
         if result.solver != "pnp":
             print(
@@ -177,9 +178,8 @@ def _print_human(result, units: str, photo: Path) -> None:
     for f in result.fixtures:
         ident = f"ID {f.id:>3}" if f.id is not None else "ID   ?"
         state = "used" if f.used else f"not used: {f.reason}"
-        print(
-            f"  {ident}  at ({f.pixel[0]:7.1f}, {f.pixel[1]:7.1f})  margin {f.margin:.2f}  {state}"
-        )
+        u, v = (format_number(c, "7.1f") for c in f.pixel)
+        print(f"  {ident}  at ({u}, {v})  margin {format_number(f.margin, '.2f')}  {state}")
     t = result.timing_ms
     print(
         f"time          {t['total']:.0f} ms (detect {t['detect']:.0f}, decode {t['decode']:.0f}, "

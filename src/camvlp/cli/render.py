@@ -8,6 +8,7 @@ from typing import Annotated
 
 import typer
 
+from camvlp.format import format_number
 from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_file
 from camvlp.io.limits import limit
@@ -212,7 +213,8 @@ def _print_render(result, camera, out: Path, json_path: Path) -> None:
         f"readout {s.readout}"
     )
     for t in result.fixtures:
-        where = f"pixel ({t.pixel[0]:.1f}, {t.pixel[1]:.1f})" if t.in_front else "behind the camera"
+        u, v = (format_number(c, ".1f") for c in t.pixel)
+        where = f"pixel ({u}, {v})" if t.in_front else "behind the camera"
         print(
             f"fixture {t.id:>3}: {where}, fully inside {'yes' if t.fully_inside else 'no'}, "
             f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames"
