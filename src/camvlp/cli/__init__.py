@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import sys
+from typing import TextIO
 
 import typer
 
@@ -62,11 +63,11 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         code = EXIT_BROKEN_PIPE
     except OSError as exc:
-        _stdout_to_devnull()
+        _stdout_to_devnull(stdout)
         print(f"error: cannot write the output: {exc.strerror or exc}", file=sys.stderr)
         code = EXIT_BAD_INPUT
     if code == EXIT_BROKEN_PIPE:
-        _stdout_to_devnull()
+        _stdout_to_devnull(stdout)
     if argv is None:
         sys.exit(code)
     return code
@@ -98,14 +99,16 @@ def _negative_numbers_as_arguments(exc: Exception, args: list[str]) -> list[str]
     return [a for i, a in enumerate(args) if i not in free] + ["--"] + [args[i] for i in free]
 
 
-def _stdout_to_devnull() -> None:
-    """Send stdout, and what its buffer still holds, to the null device: the interpreter's
-    last flush at exit then has nothing to complain about."""
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    try:
-        os.dup2(devnull, sys.__stdout__.fileno())
-    except (AttributeError, OSError, ValueError):  # no real stdout (an embedding, a test)
-        pass
-    finally:
-        os.close(devnull)
+def _stdout_to_devnull(stdout: TextIO) -> None:
+    """Send stdout to the null device: the interpreter's last flush at exit then has nothing
+    to complain about.  The process's own stdout (``stdout`` the interpreter's) has its file
+    descriptor pointed there too, which catches what its buffer still holds."""
+    if stdout is sys.__stdout__:  # not a test's capture or an embedding's stream
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, stdout.fileno())
+        except (OSError, ValueError):  # no file descriptor after all
+            pass
+        finally:
+            os.close(devnull)
     sys.stdout = open(os.devnull, "w")
