@@ -258,12 +258,13 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     cells = {}
     records = []
+    slow = []  # (seconds, cell, photo in the cell, lamps, conditions) of every photo
     t0 = time.perf_counter()
     n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
     for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
         eligible = decoded = told = wrong = located = ambiguous = 0
         times = []
-        for _ in range(args.per_cell):
+        for i_photo in range(args.per_cell):
             photo, res, cond, dt, fmap = one_photo(
                 rng,
                 exposure,
@@ -274,6 +275,7 @@ def main() -> int:
                 tone_gamma=args.tone_gamma,
             )
             times.append(dt)
+            slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
             located += bool(res)
             truth = [t for t in photo.fixtures]
             eligible_k = {
@@ -399,12 +401,17 @@ def main() -> int:
     )
     for r in records[:40]:
         print("  ", r)
+    print(_timing_lines(slow))
     if args.json:
         args.json.write_text(
             json.dumps(
                 dict(
                     cells=[dict(exposure=e, rows_per_chip=r, **c) for (e, r), c in cells.items()],
                     misses=records,
+                    seconds=[
+                        dict(seconds=round(dt, 3), exposure=e, rows_per_chip=r, photo=i, lights=n)
+                        for dt, e, r, i, n, _ in slow
+                    ],
                 ),
                 indent=1,
             )
@@ -413,6 +420,23 @@ def main() -> int:
         plot(cells, args.plot)
         print(f"wrote {args.plot}")
     return 0
+
+
+def _timing_lines(slow: list, n: int = 5) -> str:
+    """``locate``'s time per photo over the sweep (median, 90th percentile, the largest) and
+    the ``n`` slowest photos with their cell, place in it, lights found and conditions."""
+    dts = np.array([s[0] for s in slow])
+    lines = [
+        f"locate per photo: median {np.median(dts):.2f} s, 90th percentile "
+        f"{np.percentile(dts, 90):.2f} s, the slowest {dts.max():.2f} s; the {n} slowest:"
+    ]
+    for dt, e, r, i, lights, cond in sorted(slow, key=lambda s: -s[0])[:n]:
+        looks = {k: cond[k] for k in ("big", "n", "brightness", "core", "halo", "gamma")}
+        lines.append(
+            f"   {dt:6.2f} s  exposure {e:g}, {r:g} rows per chip, photo {i}: {lights} lights, "
+            f"{looks}"
+        )
+    return "\n".join(lines)
 
 
 def plot(cells, path: Path) -> None:
