@@ -32,6 +32,7 @@ import numpy as np
 
 from camvlp.pipeline.rim import GridShape, refine_wave
 from camvlp.pipeline.square_wave import _integrated, fit_square_wave, sharp_period
+from camvlp.pipeline.threads import one_blas_thread
 
 __all__ = ["LightWave", "light_wave", "outline_ellipse"]
 
@@ -351,6 +352,7 @@ def _search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
     return np.asarray(res.x, dtype=float)
 
 
+@one_blas_thread
 def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
     """A round light's waveform, free of its shape, and the square wave that fits it.
 

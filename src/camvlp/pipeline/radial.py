@@ -41,6 +41,7 @@ from camvlp.pipeline.light_wave import (
     _search_centre,
     _shape_fit,
 )
+from camvlp.pipeline.threads import one_blas_thread
 
 __all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model"]
 
@@ -108,6 +109,7 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
     return radial_fit(gray, support, ellipse, axis).centre
 
 
+@one_blas_thread
 def radial_fit(
     gray: np.ndarray,
     support: np.ndarray,
