@@ -293,29 +293,33 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     n = len(fits)
     out = np.full((n, 2, 2), np.nan)
     pts = [np.asarray(f[0], dtype=float).reshape(-1, 2) for f in fits]
-    sizes = np.array([p.shape[0] for p in pts], dtype=np.int64)
-    ranks, n_groups = _group_labels([f[4] for f in fits], sizes)
-    p0 = np.array(
-        [
-            [*np.asarray(f[1], float), *(0.5 * np.asarray(f[2], float)), np.radians(f[3])]
-            for f in fits
-        ]
-    ).reshape(n, 5)
-    ok = (n_groups >= 6) & np.all(np.isfinite(p0), axis=1) & (np.minimum(p0[:, 2], p0[:, 3]) > 0)
-    k = np.flatnonzero(ok)
-    if k.size == 0:
+    sizes = [p.shape[0] for p in pts]
+    labels, n_groups, span = _group_labels([f[4] for f in fits], sizes)
+    # each fit's centre, semi-axes and angle (radians), in Python floats: NumPy's values
+    p0 = [
+        [float(f[1][0]), float(f[1][1]), 0.5 * float(f[2][0]), 0.5 * float(f[2][1])]
+        + [math.radians(float(f[3]))]
+        for f in fits
+    ]
+    k = [
+        i
+        for i, p in enumerate(p0)
+        if n_groups[i] >= 6 and all(map(math.isfinite, p)) and min(p[2], p[3]) > 0
+    ]
+    if not k:
         return out
-    kept = np.repeat(ok, sizes)  # the points of the fits worked
-    p0, sizes, n_groups = p0[k], sizes[k], n_groups[k]
-    m_max, g_max = int(sizes.max()), int(n_groups.max())
-    real = np.arange(m_max)[None, :] < sizes[:, None]  # (K, M): not padding
-    # padding: a point of the fit's own, so that its distance is finite
-    xy = np.repeat(np.array([pts[i][0] for i in k.tolist()])[:, None, :], m_max, axis=1)
-    xy[real] = np.concatenate(pts)[kept]
-    lab = np.zeros((k.size, m_max), dtype=np.int64)
-    lab[real] = ranks[kept]
-    lab += g_max * np.arange(k.size)[:, None]  # each fit's groups after the previous fits'
-    d, jac = _sampson(p0, xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
+    m_max = max(sizes[i] for i in k)
+    # the fits worked, padded to the longest by a point of their own (a finite distance)
+    xy = np.empty((len(k), m_max, 2))
+    lab = np.zeros((len(k), m_max), dtype=np.int64)
+    for j, i in enumerate(k):
+        m = sizes[i]
+        xy[j, :m], xy[j, m:] = pts[i], pts[i][0]
+        lab[j, :m] = labels[i]
+    sizes_k = np.array([sizes[i] for i in k], dtype=float)
+    groups_k = np.array([n_groups[i] for i in k], dtype=float)
+    real = np.arange(m_max)[None, :] < sizes_k[:, None]  # (K, M): not padding
+    d, jac = _sampson(np.array([p0[i] for i in k]), xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
     d *= real
     jac *= real[:, :, None]
     jtj = jac.transpose(0, 2, 1) @ jac
@@ -323,18 +327,19 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     # np.linalg.cond(jtj) <= 1e12: J^T J is symmetric, its singular values its |eigenvalues|
     eig = np.abs(np.linalg.eigvalsh(jtj[good]))
     good[good] = eig.max(axis=1) <= 1e12 * eig.min(axis=1)
-    # each group's summed score, (K, G, 5), in the points' order (the padding adds zeros)
+    # each group's summed score, (K, G, 5), in the points' order (the padding adds zeros;
+    # a label no point has, a group of zeros, adds nothing to the meat)
     scores = np.bincount(
-        (5 * lab[:, :, None] + np.arange(5)).ravel(),
+        (5 * (lab + span * np.arange(len(k))[:, None])[:, :, None] + np.arange(5)).ravel(),
         weights=(jac * d[:, :, None]).ravel(),
-        minlength=5 * g_max * k.size,
-    ).reshape(k.size, g_max, 5)
+        minlength=5 * span * len(k),
+    ).reshape(len(k), span, 5)
     # small-sample factor of the cluster-robust estimator (CR1)
-    scale = n_groups / (n_groups - 1) * (sizes - 1) / np.maximum(sizes - 5, 1)
+    scale = groups_k / (groups_k - 1) * (sizes_k - 1) / np.maximum(sizes_k - 5, 1)
     kk = np.flatnonzero(good)
     bread = np.linalg.inv(jtj[kk])
     meat = scores[kk].transpose(0, 2, 1) @ scores[kk]
-    out[k[kk]] = (scale[kk, None, None] * bread @ meat @ bread)[:, :2, :2]
+    out[np.array(k)[kk]] = (scale[kk, None, None] * bread @ meat @ bread)[:, :2, :2]
     return out
 
 
@@ -367,27 +372,20 @@ def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, n
     return d, jac
 
 
-def _group_labels(groups: list, sizes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each fit's points' groups as ranks among its distinct labels (NumPy's
-    ``np.unique(..., return_inverse=True)``; ``None``: every point alone), one fit's after
-    another's, and how many groups each fit has.  Small non-negative integer labels are
-    ranked by counting, all the fits' at once."""
-    gs = [
-        np.arange(m) if g is None else np.asarray(g).reshape(-1)
-        for m, g in zip(sizes.tolist(), groups, strict=True)
-    ]
-    flat = np.concatenate(gs) if gs else np.zeros(0, np.int64)
-    span = int(flat.max()) + 1 if flat.size and flat.dtype.kind in "iu" else 0
-    if span and 0 <= flat.min() and span * len(gs) <= 4 * flat.size + 64:
-        shift = np.repeat(span * np.arange(len(gs)), sizes)  # each fit's labels apart
-        seen = np.bincount(flat + shift, minlength=span * len(gs)) > 0
-        rank = np.cumsum(seen) - 1
-        n_groups = np.add.reduceat(seen.astype(np.int64), np.arange(0, seen.size, span))
-        first = np.cumsum(n_groups) - n_groups  # each fit's lowest rank
-        return rank[flat + shift] - np.repeat(first, sizes), n_groups
-    labels = [np.unique(g, return_inverse=True)[1].reshape(-1) for g in gs]
-    n_groups = np.array([int(g.max()) + 1 if g.size else 0 for g in labels], dtype=np.int64)
-    return (np.concatenate(labels) if labels else np.zeros(0, np.int64)), n_groups
+def _group_labels(groups: list, sizes: list[int]) -> tuple[list, list[int], int]:
+    """Each fit's points' group labels as small non-negative integers (``None``: every point
+    alone; other labels ranked among their distinct values, NumPy's ``np.unique(...,
+    return_inverse=True)``), how many distinct groups each fit has, and one more than the
+    largest label (the labels' span).  Non-negative integer labels are kept as they are: a
+    label no point has is an empty group, which adds nothing to a sum over groups."""
+    out, n_groups = [], []
+    for m, g in zip(sizes, groups, strict=True):
+        g = np.arange(m) if g is None else np.asarray(g).reshape(-1)
+        if g.size and (g.dtype.kind not in "iu" or g.min() < 0 or g.max() > 4 * g.size + 64):
+            g = np.unique(g, return_inverse=True)[1].reshape(-1)
+        out.append(g)
+        n_groups.append(int(np.count_nonzero(np.bincount(g))) if g.size else 0)
+    return out, n_groups, max((int(g.max()) + 1 for g in out if g.size), default=1)
 
 
 def centre_sigma(cov) -> float:

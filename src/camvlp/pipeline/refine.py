@@ -568,10 +568,14 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     rows = np.concatenate([r.rows for r in regions])
     w = np.array([r.gray.shape[1] for r in regions])[of]
     background = np.array([r.background for r in regions])[of]
-    # above half-way (other lights masked out: the background is below half-way)
-    above = near & (g > half[:, None])
+    # above half-way (other lights masked out: the background is below half-way); the
+    # half-way levels lie between 0 and 255, and a whole level is above one when it is above
+    # its floor: compared as uint8, not as floats
+    above = near & (g > np.floor(half).astype(np.uint8)[:, None])
     left = above.argmax(axis=1)  # 0 also when nothing is above: such a row is left out
-    right = width - 1 - above[:, ::-1].argmax(axis=1)  # the last above
+    # the last above: the first of the rows flipped (by OpenCV, contiguous, which NumPy's
+    # argmax of bools scans fast, where it steps through a reversed view one by one)
+    right = width - 1 - cv2.flip(above.view(np.uint8), 1).view(bool).argmax(axis=1)
     j = np.flatnonzero((left > 0) & (right < w - 1) & (right - left >= 3))
     left, right, half, rows, of = left[j], right[j], half[j], rows[j], of[j]
     # the rows' levels either side of both crossings, other lights masked out
