@@ -297,8 +297,7 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     labels, n_groups, span = _group_labels([f[4] for f in fits], sizes)
     # each fit's centre, semi-axes and angle (radians), in Python floats: NumPy's values
     p0 = [
-        [float(f[1][0]), float(f[1][1]), 0.5 * float(f[2][0]), 0.5 * float(f[2][1])]
-        + [math.radians(float(f[3]))]
+        [*map(float, f[1][:2]), *(0.5 * float(v) for v in f[2][:2]), math.radians(float(f[3]))]
         for f in fits
     ]
     k = [
