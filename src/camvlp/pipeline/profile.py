@@ -26,9 +26,15 @@ _RIM_KERNEL = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))
 def _trimmed(mask: np.ndarray) -> np.ndarray:
     """A disc's mask (uint8 0/1) with its anti-aliased rim trimmed by a small erosion, unless
     that would leave less than 30 % of it."""
+    return _trim(mask)[0]
+
+
+def _trim(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    """:func:`_trimmed`, and the pixels it keeps."""
     m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
     eroded = cv2.erode(m, _RIM_KERNEL)
-    return eroded if np.count_nonzero(eroded) >= 0.3 * np.count_nonzero(m) else m
+    n = cv2.countNonZero(eroded)
+    return (eroded, n) if n >= 0.3 * np.count_nonzero(m) else (m, cv2.countNonZero(m))
 
 
 def _filled(prof: np.ndarray) -> np.ndarray:
@@ -81,8 +87,10 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
         if axis == "columns":
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
-    prof = np.where(c > 0, s / np.maximum(c, 1), np.nan)
-    return _filled(prof), first, c
+    empty = c == 0  # a line between the first and the last without pixels: NaN, filled
+    if empty.any() or gray.dtype != np.uint8:  # (float levels may be NaN themselves)
+        return _filled(np.where(empty, np.nan, s / np.maximum(c, 1))), first, c
+    return s / c, first, c
 
 
 #: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
@@ -118,28 +126,36 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     ``_RING_PIXELS`` pixels each.  Per light ``values`` (n,) uint8 and ``rho`` (n,) radii (any
     unit, >= 0; n >= 1); returns per light its rings' mean radii and their levels, float64
     (k,) each.  All the lights' rings are counted at once (each light's after the previous
-    lights'): a histogram of levels per ring, whose cumulative counts give each ring's
-    quantile (the value a sort of the ring's levels has at that rank).
+    lights'): the pixels are counted by ring and level (one histogram of ``ring * 256 +
+    level``), whose running count over all the rings says where each ring's quantile falls
+    (the value a sort of the ring's levels has at that rank).
     """
     sizes = np.array([v.size for v in values], dtype=np.intp)
     bins = np.minimum(np.maximum(sizes // _RING_PIXELS, 16), 256)
-    of = np.repeat(np.arange(sizes.size), sizes)
     r = np.concatenate(rho)
     r2 = r * r
     top = np.maximum.reduceat(r2, starts(sizes))
-    k = (r2 * (bins / np.where(top != 0.0, top, 1.0))[of]).astype(np.intp)
-    np.minimum(k, (bins - 1)[of], out=k)
-    k += starts(bins)[of]  # each light's rings after the previous lights'
+    first = starts(bins)  # each light's rings after the previous lights'
+    # per light: rings per unit of r2, its last ring, its first; repeated once per pixel
+    scale, last, offset = np.repeat(
+        np.array([bins / np.where(top != 0.0, top, 1.0), bins - 1, first]), sizes, axis=1
+    )
+    k = (r2 * scale).astype(np.intp)
+    np.minimum(k, last.astype(np.intp), out=k)
+    k += offset.astype(np.intp)
     n_rings = int(bins.sum())
     key = k * 256 + np.concatenate(values)  # by ring, then by level
-    below = np.bincount(key, minlength=n_rings * 256).reshape(n_rings, 256).cumsum(axis=1)
-    counts = below[:, -1]
-    full = counts > 0
-    rank = ((counts[full] - 1) * _ENVELOPE_QUANTILE).astype(np.intp)  # in the ring's order
-    level = (below[full] <= rank[:, None]).sum(axis=1).astype(np.float64)
-    middle = np.bincount(k, weights=r, minlength=counts.size)[full] / counts[full]
-    cut = np.cumsum(np.add.reduceat(full.astype(np.intp), starts(bins)))[:-1]
-    return [(middle[a:b], level[a:b]) for a, b in pieces(cut, middle.size)]
+    below = np.bincount(key, minlength=n_rings * 256).cumsum()  # pixels up to each key
+    ends = below[255::256]  # pixels up to each ring's end
+    counts = np.diff(ends, prepend=0)
+    ring = np.flatnonzero(counts)
+    c = counts[ring]
+    rank = ((c - 1) * _ENVELOPE_QUANTILE).astype(np.intp)  # in the ring's order
+    # the key at that place among all the pixels sorted by key: its level
+    level = np.searchsorted(below, ends[ring] - c + rank, side="right") - ring * 256.0
+    middle = np.bincount(k, weights=r, minlength=n_rings)[ring] / c
+    cut = np.searchsorted(ring, first[1:])  # each light's first ring among those with pixels
+    return [(middle[a:b], level[a:b]) for a, b in pieces(cut, ring.size)]
 
 
 def _nonzero(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -157,28 +173,29 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     them); worked for all the masks at once."""
     found = [_nonzero(m[::st, ::st]) for m, st in zip(masks, steps, strict=True)]
     sizes = np.array([ys.size for ys, _ in found], dtype=np.intp)
-    of = np.repeat(np.arange(sizes.size), sizes)
     step = np.repeat(np.array(steps, dtype=np.intp), sizes)
     ys = np.concatenate([ys for ys, _ in found]) * step
     xs = np.concatenate([xs for _, xs in found]) * step
-    # per mask: cos and sin of its angle, centre, semi-axes; then per pixel, by one index
-    geo = np.array(
-        [
-            (
-                math.cos(math.radians(t)),
-                math.sin(math.radians(t)),
-                float(c[0]),
-                float(c[1]),
-                0.5 * max(float(ax[0]), 1.0),
-                0.5 * max(float(ax[1]), 1.0),
-            )
-            for t, c, ax in zip(angles, centres, axes, strict=True)
-        ]
-    ).reshape(-1, 6)[of]
-    cos, sin, a, b = geo[:, 0], geo[:, 1], geo[:, 4], geo[:, 5]
-    dx, dy = xs - geo[:, 2], ys - geo[:, 3]
-    u, v = dx * cos + dy * sin, dy * cos - dx * sin
-    rho = np.sqrt((u / a) ** 2 + (v / b) ** 2)
+    # per mask: centre, cos and sin of its angle, semi-axes; repeated once per pixel
+    geo = [
+        (
+            float(c[0]),
+            float(c[1]),
+            math.cos(math.radians(t)),
+            math.sin(math.radians(t)),
+            0.5 * max(float(ax[0]), 1.0),
+            0.5 * max(float(ax[1]), 1.0),
+        )
+        for t, c, ax in zip(angles, centres, axes, strict=True)
+    ]
+    cx, cy, cos, sin, a, b = np.repeat(np.array(geo).reshape(-1, 6).T, sizes, axis=1)
+    dx, dy = xs - cx, ys - cy
+    u, v = dx * cos, dy * cos  # u = dx cos + dy sin, v = dy cos - dx sin
+    u += dy * sin
+    v -= dx * sin
+    u /= a
+    v /= b
+    rho = np.sqrt(np.square(u, out=u) + np.square(v, out=v))
     cut = np.cumsum(sizes)[:-1]
     return [(ys[a:b], xs[a:b], rho[a:b]) for a, b in pieces(cut, ys.size)]
 
@@ -239,8 +256,8 @@ def shape_profiles(
     light is flat is told for all of them at once.  Each entry also gives its lines'
     weights (shape (n,)): the inverse of their variance under pixels of equal noise, up to
     a constant, 0 for a line without pixels."""
-    trimmed = [_trimmed(m) for m in masks]
-    counts = [cv2.countNonZero(m) for m in trimmed]
+    trims = [_trim(m) for m in masks]
+    trimmed, counts = [m for m, _ in trims], [n for _, n in trims]
     out: list[tuple[np.ndarray, int, np.ndarray]] = [(np.zeros(0), 0, np.zeros(0))] * len(masks)
     live = [k for k, n in enumerate(counts) if n]
     if not live:
