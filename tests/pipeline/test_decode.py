@@ -13,6 +13,7 @@ import pytest
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline import decode as decode_mod
 from camvlp.pipeline.decode import (
     decode_profile,
     decode_profiles,
@@ -295,6 +296,61 @@ def test_profiles_decoded_together_as_one_by_one():
         assert [repr(d) for d in together] == [repr(d) for d in alone]
     reasons = {d.reason.split(" (")[0] for d in together}
     assert {"", "too small to decode", "no stripes"} <= reasons
+
+
+def _direct_chip_length(d: np.ndarray) -> float:
+    """A profile's chip length from its spacings ``d`` as a plain grid search finds it: every
+    chip length of the grid tried, each spacing's squared residual summed, then refined."""
+    shortest = d.min()
+    grid = np.arange(max(0.8, shortest / 4.6), min(64.0, shortest / 1.6), 0.01)
+    x = d[None, :] / grid[:, None]
+    x -= np.minimum(np.rint(x), 4)
+    t = grid[int(np.argmin(np.square(x * grid[:, None]).sum(axis=1)))]
+    m = np.clip(np.rint(d / t), 2, 4)
+    return float((d * m).sum() / (m * m).sum())
+
+
+def _direct_bleed(lengths: np.ndarray, bright: np.ndarray, t: float) -> float:
+    """A profile's bleeding from its interior runs as a plain grid search finds it."""
+    grid = np.linspace(-0.95 * t, 0.95 * t, 191)
+    x = (np.where(bright, lengths, -lengths)[None, :] - grid[:, None]) / np.where(bright, t, -t)
+    x -= np.clip(np.rint(x), 1, 2)
+    return float(grid[int(np.argmin(np.square(x).sum(axis=1)))])
+
+
+def test_grid_searches_pick_what_a_direct_search_picks():
+    # the chip length's and the bleeding's grids are costed by running sums: the same grid
+    # values as costing every one term by term, ties (periodic stripes whose runs fit two
+    # bleedings equally) included
+    rng = np.random.default_rng(8)
+    profiles = []
+    # stripes of equal runs: the bleeding b and b + t fit alike (the grid's steps are a
+    # hundredth of a chip), their costs equal up to rounding
+    periodic = [("11100", 90, 3.25), ("1110", 90, 4.0), ("110", 90, 4.25), ("1100", 150, 5.0)]
+    for pattern, n_rows, rpc in periodic:
+        chips = np.array([int(c) for c in pattern * 60], dtype=np.uint8)
+        profiles.append(synth_profile(chips, n_rows, rpc))
+    for _ in range(40):
+        case = random_case(rng)
+        case["noise"] = rng.uniform(0.0, 20.0)
+        profiles.append(synth_profile(FRAME.chips(int(rng.integers(16))), rng=rng, **case))
+    lo, hi = decode_mod._levels(profiles)
+    r = decode_mod._flat_runs(profiles, lo + 0.6 * (hi - lo))
+    t = decode_mod._chip_lengths(r, 64.0)
+    d, p = decode_mod._spacings(r)
+    told = 0
+    for k in range(len(profiles)):
+        if np.count_nonzero(p == k) >= 2 and np.isfinite(t[k]):
+            assert t[k] == _direct_chip_length(d[p == k])
+            told += 1
+    which = np.flatnonzero((r.n_edges >= 4) & np.isfinite(t))
+    b = decode_mod._bleeds(r, t, which)
+    ties = 0
+    for k, bleed in zip(which.tolist(), b.tolist(), strict=True):
+        runs = slice(r.run_starts[k] + 1, r.run_starts[k] + r.n_edges[k])  # the interior ones
+        assert bleed == _direct_bleed(r.lengths[runs], r.bright[runs], t[k])
+        ties += k < len(periodic)
+    assert told >= 40 and which.size >= 40 and ties == len(periodic)
 
 
 def test_shape_profile_of_a_disc_clipping_in_its_glow_reads_one_response():

@@ -20,6 +20,7 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -254,17 +255,40 @@ def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
     k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])
     two = r.edges[k + 2] - r.edges[k]
     p = r.edge_of[k]
-    j = k - e_start[p]
-    first = np.where(r.rising[np.minimum(e_start, max(r.edges.size - 1, 0))], 0, 1)
-    order = np.lexsort((j, (j - first[p]) % 2, p))
+    rises = r.rising[np.minimum(e_start, max(r.edges.size - 1, 0))]  # each one's first edge
+    falling = ((k - e_start[p]) % 2 == 1) == rises[p]  # a spacing between falling edges
+    order = np.argsort(2 * p + falling, kind="stable")  # by profile, the rising edges' first
     d, p = two[order], p[order]
     keep = d > 0
     return d[keep], p[keep]
 
 
+#: Chip lengths tried per profile: steps of this many rows, from 1.6 to 4.6 times the
+#: profile's shortest spacing.
+_CHIP_STEP = 0.01
+
+
+def _chip_grids(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.arange(lo, hi, 0.01)`` of each profile, one row each (as NumPy fills it: ``lo``
+    plus ``i`` times the step it takes, ``(lo + 0.01) - lo``), continued beyond ``hi`` to
+    the longest; and each row's length."""
+    sizes = np.ceil((hi - lo) / _CHIP_STEP).astype(np.intp)
+    delta = (lo + _CHIP_STEP) - lo
+    grid = np.arange(int(sizes.max()), dtype=float)[None, :] * delta[:, None]
+    grid += lo[:, None]
+    return grid, sizes
+
+
 def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     """Chip length in rows of each profile from same-polarity edge spacings (2, 3 or 4
-    chips each): the grid's best, refined by least squares; NaN where it cannot be told."""
+    chips each): the grid's best, refined by least squares; NaN where it cannot be told.
+
+    A spacing of ``d`` rows holds ``m = min(round(d / g), 4)`` chips of ``g`` rows (2 at
+    least on the grid), 3 or more while ``g < d / 2.5`` and 4 while ``g <= d / 3.5`` (where
+    ``m`` changes, both counts are half a chip off: the cost is continuous).  So each grid
+    value's cost, ``sum(d^2) - 2 g sum(m d) + g^2 sum(m^2)``, follows from running sums of
+    the steps each spacing makes along the grid, not a (spacings, grid) array.
+    """
     n = r.n_edges.size
     d, p = _spacings(r)
     counts = np.bincount(p, minlength=n)
@@ -277,27 +301,52 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     ok, lo, hi = ok[hi > lo], lo[hi > lo], hi[hi > lo]
     if ok.size == 0:
         return out
-    grids = [np.arange(a, b, 0.01) for a, b in zip(lo.tolist(), hi.tolist(), strict=True)]
-    dd = padded(d, counts, 1.0)[ok]
-    for group in _groups(np.array([g.size for g in grids]), counts[ok]):
-        grid = padded(
-            np.concatenate([grids[q] for q in group]), np.array([grids[q].size for q in group]), 1.0
-        )
-        x = dd[group][:, None, :] / grid[:, :, None]
-        m = np.round(x)
-        # at most 4 chips; at least 2 as it is (every spacing is at least the shortest, every
-        # grid value below the shortest / 1.6, so each ratio rounds to 2 or more)
-        np.minimum(m, 4, out=m)
-        x -= m
-        x *= grid[:, :, None]
-        np.square(x, out=x)  # squared residual in rows
-        for row, q in enumerate(group):
-            cost = x[row, : grids[q].size, : counts[ok[q]]].sum(axis=1)
-            t = float(grids[q][int(np.argmin(cost))])
-            v = dd[q, : counts[ok[q]]]
-            m = np.minimum(np.maximum(np.round(v / t), 2), 4)
-            out[ok[q]] = float((v * m).sum() / (m * m).sum())  # least squares refinement
+    slot = np.full(n, -1)
+    slot[ok] = np.arange(ok.size)
+    q = slot[p]
+    d, q = d[q >= 0], q[q >= 0]
+    grid, sizes = _chip_grids(lo, hi)
+    size = grid.shape[1]
+    # where each spacing's count drops from 4 to 3 chips (row 0) and from 3 to 2 (row 1)
+    # along its grid; what each drop takes from sum(m d) and from sum(m^2)
+    delta = grid[:, 1] - grid[:, 0] if size > 1 else np.ones(ok.size)
+    drops = np.floor((d / _DROPS - lo[q]) / delta[q]) + 1
+    at = (q * (size + 1) + np.minimum(np.maximum(drops, 0), size).astype(np.intp)).ravel()
+    sums = np.bincount(
+        np.concatenate([at, at + ok.size * (size + 1)]),
+        weights=np.concatenate([np.tile(d, 2), np.repeat([7.0, 5.0], d.size)]),
+        minlength=2 * ok.size * (size + 1),
+    )
+    taken = sums.reshape(2, ok.size, size + 1)[:, :, :size].cumsum(axis=2)
+    n_d = np.bincount(q, minlength=ok.size)
+    sum_d2 = np.bincount(q, weights=d * d, minlength=ok.size)
+    sum_md = 4.0 * np.bincount(q, weights=d, minlength=ok.size)[:, None] - taken[0]
+    sum_mm = 16.0 * n_d[:, None] - taken[1]
+    cost = sum_d2[:, None] - 2.0 * grid * sum_md + grid * grid * sum_mm
+    cost[np.arange(size)[None, :] >= sizes[:, None]] = np.inf
+    bounds = [0, *itertools.accumulate(n_d.tolist())]  # each profile's spacings in d
+
+    def exact(k: int, j: np.ndarray) -> np.ndarray:
+        # as the grid's terms were first summed: (d / g - m) g, squared
+        g = grid[k, j][:, None]
+        x = d[bounds[k] : bounds[k + 1]] / g
+        x -= np.minimum(np.rint(x), 4.0)
+        x *= g
+        return np.square(x).sum(axis=1)
+
+    t = grid[np.arange(ok.size), _grid_best(cost, sum_d2, exact)]
+    # least squares refinement: each spacing's chips at the grid's best
+    m = np.clip(np.rint(d / t[q]), 2.0, 4.0)
+    mm = np.bincount(q, weights=m * m, minlength=ok.size)  # (whole numbers: exact sums)
+    vm = d * m
+    sums = zip(bounds[:-1], bounds[1:], mm.tolist(), strict=True)
+    out[ok] = [vm[a:b].sum() / c for a, b, c in sums]
     return out
+
+
+#: The ratios of a spacing to the chip length at which its count drops from 4 chips to 3,
+#: and from 3 to 2 (a column: per spacing, one row each).
+_DROPS = np.array([[3.5], [2.5]])
 
 
 #: Bleeding values tried per profile (-0.95 to 0.95 chip).
@@ -317,35 +366,83 @@ def _bleed_grids(t: np.ndarray) -> np.ndarray:
     return y
 
 
+def _step_sums(at: np.ndarray, weights: np.ndarray, size: int, rows: int) -> np.ndarray:
+    """Per row and grid value ``j``, the sum of the weights of the steps ``at`` (flat
+    ``row * (size + 1) + k``) with ``k <= j``: steps placed on a grid of ``size`` values,
+    summed along it (a (rows, size) array)."""
+    placed = np.bincount(at, weights=weights, minlength=rows * (size + 1))
+    return placed.reshape(rows, size + 1)[:, :size].cumsum(axis=1)
+
+
+#: Costs within this fraction of their scale of a grid's least are computed again, term by
+#: term, before one is taken (the grid's running sums round otherwise than a sum of terms).
+_TIE = 1e-9
+
+
+def _grid_best(cost: np.ndarray, scale: np.ndarray, exact) -> np.ndarray:
+    """Each row's grid index of least ``cost`` (rows, grid): where several come within
+    :data:`_TIE` times the row's ``scale`` of the least (a tie, up to rounding), the first
+    least of ``exact(row, indices)``, their costs computed term by term."""
+    best = np.argmin(cost, axis=1)
+    near = cost <= (cost.min(axis=1) + _TIE * scale)[:, None]
+    for q in np.flatnonzero(np.count_nonzero(near, axis=1) > 1).tolist():
+        j = np.flatnonzero(near[q])
+        best[q] = j[int(np.argmin(exact(q, j)))]
+    return best
+
+
 def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
     """Bleeding of the profiles ``which`` (four edges or more), rows: bright runs are b rows
     longer, dark ones b rows shorter, than n chips; the b of the grid that makes every
     interior run closest to one or two chips (both kinds occur in every frame, which pins b
-    down)."""
+    down).
+
+    A run of ``l`` rows holds ``n = 1 + (x >= 1.5)`` chips, ``x = (l - b) / t`` for a
+    bright run, ``(l + b) / t`` for a dark one; its squared residual ``(x - n)^2`` is
+    ``(c - b)^2 / t^2`` with ``c = l - n t`` (bright) or ``n t - l`` (dark), and ``n``
+    changes once along the grid, where ``x = 1.5`` (continuously: there both counts are
+    half a chip off): ``c`` grows by ``t`` there.  So each grid value's cost,
+    ``sum(c^2) - 2 b sum(c) + runs b^2`` (over ``t^2``, the same for the whole grid),
+    follows from running sums of those steps along the grid, not a (runs, grid) array.
+    """
     first = r.run_starts
     interior = np.ones(r.lengths.size, bool)
     interior[first] = False
     interior[first + r.n_edges] = False
-    counts = np.maximum(r.n_edges - 1, 0)
-    li = padded(r.lengths[interior], counts, 1.0)[which]
-    bi = padded(r.bright[interior], counts, False)[which]
-    tt = t[which]
+    slot = np.full(r.n_edges.size, -1)
+    slot[which] = np.arange(which.size)
+    q = slot[r.run_of]
+    interior &= q >= 0
+    q, lengths, bright = q[interior], r.lengths[interior], r.bright[interior]
+    n_q, tt = which.size, t[which]
     grid = _bleed_grids(tt)
-    out = np.empty(which.size)
-    # (l - g) / t for a bright run, (l + g) / t = (-l - g) / -t for a dark one (the same
-    # values, negation being exact): the runs' signs are set once, not per grid value
-    signed = np.where(bi, li, -li)
-    div = np.where(bi, tt[:, None], -tt[:, None])
-    for group in _groups(np.full(which.size, _BLEED_STEPS), counts[which]):
-        xs = signed[group][:, None, :] - grid[group][:, :, None]
-        xs /= div[group][:, None, :]
-        m = np.round(xs)
-        xs -= np.minimum(np.maximum(m, 1, out=m), 2, out=m)
-        np.square(xs, out=xs)
-        for row, q in enumerate(group):
-            cost = xs[row, :, : counts[which[q]]].sum(axis=1)
-            out[q] = grid[q, int(np.argmin(cost))]
-    return out
+    tq = tt[q]
+    sign = np.where(bright, 1.0, -1.0)
+    c_low = sign * (lengths - np.where(bright, 2.0, 1.0) * tq)  # c on the grid's low side
+    c_high = c_low + tq
+    # the grid index from which x < 1.5 (bright) or x >= 1.5 (dark)
+    start, step = grid[:, 0], (grid[:, -1] - grid[:, 0]) / (_BLEED_STEPS - 1)
+    at = np.floor((sign * (lengths - 1.5 * tq) - start[q]) / step[q]) + 1
+    at = q * (_BLEED_STEPS + 1) + np.minimum(np.maximum(at, 0), _BLEED_STEPS).astype(np.intp)
+    sum_c = np.bincount(q, weights=c_low, minlength=n_q)[:, None] + _step_sums(
+        at, tq, _BLEED_STEPS, n_q
+    )
+    low2 = np.bincount(q, weights=c_low * c_low, minlength=n_q)
+    sum_c2 = low2[:, None] + _step_sums(at, c_high * c_high - c_low * c_low, _BLEED_STEPS, n_q)
+    runs = np.bincount(q, minlength=n_q)
+    cost = sum_c2 - 2.0 * grid * sum_c + runs[:, None] * (grid * grid)
+
+    def exact(k: int, j: np.ndarray) -> np.ndarray:
+        # as the grid's terms were first summed: (l - g) / t for a bright run, (-l - g) / -t
+        # for a dark one, then its squared distance from one or two chips
+        a = int(np.searchsorted(q, k))
+        s, ls = sign[a : a + runs[k]], lengths[a : a + runs[k]]
+        x = (s * ls - grid[k, j][:, None]) / (s * tt[k])
+        x -= np.clip(np.rint(x), 1.0, 2.0)
+        return np.square(x).sum(axis=1)
+
+    scale = low2 + 4.0 * runs * tt * tt
+    return grid[np.arange(n_q), _grid_best(cost, scale, exact)]
 
 
 def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
