@@ -82,8 +82,8 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     x = cx + _RADII * (a * ct * _COS - b * st * _SIN)  # (n, radii, angles)
     y = cy + _RADII * (a * st * _COS + b * ct * _SIN)
     ok = (x > -0.5) & (x < w - 0.5) & (y > -0.5) & (y < h - 0.5)
-    xi = np.minimum(np.maximum(np.rint(x), 0), w - 1).astype(np.intp)  # np.clip's values
-    yi = np.minimum(np.maximum(np.rint(y), 0), h - 1).astype(np.intp)
+    xi = np.clip(np.rint(x), 0.0, w - 1.0).astype(np.intp)
+    yi = np.clip(np.rint(y), 0.0, h - 1.0).astype(np.intp)
     if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
         px = np.take(img.reshape(h * w, -1), yi * w + xi, axis=0).reshape(*yi.shape, -1)
         px = (px[..., 0] if img.ndim == 2 else px).astype(np.float64)
@@ -91,10 +91,12 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
         px = img[yi, xi].astype(np.float64)
     if px.ndim == 4:  # BGR(A): OpenCV's luma weights
         px = px[..., :3] @ _LUMA
+    # samples within the photo, per light: inside, in the ring, and further out
+    n_in, n_ring, n_out = np.add.reduceat(
+        ok.sum(axis=2), [_IN.start, _RING.start, _OUT.start], axis=1
+    ).T
+    inside = np.where(ok[:, _IN], px[:, _IN], 0.0).sum(axis=(1, 2)) / np.maximum(n_in, 1)
     px = np.where(ok, px, np.nan)
-    n_in, n_ring, n_out = (ok[:, k].sum(axis=(1, 2)) for k in (_IN, _RING, _OUT))
-    within = px[:, _IN]  # np.nansum's sums, without its set-up: NaN (not equal to itself) as 0
-    inside = np.where(within == within, within, 0.0).sum(axis=(1, 2)) / np.maximum(n_in, 1)
     # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
     # outline that misses the disc somewhere puts a few ring samples on the disc itself
     ranked = np.sort(px[:, _RING].reshape(len(blobs), -1), axis=1)  # NaNs last
@@ -133,7 +135,7 @@ def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
     levels = glow_levels(img, blobs)
     border = np.array([b.touches_border for b in blobs], dtype=bool)
     told = np.isfinite(levels) & ~border
-    return told & (np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL), told
+    return told & (levels >= GLOW_LEVEL), told  # (NaN: not told, and not glowing)
 
 
 def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]:
@@ -168,7 +170,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     """
     if which is None:
         levels = glow_levels(img, [_round(b) for b in blobs])
-        which = np.nan_to_num(levels, nan=-np.inf) >= GLOW_LEVEL
+        which = levels >= GLOW_LEVEL  # (NaN: False)
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")

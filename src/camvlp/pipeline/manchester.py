@@ -111,10 +111,10 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     return out, lengths
 
 
-def _median(values: np.ndarray) -> float:
-    """``np.median`` of a few chip lengths (at least one), in Python floats: the middle value,
-    or the mean of the middle two; NaN when one is NaN."""
-    v = sorted(values.tolist())
+def _median(values) -> float:
+    """``np.median`` of a few chip lengths (at least one; a sequence or an array), in Python
+    floats: the middle value, or the mean of the middle two; NaN when one is NaN."""
+    v = sorted(np.asarray(values, dtype=float).tolist())
     if any(math.isnan(x) for x in v):
         return float("nan")
     n = len(v)
@@ -133,21 +133,22 @@ def _measured(lengths: np.ndarray) -> float | None:
 
 def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     """The photo's chip length from the run-length decodes, and the decodes that agree with
-    it (the others set to None).  With no seed, two fixtures must agree."""
-    t = np.array([d.rows_per_chip for ds in decodes for d in ds if d is not None])
-    ref = seed if seed else (_median(t) if t.size else float("nan"))
-    ok = np.abs(t / ref - 1) <= CHIP_AGREEMENT if t.size else np.zeros(0, bool)
-    if not seed and int(ok.sum()) < 2:
-        ref = float("nan")
-    if np.isfinite(ref) and ok.any():
-        ref = _median(t[ok]) if not seed else ref
+    it (the others set to None).  With no seed, two fixtures must agree.  (A few values:
+    worked in Python floats, the same operations as NumPy's.)"""
+    t = [d.rows_per_chip for ds in decodes for d in ds if d is not None]
+    ref = seed if seed else (_median(t) if t else math.nan)
+    ok = [x for x in t if abs(x / ref - 1) <= CHIP_AGREEMENT]
+    if not seed and len(ok) < 2:
+        ref = math.nan
+    if math.isfinite(ref) and ok and not seed:
+        ref = _median(ok)
 
     def agrees(d: StripeDecode | None) -> bool:
         return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT
 
-    ok_ref = bool(np.isfinite(ref))
-    kept = [[d if ok_ref and agrees(d) else None for d in ds] for ds in decodes]
-    return (ref if np.isfinite(ref) else None), kept
+    finite = math.isfinite(ref)
+    kept = [[d if finite and agrees(d) else None for d in ds] for ds in decodes]
+    return (ref if finite else None), kept
 
 
 def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weights=None):
