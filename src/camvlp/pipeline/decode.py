@@ -227,26 +227,6 @@ class StripeDecode:
         return self.id is not None
 
 
-#: Most values of a padded (profiles, grid, values) array worked at once.
-_BATCH_VALUES = 1 << 20
-
-
-def _groups(grid_sizes: np.ndarray, value_sizes: np.ndarray):
-    """Consecutive profiles in groups whose padded (grid x values) arrays stay within
-    :data:`_BATCH_VALUES` values (one profile at least)."""
-    group: list[int] = []
-    g = v = 0
-    for k, (gs, vs) in enumerate(zip(grid_sizes.tolist(), value_sizes.tolist(), strict=True)):
-        g2, v2 = max(g, gs), max(v, vs)
-        if group and (len(group) + 1) * g2 * v2 > _BATCH_VALUES:
-            yield group
-            group, g2, v2 = [], gs, vs
-        group.append(k)
-        g, v = g2, v2
-    if group:
-        yield group
-
-
 def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
     """Each profile's same-polarity edge spacings, as :func:`_chip_length` takes them: the
     rising edges' first, then the falling edges' (crossings alternate, so those are two
@@ -263,20 +243,20 @@ def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
     return d[keep], p[keep]
 
 
-#: Chip lengths tried per profile: steps of this many rows, from 1.6 to 4.6 times the
-#: profile's shortest spacing.
+#: Chip lengths tried per profile: steps of this many rows, from the profile's shortest
+#: spacing over 4.6 to it over 1.6 (2 to 4 chips each).
 _CHIP_STEP = 0.01
 
 
-def _chip_grids(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _chip_grids(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``np.arange(lo, hi, 0.01)`` of each profile, one row each (as NumPy fills it: ``lo``
     plus ``i`` times the step it takes, ``(lo + 0.01) - lo``), continued beyond ``hi`` to
-    the longest; and each row's length."""
+    the longest; each row's length, and its step."""
     sizes = np.ceil((hi - lo) / _CHIP_STEP).astype(np.intp)
     delta = (lo + _CHIP_STEP) - lo
     grid = np.arange(int(sizes.max()), dtype=float)[None, :] * delta[:, None]
     grid += lo[:, None]
-    return grid, sizes
+    return grid, sizes, delta
 
 
 def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
@@ -305,11 +285,10 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     slot[ok] = np.arange(ok.size)
     q = slot[p]
     d, q = d[q >= 0], q[q >= 0]
-    grid, sizes = _chip_grids(lo, hi)
+    grid, sizes, delta = _chip_grids(lo, hi)
     size = grid.shape[1]
     # where each spacing's count drops from 4 to 3 chips (row 0) and from 3 to 2 (row 1)
     # along its grid; what each drop takes from sum(m d) and from sum(m^2)
-    delta = grid[:, 1] - grid[:, 0] if size > 1 else np.ones(ok.size)
     drops = np.floor((d / _DROPS - lo[q]) / delta[q]) + 1
     at = (q * (size + 1) + np.minimum(np.maximum(drops, 0), size).astype(np.intp)).ravel()
     sums = np.bincount(
