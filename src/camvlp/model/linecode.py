@@ -271,37 +271,37 @@ class FrameFormat:
         m = len(stretches)
         if m == 0:
             return []
-        sizes = np.array([c.size for c, _ in stretches], dtype=np.int64)
-        width = -(-int(sizes.max()) // n) * n if sizes.max() > 0 else n  # whole frames
-        c = np.zeros((m, width), np.float32)
+        sizes = [c.size for c, _ in stretches]
+        width = -(-max(sizes) // n) * n if max(sizes) > 0 else n  # whole frames
+        real = np.arange(width)[None, :] < np.array(sizes)[:, None]
         k = np.zeros((m, width), bool)
-        real = np.arange(width)[None, :] < sizes[:, None]
         k[real] = np.concatenate(
             [np.ones(ch.size, bool) if kn is None else kn for ch, kn in stretches]
         )
-        c[real] = np.concatenate([ch for ch, _ in stretches])
-        # per stretch and frame position: known chips, known ones, and what a rotation's chip
-        # 1 adds to the distance (one chip 0 more that disagrees, one chip 1 fewer)
+        on = np.zeros((m, width), bool)
+        on[real] = np.concatenate([ch for ch, _ in stretches])
+        on &= k
+        # per stretch and frame position: known chips, and known ones
         seen = k.reshape(m, -1, n).sum(axis=1)  # (m, n)
-        ones = (c * k).reshape(m, -1, n).sum(axis=1)
-        weight = (k * (1.0 - 2.0 * c)).reshape(m, -1, n).sum(axis=1, dtype=np.float32)
+        ones = on.reshape(m, -1, n).sum(axis=1)
         coverage = seen.min(axis=1)
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = np.minimum(limit, int(max_errors))
-        # distances (m, n_ids, n): exact, every sum a whole number below 2**24
-        dist = (weight @ self._rotations_f32.reshape(-1, n).T).reshape(m, n_ids, n)
-        dist = np.rint(dist + ones.sum(axis=1)[:, None, None]).astype(np.int64)
+        # distances (m, n_ids, n): what a rotation's chip 1 adds to the distance (one chip 0
+        # more that disagrees, one chip 1 fewer), on top of the known ones; exact, every sum
+        # a whole number below 2**24
+        weight = (seen - 2 * ones).astype(np.float32)
+        dist = (weight @ self._rotations_f32.reshape(-1, n).T).astype(np.int64)
+        dist = (dist + ones.sum(axis=1)[:, None]).reshape(m, n_ids, n)
         per_id = dist.min(axis=2)
         best = per_id.argmin(axis=1)  # the first of the nearest, as a stable sort's
-        rows = np.arange(m)
-        d_best = per_id[rows, best]
-        offset = dist[rows, best].argmin(axis=1)
+        offset = dist[np.arange(m), best].argmin(axis=1)
         n_seen = seen.sum(axis=1)
-        d_second = n_seen + 1
-        if n_ids > 1:
-            per_id[rows, best] = d_second
-            d_second = per_id.min(axis=1)
+        if n_ids > 1:  # the nearest and the next (an ID as near, or the nearest other)
+            d_best, d_second = np.partition(per_id, 1, axis=1)[:, :2].T
+        else:
+            d_best, d_second = per_id[:, 0], n_seen + 1
         return [
             _chip_decode(*v, n)
             for v in zip(
