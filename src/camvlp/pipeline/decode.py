@@ -432,7 +432,8 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     tt, bb = np.ones(n), np.zeros(n)
     tt[which], bb[which] = t, b
     x = np.where(r.bright, r.lengths - bb[r.run_of], r.lengths + bb[r.run_of]) / tt[r.run_of]
-    counts = np.round(x).astype(int)
+    whole = np.rint(x)
+    counts = whole.astype(int)
     # runs cut by the disc's edge: count only the chips surely inside
     first = r.run_starts
     ends = np.concatenate([first, first + r.n_edges])
@@ -442,7 +443,7 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     inner = np.ones(counts.size, bool)
     inner[ends] = False
     counts[inner] = np.minimum(np.maximum(counts[inner], 1), 2)
-    dev = np.abs(x - np.round(x))
+    dev = np.abs(x - whole)
     dev[ends] = -1.0
     worst = np.maximum.reduceat(dev, first)[which]
     chosen = np.zeros(n, bool)
