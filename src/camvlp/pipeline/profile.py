@@ -125,10 +125,10 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     sensor rows, the middle one too, and the rings are thin where the rim's step is), about
     ``_RING_PIXELS`` pixels each.  Per light ``values`` (n,) uint8 and ``rho`` (n,) radii (any
     unit, >= 0; n >= 1); returns per light its rings' mean radii and their levels, float64
-    (k,) each.  All the lights' rings are counted at once (each light's after the previous
-    lights'): the pixels are counted by ring and level (one histogram of ``ring * 256 +
-    level``), whose running count over all the rings says where each ring's quantile falls
-    (the value a sort of the ring's levels has at that rank).
+    (k,) each.  All the lights' rings are worked at once (each light's after the previous
+    lights'): the pixels sorted by ring, then by level (one sort of ``ring * 256 + level``,
+    a radix sort of 16-bit keys for up to 256 rings), each ring's quantile is the level at
+    its rank among its own.
     """
     sizes = np.array([v.size for v in values], dtype=np.intp)
     bins = np.minimum(np.maximum(sizes // _RING_PIXELS, 16), 256)
@@ -145,14 +145,12 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     k += offset.astype(np.intp)
     n_rings = int(bins.sum())
     key = k * 256 + np.concatenate(values)  # by ring, then by level
-    below = np.bincount(key, minlength=n_rings * 256).cumsum()  # pixels up to each key
-    ends = below[255::256]  # pixels up to each ring's end
-    counts = np.diff(ends, prepend=0)
+    key = np.sort(key.astype(np.uint16) if n_rings <= 256 else key, kind="stable")
+    counts = np.bincount(k, minlength=n_rings)
     ring = np.flatnonzero(counts)
     c = counts[ring]
     rank = ((c - 1) * _ENVELOPE_QUANTILE).astype(np.intp)  # in the ring's order
-    # the key at that place among all the pixels sorted by key: its level
-    level = np.searchsorted(below, ends[ring] - c + rank, side="right") - ring * 256.0
+    level = (key[starts(counts)[ring] + rank] & 255).astype(np.float64)
     middle = np.bincount(k, weights=r, minlength=n_rings)[ring] / c
     cut = np.searchsorted(ring, first[1:])  # each light's first ring among those with pixels
     return [(middle[a:b], level[a:b]) for a, b in pieces(cut, ring.size)]
