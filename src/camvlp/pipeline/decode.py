@@ -228,16 +228,13 @@ class StripeDecode:
 
 
 def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
-    """Each profile's same-polarity edge spacings, as :func:`_chip_length` takes them: the
+    """Each profile's same-polarity edge spacings, as :func:`_chip_lengths` takes them: the
     rising edges' first, then the falling edges' (crossings alternate, so those are two
     crossings apart), the positive ones; returns the spacings and their profiles."""
-    e_start = starts(r.n_edges)
-    k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])
-    two = r.edges[k + 2] - r.edges[k]
+    k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])  # edge k to edge k + 2
+    two = (r.edges[2:] - r.edges[:-2])[k]
     p = r.edge_of[k]
-    rises = r.rising[np.minimum(e_start, max(r.edges.size - 1, 0))]  # each one's first edge
-    falling = ((k - e_start[p]) % 2 == 1) == rises[p]  # a spacing between falling edges
-    order = np.argsort(2 * p + falling, kind="stable")  # by profile, the rising edges' first
+    order = np.argsort(2 * p + ~r.rising[k], kind="stable")  # by profile, rising ones first
     d, p = two[order], p[order]
     keep = d > 0
     return d[keep], p[keep]
@@ -273,18 +270,19 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     d, p = _spacings(r)
     counts = np.bincount(p, minlength=n)
     out = np.full(n, np.nan)
-    ok = np.flatnonzero(counts >= 2)
-    if ok.size == 0:
+    if counts.max(initial=0) < 2:
         return out
-    shortest = padded(d, counts, np.inf).min(axis=1)[ok]
+    shortest = padded(d, counts, np.inf).min(axis=1)
     lo, hi = np.maximum(0.8, shortest / 4.6), np.minimum(max_rows_per_chip, shortest / 1.6)
-    ok, lo, hi = ok[hi > lo], lo[hi > lo], hi[hi > lo]
+    ok = np.flatnonzero((counts >= 2) & (hi > lo))  # two spacings or more, and a grid
     if ok.size == 0:
         return out
+    lo, hi, n_d = lo[ok], hi[ok], counts[ok]
     slot = np.full(n, -1)
     slot[ok] = np.arange(ok.size)
     q = slot[p]
-    d, q = d[q >= 0], q[q >= 0]
+    keep = q >= 0
+    d, q = d[keep], q[keep]
     grid, sizes, delta = _chip_grids(lo, hi)
     size = grid.shape[1]
     # where each spacing's count drops from 4 to 3 chips (row 0) and from 3 to 2 (row 1)
@@ -297,7 +295,6 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
         minlength=2 * ok.size * (size + 1),
     )
     taken = sums.reshape(2, ok.size, size + 1)[:, :, :size].cumsum(axis=2)
-    n_d = np.bincount(q, minlength=ok.size)
     sum_d2 = np.bincount(q, weights=d * d, minlength=ok.size)
     sum_md = 4.0 * np.bincount(q, weights=d, minlength=ok.size)[:, None] - taken[0]
     sum_mm = 16.0 * n_d[:, None] - taken[1]
