@@ -80,8 +80,9 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
     first, last = int(rows[0]), int(rows[-1]) + 1
     c = counts[first:last].astype(np.float64)
     if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
-        s = cv2.reduce(cv2.multiply(gray, m), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-        s = s[first:last].astype(np.float64)
+        lines = (slice(first, last), slice(None)) if dim == 1 else (slice(None), slice(first, last))
+        s = cv2.reduce(cv2.multiply(gray[lines], m[lines]), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S)
+        s = s.ravel().astype(np.float64)
     else:
         g = gray.astype(np.float32)
         if axis == "columns":
