@@ -361,7 +361,8 @@ def _grid_best(cost: np.ndarray, scale: np.ndarray, exact) -> np.ndarray:
     least of ``exact(row, indices)``, their costs computed term by term."""
     best = np.argmin(cost, axis=1)
     near = cost <= (cost.min(axis=1) + _TIE * scale)[:, None]
-    for q in np.flatnonzero(np.count_nonzero(near, axis=1) > 1).tolist():
+    tied = near.sum(axis=1) > 1
+    for q in np.flatnonzero(tied).tolist() if tied.any() else ():
         j = np.flatnonzero(near[q])
         best[q] = j[int(np.argmin(exact(q, j)))]
     return best
