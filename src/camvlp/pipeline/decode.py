@@ -477,22 +477,31 @@ def _refused(reason: str, **kw) -> StripeDecode:
 
 def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[StripeDecode]:
     """Each profile's decode from its chips (``read`` as :func:`_chips` gives them): the
-    ID of the whole stretch, which every whole copy of the frame must agree with."""
+    ID of the whole stretch, which every whole copy of the frame must agree with.
+
+    Only the copies of a stretch read as an ID with chips in error are decoded: where none
+    is, each copy's known chips are a rotation of that ID's frame, so a copy reads as that ID
+    (every chip known) or as none (one unknown, not a whole frame), never another."""
     n = frame.n_chips
-    stretches, copies = [], []
-    for chips, known, _, _ in read:
-        stretches.append((chips, known))
-        whole = range(0, chips.size - n + 1, n)
-        copies.append(len(whole))
-        stretches += [(chips[k : k + n], known[k : k + n]) for k in whole]
-    decoded = iter(frame.decode_many(stretches))
+    whole = frame.decode_many([(chips, known) for chips, known, _, _ in read])
+    checked = [k for k, res in enumerate(whole) if res and res.distance > 0]
+    spans = [range(0, read[k][0].size - n + 1, n) for k in checked]
+    copies = [
+        (read[k][0][j : j + n], read[k][1][j : j + n])
+        for k, span in zip(checked, spans, strict=True)
+        for j in span
+    ]
+    decoded = iter(frame.decode_many(copies))
+    others = dict.fromkeys(range(len(read)))
+    for k, span in zip(checked, spans, strict=True):
+        subs = [next(decoded) for _ in span]
+        others[k] = next((s.id for s in subs if s.id is not None and s.id != whole[k].id), None)
     out = []
-    for (chips, _, text, margin), rpc, bleed, m in zip(
-        read, t.tolist(), b.tolist(), copies, strict=True
+    for k, ((chips, _, text, margin), rpc, bleed) in enumerate(
+        zip(read, t.tolist(), b.tolist(), strict=True)
     ):
-        res, subs = next(decoded), [next(decoded) for _ in range(m)]
+        res, other = whole[k], others[k]
         common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=chips.size / n)
-        other = next((s.id for s in subs if s.id is not None and s.id != res.id), None)
         if not res:
             out.append(_refused(res.reason, hamming=res.distance, **common))
         elif other is not None:
