@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import camvlp.pipeline.light_wave as light_wave_module
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures, light_support, to_gray
@@ -307,3 +308,28 @@ def test_rendered_lights_with_stripes_sharper_than_a_line(brightness):
         assert lo - 0.001 <= error <= hi + 0.001, (seed, error, lo, hi)
         errors.append(abs(error))
     assert np.median(errors) < 0.006, errors
+
+
+@pytest.mark.parametrize("iters", [2, 12])
+def test_the_shape_fit_is_the_same_on_the_cells_that_hold_pixels(monkeypatch, iters):
+    # a big light's fine bins over a few thousand pixels leave most (line, knot) cells
+    # empty: the sums kept per cell that holds a pixel fit the same shape and stripes
+    rng = np.random.default_rng(4)
+    n = 3000
+    line = rng.integers(0, 400, n)
+    rho = rng.uniform(0.0, 400.0, n)
+    value = 50.0 * np.exp(-rho / 150.0) * (1.0 + 0.5 * (line % 7 > 3)) + rng.normal(0, 1, n)
+    monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 10**9)
+    dense = light_wave_module._aggregate(rho, line, value, 400, 0.5)
+    monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 0)
+    cells = light_wave_module._aggregate(rho, line, value, 400, 0.5)
+    assert isinstance(cells[1], light_wave_module._Cells) and not isinstance(
+        dense[1], light_wave_module._Cells
+    )
+    assert cells[0] == dense[0]  # the same knots
+    for a, b in zip(
+        light_wave_module._shape_fit(dense, None, iters),
+        light_wave_module._shape_fit(cells, None, iters),
+        strict=True,
+    ):
+        np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(a))))
