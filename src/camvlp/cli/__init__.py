@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
 import re
 import sys
@@ -19,7 +20,7 @@ from . import study as _study  # noqa: F401  (registers commands)
 from . import track as _track  # noqa: F401  (registers commands)
 from ._app import EXIT_BAD_INPUT, EXIT_BROKEN_PIPE, app
 
-__all__ = ["app", "main"]
+__all__ = ["app", "keep_freed_blocks", "main"]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,6 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     closed early (``camvlp ... | head -1``) ends the command quietly with status 141
     (128 + SIGPIPE), as a Unix tool that the signal ended.
     """
+    if argv is None:  # the process is the command's own
+        keep_freed_blocks()
     stdout = sys.stdout
     try:
         code = app(args=argv, prog_name="camvlp", standalone_mode=False)
@@ -112,3 +115,32 @@ def _stdout_to_devnull(stdout: TextIO) -> None:
         finally:
             os.close(devnull)
     sys.stdout = open(os.devnull, "w")
+
+
+#: glibc's ``mallopt`` parameters (malloc.h) and what the command sets them to: blocks up to
+#: 32 MB (glibc's largest mapping threshold) from the heap, which keeps up to 64 MB free.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+_MMAP_THRESHOLD, _TRIM_THRESHOLD = 32 << 20, 64 << 20
+#: Environment variables by which a user sets glibc's malloc; then the command leaves it be.
+_MALLOC_ENV = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")
+
+
+def keep_freed_blocks() -> bool:
+    """Keep freed memory blocks of up to 32 MB in the heap (glibc's malloc; elsewhere, or
+    when the environment sets malloc's thresholds, nothing); whether it did.
+
+    glibc maps each block over 128 KB afresh and hands it back when freed, until a larger
+    one has been freed.  The radial fits of glowing lamps allocate thousands of arrays of a
+    few hundred kilobytes, whose pages then fault in one by one: a 1080p photo of 14 lamps
+    whose glows join took 9.3 and 8.4 s to locate, 7.6 and 7.6 s with the blocks kept (the
+    same peak memory, 247 MB).
+    """
+    if not sys.platform.startswith("linux") or any(k in os.environ for k in _MALLOC_ENV):
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt  # the process's C library
+    except (OSError, AttributeError):
+        return False
+    return bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_THRESHOLD)) and bool(
+        mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD)
+    )
