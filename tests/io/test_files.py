@@ -259,6 +259,8 @@ def _map(tmp_path: Path, body: str, head: str = MAP_HEAD, name: str = "map.yaml"
          ("fixture 3", "normal", "got [0.0, 0.0, 0.0]")),
         ("  - {position: [0, 0, 0]}\n", ("fixture #1", "id")),
         ("  - {id: 2.5, position: [0, 0, 0]}\n", ("fixture #1", "id")),
+        ("  - {id: 3, position: [0, 0, 0]}\n  - 7\n",
+         ("map fixture #2: expected a mapping of keys, got a number",)),
     ],
 )  # fmt: skip
 def test_malformed_fixtures_name_the_file_and_fixture(tmp_path: Path, body: str, words):
@@ -272,7 +274,7 @@ def test_malformed_fixtures_name_the_file_and_fixture(tmp_path: Path, body: str,
         ('frame: {preamble: "121"}\nfixtures:\n', ("preamble",)),
         ("frame: {postamble: 00}\nfixtures:\n", ("postamble", "quoted")),  # YAML reads 0
         ("frame: {mode: morse}\nfixtures:\n", ("mode",)),
-        ("frame: [1, 2]\nfixtures:\n", ("frame",)),
+        ("frame: [1, 2]\nfixtures:\n", ("map frame: expected a mapping of keys, got a list",)),
         ("units: ft\nfixtures:\n", ("units", "ft")),
     ],
 )

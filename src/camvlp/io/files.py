@@ -466,8 +466,7 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
 
 def _frame_from_dict(frame_spec: Any, p: str | Path) -> tuple[str, FrameFormat, float | None]:
     """A map's ``frame`` key: the line code's mode, its frame format and chip rate (Hz)."""
-    if not isinstance(frame_spec, dict):
-        raise InputError("frame must be a mapping", p)
+    expect_mapping(frame_spec, "map frame", p)
     _misspelled(frame_spec, FRAME_KEYS, "frame: ", p)
     mode = str(frame_spec.get("mode", frame_spec.get("line_code", "manchester"))).lower()
     if mode not in ("manchester", "frequency"):
@@ -500,8 +499,7 @@ def _fixture_from_dict(
     """The map's ``index``-th fixture (from 0): its id (added to the ``seen`` ones), position
     and optional keys."""
     where = f"fixture #{index + 1}"
-    if not isinstance(entry, dict):
-        raise InputError(f"{where} must be a mapping", p)
+    expect_mapping(entry, f"map {where}", p)
     fid = entry.get("id", index if mode == "frequency" else None)
     if isinstance(fid, bool) or not isinstance(fid, int):
         raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
