@@ -31,6 +31,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
+from camvlp.pipeline.glow_split import decode_from_glows
 from camvlp.pipeline.identify import Identified, decided, identifier, identify
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
@@ -460,6 +461,10 @@ def locate(
         )
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
+        man, waves = decode_from_glows(img, blobs, man, fixture_map)
+        step = -1 if readout.reversed else 1  # (the profiles' order)
+        for k, wave in waves.items():
+            profiles[k], weights[k] = wave.level[::step], wave.weight[::step]
         decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
         notes = [man.note] if man.note else []
     t2 = time.perf_counter()
