@@ -104,19 +104,19 @@ def separated_waveforms(
         Per lamp, in the photo's line order; None for a lamp with no unclipped pixel within
         its reach.
     """
-    gray = _luma(img, np.float32)
+    photo = np.asarray(img)
     c = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
     r = np.asarray(radii, dtype=np.float64).reshape(-1)
-    if axis == "columns":  # lines down axis 0
-        gray, c = gray.T, c[:, ::-1]
+    if axis == "columns":  # lines down axis 0 (a view)
+        photo, c = photo.swapaxes(0, 1), c[:, ::-1]
     k_lamps = c.shape[0]
-    if k_lamps == 0 or gray.size == 0:
+    if k_lamps == 0 or photo.size == 0:
         return []
-    pix = _pixels(gray, c, r, max_pixels)
+    pix = _pixels(photo, c, r, max_pixels)
     if pix is None:
         return [None] * k_lamps
     line, value, near, bins = pix
-    n_lines = gray.shape[0]
+    n_lines = photo.shape[0]
     shapes = np.array(
         [np.exp(-np.maximum(_bin_centres() - 1.0, 0.0) / 0.5) for _ in range(k_lamps)]
     )
@@ -143,11 +143,12 @@ def _bin_centres() -> np.ndarray:
     return (np.arange(SHAPE_BINS) + 0.5) * (REACH_RADII / SHAPE_BINS)
 
 
-def _pixels(gray: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
+def _pixels(photo: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
     """The unclipped pixels within reach of a lamp, every ``stride``-th along each line:
-    their lines, values, which lamps reach each (list of bool (N,) per lamp, as the index of
-    its pixels) and each lamp's shape bin at its pixels; None when there are none."""
-    h, w = gray.shape
+    their lines, gray levels, which of them each lamp reaches (their indices) and each
+    lamp's shape bin at those; None when there are none.  ``photo`` (lines down axis 0, gray
+    or BGR) is made gray only where it is sampled (a 20 MP photo in floats would take 240 MB)."""
+    h, w = photo.shape[:2]
     reach = REACH_RADII * np.maximum(r, 1.0)
     lo = np.clip(np.floor(c[:, 0] - reach), 0, w).astype(int)
     hi = np.clip(np.ceil(c[:, 0] + reach) + 1, 0, w).astype(int)
@@ -159,8 +160,8 @@ def _pixels(gray: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
     if x0 >= x1 or y0 >= y1:
         return None
     xs = np.arange(x0, x1, stride)
-    block = gray[y0:y1, xs]
-    clip = CLIP_FRACTION * float(gray.max())
+    block = _luma(np.ascontiguousarray(photo[y0:y1, xs]), np.float32)
+    clip = CLIP_FRACTION * _brightest(photo)
     yy, jj = np.nonzero(block < clip)
     px, py = xs[jj].astype(np.float64), (yy + y0).astype(np.float64)
     rho = [np.hypot(px - c[k, 0], py - c[k, 1]) / max(r[k], 1.0) for k in range(c.shape[0])]
@@ -176,6 +177,14 @@ def _pixels(gray: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
     ]
     value = block[yy[keep], jj[keep]].astype(np.float64)
     return (yy[keep] + y0), value, near, bins
+
+
+def _brightest(photo: np.ndarray, rows: int = 256) -> float:
+    """The photo's brightest gray level, made gray a band of ``rows`` at a time."""
+    return max(
+        float(_luma(np.ascontiguousarray(photo[a : a + rows]), np.float32).max())
+        for a in range(0, photo.shape[0], rows)
+    )
 
 
 def _pairs(near: list[np.ndarray]) -> dict[tuple[int, int], tuple[np.ndarray, np.ndarray]]:
