@@ -102,3 +102,23 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
     if alone is not None:
         assert (before.get(9) is not None) == alone, before  # the disc alone does not tell it
     assert all(v in (None, k) for k, v in before.items()), before
+
+
+def test_a_photo_of_more_lights_than_the_cap_is_not_taken_apart(monkeypatch):
+    """The normal equations grow with the square of the lights: past MAX_LIGHTS the decodes
+    stay as they are, and nothing is fitted."""
+    import camvlp.pipeline.glow_split as gs
+
+    look = dict(brightness=7.18, off_level=0.082, core=1.34, halo=0.35, blur_px=1.18)
+    cam, room, _, image = stress_scene(
+        (1920, 1080), _SEVEN, stress_settings(12.0, 0.5, seed=958737899, **look), 88
+    )
+    called = []
+    real = gs.separated_waveforms
+    monkeypatch.setattr(
+        gs, "separated_waveforms", lambda *a, **k: called.append(1) or real(*a, **k)
+    )
+    monkeypatch.setattr(gs, "MAX_LIGHTS", 6)  # the photo has 7 or 8 blobs
+    res = locate(image, cam, room)
+    assert not called
+    assert 9 not in [f.id for f in res.fixtures]

@@ -50,6 +50,10 @@ MAX_PIXELS = 250_000
 #: Rounds of the alternating least squares.
 ROUNDS = 20
 
+#: Photos with more lights than this are not taken apart (the normal equations grow with the
+#: square of the lights, the rounds with their pairs; a stress photo has at most 16).
+MAX_LIGHTS = 24
+
 #: A pixel at or above this fraction of the photo's brightest counts as clipped.
 CLIP_FRACTION = 0.98
 
@@ -250,12 +254,13 @@ def decode_from_glows(
     """The photo's decodes with each light whose stripes the model fit refused read again
     from its waveform taken apart from its neighbours' glows (:func:`separated_waveforms`).
 
-    A light is read again only when its own profile gave no ID, under each readout direction
-    the decode keeps (``man.readout``, and the other one when the pose is to decide), with
-    that direction's photo-wide parameters
-    (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at 1: the clipped pixels
-    are left out of the waveforms).  Its new decode is taken when it names an ID that
-    no other light of that direction has; otherwise its first decode stays, with its reason.
+    A light is read again only when its own profile gave no ID (and the photo has at most
+    :data:`MAX_LIGHTS` lights), under each readout direction the decode keeps
+    (``man.readout``, and the other one when the pose is to decide), with that direction's
+    photo-wide parameters (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at
+    1: the clipped pixels are left out of the waveforms).  Its new decode is taken when it
+    names an ID that no other light of that direction has; otherwise its first decode
+    stays, with its reason.
 
     Parameters
     ----------
@@ -281,7 +286,7 @@ def decode_from_glows(
         sets.append((man.other, flipped, man.other_model))
     todo = {k for decodes, _, model in sets if model is not None for k, d in enumerate(decodes)}
     todo = {k for k in todo if any(d[k].id is None for d, _, _ in sets)}
-    if not todo or not blobs:
+    if not todo or not blobs or len(blobs) > MAX_LIGHTS:
         return man, {}
     waves = separated_waveforms(
         img,

@@ -277,10 +277,13 @@ def _withheld(decodes, decodes2) -> list:
 DIRECTION_HYPOTHESES = 8
 
 
-def _unread_hypotheses(blobs, fixture_map: FixtureMap, d: Decided, needed: int) -> list[dict]:
+def _unread_hypotheses(
+    blobs, fixture_map: FixtureMap, d: Decided, needed: int, limit: int
+) -> list[dict]:
     """Direction ``d``'s identified fixtures and, for as many of its unread fixtures (no ID,
     not cut by the border) as a pose needs besides, an ID each: its look-alikes when the
-    stripes list some, else any ID of the map not identified that way; every way."""
+    stripes list some, else any ID of the map not identified that way; every way, or the
+    first ``limit`` + 1 when there are more (a photo of many unread lights has billions)."""
     found = d.found
     fixed = {k: found.ids[k] for k in found.usable}
     m = needed - len(fixed)
@@ -298,12 +301,13 @@ def _unread_hypotheses(blobs, fixture_map: FixtureMap, d: Decided, needed: int) 
         c = getattr(d.decodes[k], "candidates", ())
         return [i for i in c if i not in taken] if len(c) >= 2 else rest
 
-    return [
+    ways = (
         {**fixed, **dict(zip(seeds, ids, strict=True))}
         for seeds in itertools.combinations(free, m)
         for ids in itertools.product(*(options(k) for k in seeds))
         if len(set(ids)) == m
-    ]
+    )
+    return list(itertools.islice(ways, limit + 1))
 
 
 def _direction_by_unread(blobs, fixture_map: FixtureMap, one: Decided, two: Decided, solve, needed):
@@ -315,7 +319,9 @@ def _direction_by_unread(blobs, fixture_map: FixtureMap, one: Decided, two: Deci
     when it has some), the pose that fits every fixture says that direction's IDs are
     where the map has them.  Read the wrong way, the IDs are the reverses' and their
     places are not where the map has them (the pose fits no assignment)."""
-    hyps = [_unread_hypotheses(blobs, fixture_map, d, needed) for d in (one, two)]
+    hyps = [
+        _unread_hypotheses(blobs, fixture_map, d, needed, DIRECTION_HYPOTHESES) for d in (one, two)
+    ]
     if not 0 < len(hyps[0]) + len(hyps[1]) <= DIRECTION_HYPOTHESES:
         return 0
 
