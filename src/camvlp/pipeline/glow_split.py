@@ -143,6 +143,11 @@ def separated_waveforms(
     return [_wave(level[:, k], normal, k) for k in range(k_lamps)]
 
 
+def _refused_by_fit(decode) -> bool:
+    """Whether the model fit refused a profile it could read (not one too short)."""
+    return bool(decode.reason) and not decode.reason.startswith("spans ")
+
+
 def _bin_centres() -> np.ndarray:
     return (np.arange(SHAPE_BINS) + 0.5) * (REACH_RADII / SHAPE_BINS)
 
@@ -254,7 +259,9 @@ def decode_from_glows(
     """The photo's decodes with each light whose stripes the model fit refused read again
     from its waveform taken apart from its neighbours' glows (:func:`separated_waveforms`).
 
-    A light is read again only when its own profile gave no ID (and the photo has at most
+    A light is read again only when the model fit refused its own profile (no ID fits, or
+    two fit almost equally, or one not in the map fits best: not a profile too short for a
+    frame, nor a disc the border cuts, which is not used; the photo of at most
     :data:`MAX_LIGHTS` lights), under each readout direction the decode keeps
     (``man.readout``, and the other one when the pose is to decide), with that direction's
     photo-wide parameters (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at
@@ -284,8 +291,13 @@ def decode_from_glows(
     if man.other is not None:
         flipped = Readout.of(man.readout.axis, not man.readout.reversed)
         sets.append((man.other, flipped, man.other_model))
-    todo = {k for decodes, _, model in sets if model is not None for k, d in enumerate(decodes)}
-    todo = {k for k in todo if any(d[k].id is None for d, _, _ in sets)}
+    todo = {
+        k
+        for decodes, _, model in sets
+        if model is not None
+        for k, d in enumerate(decodes)
+        if d.id is None and _refused_by_fit(d) and not blobs[k].touches_border
+    }
     if not todo or not blobs or len(blobs) > MAX_LIGHTS:
         return man, {}
     waves = separated_waveforms(
