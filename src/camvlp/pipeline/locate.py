@@ -231,6 +231,16 @@ def _decode(
     return decodes, frequencies, [note] if note else [], moved
 
 
+def _from_glows(img, blobs, man: Manchester, fixture_map, profiles, weights, readout) -> Manchester:
+    """:func:`~camvlp.pipeline.glow_split.decode_from_glows`; the lights read again get their
+    waveforms as their profiles and weights (in place, in ``readout``'s order, as the others)."""
+    man, waves = decode_from_glows(img, blobs, man, fixture_map)
+    step = -1 if readout.reversed else 1
+    for k, wave in waves.items():
+        profiles[k], weights[k] = wave.level[::step], wave.weight[::step]
+    return man
+
+
 #: Centre sigma of a disc whose ellipse fit gives none (the centroid of a small disc), pixels.
 UNKNOWN_CENTRE_SIGMA_PX = 1.0
 
@@ -461,10 +471,7 @@ def locate(
         )
     else:
         man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
-        man, waves = decode_from_glows(img, blobs, man, fixture_map)
-        step = -1 if readout.reversed else 1  # (the profiles' order)
-        for k, wave in waves.items():
-            profiles[k], weights[k] = wave.level[::step], wave.weight[::step]
+        man = _from_glows(img, blobs, man, fixture_map, profiles, weights, readout)
         decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
         notes = [man.note] if man.note else []
     t2 = time.perf_counter()
