@@ -143,11 +143,6 @@ def separated_waveforms(
     return [_wave(level[:, k], normal, k) for k in range(k_lamps)]
 
 
-def _refused_by_fit(decode) -> bool:
-    """Whether the model fit refused a profile it could read (not one too short)."""
-    return bool(decode.reason) and not decode.reason.startswith("spans ")
-
-
 def _bin_centres() -> np.ndarray:
     return (np.arange(SHAPE_BINS) + 0.5) * (REACH_RADII / SHAPE_BINS)
 
@@ -256,16 +251,16 @@ def _wave(level: np.ndarray, normal: np.ndarray, k: int) -> SeparatedWave | None
 def decode_from_glows(
     img: np.ndarray, blobs, man: Manchester, fixture_map: FixtureMap
 ) -> tuple[Manchester, dict[int, SeparatedWave]]:
-    """The photo's decodes with each light whose stripes the model fit refused read again
-    from its waveform taken apart from its neighbours' glows (:func:`separated_waveforms`).
+    """The photo's decodes with each light whose stripes gave no ID read again from its
+    waveform taken apart from its neighbours' glows (:func:`separated_waveforms`).
 
-    A light is read again only when the model fit refused its own profile (no ID fits, or
-    two fit almost equally, or one not in the map fits best: not a profile too short for a
-    frame, nor a disc the border cuts, which is not used; the photo of at most
-    :data:`MAX_LIGHTS` lights), under each readout direction the decode keeps
-    (``man.readout``, and the other one when the pose is to decide), with that direction's
-    photo-wide parameters (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at
-    1: the clipped pixels are left out of the waveforms).  Its new decode is taken when it
+    A light is read again only when its own profile gave no ID (even one too short for a
+    frame: its glow spans more lines than its disc), not when the border cuts its disc (it
+    is not used), and in a photo of at most :data:`MAX_LIGHTS` lights; under each readout
+    direction the decode keeps (``man.readout``, and the other one when the pose is to
+    decide), with that direction's photo-wide parameters
+    (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at 1: the clipped pixels
+    are left out of the waveforms).  Its new decode is taken when it
     names an ID that no other light of that direction has; otherwise its first decode
     stays, with its reason.
 
@@ -296,7 +291,7 @@ def decode_from_glows(
         for decodes, _, model in sets
         if model is not None
         for k, d in enumerate(decodes)
-        if d.id is None and _refused_by_fit(d) and not blobs[k].touches_border
+        if d.id is None and not blobs[k].touches_border
     }
     if not todo or not blobs or len(blobs) > MAX_LIGHTS:
         return man, {}
