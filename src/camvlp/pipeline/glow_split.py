@@ -260,9 +260,8 @@ def decode_from_glows(
     direction the decode keeps (``man.readout``, and the other one when the pose is to
     decide), with that direction's photo-wide parameters
     (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at 1: the clipped pixels
-    are left out of the waveforms).  Its new decode is taken when it
-    names an ID that no other light of that direction has; otherwise its first decode
-    stays, with its reason.
+    are left out of the waveforms).  Its new decode is taken when it names an ID that no
+    other light of that direction has; otherwise its first decode stays, with its reason.
 
     Parameters
     ----------
@@ -293,7 +292,7 @@ def decode_from_glows(
         for k, d in enumerate(decodes)
         if d.id is None and not blobs[k].touches_border
     }
-    if not todo or not blobs or len(blobs) > MAX_LIGHTS:
+    if not todo or len(blobs) > MAX_LIGHTS:
         return man, {}
     waves = separated_waveforms(
         img,
@@ -305,11 +304,11 @@ def decode_from_glows(
     for decodes, readout, model in sets:
         new = list(decodes)
         taken = {d.id for d in decodes if d.id is not None}
+        step = -1 if readout.reversed else 1
         for k in sorted(todo):
             wave = waves[k]
             if model is None or new[k].id is not None or wave is None:
                 continue
-            step = -1 if readout.reversed else 1
             got = decode_profile_model(
                 wave.level[::step],
                 fixture_map.frame,

@@ -66,7 +66,7 @@ def id_separation(
         return None
     take, stride = _across(lamp, s, max_columns)
     rest = _the_rest(lights, lamp, s, take)
-    truth = np.clip(rest + _light(lamp, s, take), 0.0, 1.0)
+    truth = np.clip(rest + lamp.light(s, take), 0.0, 1.0)
     var = truth / np.float32(s.full_well_e) + np.float32(float(s.read_noise) ** 2 + 1 / 255**2 / 12)
     scale = stride / 2.0 / math.log(10)
 
@@ -78,7 +78,7 @@ def id_separation(
         wave["smooth_s"] = s.soft * (period if fixture_map.mode == "frequency" else chip_s)
 
         def ratio(phase: float, wave=wave, period=period) -> float:
-            drawn = _light(lamp, s, take, phase_s=phase % period, **wave)
+            drawn = dataclasses.replace(lamp, phase_s=phase % period, **wave).light(s, take)
             alt = np.clip(rest + drawn, 0.0, 1.0)
             alt -= truth
             return scale * float(np.sum(alt * alt / var))
@@ -102,20 +102,6 @@ def _across(lamp: LightPatch, s, max_columns: int) -> tuple[tuple, int]:
     return ((slice(None), lines) if rows else (lines, slice(None))), stride
 
 
-def _light(lamp: LightPatch, s, take: tuple, **change) -> np.ndarray:
-    """A lamp's light over ``take`` of its box (:func:`_across`), float32 (h, w, 3), full
-    scale; ``change`` replaces its fields (``chips``, ``phase_s``): as
-    :func:`camvlp.sim.render.render` draws it."""
-    lamp = dataclasses.replace(lamp, **change) if change else lamp
-    on = lamp.on_fraction(s.row_time_s, s.exposure_s, s.off_level).astype(np.float32)
-    if s.readout.by_rows:
-        lit = lamp.shape[take] * on[:, None]
-    else:
-        lit = lamp.shape[take] * on[take[1]][None, :]
-    lit *= np.float32(s.brightness)
-    return lit[:, :, None] * lamp.colour[None, None, :]
-
-
 def _the_rest(lights: list, lamp: LightPatch, s, take: tuple) -> np.ndarray:
     """The light of the ambient and of every lamp but ``lamp`` over ``take`` of ``lamp``'s
     box (:func:`_across`), float32, full scale."""
@@ -127,7 +113,6 @@ def _the_rest(lights: list, lamp: LightPatch, s, take: tuple) -> np.ndarray:
         a0, a1, b0, b1 = light.box
         y0, y1, x0, x1 = max(b0, v0), min(b1, v1), max(a0, u0), min(a1, u1)
         if y0 < y1 and x0 < x1:
-            full = (slice(None), slice(None))
-            part = _light(light, s, full)[y0 - b0 : y1 - b0, x0 - a0 : x1 - a0]
+            part = light.light(s)[y0 - b0 : y1 - b0, x0 - a0 : x1 - a0]
             rest[y0 - v0 : y1 - v0, x0 - u0 : x1 - u0] += part
     return rest[take]

@@ -589,6 +589,18 @@ class LightPatch:
             off_level,
         )
 
+    def light(self, s, take: tuple | None = None) -> np.ndarray:
+        """The light it gives over its box, float32 (h, w, 3), units of full scale, with the
+        resolved settings ``s`` (timing, off level, brightness, readout); ``take`` (a row and
+        a column index of the box) gives it over those pixels only."""
+        on = self.on_fraction(s.row_time_s, s.exposure_s, s.off_level).astype(np.float32)
+        shape = self.shape
+        if take is not None:
+            shape, on = shape[take], on[take[0] if s.readout.by_rows else take[1]]
+        lit = shape * (on[:, None] if s.readout.by_rows else on[None, :])
+        lit *= np.float32(s.brightness)
+        return lit[:, :, None] * self.colour[None, None, :]
+
 
 def light_patches(
     camera: Camera, fixture_map: FixtureMap, pose: Pose, settings: RenderSettings
@@ -667,11 +679,8 @@ def render(
     truths, lights = _lights(camera, fixture_map, pose, s)
     patches = []  # (v0, v1, u0, u1, signal float32 (bh, bw, 3))
     for light in lights:
-        on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level).astype(np.float32)
-        lit = light.shape * (on[:, None] if s.readout.by_rows else on[None, :])
-        lit *= np.float32(s.brightness)
         u0, u1, v0, v1 = light.box
-        patches.append((v0, v1, u0, u1, lit[:, :, None] * light.colour[None, None, :]))
+        patches.append((v0, v1, u0, u1, light.light(s)))
     w, h = camera.width, camera.height
     image = expose(patches, w, h, s)
     if camera.mirrored:
