@@ -6,7 +6,9 @@ each located photo's position with the camera's (at the origin). Prints the cent
 median, percentiles and counts over 1, 2 and 5 px (all lamps and the glowing ones), the
 position errors, and the lamps over 2 px.
 
-Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out.json]``.
+Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out.json]``;
+``--phone`` (with ``--tone-given`` or ``--tone-gamma G``) takes the photos of
+``stress_decode.py --phone``, processed as a phone does.
 """
 
 from __future__ import annotations
@@ -28,14 +30,22 @@ def main() -> int:
     ap.add_argument("--per-cell", type=int, default=4, help="photos per grid cell")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--json", type=Path, help="write per-lamp and per-photo results here")
+    ap.add_argument("--phone", action="store_true", help="a phone camera's processing too")
+    ap.add_argument(
+        "--tone-given", action="store_true", help="with --phone: the camera file gives its curve"
+    )
+    ap.add_argument(
+        "--tone-gamma", type=float, metavar="G", help="with --phone: the camera file gives G"
+    )
     args = ap.parse_args()
+    phone = dict(phone=args.phone, tone_given=args.tone_given, tone_gamma=args.tone_gamma)
     rng = np.random.default_rng(args.seed)
     lamps, photos = [], []
     t0 = time.perf_counter()
     for e in sd.EXPOSURES:
         for r in sd.ROWS_PER_CHIP:
             for k in range(args.per_cell):
-                photo, res, cond, _, _ = sd.one_photo(rng, e, r, looks=True)
+                photo, res, cond, _, _ = sd.one_photo(rng, e, r, looks=True, **phone)
                 photos.append(
                     dict(
                         exposure=e,
