@@ -276,3 +276,31 @@ def test_a_rim_most_of_whose_chords_are_carried_off_says_nothing(seed):
     for off in (0.3, 0.35, 0.45):
         assert crowded._trimmed_ellipse(*_rim_ends(rng, 40, off)) is None
     assert crowded._trimmed_ellipse(rng.uniform(0, 200, (30, 2)), 15) is None
+
+
+#: Chord ends of two lamps of a crowded phone photo mapped back to light through its tone
+#: curve (``stress_decode.py --phone --tone-gamma 2.2``, seed 3, 0.5 chip / 2.5 rows per
+#: chip, lamps 2 and 5): ``(lines, left ends, right ends)``, pixels of their regions.
+_PIXEL_CHORDS = (
+    (
+        [38, 46, 56, 64, 68, 76, 84, 89, 90, 96, 108, 114, 118, 128],
+        [83.5, 83.5, 83.5, 83.5, 83.5, 83.5, 83.5, 82.5, 83.5, 61.5, 83.5, 83.5, 83.5, 67.5],
+        [84.5, 84.5, 84.5, 84.5, 84.5, 84.5, 84.5, 84.5, 84.5, 128.5, 84.5, 84.5, 84.5, 98.5],
+    ),
+    (
+        [42, 49, 57, 66, 74, 79, 86, 93, 94, 103, 114, 119, 124, 131],
+        [92.5, 87.5, 53.5, 92.5, 90.5, 87.5, 92.5, 86.5, 92.5, 88.5, 92.5, 57.5, 92.5, 81.5],
+        [93.5, 100.5, 93.5, 93.5, 93.5, 134.5, 93.5, 99.5, 93.5, 93.5, 93.5, 126.5, 93.5, 106.5],
+    ),
+)
+
+
+@pytest.mark.parametrize("chords", _PIXEL_CHORDS)
+def test_no_rim_from_chords_of_a_pixel(chords):
+    # the line's share of its peak met at the peak pixel alone in most lines: chords of one
+    # pixel whose ends lie on two lines; an ellipse 393 px long with its centre 325 px off
+    # the lamp, and one of 3 by 74 px 3.3 px off, passed through two thirds of them, and
+    # moved the lamps there (the code before said nothing: more than one end in ten off)
+    lines, left, right = (np.asarray(v, dtype=float) for v in chords)
+    ends = np.concatenate([np.stack([left, lines], 1), np.stack([right, lines], 1)])
+    assert crowded._trimmed_ellipse(ends, lines.size) is None

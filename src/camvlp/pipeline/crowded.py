@@ -63,6 +63,9 @@ RIM_KEPT = 2.0 / 3.0
 #: a glow that carries off the ends of most lines on one side can bend an ellipse through
 #: some of them (57 % of each side or more within it on the lamps of crowded phone photos).
 RIM_SIDE = 0.5
+#: Narrowest rim, its smaller semi-axis over its larger: a disc seen 75 degrees off its axis
+#: (a lamp that far off the view is a sliver whose stripes no decoder reads).
+RIM_ASPECT = 0.25
 #: Most fits of a rim's ellipse, each without the ends off the last: a rim still losing
 #: ends after these is no clean rim.
 RIM_TRIMS = 6
@@ -277,8 +280,11 @@ def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndar
     :data:`RIM_OUT_PX` of it), or None when fewer than :data:`RIM_KEPT` of the ends, or
     fewer than :data:`RIM_SIDE` of one side's within half as far, or fewer than
     :data:`RIM_LINES` on either side, are within it (a neighbour's glow, a ring: the rim
-    does not show).  Ends are only ever left out of the fit, never taken back: an
-    end a glow carried a few pixels off, taken back, draws the ellipse toward the others."""
+    does not show), or when its centre lies outside the box of those ends or a semi-axis
+    is longer than the box's diagonal, or it is narrower than :data:`RIM_ASPECT` (chords of
+    a pixel or two, whose ends lie on two lines: a long thin ellipse passes through them).
+    Ends are only ever left out of the fit, never taken back: an end a glow carried a few
+    pixels off, taken back, draws the ellipse toward the others."""
     fitted = _consensus(ends)
     for _ in range(RIM_TRIMS):
         if fitted.sum() < 2 * RIM_LINES:  # (fewer than the ends of a rim: none to fit)
@@ -299,6 +305,13 @@ def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndar
         return None
     if min(left.sum(), right.sum()) < RIM_LINES:
         return None
+    low, high = ends[near].min(axis=0), ends[near].max(axis=0)
+    if not (np.all(fit[:2] > low) and np.all(fit[:2] < high)):
+        return None  # (its centre outside its ends: ends on a line or two, not a rim)
+    if max(fit[2], fit[3]) > float(np.hypot(*(high - low))):
+        return None
+    if min(fit[2], fit[3]) < RIM_ASPECT * max(fit[2], fit[3]):
+        return None  # (no disc's outline: one seen this far off its axis is not read)
     return fit, d[near]
 
 
