@@ -45,6 +45,12 @@ def _crowded(seed: int, spots=SPOTS):
     return render(CAM, FixtureMap(tuple(fixtures)), Pose(np.eye(3), np.zeros(3)), settings)
 
 
+def _nearest(res, truth):
+    """The located fixture nearest a rendered one, and how far it is (px)."""
+    f = min(res.fixtures, key=lambda f: np.hypot(*(f.pixel - truth.pixel)))
+    return f, float(np.hypot(*(f.pixel - truth.pixel)))
+
+
 def _errors(photo, blobs) -> np.ndarray:
     truth = np.array([t.pixel for t in photo.fixtures])
     return np.array([np.min(np.linalg.norm(truth - b.pixel, axis=1)) for b in blobs])
@@ -134,10 +140,10 @@ def test_lamps_through_a_phone_are_centred_on_their_rims(seed):
     res = locate(image, cam, room)
     assert res
     for t in photo.fixtures:
-        f = min(res.fixtures, key=lambda f: np.hypot(*(f.pixel - t.pixel)))
+        f, off = _nearest(res, t)
         assert f.id == t.id
         if t.id != 2:  # (the lamp apart is not centred jointly)
-            assert np.hypot(*(f.pixel - t.pixel)) < 1.0
+            assert off < 1.0
 
 
 def test_a_rim_is_not_taken_from_a_mask_that_cuts_the_disc():
@@ -230,8 +236,8 @@ def test_rims_that_neighbours_glows_cross_still_hold_the_lamps(seed):
     res = locate(image, cam, room)
     assert res and np.linalg.norm(res.position) < 0.01
     for t in photo.fixtures:
-        f = min(res.fixtures, key=lambda f: np.hypot(*(f.pixel - t.pixel)))
-        assert f.id == t.id and np.hypot(*(f.pixel - t.pixel)) < 1.0
+        f, off = _nearest(res, t)
+        assert f.id == t.id and off < 1.0
 
 
 def _rim_ends(rng, n_lines: int, off: float):

@@ -300,10 +300,10 @@ def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndar
     else:
         return None  # (still changing: no clean rim)
     close = np.abs(d) <= 0.5 * RIM_OUT_PX
-    left, right = near[:n_left], near[n_left:]
-    if near.mean() < RIM_KEPT or min(close[:n_left].mean(), close[n_left:].mean()) < RIM_SIDE:
+    sides = (slice(None, n_left), slice(n_left, None))
+    if near.mean() < RIM_KEPT or min(close[s].mean() for s in sides) < RIM_SIDE:
         return None
-    if min(left.sum(), right.sum()) < RIM_LINES:
+    if min(near[s].sum() for s in sides) < RIM_LINES:
         return None
     low, high = ends[near].min(axis=0), ends[near].max(axis=0)
     if not (np.all(fit[:2] > low) and np.all(fit[:2] < high)):
