@@ -113,10 +113,11 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     cam = np.asarray(toward, dtype=float).reshape(3)
     out = np.full_like(c, np.nan) if normals is None else np.array(normals, float).reshape(-1, 3)
-    known = np.all(np.isfinite(out), axis=1)
-    out[known] /= np.linalg.norm(out[known], axis=1, keepdims=True)
-    if np.all(known):
+    known = np.isfinite(out).all(axis=1)
+    if known.all():  # (np.linalg.norm's steps, without its checks)
+        out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))
         return out
+    out[known] /= np.linalg.norm(out[known], axis=1, keepdims=True)
     to_cam = cam - c
     plane = None
     if c.shape[0] >= 3:
@@ -322,10 +323,14 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     d *= real
     jac *= real[:, :, None]
     jtj = jac.transpose(0, 2, 1) @ jac
-    good = np.all(np.isfinite(jtj), axis=(1, 2))
-    # np.linalg.cond(jtj) <= 1e12: J^T J is symmetric, its singular values its |eigenvalues|
-    eig = np.abs(np.linalg.eigvalsh(jtj[good]))
-    good[good] = eig.max(axis=1) <= 1e12 * eig.min(axis=1)
+    good = np.isfinite(jtj).all(axis=(1, 2))
+    # np.linalg.cond(jtj) <= 1e12: J^T J is symmetric, its singular values its |eigenvalues|;
+    # its inverse from the same eigenvectors (one LAPACK call for both)
+    eig, vec = np.linalg.eigh(jtj[good])
+    size = np.abs(eig)
+    low = size.min(axis=1)
+    well = (size.max(axis=1) <= 1e12 * low) & (low > 0)
+    good[good] = well
     # each group's summed score, (K, G, 5), in the points' order (the padding adds zeros;
     # a label no point has, a group of zeros, adds nothing to the meat)
     scores = np.bincount(
@@ -335,8 +340,9 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     ).reshape(len(k), span, 5)
     # small-sample factor of the cluster-robust estimator (CR1)
     scale = groups_k / (groups_k - 1) * (sizes_k - 1) / np.maximum(sizes_k - 5, 1)
-    kk = np.flatnonzero(good)
-    bread = np.linalg.inv(jtj[kk])
+    kk = good.nonzero()[0]
+    eig, vec = eig[well], vec[well]
+    bread = (vec / eig[:, None, :]) @ vec.transpose(0, 2, 1)  # V diag(1 / eig) V^T
     meat = scores[kk].transpose(0, 2, 1) @ scores[kk]
     out[np.array(k)[kk]] = (scale[kk, None, None] * bread @ meat @ bread)[:, :2, :2]
     return out

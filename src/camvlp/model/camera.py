@@ -106,7 +106,7 @@ def matrix_to_euler(rotation) -> np.ndarray:
         raise ValueError(f"rotation must have shape (3, 3), got {r.shape}")
     # R = Rx Ry Rz: R[0,2] = sin(ty); R[0,0] = cy cz; R[0,1] = -cy sz;
     # R[1,2] = -sx cy; R[2,2] = cx cy.
-    sy = float(np.clip(r[0, 2], -1.0, 1.0))
+    sy = min(max(float(r[0, 2]), -1.0), 1.0)
     ty = np.arcsin(sy)
     if abs(sy) < 1.0 - 1e-12:
         tx = np.arctan2(-r[1, 2], r[2, 2])
@@ -397,7 +397,7 @@ def in_front(points_camera) -> np.ndarray:
     """Whether points in camera coordinates, shape (..., 3), lie in front of the camera,
     beyond float64 rounding of its plane (:data:`PLANE_ROUNDING`): bool, shape (...)."""
     p = np.asarray(points_camera, dtype=float)
-    return p[..., 2] > PLANE_ROUNDING * np.linalg.norm(p, axis=-1)
+    return p[..., 2] > PLANE_ROUNDING * np.sqrt(np.add.reduce(p * p, axis=-1))  # (its norm)
 
 
 def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:

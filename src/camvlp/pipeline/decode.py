@@ -163,10 +163,10 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     n = len(profiles)
     sizes = np.array([p.size for p in profiles], dtype=np.int64)
     flat = np.concatenate(profiles)
-    of = np.repeat(np.arange(n), sizes)
+    of = np.arange(n).repeat(sizes)
     start = starts(sizes)
     above = flat > thresholds[of]
-    i = np.flatnonzero((above[1:] != above[:-1]) & (of[1:] == of[:-1]))  # between i, i+1
+    i = ((above[1:] != above[:-1]) & (of[1:] == of[:-1])).nonzero()[0]  # between i, i+1
     eo = of[i]
     a, b = flat[i], flat[i + 1]
     edges = (i - start[eo]) + (thresholds[eo] - a) / np.where(b != a, b - a, 1.0)
@@ -184,7 +184,7 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     bright[starts(n_e + 1)] = above[start]
     bright[np.arange(edges.size) + eo + 1] = above[i + 1]
     return _FlatRuns(
-        edges, above[i + 1], eo, n_e, steps[keep], bright, np.repeat(np.arange(n), n_e + 1)
+        edges, above[i + 1], eo, n_e, steps[keep], bright, np.arange(n).repeat(n_e + 1)
     )
 
 
@@ -231,10 +231,10 @@ def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
     """Each profile's same-polarity edge spacings, as :func:`_chip_lengths` takes them: the
     rising edges' first, then the falling edges' (crossings alternate, so those are two
     crossings apart), the positive ones; returns the spacings and their profiles."""
-    k = np.flatnonzero(r.edge_of[2:] == r.edge_of[:-2])  # edge k to edge k + 2
+    k = (r.edge_of[2:] == r.edge_of[:-2]).nonzero()[0]  # edge k to edge k + 2
     two = (r.edges[2:] - r.edges[:-2])[k]
     p = r.edge_of[k]
-    order = np.argsort(2 * p + ~r.rising[k], kind="stable")  # by profile, rising ones first
+    order = (2 * p + ~r.rising[k]).argsort(kind="stable")  # by profile, rising ones first
     d, p = two[order], p[order]
     keep = d > 0
     return d[keep], p[keep]
@@ -274,7 +274,7 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
         return out
     shortest = padded(d, counts, np.inf).min(axis=1)
     lo, hi = np.maximum(0.8, shortest / 4.6), np.minimum(max_rows_per_chip, shortest / 1.6)
-    ok = np.flatnonzero((counts >= 2) & (hi > lo))  # two spacings or more, and a grid
+    ok = ((counts >= 2) & (hi > lo)).nonzero()[0]  # two spacings or more, and a grid
     if ok.size == 0:
         return out
     lo, hi, n_d = lo[ok], hi[ok], counts[ok]
@@ -291,7 +291,7 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     at = (q * (size + 1) + np.minimum(np.maximum(drops, 0), size).astype(np.intp)).ravel()
     sums = np.bincount(
         np.concatenate([at, at + ok.size * (size + 1)]),
-        weights=np.concatenate([np.tile(d, 2), np.repeat([7.0, 5.0], d.size)]),
+        weights=np.concatenate([d, d, _DROP_WEIGHTS.repeat(d.size)]),
         minlength=2 * ok.size * (size + 1),
     )
     taken = sums.reshape(2, ok.size, size + 1)[:, :, :size].cumsum(axis=2)
@@ -312,7 +312,7 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
 
     t = grid[np.arange(ok.size), _grid_best(cost, sum_d2, exact)]
     # least squares refinement: each spacing's chips at the grid's best
-    m = np.clip(np.rint(d / t[q]), 2.0, 4.0)
+    m = np.minimum(np.maximum(np.rint(d / t[q]), 2.0), 4.0)
     mm = np.bincount(q, weights=m * m, minlength=ok.size)  # (whole numbers: exact sums)
     vm = d * m
     sums = zip(bounds[:-1], bounds[1:], mm.tolist(), strict=True)
@@ -323,6 +323,8 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
 #: The ratios of a spacing to the chip length at which its count drops from 4 chips to 3,
 #: and from 3 to 2 (a column: per spacing, one row each).
 _DROPS = np.array([[3.5], [2.5]])
+#: What each drop takes from sum(m^2): 16 - 9, then 9 - 4.
+_DROP_WEIGHTS = np.array([7.0, 5.0])
 
 
 #: Bleeding values tried per profile (-0.95 to 0.95 chip).
@@ -359,11 +361,11 @@ def _grid_best(cost: np.ndarray, scale: np.ndarray, exact) -> np.ndarray:
     """Each row's grid index of least ``cost`` (rows, grid): where several come within
     :data:`_TIE` times the row's ``scale`` of the least (a tie, up to rounding), the first
     least of ``exact(row, indices)``, their costs computed term by term."""
-    best = np.argmin(cost, axis=1)
+    best = cost.argmin(axis=1)
     near = cost <= (cost.min(axis=1) + _TIE * scale)[:, None]
     tied = near.sum(axis=1) > 1
-    for q in np.flatnonzero(tied).tolist() if tied.any() else ():
-        j = np.flatnonzero(near[q])
+    for q in tied.nonzero()[0].tolist() if tied.any() else ():
+        j = near[q].nonzero()[0]
         best[q] = j[int(np.argmin(exact(q, j)))]
     return best
 
@@ -447,10 +449,10 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     chosen = np.zeros(n, bool)
     chosen[which] = True
     kept = chosen[r.run_of]
-    chip_vals = np.repeat(r.bright[kept].astype(np.uint8), counts[kept])
-    known = np.repeat(sure[kept], counts[kept])
+    chip_vals = r.bright[kept].astype(np.uint8).repeat(counts[kept])
+    known = sure[kept].repeat(counts[kept])
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    bounds = np.concatenate([[0], np.cumsum(np.add.reduceat(counts, first)[which])]).tolist()
+    bounds = [0, *np.add.reduceat(counts, first)[which].cumsum().tolist()]
     return [
         (
             chip_vals[c0:c1],
@@ -568,7 +570,7 @@ def decode_profiles(
     if live:
         lo, hi = _levels([ps[k] for k in live])
         flat = hi - lo < 8
-        for k in np.flatnonzero(flat).tolist():
+        for k in flat.nonzero()[0].tolist():
             out[live[k]] = _refused("no stripes (a steady light, or too little contrast)")
         live, lo, hi = (
             [k for k, f in zip(live, flat.tolist(), strict=True) if not f],
@@ -589,7 +591,7 @@ def decode_profiles(
             out[k] = _refused("no stripes (a steady light, or too few stripes)")
         elif irregular[q]:
             out[k] = _refused("stripes too irregular to measure the chip length")
-    which = np.flatnonzero(~few & ~irregular)
+    which = (~few & ~irregular).nonzero()[0]
     if which.size:
         b = _bleeds(r, t, which)
         read = _chips(r, t[which], b, which)

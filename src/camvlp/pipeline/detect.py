@@ -251,10 +251,10 @@ def detect_fixtures(
 def _spans(flags: np.ndarray, gap: int) -> list[tuple[int, int]]:
     """Ranges ``(start, end)`` (end exclusive) holding the nonzero entries of a 1-D array,
     split where more than ``gap`` - 1 zeros separate two of them."""
-    idx = np.flatnonzero(flags)
+    idx = flags.nonzero()[0]
     if idx.size == 0:
         return []
-    cut = np.flatnonzero(np.diff(idx) > gap)
+    cut = (idx[1:] - idx[:-1] > gap).nonzero()[0]
     starts = [int(idx[0]), *idx[cut + 1].tolist()]
     ends = [*idx[cut].tolist(), int(idx[-1])]
     return [(a, b + 1) for a, b in zip(starts, ends, strict=True)]

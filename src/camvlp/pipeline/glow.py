@@ -82,10 +82,10 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     x = cx + _RADII * (a * ct * _COS - b * st * _SIN)  # (n, radii, angles)
     y = cy + _RADII * (a * st * _COS + b * ct * _SIN)
     ok = (x > -0.5) & (x < w - 0.5) & (y > -0.5) & (y < h - 0.5)
-    xi = np.clip(np.rint(x), 0.0, w - 1.0).astype(np.intp)
-    yi = np.clip(np.rint(y), 0.0, h - 1.0).astype(np.intp)
+    xi = np.minimum(np.maximum(np.rint(x), 0.0), w - 1.0).astype(np.intp)
+    yi = np.minimum(np.maximum(np.rint(y), 0.0), h - 1.0).astype(np.intp)
     if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
-        px = np.take(img.reshape(h * w, -1), yi * w + xi, axis=0).reshape(*yi.shape, -1)
+        px = img.reshape(h * w, -1).take(yi * w + xi, axis=0).reshape(*yi.shape, -1)
         px = (px[..., 0] if img.ndim == 2 else px).astype(np.float64)
     else:
         px = img[yi, xi].astype(np.float64)
@@ -99,10 +99,12 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     px = np.where(ok, px, np.nan)
     # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
     # outline that misses the disc somewhere puts a few ring samples on the disc itself
-    ranked = np.sort(px[:, _RING].reshape(len(blobs), -1), axis=1)  # NaNs last
+    ranked = px[:, _RING].reshape(len(blobs), -1).copy()
+    ranked.sort(axis=1)  # NaNs last
     kept = np.arange(ranked.shape[1]) < (n_ring - n_ring // 10)[:, None]
     ring = np.where(kept, ranked, 0.0).sum(axis=1) / np.maximum(kept.sum(axis=1), 1)
-    out = np.sort(px[:, _OUT].reshape(len(blobs), -1), axis=1)  # NaNs last
+    out = px[:, _OUT].reshape(len(blobs), -1).copy()
+    out.sort(axis=1)  # NaNs last
     background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]
     level = (ring - background) / np.maximum(inside - background, 1.0)
     return np.where((n_ring >= 16) & (n_out >= 16) & (n_in > 0), level, np.nan)

@@ -105,22 +105,22 @@ def _scores(
     """Each candidate's reprojection RMS (pixels; inf with a fixture behind the camera),
     whether every fixture is in front of it, and whether it is in front of every fixture
     with a normal: all candidates in one projection."""
-    rot = np.stack([p.world_from_camera for p in poses])  # (B, 3, 3)
-    pos = np.stack([p.position for p in poses])  # (B, 3)
+    rot = np.array([p.world_from_camera for p in poses])  # (B, 3, 3)
+    pos = np.array([p.position for p in poses])  # (B, 3)
     cam = (obj[None] - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
     in_front = (cam[:, :, 2] > 0).all(axis=1)
     facing = np.ones(len(poses), bool)
     if normals is not None:
-        has = np.all(np.isfinite(normals), axis=1)
+        has = np.isfinite(normals).all(axis=1)
         nrm, at = normals[has], obj[has]
-        facing = (np.einsum("ij,bij->bi", nrm, pos[:, None] - at) > 0).all(axis=1)
+        facing = (np.add.reduce(nrm * (pos[:, None] - at), axis=2) > 0).all(axis=1)
     rms = np.full(len(poses), np.inf)  # behind the camera: neither valid nor a mirrored fit
     if in_front.any():
         uv = project_camera_points(camera, cam[in_front].reshape(-1, 3))
         e = uv.reshape(-1, obj.shape[0], 2) - img
         r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B', N)
         ok = np.isfinite(r2).all(axis=1)
-        rms[in_front] = np.where(ok, np.sqrt(np.mean(r2, axis=1)), np.inf)
+        rms[in_front] = np.where(ok, np.sqrt(np.add.reduce(r2, axis=1) / r2.shape[1]), np.inf)
     return rms, in_front, facing
 
 
@@ -177,7 +177,7 @@ def _choose(
     # the same minimum differ by the optimiser's tolerance (up to about 1e-4 of the distance
     # for a small target), the planar ambiguity's other pose by about twice the tilt.
     best = valid[0][3]
-    scale = float(np.linalg.norm(best.position - obj.mean(axis=0)))
+    scale = math.dist(best.position.tolist(), obj.mean(axis=0).tolist())
     alt = (np.nan, None, None, None)
     for s in valid[1:]:
         # the turn between the two: trace(R1^T R2) = sum of the elementwise products
@@ -235,7 +235,7 @@ def estimate_pose(
     sw, si = _object_spread(obj.tobytes(), n), _spread(img)
     if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
         return _failure(n, "the fixtures are (nearly) on one line: the pose is not determined")
-    if len(set(map(tuple, np.round(img, 3).tolist()))) < n:
+    if len(set(map(tuple, img.round(3).tolist()))) < n:
         return _failure(n, "two fixtures were detected at the same pixel")
 
     def solve(idx: np.ndarray):
@@ -270,7 +270,7 @@ def estimate_pose(
     residuals = _residuals(camera, pose, obj, img)
     used = np.zeros(n, bool)
     used[idx] = True
-    if float(np.max(residuals[used])) > outlier_px:
+    if float(residuals[used].max()) > outlier_px:
         return PoseEstimate(
             None,
             float("nan"),

@@ -74,7 +74,7 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
     dim = 1 if axis != "columns" else 0  # cv2.reduce to one value per sensor row
     # pixels of the disc in each sensor row (an image row, or column)
     counts = cv2.reduce(m, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    rows = np.flatnonzero(counts >= 2)
+    rows = (counts >= 2).nonzero()[0]
     if rows.size == 0:
         return np.zeros(0), 0, np.zeros(0)
     first, last = int(rows[0]), int(rows[-1]) + 1
@@ -138,22 +138,23 @@ def _radial_envelopes(values: list, rho: list) -> list[tuple[np.ndarray, np.ndar
     top = np.maximum.reduceat(r2, starts(sizes))
     first = starts(bins)  # each light's rings after the previous lights'
     # per light: rings per unit of r2, its last ring, its first; repeated once per pixel
-    scale, last, offset = np.repeat(
-        np.array([bins / np.where(top != 0.0, top, 1.0), bins - 1, first]), sizes, axis=1
+    scale, last, offset = np.array([bins / np.where(top != 0.0, top, 1.0), bins - 1, first]).repeat(
+        sizes, axis=1
     )
     k = (r2 * scale).astype(np.intp)
     np.minimum(k, last.astype(np.intp), out=k)
     k += offset.astype(np.intp)
     n_rings = int(bins.sum())
     key = k * 256 + np.concatenate(values)  # by ring, then by level
-    key = np.sort(key.astype(np.uint16) if n_rings <= 256 else key, kind="stable")
+    key = key.astype(np.uint16) if n_rings <= 256 else key  # its own array: sorted in place
+    key.sort(kind="stable")
     counts = np.bincount(k, minlength=n_rings)
-    ring = np.flatnonzero(counts)
+    ring = counts.nonzero()[0]
     c = counts[ring]
     rank = ((c - 1) * _ENVELOPE_QUANTILE).astype(np.intp)  # in the ring's order
     level = (key[starts(counts)[ring] + rank] & 255).astype(np.float64)
     middle = np.bincount(k, weights=r, minlength=n_rings)[ring] / c
-    cut = np.searchsorted(ring, first[1:])  # each light's first ring among those with pixels
+    cut = ring.searchsorted(first[1:])  # each light's first ring among those with pixels
     return [(middle[a:b], level[a:b]) for a, b in pieces(cut, ring.size)]
 
 
@@ -172,7 +173,7 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     them); worked for all the masks at once."""
     found = [_nonzero(m[::st, ::st]) for m, st in zip(masks, steps, strict=True)]
     sizes = np.array([ys.size for ys, _ in found], dtype=np.intp)
-    step = np.repeat(np.array(steps, dtype=np.intp), sizes)
+    step = np.array(steps, dtype=np.intp).repeat(sizes)
     ys = np.concatenate([ys for ys, _ in found]) * step
     xs = np.concatenate([xs for _, xs in found]) * step
     # per mask: centre, cos and sin of its angle, semi-axes; repeated once per pixel
@@ -187,7 +188,7 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
         )
         for t, c, ax in zip(angles, centres, axes, strict=True)
     ]
-    cx, cy, cos, sin, a, b = np.repeat(np.array(geo).reshape(-1, 6).T, sizes, axis=1)
+    cx, cy, cos, sin, a, b = np.array(geo).reshape(-1, 6).T.repeat(sizes, axis=1)
     dx, dy = xs - cx, ys - cy
     u, v = dx * cos, dy * cos  # u = dx cos + dy sin, v = dy cos - dx sin
     u += dy * sin
@@ -195,7 +196,7 @@ def _radii(masks: list, steps: list[int], centres, axes, angles) -> list[tuple]:
     u /= a
     v /= b
     rho = np.sqrt(np.square(u, out=u) + np.square(v, out=v))
-    cut = np.cumsum(sizes)[:-1]
+    cut = sizes.cumsum()[:-1]
     return [(ys[a:b], xs[a:b], rho[a:b]) for a, b in pieces(cut, ys.size)]
 
 
@@ -302,7 +303,7 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     if face is not None:
         values, level, line = values[face], level[face], line[face]
     counts = np.bincount(line)
-    rows = np.flatnonzero(counts >= 2)
+    rows = (counts >= 2).nonzero()[0]
     if rows.size == 0:
         return np.zeros(0), 0, np.zeros(0)
     first, last = int(rows[0]), int(rows[-1]) + 1
@@ -310,7 +311,7 @@ def _shaped(gray, m, n, axis, centre, axes, angle_deg, envelope) -> tuple[np.nda
     den = np.bincount(line, weights=level, minlength=last)[first:last]
     den = np.where(den > 0, den, np.nan)  # (a line without pixels: NaN, filled below)
     noise = np.sqrt(counts[first:last]) / den
-    calm = np.flatnonzero(noise <= _NOISIEST_END * np.nanmedian(noise))
+    calm = (noise <= _NOISIEST_END * np.nanmedian(noise)).nonzero()[0]
     a, b = (int(calm[0]), int(calm[-1]) + 1) if calm.size >= 2 else (0, den.size)
     prof = num[a:b] / den[a:b] * float(level.max())  # between the calm end lines
     # a line's weight: 1 / its variance, (on-levels' sum)^2 / pixels up to a constant

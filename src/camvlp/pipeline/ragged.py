@@ -13,13 +13,14 @@ __all__ = ["padded", "pieces", "starts"]
 def starts(counts: np.ndarray) -> np.ndarray:
     """Where each group begins, given how many values each has (``counts``, (G,))."""
     out = np.zeros(counts.size, np.intp)
-    np.cumsum(counts[:-1], out=out[1:])
+    counts[:-1].cumsum(out=out[1:])
     return out
 
 
 def padded(flat: np.ndarray, counts: np.ndarray, fill: float) -> np.ndarray:
     """The groups as rows of a (groups, longest) array, each row's tail filled with ``fill``."""
-    out = np.full((counts.size, int(counts.max()) if counts.size else 0), fill, flat.dtype)
+    out = np.empty((counts.size, int(counts.max()) if counts.size else 0), flat.dtype)
+    out.fill(fill)
     out[np.arange(out.shape[1])[None, :] < counts[:, None]] = flat
     return out
 

@@ -191,11 +191,12 @@ def _axis_from_sums(row_sums, n_rows, col_sums, n_cols) -> tuple[str, float]:
 
 
 def _diff_var(v: np.ndarray) -> float:
-    """``np.var(np.diff(v))`` with NumPy's own steps (mean, squared deviations, mean), in
-    the array's dtype, without ``np.var``'s set-up."""
+    """``np.var(np.diff(v))`` of a 1-D array (3 values or more) as the mean square of the
+    differences less their squared mean, which is ``(v[-1] - v[0]) / (n - 1)``: two NumPy
+    calls (the sum of squares in the array's dtype)."""
     d = v[1:] - v[:-1]
-    x = d - np.add.reduce(d, keepdims=True) / d.size
-    return float(np.add.reduce(x * x) / d.size)
+    mean = (float(v[-1]) - float(v[0])) / d.size
+    return max(float(d @ d) / d.size - mean * mean, 0.0)
 
 
 @functools.lru_cache(maxsize=64)
@@ -211,7 +212,8 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
 
     A closing along the readout axis as long as the widest dark gap across the middle third
     of the region (at least ``kernel_px``), a small round closing, and the largest outline
-    with its holes filled.  Returns a bool mask (h, w), or None when nothing is lit.
+    with its holes filled.  ``lit`` is bool, or uint8 of 0 and 1.  Returns a bool mask
+    (h, w), or None when nothing is lit.
     """
     lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
@@ -221,11 +223,10 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
     centre = lit_u8[:, a:b] if rows else lit_u8[a:b]
     gap = 0
     if centre.size:
-        # lines more than half lit (the lit pixels counted by OpenCV: any nonzero level
-        # counts as 1 through the threshold); the widest dark run between two of them
-        ones = cv2.threshold(centre, 0, 1, cv2.THRESH_BINARY)[1]
-        counts = cv2.reduce(ones, 1 if rows else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-        lit_lines = np.flatnonzero(counts * 2 > min(n, b) - a)
+        # lines more than half lit (the lit pixels counted by OpenCV); the widest dark run
+        # between two of them
+        counts = cv2.reduce(centre, 1 if rows else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
+        lit_lines = (counts * 2 > min(n, b) - a).nonzero()[0]
         if lit_lines.size >= 2:
             gap = int((lit_lines[1:] - lit_lines[:-1]).max()) - 1
     length = max(kernel_px, gap + 3) | 1
@@ -533,7 +534,7 @@ def _edge_rows(gray: np.ndarray, mask: np.ndarray, background: float, axis: str)
     sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
     level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
     top = level.max()
-    rows = np.flatnonzero((counts >= 4) & (level > background + 0.35 * (top - background)))
+    rows = ((counts >= 4) & (level > background + 0.35 * (top - background))).nonzero()[0]
     half = background + 0.5 * (level[rows] - background)
     near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
     if axis == "rows":
@@ -563,7 +564,7 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
         g[at : at + n, : r.gray.shape[1]] = r.gray
         near[at : at + n, : r.gray.shape[1]] = r.near
         at += n
-    of = np.repeat(np.arange(len(regions)), counts)
+    of = np.arange(len(regions)).repeat(counts)
     half = np.concatenate([r.half for r in regions])
     rows = np.concatenate([r.rows for r in regions])
     w = np.array([r.gray.shape[1] for r in regions])[of]
@@ -576,10 +577,10 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     # the last above: the first of the rows flipped (by OpenCV, contiguous, which NumPy's
     # argmax of bools scans fast, where it steps through a reversed view one by one)
     right = width - 1 - cv2.flip(above.view(np.uint8), 1).view(bool).argmax(axis=1)
-    j = np.flatnonzero((left > 0) & (right < w - 1) & (right - left >= 3))
+    j = ((left > 0) & (right < w - 1) & (right - left >= 3)).nonzero()[0]
     left, right, half, rows, of = left[j], right[j], half[j], rows[j], of[j]
     # the rows' levels either side of both crossings, other lights masked out
-    cols = np.stack([left - 1, left, right, right + 1])
+    cols = np.array([left - 1, left, right, right + 1])
     a0, a1, b0, b1 = np.where(near[j, cols], g[j, cols], background[j]).astype(np.float32)
     # each region's left ends, then its right ends; x in the column its axis says
     kept = np.bincount(of, minlength=len(regions))
@@ -591,7 +592,7 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     pts[at + kept[of], u] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
     pts[at, 1 - u] = rows
     pts[at + kept[of], 1 - u] = rows
-    return [pts[a:b] for a, b in pieces(2 * np.cumsum(kept)[:-1], pts.shape[0])]
+    return [pts[a:b] for a, b in pieces(2 * kept.cumsum()[:-1], pts.shape[0])]
 
 
 def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
@@ -686,5 +687,5 @@ def _row_groups(points: list[np.ndarray], axes: list[str]) -> list[np.ndarray]:
     low = np.minimum.reduceat(rows, first)
     span = np.maximum.reduceat(rows, first) - low + 1.0
     step = np.maximum(1.0, np.sqrt(span))
-    groups = np.floor((rows - np.repeat(low, sizes)) / np.repeat(step, sizes)).astype(np.int64)
+    groups = np.floor((rows - low.repeat(sizes)) / step.repeat(sizes)).astype(np.int64)
     return [groups[a:b] for a, b in pieces(first[1:], groups.size)]
