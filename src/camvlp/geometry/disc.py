@@ -383,14 +383,32 @@ def _group_labels(groups: list, sizes: list[int]) -> tuple[list, list[int], int]
     return_inverse=True)``), how many distinct groups each fit has, and one more than the
     largest label (the labels' span).  Non-negative integer labels are kept as they are: a
     label no point has is an empty group, which adds nothing to a sum over groups."""
-    out, n_groups = [], []
-    for m, g in zip(sizes, groups, strict=True):
-        g = np.arange(m) if g is None else np.asarray(g).reshape(-1)
-        if g.size and (g.dtype.kind not in "iu" or g.min() < 0 or g.max() > 4 * g.size + 64):
-            g = np.unique(g, return_inverse=True)[1].reshape(-1)
-        out.append(g)
-        n_groups.append(int(np.count_nonzero(np.bincount(g))) if g.size else 0)
-    return out, n_groups, max((int(g.max()) + 1 for g in out if g.size), default=1)
+    out = [
+        np.arange(m) if g is None else np.asarray(g).reshape(-1)
+        for m, g in zip(sizes, groups, strict=True)
+    ]
+    if not any(g.size for g in out):
+        return out, [0] * len(out), 1
+    # every fit's lowest and highest label at once (a fit without points: none)
+    n = np.array([g.size for g in out])
+    whole = [g.dtype.kind in "iu" for g in out]
+    flat = np.concatenate(
+        [g if ok else np.zeros(g.size, np.int64) for g, ok in zip(out, whole, strict=True)]
+    )
+    first = (n.cumsum() - n)[n > 0]
+    low, high = (np.zeros(len(out), np.int64) for _ in range(2))
+    low[n > 0], high[n > 0] = np.minimum.reduceat(flat, first), np.maximum.reduceat(flat, first)
+    for i in ((low < 0) | (high > 4 * n + 64) | ~np.array(whole)).nonzero()[0].tolist():
+        if n[i]:
+            out[i] = np.unique(out[i], return_inverse=True)[1].reshape(-1)
+            high[i] = out[i].max()
+    span = int(high.max()) + 1
+    # the distinct labels of each fit: one count of them all, each fit's after the previous'
+    counts = np.bincount(
+        np.concatenate(out).astype(np.int64) + span * np.arange(len(out)).repeat(n),
+        minlength=span * len(out),
+    )
+    return out, np.count_nonzero(counts.reshape(len(out), span), axis=1).tolist(), span
 
 
 def centre_sigma(cov) -> float:

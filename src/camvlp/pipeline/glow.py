@@ -75,15 +75,19 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
         return np.zeros(0)
     h, w = img.shape[:2]
     geo = np.array([(*b.pixel, *b.axes_px, b.angle_deg) for b in blobs], dtype=np.float64)
-    cx, cy = geo[:, 0, None, None], geo[:, 1, None, None]
-    a, b = (0.5 * np.maximum(geo[:, k], 1.0)[:, None, None] for k in (2, 3))
-    t = np.deg2rad(geo[:, 4])[:, None, None]
+    a, b = (0.5 * np.maximum(geo[:, k], 1.0) for k in (2, 3))
+    t = np.deg2rad(geo[:, 4])
     ct, st = np.cos(t), np.sin(t)
-    x = cx + _RADII * (a * ct * _COS - b * st * _SIN)  # (n, radii, angles)
-    y = cy + _RADII * (a * st * _COS + b * ct * _SIN)
-    ok = (x > -0.5) & (x < w - 0.5) & (y > -0.5) & (y < h - 0.5)
-    xi = np.minimum(np.maximum(np.rint(x), 0.0), w - 1.0).astype(np.intp)
-    yi = np.minimum(np.maximum(np.rint(y), 0.0), h - 1.0).astype(np.intp)
+    # x and y as one array (n, 2, radii, angles): the centre plus each radius times
+    # (a cos t cos - b sin t sin, a sin t cos + b cos t sin)
+    on_cos = np.array([a * ct, a * st]).T[:, :, None, None]
+    on_sin = np.array([-(b * st), b * ct]).T[:, :, None, None]
+    xy = geo[:, :2, None, None] + _RADII * (on_cos * _COS + on_sin * _SIN)
+    size = np.array([w, h], dtype=np.float64)[:, None, None]
+    ok = ((xy > -0.5) & (xy < size - 0.5)).all(axis=1)
+    xi, yi = (
+        np.minimum(np.maximum(np.rint(xy), 0.0), size - 1.0).astype(np.intp).transpose(1, 0, 2, 3)
+    )
     if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
         px = img.reshape(h * w, -1).take(yi * w + xi, axis=0).reshape(*yi.shape, -1)
         px = (px[..., 0] if img.ndim == 2 else px).astype(np.float64)
