@@ -303,7 +303,7 @@ def _solve(
         # discs without a map normal lie on the plane of the others, facing the camera
         facing = disc_normals(obj, normals, est.pose.position)
         offsets = perspective_offsets(camera, est.pose, obj, [f.diameter for f in fixtures], facing)
-        if np.max(np.abs(offsets)) >= 0.02:  # below: facing the lights, nothing to correct
+        if np.abs(offsets).max() >= 0.02:  # below: facing the lights, nothing to correct
             corrected = solve(pixels - offsets)
             est = corrected if corrected else est
     return est, "" if est else est.reason

@@ -76,7 +76,7 @@ def _spread(points: np.ndarray) -> np.ndarray:
     """Singular values of the centred points (how far they are from a point, line, plane),
     largest first; of image points (N, 2) in closed form (the square roots of their scatter
     matrix's eigenvalues), without the SVD's set-up."""
-    c = points - points.mean(axis=0)
+    c = points - np.add.reduce(points, axis=0) / points.shape[0]  # (its mean, as NumPy's)
     if c.shape[1] != 2:
         return np.linalg.svd(c, compute_uv=False)
     (a, b), (_, d) = (c.T @ c).tolist()
@@ -101,10 +101,11 @@ def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> 
 
 def _scores(
     camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each candidate's reprojection RMS (pixels; inf with a fixture behind the camera),
-    whether every fixture is in front of it, and whether it is in front of every fixture
-    with a normal: all candidates in one projection."""
+    whether every fixture is in front of it, whether it is in front of every fixture with a
+    normal, and its fixtures' reprojection errors (pixels, (B, N); inf where it has one
+    behind it): all candidates in one projection."""
     rot = np.array([p.world_from_camera for p in poses])  # (B, 3, 3)
     pos = np.array([p.position for p in poses])  # (B, 3)
     cam = (obj[None] - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
@@ -115,13 +116,16 @@ def _scores(
         nrm, at = normals[has], obj[has]
         facing = (np.add.reduce(nrm * (pos[:, None] - at), axis=2) > 0).all(axis=1)
     rms = np.full(len(poses), np.inf)  # behind the camera: neither valid nor a mirrored fit
+    errors = np.full((len(poses), obj.shape[0]), np.inf)
     if in_front.any():
         uv = project_camera_points(camera, cam[in_front].reshape(-1, 3))
         e = uv.reshape(-1, obj.shape[0], 2) - img
         r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B', N)
         ok = np.isfinite(r2).all(axis=1)
         rms[in_front] = np.where(ok, np.sqrt(np.add.reduce(r2, axis=1) / r2.shape[1]), np.inf)
-    return rms, in_front, facing
+        r = np.sqrt(r2)  # as _residuals gives them
+        errors[in_front] = np.where(np.isfinite(r), r, np.inf)
+    return rms, in_front, facing, errors
 
 
 #: Reprojection RMS (pixels) within which the better of IPPE's two refined poses is taken as
@@ -130,14 +134,14 @@ CLEAR_FIT_PX = 1.0
 
 
 def _scored(camera: Camera, obj, img, normals, solver: str, planar: bool, methods) -> list:
-    """``(rms, in_front, facing, pose)`` of the candidates from ``methods``."""
+    """``(rms, in_front, facing, pose, errors)`` of the candidates from ``methods``."""
     if not methods:
         return []
     poses = pnp_candidates(obj, img, camera, solver, planar=planar, methods=methods)
     if not poses:
         return []
-    rms, in_front, facing = _scores(camera, poses, obj, img, normals)
-    return list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, strict=True))
+    rms, in_front, facing, errors = _scores(camera, poses, obj, img, normals)
+    return list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, errors, strict=True))
 
 
 def _choose(
@@ -147,8 +151,9 @@ def _choose(
     normals: np.ndarray | None,
     solver: str,
     planar: bool,
-) -> tuple[Pose | None, float, Pose | None, float, bool]:
-    """Best valid candidate and the runner-up; flags a best fit that is behind the lights.
+) -> tuple[Pose | None, float, Pose | None, float, bool, np.ndarray | None]:
+    """Best valid candidate and the runner-up; flags a best fit that is behind the lights;
+    and the best one's reprojection errors (pixels, per fixture).
 
     Coplanar fixtures with the default solver: IPPE's two poses (the planar ambiguity's two
     minima, refined) first; when the better one is valid and reprojects within
@@ -172,13 +177,13 @@ def _choose(
     behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
     mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
     if not valid:
-        return None, np.inf, None, np.nan, mirrored
+        return None, np.inf, None, np.nan, mirrored, None
     # The runner-up must be another pose, not the best one again: seeds that converge to
     # the same minimum differ by the optimiser's tolerance (up to about 1e-4 of the distance
     # for a small target), the planar ambiguity's other pose by about twice the tilt.
     best = valid[0][3]
     scale = math.dist(best.position.tolist(), obj.mean(axis=0).tolist())
-    alt = (np.nan, None, None, None)
+    alt = (np.nan, None, None, None, None)
     for s in valid[1:]:
         # the turn between the two: trace(R1^T R2) = sum of the elementwise products
         cos_turn = (float((s[3].world_from_camera * best.world_from_camera).sum()) - 1.0) / 2.0
@@ -186,7 +191,7 @@ def _choose(
         if math.dist(s[3].position, best.position) > 1e-3 * scale or turn_deg > 0.1:
             alt = s
             break
-    return best, valid[0][0], alt[3], float(alt[0]), mirrored
+    return best, valid[0][0], alt[3], float(alt[0]), mirrored, valid[0][4]
 
 
 def estimate_pose(
@@ -246,7 +251,7 @@ def estimate_pose(
         )
 
     idx = np.arange(n)
-    pose, rms, alt, alt_rms, mirrored = solve(idx)
+    pose, rms, alt, alt_rms, mirrored, errors = solve(idx)
     if pose is None:
         if mirrored:
             return _failure(
@@ -261,13 +266,14 @@ def estimate_pose(
         best = None
         for subset in combinations(range(idx.size), idx.size - 1):
             sub = idx[list(subset)]
-            p, r, a, ar, _ = solve(sub)
+            p, r, a, ar, _, _ = solve(sub)
             if p is not None and (best is None or r < best[1]):
                 best = (sub, r, p, a, ar)
         if best is None:
             break
         idx, rms, pose, alt, alt_rms = best
-    residuals = _residuals(camera, pose, obj, img)
+    # (with every fixture used, the chosen candidate's own errors)
+    residuals = errors if idx.size == n else _residuals(camera, pose, obj, img)
     used = np.zeros(n, bool)
     used[idx] = True
     if float(residuals[used].max()) > outlier_px:
