@@ -66,6 +66,17 @@ def _env(src: Path | None) -> dict | None:
     return None if src is None else {**os.environ, "PYTHONPATH": str(src)}
 
 
+def _worker_env(src: Path | None) -> dict:
+    """A ``--against`` worker's environment: :func:`_env`, with OpenBLAS on one thread.
+
+    Two workers take turns on a 2-core machine; an OpenBLAS thread that one of them woke
+    keeps spinning on the other core while the other one runs, and slows it: two workers
+    of the same code came out up to 20 % apart that way, and within 2 % of each other with
+    one BLAS thread each.  (``locate``'s matrix products are of a few values: one thread
+    is what they use anyway.)"""
+    return {**(_env(src) or os.environ), "OPENBLAS_NUM_THREADS": "1"}
+
+
 _WORKER = """
 import json, sys, time, cv2, numpy as np, camvlp
 from camvlp.locate import locate
@@ -106,7 +117,7 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
-            env=_env(src),
+            env=_worker_env(src),
         )
         for k, src in codes.items()
     }
