@@ -108,7 +108,9 @@ def _grown(box, shape) -> tuple[int, int, int, int]:
     return max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, shape[1]), min(y1 + m, shape[0])
 
 
-def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.ndarray) -> list[Blob]:
+def centred_jointly(
+    img: np.ndarray, blobs: list[Blob], axis: str, glows: np.ndarray, rims: dict | None = None
+) -> list[Blob]:
     """The blobs, each glowing light whose region meets another glowing light's, where
     glows joined, centred on its own look, fitted jointly with theirs.
 
@@ -132,6 +134,9 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
         The readout axis.
     glows : ndarray of bool, shape (len(blobs),)
         The glowing lights.
+    rims : dict, optional
+        Lights' rims already found (:func:`rim_from_chords` of these ``blobs``, None for one
+        that does not show), by index: not looked for again.
 
     Returns
     -------
@@ -157,7 +162,8 @@ def centred_jointly(img: np.ndarray, blobs: list[Blob], axis: str, glows: np.nda
         return blobs
     small = to_gray(img[::4, ::4])
     background = float(np.percentile(small, 5))
-    rims = {k: rim_from_chords(img, blobs, k, axis) for k in crowded}
+    known = rims or {}
+    rims = {k: known[k] if k in known else rim_from_chords(img, blobs, k, axis) for k in crowded}
     for k in crowded:  # a clean rim says where the light is
         if not on_rim(blobs[k].pixel, rims[k]):
             blobs[k] = dataclasses.replace(blobs[k], pixel=rims[k][0])

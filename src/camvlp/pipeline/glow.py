@@ -188,15 +188,29 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     ]
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
     fitted = which | (joined & which.any())
+    rims: dict[int, tuple | None] = {}  # the rims of lights _to_clean_rim left where they were
     if which.any():
-        moved = [
-            b if w else _to_clean_rim(img, moved, k, axis)
+        checked = [
+            (b, None) if w else _to_clean_rim(img, moved, k, axis)
             for k, (b, w) in enumerate(zip(moved, which, strict=True))
         ]
-    return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted)
+        # a rim depends on the light's centre (its chords are those through it), box and
+        # cell, and the others' masks and boxes: where only other lights moved, the joint
+        # fit below would find the same rim again
+        rims = {
+            k: rim
+            for k, ((b, rim), old) in enumerate(zip(checked, moved, strict=True))
+            if not which[k] and b is old and rim is not _NO_RIM
+        }
+        moved = [b for b, _ in checked]
+    return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted, rims)
 
 
-def _to_clean_rim(img: np.ndarray, blobs, k: int, axis: str) -> Blob:
+#: What :func:`_to_clean_rim` gives for a rim it did not look for.
+_NO_RIM = object()
+
+
+def _to_clean_rim(img: np.ndarray, blobs, k: int, axis: str) -> tuple[Blob, object]:
     """Light ``k`` (not centred on its glow), moved to its disc's rim
     (:func:`~camvlp.pipeline.crowded.rim_from_chords`) when that shows clean and its centre
     is off it (:func:`~camvlp.pipeline.crowded.on_rim`); as it was when its disc touches
@@ -208,16 +222,18 @@ def _to_clean_rim(img: np.ndarray, blobs, k: int, axis: str) -> Blob:
     its outline and is not told as glowing, and one whose neighbours found their faces
     is not fitted with them: on crowded phone photos (rendered: of
     ``benchmarks/stress_decode.py --phone``, and of five of its lamps) such lamps' outlines
-    came out 1.8 to 38 px off, their rims' within 1 px."""
+    came out 1.8 to 38 px off, their rims' within 1 px.  Returns the light and its rim
+    (:func:`~camvlp.pipeline.crowded.rim_from_chords`; :data:`_NO_RIM` when not looked
+    for)."""
     b = blobs[k]
     if b.touches_border:
-        return b
+        return b, _NO_RIM
     rim = rim_from_chords(img, blobs, k, axis)
     if on_rim(b.pixel, rim):
-        return b
+        return b, rim
     if _reaches_border(b.box, img.shape) and not _rim_inside(*rim, img.shape):
-        return b  # (a rim the border may cut)
-    return dataclasses.replace(b, pixel=rim[0])
+        return b, rim  # (a rim the border may cut)
+    return dataclasses.replace(b, pixel=rim[0]), rim
 
 
 def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
