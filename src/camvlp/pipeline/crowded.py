@@ -307,9 +307,9 @@ def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndar
         return None  # (still changing: no clean rim)
     close = np.abs(d) <= 0.5 * RIM_OUT_PX
     sides = (slice(None, n_left), slice(n_left, None))
-    if near.mean() < RIM_KEPT or min(close[s].mean() for s in sides) < RIM_SIDE:
+    if min(near[s].sum() for s in sides) < RIM_LINES:  # (first: then no side is empty)
         return None
-    if min(near[s].sum() for s in sides) < RIM_LINES:
+    if near.mean() < RIM_KEPT or min(close[s].mean() for s in sides) < RIM_SIDE:
         return None
     low, high = ends[near].min(axis=0), ends[near].max(axis=0)
     if not (np.all(fit[:2] > low) and np.all(fit[:2] < high)):
