@@ -67,3 +67,25 @@ def test_degenerate_and_floor() -> None:
     assert centre_sigma(np.zeros((2, 2))) == CENTRE_SIGMA_FLOOR_PX
     assert np.isnan(centre_sigma(np.full((2, 2), np.nan)))
     assert centre_sigma(np.diag([0.04, 0.0])) == pytest.approx(np.sqrt(0.02))
+
+
+def test_fits_at_once_as_each_alone_whatever_the_labels() -> None:
+    """Several fits worked at once give each one's covariance alone, and a fit's groups count
+    by which points share a label, not by the labels' values or type: ranked, shifted,
+    negative, float, small unsigned or none (every point alone)."""
+    from camvlp.geometry.disc import ellipse_centre_covariances
+
+    rng = np.random.default_rng(11)
+    rows = np.arange(int(CENTRE[1] - 20), int(CENTRE[1] + 20), dtype=float)
+    _, _, pts, axes, angle = _trial(rng, rows, True, 0.3)
+    (cx, cy), _, _ = cv2.fitEllipse(pts.astype(np.float32))
+    ranks = np.concatenate([np.arange(rows.size)] * 2) // 3  # 3 rows a group
+    labels = [ranks, ranks + 1000, ranks - 7, ranks * 0.5, ranks.astype(np.uint8), None]
+    fits = [(pts, (cx, cy), axes, angle, g) for g in labels]
+    fits.insert(2, (pts[:30], (cx, cy), axes, angle, np.arange(30)))  # a shorter one between
+    got = ellipse_centre_covariances(fits)
+    alone = [ellipse_centre_covariance(*f) for f in fits]
+    np.testing.assert_allclose(got, np.array(alone), rtol=1e-9, atol=1e-15)
+    for k in (1, 3, 4, 5):  # the same groups as the ranks
+        np.testing.assert_allclose(got[k], got[0], rtol=1e-9, atol=1e-15)
+    assert np.all(np.isfinite(got[-1])) and not np.allclose(got[-1], got[0])

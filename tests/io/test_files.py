@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -233,6 +234,10 @@ def test_load_the_example_map(thesis_room_path: Path):
         assert f.diameter == 0.15
         np.testing.assert_array_equal(f.normal, [0, 1, 0])
     assert fm.get(9).position.tolist() == [-0.7935, -2.7, -0.5935] and fm.get(7) is None
+    # IDs as NumPy gives them, and what is no ID, looked up as the fixtures' own
+    assert fm.get(np.int64(6)) is fm.get(6) and fm.get(None) is None and fm.get([5]) is None
+    smaller = dataclasses.replace(fm, fixtures=fm.fixtures[:2])  # (its own lookup)
+    assert smaller.get(5) is fm.get(5) and smaller.get(9) is None
     assert fm.source == str(thesis_room_path)
 
 
