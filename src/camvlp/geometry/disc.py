@@ -114,10 +114,9 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
     cam = np.asarray(toward, dtype=float).reshape(3)
     out = np.full_like(c, np.nan) if normals is None else np.array(normals, float).reshape(-1, 3)
     known = np.isfinite(out).all(axis=1)
-    if known.all():  # (np.linalg.norm's steps, without its checks)
-        out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))
+    out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))  # (NaN rows stay NaN)
+    if known.all():
         return out
-    out[known] /= np.linalg.norm(out[known], axis=1, keepdims=True)
     to_cam = cam - c
     plane = None
     if c.shape[0] >= 3:

@@ -188,52 +188,42 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     ]
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
     fitted = which | (joined & which.any())
-    rims: dict[int, tuple | None] = {}  # the rims of lights _to_clean_rim left where they were
-    if which.any():
-        checked = [
-            (b, None) if w else _to_clean_rim(img, moved, k, axis)
+    rims: dict[int, tuple | None] = {}
+    if which.any():  # each light not centred on its glow, checked against its rim
+        rims = {
+            k: rim_from_chords(img, moved, k, axis)
             for k, (b, w) in enumerate(zip(moved, which, strict=True))
+            if not w and not b.touches_border
+        }
+        checked = [
+            _to_clean_rim(b, rims[k], img.shape) if k in rims else b for k, b in enumerate(moved)
         ]
         # a rim depends on the light's centre (its chords are those through it), box and
         # cell, and the others' masks and boxes: where only other lights moved, the joint
         # fit below would find the same rim again
-        rims = {
-            k: rim
-            for k, ((b, rim), old) in enumerate(zip(checked, moved, strict=True))
-            if not which[k] and b is old and rim is not _NO_RIM
-        }
-        moved = [b for b, _ in checked]
+        rims = {k: rim for k, rim in rims.items() if checked[k] is moved[k]}
+        moved = checked
     return moved if fitted.sum() < 2 else centred_jointly(img, moved, axis, fitted, rims)
 
 
-#: What :func:`_to_clean_rim` gives for a rim it did not look for.
-_NO_RIM = object()
-
-
-def _to_clean_rim(img: np.ndarray, blobs, k: int, axis: str) -> tuple[Blob, object]:
-    """Light ``k`` (not centred on its glow), moved to its disc's rim
-    (:func:`~camvlp.pipeline.crowded.rim_from_chords`) when that shows clean and its centre
-    is off it (:func:`~camvlp.pipeline.crowded.on_rim`); as it was when its disc touches
-    the photo's border, or its region does and the rim does not lie :data:`RIM_MARGIN_PX`
-    within the photo.
+def _to_clean_rim(b: Blob, rim, shape: tuple[int, ...]) -> Blob:
+    """Light ``b`` (not centred on its glow, not touching the border), moved to its disc's
+    ``rim`` (:func:`~camvlp.pipeline.crowded.rim_from_chords`, in a photo of ``shape``) when
+    that shows clean and its centre is off it (:func:`~camvlp.pipeline.crowded.on_rim`); as
+    it was when its region reaches the photo's border and the rim does not lie
+    :data:`RIM_MARGIN_PX` within the photo.
 
     Where lamps glow, a lamp whose outline took in all its glow (through a tone curve, a
     halo a third of the lamp's level stores as more than half of it) shows no ring beyond
     its outline and is not told as glowing, and one whose neighbours found their faces
     is not fitted with them: on crowded phone photos (rendered: of
     ``benchmarks/stress_decode.py --phone``, and of five of its lamps) such lamps' outlines
-    came out 1.8 to 38 px off, their rims' within 1 px.  Returns the light and its rim
-    (:func:`~camvlp.pipeline.crowded.rim_from_chords`; :data:`_NO_RIM` when not looked
-    for)."""
-    b = blobs[k]
-    if b.touches_border:
-        return b, _NO_RIM
-    rim = rim_from_chords(img, blobs, k, axis)
+    came out 1.8 to 38 px off, their rims' within 1 px."""
     if on_rim(b.pixel, rim):
-        return b, rim
-    if _reaches_border(b.box, img.shape) and not _rim_inside(*rim, img.shape):
-        return b, rim  # (a rim the border may cut)
-    return dataclasses.replace(b, pixel=rim[0]), rim
+        return b
+    if _reaches_border(b.box, shape) and not _rim_inside(*rim, shape):
+        return b  # (a rim the border may cut)
+    return dataclasses.replace(b, pixel=rim[0])
 
 
 def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:

@@ -95,7 +95,13 @@ def _object_spread(data: bytes, n: int) -> np.ndarray:
 
 def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
     d = camera.project(pose, obj) - img
-    r = np.sqrt(np.add.reduce(d * d, axis=1))  # np.linalg.norm(d, axis=1), without its checks
+    return _distances(np.add.reduce(d * d, axis=-1))
+
+
+def _distances(squared: np.ndarray) -> np.ndarray:
+    """Reprojection errors (pixels) from their squares, inf where not finite (a fixture
+    behind the camera): ``np.linalg.norm`` of the differences, without its checks."""
+    r = np.sqrt(squared)
     return np.where(np.isfinite(r), r, np.inf)
 
 
@@ -123,8 +129,7 @@ def _scores(
         r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B', N)
         ok = np.isfinite(r2).all(axis=1)
         rms[in_front] = np.where(ok, np.sqrt(np.add.reduce(r2, axis=1) / r2.shape[1]), np.inf)
-        r = np.sqrt(r2)  # as _residuals gives them
-        errors[in_front] = np.where(np.isfinite(r), r, np.inf)
+        errors[in_front] = _distances(r2)
     return rms, in_front, facing, errors
 
 
@@ -251,7 +256,7 @@ def estimate_pose(
         )
 
     idx = np.arange(n)
-    pose, rms, alt, alt_rms, mirrored, errors = solve(idx)
+    pose, rms, alt, alt_rms, mirrored, fit = solve(idx)  # fit: the errors of those in idx
     if pose is None:
         if mirrored:
             return _failure(
@@ -262,18 +267,18 @@ def estimate_pose(
             )
         return _failure(n, "no pose puts every fixture in front of the camera")
     # leave-one-out while a fixture does not fit (needs at least five)
-    while idx.size >= 5 and np.max(_residuals(camera, pose, obj[idx], img[idx])) > outlier_px:
+    while idx.size >= 5 and np.max(fit) > outlier_px:
         best = None
         for subset in combinations(range(idx.size), idx.size - 1):
             sub = idx[list(subset)]
-            p, r, a, ar, _, _ = solve(sub)
+            p, r, a, ar, _, e = solve(sub)
             if p is not None and (best is None or r < best[1]):
-                best = (sub, r, p, a, ar)
+                best = (sub, r, p, a, ar, e)
         if best is None:
             break
-        idx, rms, pose, alt, alt_rms = best
+        idx, rms, pose, alt, alt_rms, fit = best
     # (with every fixture used, the chosen candidate's own errors)
-    residuals = errors if idx.size == n else _residuals(camera, pose, obj, img)
+    residuals = fit if idx.size == n else _residuals(camera, pose, obj, img)
     used = np.zeros(n, bool)
     used[idx] = True
     if float(residuals[used].max()) > outlier_px:
