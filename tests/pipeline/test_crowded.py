@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -310,3 +311,59 @@ def test_no_rim_from_chords_of_a_pixel(chords):
     lines, left, right = (np.asarray(v, dtype=float) for v in chords)
     ends = np.concatenate([np.stack([left, lines], 1), np.stack([right, lines], 1)])
     assert crowded._trimmed_ellipse(ends, lines.size) is None
+
+
+#: Five lamps of a landscape 1080p phone photo of ``benchmarks/stress_decode.py --phone``
+#: (seed 3, 0.5 chip at 3 rows per chip, photo 1), ``(id, x, y, diameter)``, and its render
+#: settings: the lamps clip at 4 times full scale, their glows join through the tone curve.
+_CLIPPING = (
+    (0, 1.0584908323002866, -0.5217979027987436, 0.11818147929734331),
+    (14, 0.5340930616289399, -0.5142099323303986, 0.14578601622928197),
+    (6, 0.8563183194835136, -0.1948733777373801, 0.18400317881814665),
+    (1, 0.3669335488086036, -0.14184872952366487, 0.16384141562282525),
+    (2, -0.15949795864130742, -0.5909030315499902, 0.13459453174409616),
+)
+_CLIPPING_LOOK = dict(
+    brightness=4.147080069498884,
+    off_level=0.031832522700871134,
+    halo=0.11350119077441877,
+    blur_px=1.6356496825807514,
+    bayer=True,
+    gamma=2.4873189625739447,
+    sharpen=1.4419361846557808,
+    vignetting=0.34677809295755985,
+    black_point=0.04120027800414758,
+    readout="rows",
+    seed=748681401,
+)
+
+
+def test_neighbours_looks_take_away_no_more_than_the_photo_shows(monkeypatch):
+    # a lamp's look is fitted on the pixels that do not clip; in its lit lines those are its
+    # glow's tail, and the fitted level of such a line rose to 1e4 to 1e9 gray levels:
+    # taken away from a neighbour's pixels, it left them at -1e5 and below, the next fit
+    # rose further (to 1e44), and the support's float32 overflowed (RuntimeWarnings).  A
+    # light adds to the others': what is taken away is at most what a pixel shows above
+    # the background
+    settings = stress_settings(3.0, 0.5, **_CLIPPING_LOOK)
+    cam, room, photo, image = stress_scene(
+        (1920, 1080), _CLIPPING, settings, 88, settings.chip_rate_hz
+    )
+    seen = []
+    fit = crowded.radial_fit
+
+    def radial_fit_seen(gray, *args, **kwargs):
+        seen.append((float(np.nanmin(gray)), kwargs["background"]))
+        return fit(gray, *args, **kwargs)
+
+    monkeypatch.setattr(crowded, "radial_fit", radial_fit_seen)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = locate(image, cam, room)
+    assert len(seen) >= 5  # the joint fit ran, on every lamp
+    low = float(to_gray(image).min())
+    assert all(least >= min(low, background) for least, background in seen)
+    assert res and np.linalg.norm(res.position) < 0.02
+    for t in photo.fixtures:
+        f, off = _nearest(res, t)
+        assert f.id == t.id and off < 1.0

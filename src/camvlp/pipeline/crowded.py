@@ -11,9 +11,13 @@ benchmark's crowded photos).  Here the lights' looks are fitted together, by blo
 light in turn is fitted (its shape, stripes and centre, :func:`radial_fit`) over its region
 grown beyond its box, to the photo less its neighbours' fitted looks, with their discs (where
 a fitted look is least sure: hot cores, clipping) and the clipped pixels left out, and so
-round after round (:data:`ROUNDS`).  The first rounds search each centre widely on all its
-pixels, along the readout first (:func:`radial_fit`'s ``wide``), and fit the looks on every
-k-th pixel; the last one also refines the centre on the pixels that tell it best.  Nothing
+round after round (:data:`ROUNDS`).  A light only adds to the others, so a neighbour's look
+takes away at most what a pixel shows above the background: a look is fitted on the pixels
+that do not clip, and in the lines where a light clipped those are its glow's tail, whose
+level, told by a few dim pixels, can rise far beyond what the pixels nearer the light show.
+The first rounds search each centre widely on all its pixels, along the readout first
+(:func:`radial_fit`'s ``wide``), and fit the looks on every k-th pixel; the last one also
+refines the centre on the pixels that tell it best.  Nothing
 is assumed of the glow's profile: each light's shape is the one its own pixels give.  A light
 whose joint centre is drawn away from its own clipped pixels keeps its centre alone
 (:func:`_held_by_clipped`).
@@ -413,7 +417,10 @@ def _refitted(
             continue
         ys, xs = np.mgrid[oy0:oy1, ox0:ox1].astype(np.float64)
         level, rho = radial_model(f.fit.model, xs - fx0, ys - fy0, axis)
-        gray[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0] -= level
+        part = gray[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0]
+        # a light adds to what the others show: its look is at most what is left above the
+        # background (a look fitted on lines it barely crosses may rise far beyond)
+        part -= np.minimum(level, np.maximum(part - background, 0.0))
         rim = f.fit.model.rim
         if np.isfinite(rim):
             out[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0] |= rho < DISC * rim
