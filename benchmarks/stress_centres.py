@@ -4,7 +4,8 @@ Replays ``benchmarks/stress_decode.py``'s photos (the same seeds, with looks: ho
 halos in half the photos) and compares each decoded lamp's centre with the render's truth, and
 each located photo's position with the camera's (at the origin). Prints the centre errors'
 median, percentiles and counts over 1, 2 and 5 px (all lamps and the glowing ones), the
-position errors, and the lamps over 2 px.
+position errors, how often each coordinate's error is within 1, 2 and 3 of the result's own
+``position_sigma_m``, and the lamps over 2 px.
 
 Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out.json]``;
 ``--phone`` (with ``--tone-given`` or ``--tone-gamma G``) takes the photos of
@@ -53,6 +54,10 @@ def main() -> int:
                         k=k,
                         located=bool(res),
                         position_mm=float(1e3 * np.linalg.norm(res.position)) if res else None,
+                        # each axis' error over the position's own sigma (the camera at 0)
+                        z=(np.abs(res.position) / res.position_sigma_m).tolist()
+                        if res and res.position_sigma_m is not None
+                        else None,
                     )
                 )
                 for f in res.fixtures:
@@ -88,6 +93,10 @@ def main() -> int:
         f"90 % {np.percentile(pos, 90):.3f}, max {pos.max():.3f}; over 1 mm {(pos > 1).sum()}, "
         f"over 5 mm {(pos > 5).sum()}"
     )
+    z = np.array([p["z"] for p in photos if p["z"] is not None]).ravel()
+    if z.size:  # for normal errors: 68.3, 95.4 and 99.7 %
+        within = ", ".join(f"{100 * np.mean(z <= k):.1f} % within {k} sigma" for k in (1, 2, 3))
+        print(f"position against its own sigma (x, y, z of each photo): {within}")
     for x in sorted(lamps, key=lambda x: -x["error_px"]):
         if x["error_px"] <= 2:
             break

@@ -528,4 +528,5 @@ def locate(
         gravity_residual_deg=est.gravity_residual_deg
         if isinstance(est, GravityPose) and pose is not None
         else float("nan"),
+        solved_with=None if pose is None else (camera, fixture_map),
     )

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from camvlp.model.camera import Pose
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.by_pose import position_sigma
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import Detection
 from camvlp.pipeline.model_decode import ModelDecode
@@ -139,6 +142,12 @@ class LocateResult:
     gravity_residual_deg : float
         With gravity: the angle between the located pose's down and the measured gravity,
         degrees (NaN otherwise).
+    position_sigma_m : ndarray, shape (3,), or None
+        How sure the position is (a property, worked out when first asked): its standard
+        deviation along the map's x, y and z, map units, from the fixtures' reprojection
+        errors and what their layout makes of a pixel
+        (:func:`camvlp.pipeline.by_pose.position_sigma`).  None when not located, or when
+        the pose was solved with gravity.
     """
 
     position: np.ndarray | None
@@ -159,6 +168,24 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
+    #: The camera and map the pose was solved with, for :attr:`position_sigma_m`.
+    solved_with: tuple[Camera, FixtureMap] | None = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def position_sigma_m(self) -> np.ndarray | None:
+        """The position's standard deviation along x, y and z, map units, shape (3,); None
+        when not located or solved with gravity (see the class' attributes)."""
+        pose = self.pose
+        if pose is None or self.solved_with is None or self.solver != "pnp":
+            return None
+        camera, fixture_map = self.solved_with
+        used = [f for f in self.fixtures if f.used]
+        return position_sigma(
+            camera,
+            pose,
+            np.array([fixture_map.get(f.id).position for f in used]),
+            np.array([f.residual_px for f in used]),
+        )
 
     @property
     def fixtures_used(self) -> int:
@@ -207,6 +234,9 @@ class LocateResult:
         for key in ("rows_per_chip", "exposure_chips"):
             v = getattr(self, key)
             d[key] = None if not np.isfinite(v) else round(float(v), 4)
+        sigma = self.position_sigma_m
+        if sigma is not None:
+            d["position_sigma"] = arr(sigma)
         if self.alternative_position is not None:
             d["alternative"] = {
                 "position": arr(self.alternative_position),
