@@ -5,6 +5,7 @@ Skipped when no Chromium (Debian's package) or no playwright is installed.
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -68,6 +69,8 @@ def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
                 page.wait_for_selector("g.fix.latest[data-device='browser-test']", timeout=30_000)
                 page.wait_for_selector("#annotated:not([hidden])", timeout=30_000)
                 assert "position (0.10" in page.inner_text("#result-text")
+                sigma = re.search(r"uncertainty \(([^)]*)\) m", page.inner_text("#result-text"))
+                assert sigma and 0 < max(map(float, sigma[1].split(", "))) < 0.01
                 width = page.eval_on_selector("#annotated", "img => img.naturalWidth")
                 assert width == CAMERA_JSON["image_width"]
                 # a fix made elsewhere arrives through the stream

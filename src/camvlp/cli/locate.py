@@ -166,7 +166,7 @@ def _print_human(result, units: str, photo: Path) -> None:
         print(f"position      ({position}) {units}")
         sigma = result.position_sigma_m
         if sigma is not None:  # (how far the fixtures' fit and layout let it be off)
-            spread = ", ".join(format_number(v, ".4f") for v in sigma)
+            spread = ", ".join(format_number(v, ".2g") for v in sigma)  # (sub-mm ones too)
             print(f"uncertainty   ({spread}) {units}, 1 sigma from the fixtures' fit")
         print(f"orientation   theta = ({angles}) deg")
         print(f"reprojection  {result.reprojection_rms_px:.3f} px RMS")

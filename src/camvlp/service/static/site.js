@@ -144,6 +144,10 @@ function fmtPosition(p) {
   return p ? `(${p.map((v) => v.toFixed(3)).join(", ")})` : "—";
 }
 
+function fmtSigma(s) {  // two significant digits: a good fix's are well under a millimetre
+  return `(${s.map((v) => v.toPrecision(2)).join(", ")})`;
+}
+
 function drawTable() {
   const body = $("fixes").querySelector("tbody");
   body.replaceChildren();
@@ -219,6 +223,9 @@ function showResult(result) {
   const used = result.fixtures.filter((f) => f.used).map((f) => f.id);
   const lines = result.position
     ? [`position ${fmtPosition(result.position)} ${state.site.units}`,
+       ...(result.position_sigma
+         ? [`uncertainty ${fmtSigma(result.position_sigma)} ${state.site.units} (1σ)`]
+         : []),
        `orientation θ = (${result.euler_deg.map((v) => v.toFixed(1)).join(", ")})°`,
        `reprojection ${result.reprojection_rms_px} px RMS`,
        `fixtures used: ${used.join(", ")} of ${result.fixtures.length} found`]
