@@ -5,7 +5,7 @@ halos in half the photos) and compares each decoded lamp's centre with the rende
 each located photo's position with the camera's (at the origin). Prints the centre errors'
 median, percentiles and counts over 1, 2 and 5 px (all lamps and the glowing ones), the
 position errors, how often each coordinate's error is within 1, 2 and 3 of the result's own
-``position_sigma_m``, and the lamps over 2 px.
+``position_sigma``, and the lamps over 2 px.
 
 Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out.json]``;
 ``--phone`` (with ``--tone-given`` or ``--tone-gamma G``) takes the photos of
@@ -55,8 +55,8 @@ def main() -> int:
                         located=bool(res),
                         position_mm=float(1e3 * np.linalg.norm(res.position)) if res else None,
                         # each axis' error over the position's own sigma (the camera at 0)
-                        z=(np.abs(res.position) / res.position_sigma_m).tolist()
-                        if res and res.position_sigma_m is not None
+                        z=(np.abs(res.position) / res.position_sigma).tolist()
+                        if res and res.position_sigma is not None
                         else None,
                     )
                 )

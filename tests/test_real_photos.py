@@ -101,6 +101,11 @@ def test_demo_floor_photo_frequencies_corners_and_pose(files):
     # the camera is below the ceiling (z = 0, lights facing -z), about 2 m down
     assert res.position[2] < -150
     assert res.reprojection_rms_px <= 3.0
+    # how sure: about a centimetre from five lights 1 px RMS off at 2 m; the photos' own
+    # independent solve (x about -2, y about 3 cm) lies within three of its sigmas
+    sigma = res.position_sigma
+    assert 0.1 < sigma.max() < 5.0
+    assert np.all(np.abs(res.position[:2] - [-2.0, 3.0]) < 3 * sigma[:2])
 
 
 def test_demo_floor_photo_without_row_time_matches_by_ratios(files):

@@ -147,14 +147,14 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     assert sorted(f["id"] for f in d["fixtures"]) == sorted(small_room.ids)
     assert "error" not in d
     # how sure the position is: the pixels' rounding at most, so well under MAX_ERROR_M
-    assert np.array(d["position_sigma"]) == pytest.approx(res.position_sigma_m, abs=1e-6)
-    assert 0 < max(res.position_sigma_m) < MAX_ERROR_M
+    assert np.array(d["position_sigma"]) == pytest.approx(res.position_sigma, abs=1e-6)
+    assert 0 < max(res.position_sigma) < MAX_ERROR_M
 
 
 def test_no_position_sigma_without_a_position(small_render, small_camera, small_room):
     few = dataclasses.replace(small_room, fixtures=small_room.fixtures[:3])
     res = locate(small_render.image, small_camera, few)
-    assert not res and res.position_sigma_m is None and "position_sigma" not in res.to_dict()
+    assert not res and res.position_sigma is None and "position_sigma" not in res.to_dict()
 
 
 def test_fixture_not_in_the_map_is_reported_and_not_used(small_render, small_camera):

@@ -164,7 +164,7 @@ def _print_human(result, units: str, photo: Path) -> None:
         position = ", ".join(format_number(v, ".4f") for v in result.position)
         angles = ", ".join(format_number(v, ".2f") for v in result.euler_deg)
         print(f"position      ({position}) {units}")
-        sigma = result.position_sigma_m
+        sigma = result.position_sigma
         if sigma is not None:  # (how far the fixtures' fit and layout let it be off)
             spread = ", ".join(format_number(v, ".2g") for v in sigma)  # (sub-mm ones too)
             print(f"uncertainty   ({spread}) {units}, 1 sigma from the fixtures' fit")

@@ -11,7 +11,7 @@ import numpy as np
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.by_pose import position_sigma
+from camvlp.pipeline import by_pose
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import Detection
 from camvlp.pipeline.model_decode import ModelDecode
@@ -142,7 +142,7 @@ class LocateResult:
     gravity_residual_deg : float
         With gravity: the angle between the located pose's down and the measured gravity,
         degrees (NaN otherwise).
-    position_sigma_m : ndarray, shape (3,), or None
+    position_sigma : ndarray, shape (3,), or None
         How sure the position is (a property, worked out when first asked): its standard
         deviation along the map's x, y and z, map units, from the fixtures' reprojection
         errors and what their layout makes of a pixel
@@ -168,11 +168,11 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
-    #: The camera and map the pose was solved with, for :attr:`position_sigma_m`.
+    #: The camera and map the pose was solved with, for :attr:`position_sigma`.
     solved_with: tuple[Camera, FixtureMap] | None = field(default=None, repr=False, compare=False)
 
     @functools.cached_property
-    def position_sigma_m(self) -> np.ndarray | None:
+    def position_sigma(self) -> np.ndarray | None:
         """The position's standard deviation along x, y and z, map units, shape (3,); None
         when not located or solved with gravity (see the class' attributes)."""
         pose = self.pose
@@ -180,7 +180,7 @@ class LocateResult:
             return None
         camera, fixture_map = self.solved_with
         used = [f for f in self.fixtures if f.used]
-        return position_sigma(
+        return by_pose.position_sigma(
             camera,
             pose,
             np.array([fixture_map.get(f.id).position for f in used]),
@@ -234,7 +234,7 @@ class LocateResult:
         for key in ("rows_per_chip", "exposure_chips"):
             v = getattr(self, key)
             d[key] = None if not np.isfinite(v) else round(float(v), 4)
-        sigma = self.position_sigma_m
+        sigma = self.position_sigma
         if sigma is not None:
             d["position_sigma"] = arr(sigma)
         if self.alternative_position is not None:
