@@ -131,8 +131,9 @@ def test_the_pose_covariance_predicts_how_far_off_a_projection_comes(small_camer
 
 
 def test_the_jacobian_is_that_of_the_moved_poses_one_by_one(small_camera, small_room):
-    # the twelve moved poses projected at once: each column as the pose turned about the
-    # camera's own axis (radians), or its centre moved (map units), projected alone
+    # the twelve moved poses projected at once: each column, bit for bit, as the pose
+    # turned about the camera's own axis (radians), or its centre moved (map units),
+    # projected alone
     from camvlp.pipeline.by_pose import _STEP, _jacobian
 
     obj = np.array([f.position for f in small_room.fixtures])
@@ -147,7 +148,7 @@ def test_the_jacobian_is_that_of_the_moved_poses_one_by_one(small_camera, small_
             turn = Pose.from_rvec_tvec(e, np.zeros(3)).world_from_camera.T if j < 3 else np.eye(3)
             moved = Pose(POSE.world_from_camera @ turn, POSE.position + (e if j >= 3 else 0.0))
             ends.append(project_points(small_camera, moved, obj))
-        np.testing.assert_allclose(got[:, :, j], (ends[0] - ends[1]) / (2 * h), rtol=1e-9)
+        np.testing.assert_array_equal(got[:, :, j], (ends[0] - ends[1]) / (2 * h))
 
 
 def test_the_position_sigma_is_how_far_noisy_solves_scatter(small_camera):

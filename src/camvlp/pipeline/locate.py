@@ -309,6 +309,17 @@ def _solve(
     return est, "" if est else est.reason
 
 
+def _sigma_inputs(camera, fixture_map, est, found: Identified, pose, down):
+    """What ``LocateResult.position_sigma`` needs (the camera, the pose, the used fixtures'
+    map positions and reprojection errors), or None: not located, or solved with gravity
+    (its covariance weighs the gravity too)."""
+    if pose is None or down is not None or isinstance(est, GravityPose):
+        return None
+    used = [k for j, k in enumerate(found.usable) if est.used[j]]
+    points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
+    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
+
+
 def _fixture_results(
     blobs,
     decodes,
@@ -528,5 +539,5 @@ def locate(
         gravity_residual_deg=est.gravity_residual_deg
         if isinstance(est, GravityPose) and pose is not None
         else float("nan"),
-        solved_with=None if pose is None else (camera, fixture_map),
+        sigma_inputs=_sigma_inputs(camera, fixture_map, est, found, pose, down),
     )

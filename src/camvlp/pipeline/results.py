@@ -9,7 +9,6 @@ from typing import Any
 import numpy as np
 
 from camvlp.model.camera import Camera, Pose
-from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline import by_pose
 from camvlp.pipeline.decode import StripeDecode
@@ -146,8 +145,8 @@ class LocateResult:
         How sure the position is (a property, worked out when first asked): its standard
         deviation along the map's x, y and z, map units, from the fixtures' reprojection
         errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.by_pose.position_sigma`).  None when not located, or when
-        the pose was solved with gravity.
+        (:func:`camvlp.pipeline.by_pose.position_sigma`), for the pose located.  None when
+        not located, or when the pose was solved with gravity.
     """
 
     position: np.ndarray | None
@@ -168,24 +167,20 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
-    #: The camera and map the pose was solved with, for :attr:`position_sigma`.
-    solved_with: tuple[Camera, FixtureMap] | None = field(default=None, repr=False, compare=False)
+    #: What :attr:`position_sigma` is worked out from: the camera, the pose located, and the
+    #: used fixtures' map positions (m, 3) and reprojection errors (m,), pixels.
+    sigma_inputs: tuple[Camera, Pose, np.ndarray, np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     @functools.cached_property
     def position_sigma(self) -> np.ndarray | None:
         """The position's standard deviation along x, y and z, map units, shape (3,); None
         when not located or solved with gravity (see the class' attributes)."""
-        pose = self.pose
-        if pose is None or self.solved_with is None or self.solver != "pnp":
+        if self.sigma_inputs is None:
             return None
-        camera, fixture_map = self.solved_with
-        used = [f for f in self.fixtures if f.used]
-        return by_pose.position_sigma(
-            camera,
-            pose,
-            np.array([fixture_map.get(f.id).position for f in used]),
-            np.array([f.residual_px for f in used]),
-        )
+        sigma = by_pose.position_sigma(*self.sigma_inputs)
+        return sigma if np.isfinite(sigma).all() else None
 
     @property
     def fixtures_used(self) -> int:
@@ -220,6 +215,7 @@ class LocateResult:
             "reprojection_rms_px": None
             if not np.isfinite(self.reprojection_rms_px)
             else round(self.reprojection_rms_px, 4),
+            "position_sigma": arr(self.position_sigma),
             "fixtures": [f.to_dict() for f in self.fixtures],
             "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
             "readout": str(self.readout),
@@ -234,9 +230,6 @@ class LocateResult:
         for key in ("rows_per_chip", "exposure_chips"):
             v = getattr(self, key)
             d[key] = None if not np.isfinite(v) else round(float(v), 4)
-        sigma = self.position_sigma
-        if sigma is not None:
-            d["position_sigma"] = arr(sigma)
         if self.alternative_position is not None:
             d["alternative"] = {
                 "position": arr(self.alternative_position),
