@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import importlib.util
 import json
 import math
@@ -172,6 +173,14 @@ def test_evaluate_counts_failures_and_writes_everything(scene, survey_dir, tmp_p
     for r in rows:
         if r["located"] == "0":
             assert r["reason"] and r["est_x"] == "" and r["error"] == ""
+            assert r["sigma_x"] == ""
+    # each located photo's own sigma, and how often its errors lie within it
+    sigma = np.array([[float(r[f"sigma_{c}"]) for c in "xyz"] for r in located])
+    assert np.all(sigma > 0)
+    z = np.abs(est - true) / sigma
+    assert summary["within_sigma"]["count"] == 12
+    for k in (1, 2, 3):
+        assert summary["within_sigma"][str(k)] == pytest.approx(np.mean(z <= k), abs=1e-6)
     for name in ("error_map.png", "positions.png"):
         image = cv2.imread(str(out / name))
         assert image is not None and image.shape[0] > 300 and image.shape[1] > 400
@@ -300,6 +309,13 @@ def test_summary_statistics_of_known_errors(tmp_path):
     assert s["angle_error_deg"]["max"] == pytest.approx(6.0, abs=1e-6)
     assert s["angle_error_deg"]["mean"] == pytest.approx(3.0, abs=1e-6)
     assert s["failures"] == [{"photo": "p3", "reason": "not located: none"}]
+    # no photo says its sigma: nothing to count
+    assert s["within_sigma"] == {"1": None, "2": None, "3": None, "count": 0}
+    # with sigmas: errors 3, 4, 5 along one axis each (1.5, 2 and 2.5 sigmas), 0 along
+    # the others, sigma 2 everywhere
+    with_sigma = tuple(dataclasses.replace(r, position_sigma=np.full(3, 2.0)) for r in results)
+    w = Evaluation(with_sigma, "m", survey, 1, 0.0).summary()["within_sigma"]
+    assert w == {"1": pytest.approx(6 / 9), "2": pytest.approx(8 / 9), "3": 1.0, "count": 9}
 
 
 def test_make_survey_script(scene, examples_dir, tmp_path):

@@ -175,6 +175,10 @@ def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:
             f"  angle deg {d(st['mean']):>7}  {d(st['median']):>7}  {d(st['p95']):>7}  "
             f"{d(st['max']):>7}"
         )
+    within = s["within_sigma"]
+    if within["count"]:  # how well each photo's own position_sigma told its error
+        shares = ", ".join(f"{k} sigma {100 * within[k]:.1f} %" for k in "123")
+        print(f"  within    {shares} of {within['count']} coordinates (normal: 68, 95, 99.7)")
     if s["failures"]:
         print()
         print("failures")

@@ -138,6 +138,9 @@ RESULT_COLUMNS = (
     "est_theta_z",
     "angle_error_deg",
     "time_ms",
+    "sigma_x",
+    "sigma_y",
+    "sigma_z",
 )
 
 
@@ -171,6 +174,7 @@ def write_results_csv(evaluation, path: str | Path) -> Path:
             est = r.position if r.position is not None else none3
             eul = r.euler_deg if r.euler_deg is not None else none3
             teul = r.true_euler_deg if r.true_euler_deg is not None else none3
+            sigma = r.position_sigma
             w.writerow(
                 [
                     r.photo,
@@ -188,6 +192,7 @@ def write_results_csv(evaluation, path: str | Path) -> Path:
                     *(_cell(v, 6) for v in eul),
                     _cell(r.angle_error_deg, 4),
                     _cell(r.time_ms, 5),
+                    *(_cell(v, 4) for v in (none3 if sigma is None else sigma)),
                     *extra,
                 ]
             )
