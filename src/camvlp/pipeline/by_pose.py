@@ -116,18 +116,13 @@ def _jacobian(camera: Camera, pose: Pose, points: np.ndarray) -> np.ndarray:
 
 
 def pose_covariance(
-    camera: Camera,
-    pose: Pose,
-    points: np.ndarray,
-    pixels: np.ndarray,
-    floor_px2: float = 1.0,
+    camera: Camera, pose: Pose, points: np.ndarray, pixels: np.ndarray
 ) -> np.ndarray:
     """The covariance of a pose solved from these fixtures, shape (6, 6).
 
     Gauss-Newton's ``s^2 (J^T J)^-1``, ``J`` the projections' Jacobian (:func:`_jacobian`)
     and ``s^2`` the residuals' variance per coordinate over the degrees of freedom left (at
-    least ``floor_px2``; by default 1 px^2: a pose that fits its fixtures exactly is not
-    known better than that).
+    least 1 px^2; a pose that fits its fixtures exactly is not known better than that).
 
     Parameters
     ----------
@@ -137,17 +132,16 @@ def pose_covariance(
         The map positions the pose was solved from (m >= 3).
     pixels : ndarray, shape (m, 2)
         Their centres in the photo, pixels.
-    floor_px2 : float
-        Least variance per coordinate, pixels squared.
     """
     res = np.asarray(pixels, dtype=float).reshape(-1, 2) - project_points(camera, pose, points)
-    return _covariance(camera, pose, points, float(np.sum(res**2)), floor_px2)
+    return _covariance(camera, pose, points, float(np.sum(res**2)), 1.0)
 
 
 def _covariance(
     camera: Camera, pose: Pose, points: np.ndarray, squares_px2: float, floor_px2: float
 ) -> np.ndarray:
-    """:func:`pose_covariance` from the residuals' sum of squares (pixels squared)."""
+    """:func:`pose_covariance` from the residuals' sum of squares (pixels squared), with
+    ``floor_px2`` the least variance per coordinate (pixels squared)."""
     jac = _jacobian(camera, pose, points).reshape(-1, 6)
     s2 = max(squares_px2 / max(jac.shape[0] - 6, 1), floor_px2)
     return s2 * np.linalg.pinv(jac.T @ jac)
