@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.geometry.disc import disc_normals, perspective_offsets
+from camvlp.geometry.disc import centre_sigma, disc_normals, perspective_offsets
 from camvlp.geometry.gravity import (
     GravityPose,
     check_gravity,
@@ -33,6 +33,7 @@ from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.glow_split import decode_from_glows
 from camvlp.pipeline.identify import Identified, decided, identifier, identify
+from camvlp.pipeline.later import later_of
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.profile import shape_profiles
@@ -360,7 +361,7 @@ def _fixture_results(
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,
                 frequency_hz=float(frequencies[k]),
-                centre_sigma_px=b.centre_sigma_px,
+                centre_sigma_px=later_of(b, "centre_cov_px2", centre_sigma),
                 look_alikes=(told or {}).get(k, ()),
             )
         )

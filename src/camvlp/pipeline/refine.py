@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
+from camvlp.pipeline.later import Later, LaterField
 from camvlp.pipeline.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
 from camvlp.pipeline.ragged import pieces, starts
 from camvlp.pipeline.touching import own_face
@@ -66,7 +67,9 @@ class Blob:
     centre_cov_px2 : ndarray, shape (2, 2)
         Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared
         (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`); NaN when the centroid was
-        used or the fit cannot tell.
+        used or the fit cannot tell.  Worked out when first read (for all the blobs of a
+        photo at once: :class:`~camvlp.pipeline.later.LaterField`); it may be given as a
+        :class:`~camvlp.pipeline.later.Later`.
     gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
         The region of interest in gray levels (:func:`to_gray`), kept so that later stages
         need not convert it again.
@@ -88,7 +91,9 @@ class Blob:
     axis: str
     stripe_contrast: float
     edge_points: int
-    centre_cov_px2: np.ndarray = field(default_factory=lambda: np.full((2, 2), np.nan))
+    centre_cov_px2: np.ndarray = LaterField(  # noqa: RUF009 (a descriptor, read per instance)
+        missing=lambda: np.full((2, 2), np.nan)
+    )
 
     gray: np.ndarray | None = field(default=None, repr=False, compare=False)
     cell: np.ndarray | None = field(default=None, repr=False, compare=False)
@@ -652,25 +657,36 @@ def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict,
 
 
 def _blobs(found: list[tuple[dict, tuple | None]]) -> list[Blob]:
-    """The blobs with their centres' covariances, all worked at once
-    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`, the edge points in groups of
-    :func:`_row_groups`); a centroid's stays NaN."""
+    """The blobs, their centres' covariances to be worked out when first read, all at once
+    (:class:`_Covariances`); a centroid's stays NaN."""
     k = [i for i, (_, fit) in enumerate(found) if fit is not None]
-    covs = {}
-    if k:
-        fits = [found[i][1] for i in k]
-        groups = _row_groups([f[0] for f in fits], [found[i][0]["axis"] for i in k])
-        covs = dict(
-            zip(
-                k,
-                ellipse_centre_covariances([(*f, g) for f, g in zip(fits, groups, strict=True)]),
-                strict=True,
-            )
-        )
+    covs = _Covariances([found[i][1] for i in k], [found[i][0]["axis"] for i in k])
+    at = {i: j for j, i in enumerate(k)}
     return [
-        Blob(**b, centre_cov_px2=covs[i]) if i in covs else Blob(**b)
+        Blob(**b, centre_cov_px2=Later(covs.get, at[i])) if i in at else Blob(**b)
         for i, (b, _) in enumerate(found)
     ]
+
+
+class _Covariances:
+    """The centres' covariances of a photo's ellipse fits ``(points, centre, axes, angle)``
+    and their readout axes, worked out together the first time one is asked for
+    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`, the edge points in groups of
+    :func:`_row_groups`): a tenth of a 1080p photo's :func:`~camvlp.pipeline.locate.locate`,
+    which most calls never read."""
+
+    def __init__(self, fits: list[tuple], axes: list[str]) -> None:
+        self.fits, self.axes = fits, axes
+        self.covs: np.ndarray | None = None
+
+    def get(self, j: int) -> np.ndarray:
+        """The ``j``-th fit's centre covariance, pixels squared, shape (2, 2)."""
+        if self.covs is None:
+            groups = _row_groups([f[0] for f in self.fits], self.axes)
+            self.covs = ellipse_centre_covariances(
+                [(*f, g) for f, g in zip(self.fits, groups, strict=True)]
+            )
+        return self.covs[j].copy()
 
 
 def _row_groups(points: list[np.ndarray], axes: list[str]) -> list[np.ndarray]:

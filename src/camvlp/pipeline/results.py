@@ -13,6 +13,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline import by_pose
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import Detection
+from camvlp.pipeline.later import LaterField
 from camvlp.pipeline.model_decode import ModelDecode
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
@@ -52,7 +53,8 @@ class FixtureResult:
         Measured blinking frequency (frequency mode), Hz; NaN otherwise.
     centre_sigma_px : float
         Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
-        axis; NaN when the disc was too small to fit).
+        axis; NaN when the disc was too small to fit).  Worked out when first read
+        (:class:`~camvlp.pipeline.later.LaterField`).
     look_alikes : tuple of int
         When the stripes fit two or more IDs of the map almost equally and the pose told
         them apart (:mod:`camvlp.pipeline.by_pose`): those IDs, ``id`` among them (the one
@@ -70,7 +72,7 @@ class FixtureResult:
     rows_per_chip: float = float("nan")
     residual_px: float = float("nan")
     frequency_hz: float = float("nan")
-    centre_sigma_px: float = float("nan")
+    centre_sigma_px: float = LaterField(float("nan"))  # a descriptor: read per instance
     look_alikes: tuple[int, ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
