@@ -46,7 +46,8 @@ def main() -> int:
     for e in sd.EXPOSURES:
         for r in sd.ROWS_PER_CHIP:
             for k in range(args.per_cell):
-                photo, res, cond, _, _ = sd.one_photo(rng, e, r, looks=True, **phone)
+                photo, res, cond, _, fmap = sd.one_photo(rng, e, r, looks=True, **phone)
+                used = [fmap.get(f.id).position for f in res.fixtures if f.used]
                 photos.append(
                     dict(
                         exposure=e,
@@ -57,6 +58,13 @@ def main() -> int:
                         # each axis' error over the position's own sigma (the camera at 0)
                         z=(np.abs(res.position) / res.position_sigma).tolist()
                         if res and res.position_sigma is not None
+                        else None,
+                        sigma_mm=(1e3 * res.position_sigma).tolist()
+                        if res and res.position_sigma is not None
+                        else None,
+                        # the used lamps' mean distance from the camera (at 0)
+                        distance_mm=float(1e3 * np.mean(np.linalg.norm(used, axis=1)))
+                        if used
                         else None,
                     )
                 )

@@ -200,6 +200,17 @@ def test_json_output_and_one_job_agree_with_parallel(scene, survey_dir, tmp_path
     assert [r.located for r in parallel.results] == [True, True, False, True, False, True]
 
 
+def test_max_sigma_refuses_the_photos_less_sure(scene, survey_dir, tmp_path):
+    """``--max-sigma`` reaches every photo's locate: below every sigma, none is located and
+    each failure gives the reason."""
+    result = evaluate_cli(scene, survey_dir[0], tmp_path / "out", "--max-sigma", "1e-12")
+    assert result.exit_code == 0, result.output
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["located"] == 0 and summary["failed"] == 6
+    reasons = [f["reason"] for f in summary["failures"]]
+    assert sum("too unsure" in r for r in reasons) == 4  # the four located without it
+
+
 # --------------------------------------------------------------------------------------------
 # Bad input: exit 2, one line
 
@@ -248,7 +259,7 @@ def test_bad_camera_or_map_exits_2(scene, survey_dir, tmp_path, which):
     assert "bad.yaml" in one_error_line(result)
 
 
-@pytest.mark.parametrize("option", ["--jobs", "--outlier-px", "--magnify"])
+@pytest.mark.parametrize("option", ["--jobs", "--outlier-px", "--magnify", "--max-sigma"])
 def test_bad_option_value_exits_2(scene, survey_dir, tmp_path, option):
     result = evaluate_cli(scene, survey_dir[0], tmp_path / "out", option, "0")
     assert result.exit_code == 2

@@ -343,7 +343,23 @@ def test_missing_camera_file(capsys, tmp_path, small_files):
     no_position(out)
 
 
-@pytest.mark.parametrize("option", [["--solver", "magic"], ["--readout", "diagonal"]])
+def test_a_position_less_sure_than_max_sigma_is_not_located(capsys, small_files):
+    """``--max-sigma``: exit 1 and the reason when the position is less sure than asked,
+    located as without it when it is surer."""
+    files = small_files["photo"], small_files["camera"], small_files["map"]
+    code, out, err = run(capsys, *files, "--max-sigma", "1e-9")
+    assert code == 1
+    assert "too unsure" in one_error_line(err) and "over the limit of 1e-09" in err
+    no_position(out)
+    code, out, err = run(capsys, *files, "--max-sigma", "0.01", "--json")
+    assert code == 0, err
+    assert max(json.loads(out)["position_sigma"]) <= 0.01
+
+
+@pytest.mark.parametrize(
+    "option",
+    [["--solver", "magic"], ["--readout", "diagonal"], ["--max-sigma", "0"], ["--max-sigma", "-1"]],
+)
 def test_bad_option_values(capsys, small_files, option):
     code, out, err = run(
         capsys, small_files["photo"], small_files["camera"], small_files["map"], *option

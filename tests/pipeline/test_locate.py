@@ -345,3 +345,28 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     by_pixel = {tuple(np.round(b.pixel, 6)): b.centre_sigma_px for b in blobs}
     assert sigmas == [by_pixel[tuple(np.round(f.pixel, 6))] for f in res.fixtures]
     assert all(0.0 < s < 0.5 for s in sigmas)
+
+
+def test_a_position_less_sure_than_asked_is_not_reported(small_render, small_camera, small_room):
+    """``max_position_sigma``: a position whose sigma exceeds it along an axis is not
+    reported (the reason gives the sigma); one within it is reported as without a limit."""
+    free = locate(small_render.image, small_camera, small_room)
+    sigma = free.position_sigma
+    axis = int(np.argmax(sigma))
+    below = LocateSettings(max_position_sigma=0.9 * float(sigma[axis]))
+    res = locate(small_render.image, small_camera, small_room, below)
+    assert not res and res.position is None and res.position_sigma is None
+    assert "too unsure" in res.reason and f"along {'xyz'[axis]}" in res.reason
+    assert f"{sigma[axis]:.3g}" in res.reason
+    assert len(res.fixtures) == 5 and not any(f.used for f in res.fixtures)
+    assert all(f.id is not None for f in res.fixtures)  # still identified
+    above = LocateSettings(max_position_sigma=1.1 * float(sigma.max()))
+    ok = locate(small_render.image, small_camera, small_room, above)
+    np.testing.assert_array_equal(ok.position, free.position)
+    np.testing.assert_array_equal(ok.position_sigma, sigma)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf"), True, "1"])
+def test_max_position_sigma_must_be_a_positive_number(bad):
+    with pytest.raises(InputError, match="max_position_sigma"):
+        LocateSettings(max_position_sigma=bad)

@@ -94,6 +94,15 @@ def test_four_fixtures_with_gravity_report_the_tilt(small_camera, small_room, sm
     assert "tilt_disagreement_deg" in res.to_dict()
     plain = locate(small_render.image, small_camera, small_room)
     assert plain.solver == "pnp" and np.isnan(plain.tilt_disagreement_deg)
+    # the position's sigma is not worked out with gravity: a limit on it does not apply
+    limited = locate(
+        small_render.image,
+        small_camera,
+        small_room,
+        LocateSettings(gravity_sigma_deg=2.0, max_position_sigma=1e-12),
+        gravity=turned(true_gravity(pose), 3.0, np.random.default_rng(1)),
+    )
+    np.testing.assert_array_equal(limited.position, res.position)
 
 
 def test_mirrored_photo_with_gravity(two_and_three, small_camera) -> None:

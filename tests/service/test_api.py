@@ -291,6 +291,19 @@ def test_a_photo_that_cannot_be_located_is_recorded_with_its_reason(client):
     assert fix["plan"] == {"position": None, "heading_deg": None}
 
 
+def test_max_sigma_refuses_a_position_less_sure(client, photo_png):
+    """``max_sigma``: below the photo's sigma the fix is recorded unlocated, with the sigma
+    in its reason; above it, located."""
+    site_id, headers = create_site(client)
+    sigma = max(upload(client, site_id, headers, photo_png).json()["position_sigma"])
+    r = upload(client, site_id, headers, photo_png, max_sigma=str(0.5 * sigma))
+    assert r.status_code == 200
+    body = r.json()
+    assert body["position"] is None and "too unsure" in body["error"]
+    r = upload(client, site_id, headers, photo_png, max_sigma=str(2 * sigma))
+    assert r.json()["position"] is not None
+
+
 def test_locate_picks_the_named_camera(client, photo_png):
     site_id, headers = create_site(client, camera_name="front")
     # one camera: used without being named
@@ -346,6 +359,8 @@ def test_bad_photos_get_4xx_and_the_service_goes_on(tmp_path, photo_png):
             ({"readout": "diagonal"}, "readout must be rows, columns, rows-reversed or columns-"),
             ({"gravity": "1,2"}, "gravity must be three numbers"),
             ({"mirrored": "perhaps"}, "mirrored: "),
+            ({"max_sigma": "-1"}, "max_position_sigma must be a positive number"),
+            ({"max_sigma": "a lot"}, "max_sigma: "),
         ]:
             r = upload(client, site_id, headers, photo_png, **form)
             assert r.status_code == 422 and words in detail(r), r.text

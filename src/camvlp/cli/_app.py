@@ -164,6 +164,17 @@ OutlierOption = Annotated[
         "fixtures the photo is then not located. Default: 1 % of the focal length, >= 4 px.",
     ),
 ]
+#: ``--max-sigma``: the least sure position the locator reports (checked by
+#: :func:`check_positive`).
+MaxSigmaOption = Annotated[
+    float | None,
+    typer.Option(
+        "--max-sigma",
+        metavar="S",
+        help="Do not report a position whose standard deviation along an axis exceeds S (map "
+        "units): the photo is then not located, and the reason gives it. Default: no limit.",
+    ),
+]
 
 
 #: ``--gravity-sigma-deg``: the accelerometer's uncertainty (checked by :func:`check_positive`).

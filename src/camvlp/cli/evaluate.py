@@ -22,6 +22,7 @@ from camvlp.sim.survey import default_jobs
 
 from ._app import (
     GravitySigmaOption,
+    MaxSigmaOption,
     OutlierOption,
     SolverOption,
     app,
@@ -55,6 +56,7 @@ def evaluate_command(
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
     solver: SolverOption = "iterative",
     outlier_px: OutlierOption = None,
+    max_sigma: MaxSigmaOption = None,
     magnify: Annotated[
         float | None,
         typer.Option(
@@ -77,6 +79,7 @@ def evaluate_command(
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
+    check_positive(max_sigma, "--max-sigma")
     check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
     jobs = cap_jobs(jobs)
     if magnify is not None and not magnify > 0:
@@ -89,6 +92,7 @@ def evaluate_command(
     settings = LocateSettings(
         solver=solver,
         outlier_px=outlier_px,
+        max_position_sigma=max_sigma,
         gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
     )
     evaluation = _run(survey, camera, fixture_map, settings, n_jobs)

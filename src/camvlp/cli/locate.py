@@ -26,6 +26,7 @@ from camvlp.viz.annotate import annotate, write_debug_pictures
 from ._app import (
     EXIT_NOT_LOCATED,
     GravitySigmaOption,
+    MaxSigmaOption,
     OutlierOption,
     SolverOption,
     app,
@@ -70,6 +71,7 @@ def locate_command(
         ),
     ] = None,
     outlier_px: OutlierOption = None,
+    max_sigma: MaxSigmaOption = None,
     tone_gamma: Annotated[
         float | None,
         typer.Option(
@@ -96,6 +98,7 @@ def locate_command(
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
+    check_positive(max_sigma, "--max-sigma")
     check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
     g = parse_gravity(gravity)
     given_readout = parse_readout(readout)
@@ -125,6 +128,7 @@ def locate_command(
         readout=given_readout,
         mirrored=mirrored,
         outlier_px=outlier_px,
+        max_position_sigma=max_sigma,
         keep_stages=debug_dir is not None,
         gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
     )

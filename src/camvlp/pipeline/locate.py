@@ -28,6 +28,7 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.by_pose import position_sigma
 from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
@@ -80,6 +81,12 @@ class LocateSettings:
         reprojection residuals against the gravity residual.  None (the default): each
         disc's own, estimated from its ellipse fit (:attr:`FixtureResult.centre_sigma_px`;
         1 px for a disc too small to fit).
+    max_position_sigma : float or None
+        The most a located position's standard deviation may be along any of the map's axes,
+        map units (:attr:`LocateResult.position_sigma`); a photo whose position is less sure
+        (its fixtures on a narrow band of the photo, a centre or a map position off) is not
+        located, its reason giving the sigma.  None (the default): no limit.  Not applied to
+        a pose solved with gravity (whose sigma is not worked out).
     """
 
     solver: str = "iterative"
@@ -92,12 +99,13 @@ class LocateSettings:
     keep_stages: bool = False
     gravity_sigma_deg: float = 1.0
     centre_sigma_px: float | None = None
+    max_position_sigma: float | None = None
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
-        for name in ("gravity_sigma_deg", "centre_sigma_px"):
+        for name in ("gravity_sigma_deg", "centre_sigma_px", "max_position_sigma"):
             sigma = getattr(self, name)
-            if sigma is None and name == "centre_sigma_px":
+            if sigma is None and name != "gravity_sigma_deg":
                 continue
             if isinstance(sigma, bool) or not (
                 isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
@@ -321,6 +329,21 @@ def _sigma_inputs(camera, fixture_map, est, found: Identified, pose, down):
     return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
 
 
+def _sure_enough(est: PoseEstimate, sigma_inputs, limit: float) -> tuple[PoseEstimate, str]:
+    """The pose, or no pose and why when its position's standard deviation
+    (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
+    axis (or is not finite)."""
+    sigma = position_sigma(*sigma_inputs)
+    axis = int(np.argmax(np.where(np.isfinite(sigma), sigma, np.inf)))
+    if np.isfinite(sigma).all() and sigma[axis] <= limit:
+        return est, ""
+    why = (
+        f"the position is too unsure: its standard deviation along {'xyz'[axis]} is "
+        f"{sigma[axis]:.3g} (map units), over the limit of {limit:g}"
+    )
+    return dataclasses.replace(est, pose=None, alternative=None, reason=why), why
+
+
 def _fixture_results(
     blobs,
     decodes,
@@ -499,6 +522,11 @@ def locate(
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
+    pose = est.pose if est is not None else None
+    sigma_inputs = _sigma_inputs(camera, fixture_map, est, found, pose, down)
+    if sigma_inputs is not None and st.max_position_sigma is not None:
+        est, reason = _sure_enough(est, sigma_inputs, st.max_position_sigma)
+        sigma_inputs = sigma_inputs if est else None
     t3 = time.perf_counter()
 
     width = img.shape[1]
@@ -540,5 +568,5 @@ def locate(
         gravity_residual_deg=est.gravity_residual_deg
         if isinstance(est, GravityPose) and pose is not None
         else float("nan"),
-        sigma_inputs=_sigma_inputs(camera, fixture_map, est, found, pose, down),
+        sigma_inputs=sigma_inputs,
     )

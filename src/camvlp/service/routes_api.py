@@ -244,6 +244,13 @@ async def locate_photo(
     annotate: Annotated[
         bool, Form(description="Keep an annotated picture of the fix (for the page).")
     ] = False,
+    max_sigma: Annotated[
+        float | None,
+        Form(
+            description="The most the position's standard deviation may be along an axis (map "
+            "units): a photo whose position is less sure is not located (as --max-sigma)."
+        ),
+    ] = None,
 ) -> dict[str, Any]:
     """Locate a photo: the JSON of ``camvlp locate --json`` plus ``fix_id``.
 
@@ -279,7 +286,7 @@ async def locate_photo(
     cam = camera_from_dict(cameras[camera], "camera")
     fmap = map_from_dict(site_row.map, "map")
     try:
-        settings = LocateSettings(readout=readout, mirrored=mirrored)
+        settings = LocateSettings(readout=readout, mirrored=mirrored, max_position_sigma=max_sigma)
     except ValueError as exc:
         raise HTTPException(422, str(exc)) from None
     if gate.busy >= gate.limit:
