@@ -320,3 +320,24 @@ def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
     assert np.hypot(*(blobs[k].pixel - truth)) < 5.0
     moved = centred_on_glow(image, blobs, "rows")
     assert np.hypot(*(moved[k].pixel - truth)) < 5.0
+
+
+def test_centring_glowing_lights_leaves_the_centres_covariances_unread(monkeypatch):
+    """The glowing lights moved to their shapes' centres keep their ellipse fits'
+    covariances still to be worked out (``later.replaced``): ``locate`` works none out, and
+    the first read gives the detector's values, for all the lights at once."""
+    import camvlp.pipeline.refine as refine
+
+    photo, _ = _photo(1, halo=0.4, brightness=1.0)
+    calls = []
+    real = refine.ellipse_centre_covariances
+    monkeypatch.setattr(refine, "ellipse_centre_covariances", lambda f: calls.append(1) or real(f))
+    blobs = detect_fixtures(photo.image).blobs
+    moved = centred_on_glow(photo.image, blobs, "rows")
+    assert all(a is not b for a, b in zip(blobs, moved, strict=True))  # every light moved
+    res = locate(photo.image, CAM, ROOM)
+    assert res and calls == []
+    sigmas = [f.centre_sigma_px for f in res.fixtures]
+    assert calls == [1]
+    expected = sorted(b.centre_sigma_px for b in blobs)
+    assert sorted(sigmas) == expected and all(np.isfinite(expected))

@@ -360,10 +360,37 @@ def test_a_position_less_sure_than_asked_is_not_reported(small_render, small_cam
     assert f"{sigma[axis]:.3g}" in res.reason
     assert len(res.fixtures) == 5 and not any(f.used for f in res.fixtures)
     assert all(f.id is not None for f in res.fixtures)  # still identified
+    assert res.alternative_position is None and np.isnan(res.alternative_rms_px)
     above = LocateSettings(max_position_sigma=1.1 * float(sigma.max()))
     ok = locate(small_render.image, small_camera, small_room, above)
     np.testing.assert_array_equal(ok.position, free.position)
     np.testing.assert_array_equal(ok.position_sigma, sigma)
+
+
+def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
+    small_render, small_camera, small_room, monkeypatch
+):
+    import camvlp.pipeline.by_pose as by_pose
+    import camvlp.pipeline.locate as locate_module
+
+    calls = []
+    real = by_pose.position_sigma
+
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(by_pose, "position_sigma", counted)
+    monkeypatch.setattr(locate_module, "position_sigma", counted)
+    limited = LocateSettings(max_position_sigma=1.0)
+    res = locate(small_render.image, small_camera, small_room, limited)
+    assert res and calls == [1]
+    assert res.to_dict()["position_sigma"] == np.round(res.position_sigma, 6).tolist()
+    assert calls == [1]
+    # a sigma that is not finite is refused, and said so
+    monkeypatch.setattr(locate_module, "position_sigma", lambda *a: np.array([1e-6, np.nan, 0.0]))
+    res = locate(small_render.image, small_camera, small_room, limited)
+    assert not res and "along y is not finite, for the limit of 1" in res.reason
 
 
 @pytest.mark.parametrize("bad", [0.0, -1.0, float("nan"), float("inf"), True, "1"])

@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import _sampson
+from camvlp.pipeline.later import replaced
 from camvlp.pipeline.light_wave import _CLIP
 from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
 from camvlp.pipeline.refine import Blob, light_support, to_gray
@@ -173,7 +174,7 @@ def centred_jointly(
     rims = {k: known[k] if k in known else rim_from_chords(img, blobs, k, axis) for k in crowded}
     for k in crowded:  # a clean rim says where the light is
         if not on_rim(blobs[k].pixel, rims[k]):
-            blobs[k] = dataclasses.replace(blobs[k], pixel=rims[k][0])
+            blobs[k] = replaced(blobs[k], pixel=rims[k][0])
     fits: list[Fitted | None] = [None] * len(blobs)
     for k in crowded:  # each one's look where it was centred alone (or by its rim)
         refit = _refitted(img, blobs, fits, k, axis, background, search=False)
@@ -455,7 +456,7 @@ def _refitted(
     if not (0 <= cx < w and 0 <= cy < h and b.mask[cy, cx]):  # drawn off its disc: failed
         return None
     pixel = c + np.array([x0, y0], dtype=float)
-    return dataclasses.replace(b, pixel=pixel), Fitted(fit, box)
+    return replaced(b, pixel=pixel), Fitted(fit, box)
 
 
 def _paste(dst: np.ndarray, src: np.ndarray, src_box, dst_box, grow: bool = True) -> None:

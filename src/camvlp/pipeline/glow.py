@@ -21,12 +21,11 @@ glowing ones it uses, frame after frame.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from camvlp.pipeline.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.detect import Blob, light_support, to_gray
+from camvlp.pipeline.later import replaced
 from camvlp.pipeline.radial import radial_fit
 from camvlp.pipeline.touching import power_cell
 
@@ -223,7 +222,7 @@ def _to_clean_rim(b: Blob, rim, shape: tuple[int, ...]) -> Blob:
         return b
     if _reaches_border(b.box, shape) and not _rim_inside(*rim, shape):
         return b  # (a rim the border may cut)
-    return dataclasses.replace(b, pixel=rim[0])
+    return replaced(b, pixel=rim[0])
 
 
 def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
@@ -236,9 +235,9 @@ def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
         return fitted
     b, (centre, radius) = blobs[k], rim
     if not _reaches_border(b.box, img.shape):
-        return dataclasses.replace(b, pixel=centre)
+        return replaced(b, pixel=centre)
     inside = _rim_inside(centre, radius, img.shape)
-    return dataclasses.replace(b, pixel=centre, touches_border=not inside)
+    return replaced(b, pixel=centre, touches_border=not inside)
 
 
 def _reaches_border(box, shape) -> bool:
@@ -280,7 +279,7 @@ def _round(b: Blob) -> Blob:
     along them without end)."""
     if not b.touches_border:
         return b
-    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
+    return replaced(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
 #: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
@@ -335,9 +334,9 @@ def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None
     pixel = centre + np.array([x0, y0], dtype=float)
     on_disc = b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]
     if not on_disc or (not far and not _within_outline(b, pixel, fit.rim)):
-        return dataclasses.replace(b, touches_border=True) if far else b
+        return replaced(b, touches_border=True) if far else b
     if not far:
-        return dataclasses.replace(b, pixel=pixel)
+        return replaced(b, pixel=pixel)
     if _rim_inside(pixel, fit.rim, img.shape):
-        return dataclasses.replace(b, pixel=pixel, touches_border=False)
-    return dataclasses.replace(b, touches_border=True)  # its disc cut (or its rim not found)
+        return replaced(b, pixel=pixel, touches_border=False)
+    return replaced(b, touches_border=True)  # its disc cut (or its rim not found)

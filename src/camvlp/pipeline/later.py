@@ -5,16 +5,19 @@ centres' covariances (:attr:`camvlp.pipeline.refine.Blob.centre_cov_px2`) take a
 1080p photo's :func:`~camvlp.pipeline.locate.locate` and are read only to tell look-alikes
 apart, with gravity, or when the result is shown.  Such a field is a :class:`LaterField`:
 it is given either its value or a :class:`Later` (a function and its arguments), which is
-called the first time the field is read and replaced by what it returns.  Everything else
-(``dataclasses.replace``, ``==``, ``repr``, pickling) reads the field as any other.
+called the first time the field is read and replaced by what it returns.  ``==``, ``repr``
+and ``dataclasses.replace`` read the field as any other, and so work it out;
+:func:`replaced` is ``dataclasses.replace`` that carries a field still to be worked out over
+as it is.  Pickling keeps it as it is (a :class:`Later` pickles when its function does).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["Later", "LaterField", "later_of"]
+__all__ = ["Later", "LaterField", "later_of", "replaced"]
 
 
 class Later:
@@ -81,3 +84,15 @@ def later_of(obj: Any, name: str, fn: Callable[[Any], Any]) -> Any:
 
 def _applied(fn: Callable[[Any], Any], later: Later) -> Any:
     return fn(later())
+
+
+def replaced(obj: Any, **changes: Any) -> Any:
+    """``dataclasses.replace(obj, **changes)`` without working out the :class:`LaterField`
+    fields not changed: one still to be worked out is carried over as its :class:`Later`
+    (``dataclasses.replace`` reads every field it is not given, which would call it)."""
+    for f in dataclasses.fields(obj):
+        if f.init and f.name not in changes:
+            value = obj.__dict__.get("_" + f.name)
+            if isinstance(value, Later):
+                changes[f.name] = value
+    return dataclasses.replace(obj, **changes)

@@ -34,7 +34,7 @@ from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.glow_split import decode_from_glows
 from camvlp.pipeline.identify import Identified, decided, identifier, identify
-from camvlp.pipeline.later import later_of
+from camvlp.pipeline.later import later_of, replaced
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.profile import shape_profiles
@@ -234,7 +234,7 @@ def _decode(
         blobs, gray_rois, readout.axis, camera, fixture_map
     )
     moved = [
-        b if np.array_equal(c, b.pixel) else dataclasses.replace(b, pixel=c)
+        b if np.array_equal(c, b.pixel) else replaced(b, pixel=c)
         for b, c in zip(blobs, centres, strict=True)
     ]
     return decodes, frequencies, [note] if note else [], moved
@@ -329,19 +329,26 @@ def _sigma_inputs(camera, fixture_map, est, found: Identified, pose, down):
     return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
 
 
-def _sure_enough(est: PoseEstimate, sigma_inputs, limit: float) -> tuple[PoseEstimate, str]:
+def _sure_enough(
+    est: PoseEstimate, sigma_inputs, limit: float
+) -> tuple[PoseEstimate, str, np.ndarray]:
     """The pose, or no pose and why when its position's standard deviation
     (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
-    axis (or is not finite)."""
+    axis or is not finite; and that standard deviation, shape (3,)."""
     sigma = position_sigma(*sigma_inputs)
-    axis = int(np.argmax(np.where(np.isfinite(sigma), sigma, np.inf)))
-    if np.isfinite(sigma).all() and sigma[axis] <= limit:
-        return est, ""
+    finite = np.isfinite(sigma)
+    axis = int(np.argmax(np.where(finite, sigma, np.inf)))
+    if finite.all() and sigma[axis] <= limit:
+        return est, "", sigma
+    told = f"is {sigma[axis]:.3g} (map units), over" if finite[axis] else "is not finite, for"
     why = (
-        f"the position is too unsure: its standard deviation along {'xyz'[axis]} is "
-        f"{sigma[axis]:.3g} (map units), over the limit of {limit:g}"
+        f"the position is too unsure: its standard deviation along {'xyz'[axis]} {told} "
+        f"the limit of {limit:g}"
     )
-    return dataclasses.replace(est, pose=None, alternative=None, reason=why), why
+    refused = dataclasses.replace(
+        est, pose=None, alternative=None, alternative_rms_px=float("nan"), reason=why
+    )
+    return refused, why, sigma
 
 
 def _fixture_results(
@@ -524,8 +531,9 @@ def locate(
         readout = man.readout
     pose = est.pose if est is not None else None
     sigma_inputs = _sigma_inputs(camera, fixture_map, est, found, pose, down)
+    sigma = None  # worked out here only to check it against a limit
     if sigma_inputs is not None and st.max_position_sigma is not None:
-        est, reason = _sure_enough(est, sigma_inputs, st.max_position_sigma)
+        est, reason, sigma = _sure_enough(est, sigma_inputs, st.max_position_sigma)
         sigma_inputs = sigma_inputs if est else None
     t3 = time.perf_counter()
 
@@ -535,7 +543,7 @@ def locate(
         return np.array([width - 1 - pixel[0], pixel[1]]) if mirrored else pixel
 
     pose = est.pose if est is not None else None
-    return LocateResult(
+    result = LocateResult(
         position=None if pose is None else pose.position,
         rotation=None if pose is None else pose.world_from_camera,
         euler_deg=None if pose is None else pose.euler_deg,
@@ -570,3 +578,6 @@ def locate(
         else float("nan"),
         sigma_inputs=sigma_inputs,
     )
+    if sigma is not None and pose is not None:  # position_sigma (a cached property): known
+        result.__dict__["position_sigma"] = sigma
+    return result

@@ -31,7 +31,6 @@ Frame time convention: a frame's ``t`` is its middle sensor row's time (see
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -46,6 +45,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode import StripeDecode, decode_profiles
 from camvlp.pipeline.glow import centred_on_glow, glowing
 from camvlp.pipeline.identify import Identified, identify
+from camvlp.pipeline.later import replaced
 from camvlp.pipeline.locate import (
     _decode,
     _detect,
@@ -360,9 +360,7 @@ class Tracker:
             else:
                 solved, used_mask = None, np.zeros(len(usable), bool)
         if len(usable) >= 4 and solved is None:
-            moved = [
-                dataclasses.replace(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)
-            ]
+            moved = [replaced(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)]
             sub = Identified(
                 tuple(ids[k] for k in usable), ("",) * len(usable), tuple(range(len(usable)))
             )

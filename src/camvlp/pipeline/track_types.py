@@ -23,7 +23,8 @@ class TrackSettings:
     Attributes
     ----------
     locate : LocateSettings
-        The locator's settings (solver, outlier tolerance, detector sizes, readout).
+        The locator's settings (solver, outlier tolerance, detector sizes, readout); its
+        ``max_position_sigma`` is not applied (the tracker works out no position sigma).
     gate_px : float or None
         Largest distance (pixels) between a blob and a fixture's predicted position for the
         blob to keep that fixture's ID; None: 3 % of the focal length.
