@@ -34,7 +34,7 @@ from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
 from camvlp.pipeline.glow_split import decode_from_glows
 from camvlp.pipeline.identify import Identified, decided, identifier, identify
-from camvlp.pipeline.later import later_of, replaced
+from camvlp.pipeline.later import Later, later_of, replaced
 from camvlp.pipeline.manchester import Manchester, decode_manchester
 from camvlp.pipeline.pose import PoseEstimate, estimate_pose
 from camvlp.pipeline.profile import shape_profiles
@@ -329,12 +329,18 @@ def _sigma_inputs(camera, fixture_map, est, found: Identified, pose, down):
     return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
 
 
+def _finite_sigma(camera, pose, points, residuals_px) -> np.ndarray | None:
+    """:func:`~camvlp.pipeline.by_pose.position_sigma`, or None when it is not finite."""
+    sigma = position_sigma(camera, pose, points, residuals_px)
+    return sigma if np.isfinite(sigma).all() else None
+
+
 def _sure_enough(
     est: PoseEstimate, sigma_inputs, limit: float
-) -> tuple[PoseEstimate, str, np.ndarray]:
+) -> tuple[PoseEstimate, str, np.ndarray | None]:
     """The pose, or no pose and why when its position's standard deviation
     (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
-    axis or is not finite; and that standard deviation, shape (3,)."""
+    axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
     sigma = position_sigma(*sigma_inputs)
     finite = np.isfinite(sigma)
     axis = int(np.argmax(np.where(finite, sigma, np.inf)))
@@ -348,7 +354,7 @@ def _sure_enough(
     refused = dataclasses.replace(
         est, pose=None, alternative=None, alternative_rms_px=float("nan"), reason=why
     )
-    return refused, why, sigma
+    return refused, why, None
 
 
 def _fixture_results(
@@ -530,11 +536,10 @@ def locate(
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
     pose = est.pose if est is not None else None
-    sigma_inputs = _sigma_inputs(camera, fixture_map, est, found, pose, down)
-    sigma = None  # worked out here only to check it against a limit
-    if sigma_inputs is not None and st.max_position_sigma is not None:
-        est, reason, sigma = _sure_enough(est, sigma_inputs, st.max_position_sigma)
-        sigma_inputs = sigma_inputs if est else None
+    inputs = _sigma_inputs(camera, fixture_map, est, found, pose, down)
+    sigma = None if inputs is None else Later(_finite_sigma, *inputs)  # when first read
+    if inputs is not None and st.max_position_sigma is not None:  # now, against the limit
+        est, reason, sigma = _sure_enough(est, inputs, st.max_position_sigma)
     t3 = time.perf_counter()
 
     width = img.shape[1]
@@ -543,7 +548,7 @@ def locate(
         return np.array([width - 1 - pixel[0], pixel[1]]) if mirrored else pixel
 
     pose = est.pose if est is not None else None
-    result = LocateResult(
+    return LocateResult(
         position=None if pose is None else pose.position,
         rotation=None if pose is None else pose.world_from_camera,
         euler_deg=None if pose is None else pose.euler_deg,
@@ -576,8 +581,5 @@ def locate(
         gravity_residual_deg=est.gravity_residual_deg
         if isinstance(est, GravityPose) and pose is not None
         else float("nan"),
-        sigma_inputs=sigma_inputs,
+        position_sigma=sigma,
     )
-    if sigma is not None and pose is not None:  # position_sigma (a cached property): known
-        result.__dict__["position_sigma"] = sigma
-    return result

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
-from camvlp.pipeline import by_pose
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import Detection
 from camvlp.pipeline.later import LaterField
@@ -144,11 +142,11 @@ class LocateResult:
         With gravity: the angle between the located pose's down and the measured gravity,
         degrees (NaN otherwise).
     position_sigma : ndarray, shape (3,), or None
-        How sure the position is (a property, worked out when first asked): its standard
-        deviation along the map's x, y and z, map units, from the fixtures' reprojection
-        errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.by_pose.position_sigma`), for the pose located.  None when
-        not located, or when the pose was solved with gravity.
+        How sure the position is: its standard deviation along the map's x, y and z, map
+        units, from the fixtures' reprojection errors and what their layout makes of a pixel
+        (:func:`camvlp.pipeline.by_pose.position_sigma`), for the pose located; worked out
+        when first read (:class:`~camvlp.pipeline.later.LaterField`).  None when not
+        located, when the pose was solved with gravity, or when it is not finite.
     """
 
     position: np.ndarray | None
@@ -169,20 +167,7 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
-    #: What :attr:`position_sigma` is worked out from: the camera, the pose located, and the
-    #: used fixtures' map positions (m, 3) and reprojection errors (m,), pixels.
-    sigma_inputs: tuple[Camera, Pose, np.ndarray, np.ndarray] | None = field(
-        default=None, repr=False, compare=False
-    )
-
-    @functools.cached_property
-    def position_sigma(self) -> np.ndarray | None:
-        """The position's standard deviation along x, y and z, map units, shape (3,); None
-        when not located or solved with gravity (see the class' attributes)."""
-        if self.sigma_inputs is None:
-            return None
-        sigma = by_pose.position_sigma(*self.sigma_inputs)
-        return sigma if np.isfinite(sigma).all() else None
+    position_sigma: np.ndarray | None = LaterField(None)  # noqa: RUF009 (a descriptor)
 
     @property
     def fixtures_used(self) -> int:
