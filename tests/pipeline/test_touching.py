@@ -14,7 +14,7 @@ from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.chords import chord_seeds
 from camvlp.pipeline.detect import detect_fixtures
 from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.touching import codes_differ, light_seeds, power_cell
+from camvlp.pipeline.touching import _run_modes, codes_differ, light_seeds, power_cell
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 
@@ -396,3 +396,86 @@ def test_lamps_whose_glows_clip_together_side_by_side_are_found_by_their_chords(
     # (centred within 0.0 to 6.8 px: where glows clip together the joint fit of their
     # looks has little unclipped glow to go by)
     assert all(np.linalg.norm(p - truth[i]) < 10.0 for i, p in read.items())
+
+
+#: Six lamps of a 1080p photo (a drawn scene of ``benchmarks/stress_decode.py --phone``, seed
+#: 17, 0.1 chip, 12 rows per chip): ``(id, x, y, diameter)``, metres, 2 m above the camera.
+_SIX = (
+    (2, -0.09482338347262384, 0.13682831960994285, 0.7903461974660458),
+    (0, 0.8654297323925565, 0.18925455276644293, 0.455596507866362),
+    (10, 0.825844326956666, -0.42494241293539065, 0.41179067206043896),
+    (14, -0.9817053509188726, -0.0761832511202551, 0.41373680913500194),
+    (6, -0.666098092074666, -0.5179227267353417, 0.34077181681300805),
+    (4, -0.8335013282942132, 0.5121473613399602, 0.3510847895950715),
+)
+
+
+def test_lamps_whose_halos_fill_a_phone_photo_are_centred_from_their_faces():
+    # the photo of stress_decode.py --phone --seed 17 (0.1 chip, 12 rows per chip, photo 1):
+    # a core of 1.0 and halos (0.19) at 7.3 times full scale through a phone's processing
+    # (mosaic, tone curve of gamma 2.5, sharpening, vignetting).  The glows clip together
+    # across the whole photo; the lamps on the left show their faces only in their dark
+    # stripes (off level 2.8 %).  The soft stripe edges flickered in dark runs of one pixel,
+    # more of them than the stripes' own, so no face was looked for: lamps 6 and 4 came out
+    # 37 and 42 px off (4 not used), and lamp 14, 41 px off, fitted IDs 14 and 6 alike
+    settings = stress_settings(
+        12,
+        0.1,
+        brightness=7.342,
+        off_level=0.02795,
+        blur_px=1.5735,
+        core=1.0027,
+        halo=0.1903,
+        readout="rows-reversed",
+        bayer=True,
+        gamma=2.4894,
+        sharpen=0.8046,
+        vignetting=0.3522,
+        black_point=0.01429,
+        seed=373385344,
+    )
+    cam, room, photo, image = stress_scene((1920, 1080), _SIX, settings, 91)
+    truth = {t.id: t.pixel for t in photo.fixtures}
+    res = locate(image, cam, room)
+    assert res
+    placed = {f.id: np.linalg.norm(f.pixel - truth[f.id]) for f in res.fixtures if f.id in truth}
+    assert placed[4] < 3.0 and placed[6] < 3.0, placed
+    assert {f.id for f in res.fixtures if f.used} >= {4, 6}
+    assert 14 in placed  # read (its light seed, drawn by its glow, lies off its face)
+
+
+def _stripes(rng, n_lines: int, length: int, rows_per_chip: int, exposure: float):
+    """Lines along the readout (0 and 1, shape (n_lines, length)) of a light's stripes:
+    random Manchester chips of ``rows_per_chip`` pixels, each lit run grown and each dark
+    run shrunk by ``exposure`` chips (one code, as every line crosses the same rows)."""
+    bits = rng.integers(0, 2, length // (2 * rows_per_chip) + 2)
+    chips = np.column_stack([bits, 1 - bits]).ravel()
+    # a pixel is lit when its exposure window (rows_per_chip * exposure rows) holds a lit chip
+    on = np.repeat(chips, rows_per_chip)
+    grow = round(rows_per_chip * exposure)
+    lit = np.convolve(on, np.ones(grow + 1), mode="full")[: on.size] > 0 if grow else on > 0
+    return np.tile(lit[:length].astype(np.uint8), (n_lines, 1))
+
+
+def test_run_modes_see_the_stripes_through_one_pixel_flicker():
+    # 12 rows per chip at 0.1 chip: lit runs of 13 and 25, dark runs of 11 and 23; a level
+    # at the threshold flickers in dark runs of one pixel inside the lit stripes, more of
+    # them than the stripes' dark runs (a phone photo whose halos fill the frame)
+    rng = np.random.default_rng(4)
+    clean = _stripes(rng, 60, 300, 12, 0.1)
+    lines = clean.copy()
+    lit_r, lit_c = np.nonzero(clean[:, 1:-1] & clean[:, :-2] & clean[:, 2:])
+    pick = rng.choice(lit_r.size, 900, replace=False)
+    lines[lit_r[pick], lit_c[pick] + 1] = 0  # single dark pixels inside lit runs
+    assert _run_modes(clean.T.copy(), "rows") == (13, 11)  # lines along the columns
+    assert _run_modes(lines, "columns") == (13, 11)
+    assert _run_modes(lines.T.copy(), "rows") == (13, 11)
+
+
+def test_run_modes_keep_a_long_exposures_dark_chips_of_one_pixel():
+    # 4 rows per chip at 0.75 chip: a single dark chip is one pixel (lit runs of 7), two dark
+    # chips five: the runs of one pixel are the stripes' own (stripes the pixels do not
+    # resolve), not flicker, and the modes stay those of the runs as they are
+    for rows, exposure in ((4, 0.75), (2, 0.7), (6, 0.85)):
+        lines = _stripes(np.random.default_rng(5), 40, 400, rows, exposure)
+        assert _run_modes(lines, "columns")[1] == 1

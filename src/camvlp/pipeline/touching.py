@@ -409,8 +409,30 @@ def _with_chords(seeds: np.ndarray, chords: np.ndarray) -> np.ndarray:
 def _run_modes(lit: np.ndarray, axis: str) -> tuple[int, int]:
     """The commonest lengths (pixels) of the lit runs, and of the dark runs between two lit
     ones, along the readout (``axis``: ``"rows"`` or ``"columns"``) of a region of 0 and 1
-    (uint8, shape (h, w)); 0 when it has none."""
+    (uint8, shape (h, w)); 0 when it has none.
+
+    Where a level sits at the threshold (a soft stripe edge or a glow, with noise, JPEG's
+    ringing and a phone's sharpening) the pixels flicker in runs of one pixel, which in a
+    large region can outnumber the stripes' dark runs.  When one pixel is the commonest dark
+    run, the runs are counted again with every pixel the majority of itself and its two
+    neighbours along the readout (the runs of one pixel removed, the others as they were).
+    Were the runs of one pixel the stripes' own single dark chips (a long exposure's), the
+    lit runs' commonest length ``L`` would make a chip ``(L + 1) / 2`` pixels long, and the
+    dark runs left, of two chips, ``(L + 3) / 2``: when the commonest of them is further
+    than the modes' rounding (1.5 pixels) from that, the runs of one pixel were flicker, and
+    the modes counted again are the stripes'."""
     lines = lit if axis == "columns" else lit.T  # one line along the readout per row
+    lit_mode, dark_mode = _modes(lines)
+    if dark_mode == 1:
+        edged = np.pad(lines.astype(np.uint8), ((0, 0), (1, 1)), mode="edge")
+        again = _modes((edged[:, :-2] + edged[:, 1:-1] + edged[:, 2:]) >= 2)
+        if abs(again[1] - 0.5 * (lit_mode + 3)) > 1.5:
+            return again
+    return lit_mode, dark_mode
+
+
+def _modes(lines: np.ndarray) -> tuple[int, int]:
+    """:func:`_run_modes` of lines along the readout (0 and 1, shape (n, length))."""
     d = np.diff(np.pad(lines.astype(np.int8), ((0, 0), (1, 1))), axis=1)
     r, c = np.nonzero(d)  # along a line the changes alternate: up, down, up, ...
     up = d[r, c] > 0
