@@ -121,3 +121,52 @@ def test_render_video_writes_frames_and_truth(tmp_path, out_name):
     frames = list(open_frames(out, fps=10))
     assert len(frames) == 3 and all(f.image.shape == (240, 320, 3) for f in frames)
     assert [f.t for f in frames] == pytest.approx([0.0, 0.1, 0.2])
+
+
+def _line(duration_s: float) -> Trajectory:
+    """A camera moving 0.1 map units along x in ``duration_s`` seconds, looking up."""
+    return Trajectory(
+        np.array([0.0, duration_s]),
+        np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]),
+        np.tile([90.0, 0.0, 0.0], (2, 1)),
+    )
+
+
+def test_a_video_takes_its_name_only_when_closed(tmp_path):
+    # while it renders, the video and its truth are written under names of their own (a
+    # render killed outright leaves no unreadable "video.mp4"); closed, they take theirs
+    traj = _line(0.3)
+    out = tmp_path / "video.mp4"
+    seen = []
+
+    def progress(done, total):
+        seen.append(sorted(p.name for p in tmp_path.iterdir()))
+
+    render_video(CAM, ROOM, traj, out, fps=10, settings=RenderSettings(seed=1), progress=progress)
+    partial = {"video.partial.mp4", "video_fixtures.partial.csv", "video_truth.partial.csv"}
+    assert len(seen) == 4 and all(set(names) <= partial for names in seen)  # (the encoder
+    assert all("video_truth.partial.csv" in names for names in seen)  # may write late)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "video.mp4",
+        "video_fixtures.csv",
+        "video_truth.csv",
+    ]
+    assert len(list(open_frames(out, fps=10))) == 4
+
+
+def test_an_interrupted_video_keeps_its_frames_so_far(tmp_path):
+    traj = _line(0.3)
+    out = tmp_path / "video.mp4"
+
+    def progress(done, total):
+        if done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        render_video(
+            CAM, ROOM, traj, out, fps=10, settings=RenderSettings(seed=1), progress=progress
+        )
+    assert len(list(open_frames(out, fps=10))) == 2
+    rows = list(csv.DictReader((tmp_path / "video_truth.csv").open()))
+    assert len(rows) == 2
+    assert not list(tmp_path.glob("*.partial.*"))

@@ -352,6 +352,10 @@ def render_video(
         ``*.mp4`` / ``*.mov`` / ``*.mkv``: an H.264 video (PyAV's libx264, constant quality
         ``crf``, 4:2:0); anything else: a folder of ``frame_000000.png`` ... with
         ``timestamps.csv`` (``frame,t``).  The truth goes beside it (:func:`truth_paths`).
+        A video and its truth are written under names of their own (``x.partial.mp4``, ...)
+        and take theirs when the video is closed, at the end or when the render stops on an
+        error or an interruption (the frames so far): a render killed outright leaves no file
+        under the video's name, never one that cannot be read.
     fps : float
         Frames per second; frame ``i`` is at ``trajectory.t[0] + i / fps`` (its middle row).
         Its ``t`` in the files is ``i / fps`` (the video's own clock).
@@ -376,56 +380,72 @@ def render_video(
         out.parent.mkdir(parents=True, exist_ok=True)
     else:
         out.mkdir(parents=True, exist_ok=True)
-    truth_path, fixtures_path = truth_paths(out)
-    writer = _VideoWriter(out, camera.width, camera.height, fps, crf) if is_video else None
+    finals = (out, *truth_paths(out)) if is_video else ()
+    # a video's files under names of their own until it is closed (see above)
+    target = _partial(out) if is_video else out
+    truth_path, fixtures_path = (_partial(p) for p in finals[1:]) if is_video else truth_paths(out)
+    writer = _VideoWriter(target, camera.width, camera.height, fps, crf) if is_video else None
     stamps = None if is_video else (out / "timestamps.csv").open("w", newline="")
-    with truth_path.open("w", newline="") as tf, fixtures_path.open("w", newline="") as ff:
-        tw, fw = csv.writer(tf), csv.writer(ff)
-        tw.writerow(("frame", *TRAJECTORY_COLUMNS))
-        fw.writerow(("frame", "id", "u", "v", "fully_inside", "frames_spanned"))
-        sw = None
-        if stamps is not None:
-            sw = csv.writer(stamps)
-            sw.writerow(("frame", "t"))
-        try:
-            frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
-            for i, frame in enumerate(frames):
-                t_video = i / fps
-                name = f"frame_{i:06d}.png"
-                if writer is not None:
-                    writer.write(frame.image)
-                else:
-                    if not cv2.imwrite(str(out / name), frame.image):
-                        raise InputError("cannot write a frame", out / name)
-                    sw.writerow((name, f"{t_video:.6f}"))
-                pos, eul = frame.pose.position, frame.pose.euler_deg
-                tw.writerow(
-                    (
-                        name if writer is None else i,
-                        f"{t_video:.6f}",
-                        *(f"{v:.6f}" for v in pos),
-                        *(f"{v:.5f}" for v in eul),
-                    )
-                )
-                for ft in frame.fixtures:
-                    fw.writerow(
+    closed = False
+    try:
+        with truth_path.open("w", newline="") as tf, fixtures_path.open("w", newline="") as ff:
+            tw, fw = csv.writer(tf), csv.writer(ff)
+            tw.writerow(("frame", *TRAJECTORY_COLUMNS))
+            fw.writerow(("frame", "id", "u", "v", "fully_inside", "frames_spanned"))
+            sw = None
+            if stamps is not None:
+                sw = csv.writer(stamps)
+                sw.writerow(("frame", "t"))
+            try:
+                frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
+                for i, frame in enumerate(frames):
+                    t_video = i / fps
+                    name = f"frame_{i:06d}.png"
+                    if writer is not None:
+                        writer.write(frame.image)
+                    else:
+                        if not cv2.imwrite(str(out / name), frame.image):
+                            raise InputError("cannot write a frame", out / name)
+                        sw.writerow((name, f"{t_video:.6f}"))
+                    pos, eul = frame.pose.position, frame.pose.euler_deg
+                    tw.writerow(
                         (
                             name if writer is None else i,
-                            ft.id,
-                            f"{ft.pixel[0]:.3f}",
-                            f"{ft.pixel[1]:.3f}",
-                            int(ft.fully_inside),
-                            f"{ft.frames_spanned:.3f}",
+                            f"{t_video:.6f}",
+                            *(f"{v:.6f}" for v in pos),
+                            *(f"{v:.5f}" for v in eul),
                         )
                     )
-                if progress is not None:
-                    progress(i + 1, total)
-        finally:
-            if writer is not None:
-                writer.close()
-            if stamps is not None:
-                stamps.close()
+                    for ft in frame.fixtures:
+                        fw.writerow(
+                            (
+                                name if writer is None else i,
+                                ft.id,
+                                f"{ft.pixel[0]:.3f}",
+                                f"{ft.pixel[1]:.3f}",
+                                int(ft.fully_inside),
+                                f"{ft.frames_spanned:.3f}",
+                            )
+                        )
+                    if progress is not None:
+                        progress(i + 1, total)
+            finally:
+                if writer is not None:
+                    writer.close()
+                    closed = True
+                if stamps is not None:
+                    stamps.close()
+    finally:
+        if closed:  # the video and its truth (the frames so far): under their own names
+            for final in finals:
+                _partial(final).replace(final)
     return total
+
+
+def _partial(path: Path) -> Path:
+    """Where :func:`render_video` writes ``path`` until it is complete: ``x.partial.mp4``
+    for ``x.mp4`` (the suffix kept: it says the video's container)."""
+    return path.with_name(f"{path.stem}.partial{path.suffix}")
 
 
 class _VideoWriter:
