@@ -180,3 +180,21 @@ def test_render_video_refuses_bad_looks(scene, tmp_path, args, message):
     result = _render_video(scene, tmp_path / "v", *args)
     assert result.exit_code == 2
     assert message in one_error_line(result)
+
+
+def test_an_interrupted_render_says_where_its_frames_are(scene, tmp_path, monkeypatch):
+    # Ctrl-C during render-video: exit 130, and the partial video named (its frames so far)
+    import camvlp.cli.track as cli_track
+    from camvlp.sim.video import partial_path
+
+    def interrupted(camera, fixture_map, trajectory, out, **kwargs):
+        partial_path(out).write_bytes(b"frames so far")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_track, "render_video", interrupted)
+    out = tmp_path / "v.mp4"
+    result = _render_video(scene, out)
+    assert result.exit_code == 130
+    assert f"interrupted: the frames so far are in {tmp_path / 'v.partial.mp4'}" in one_error_line(
+        result
+    )

@@ -11,6 +11,7 @@ from camvlp.errors import InputError
 from camvlp.io.video import open_frames
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.sim import video
 from camvlp.sim.render import RenderSettings
 from camvlp.sim.video import Trajectory, load_trajectory, render_frame, render_video
 
@@ -132,17 +133,18 @@ def _line(duration_s: float) -> Trajectory:
     )
 
 
-def test_a_video_takes_its_name_only_when_closed(tmp_path):
+def test_a_video_takes_its_name_only_when_complete(tmp_path):
     # while it renders, the video and its truth are written under names of their own (a
-    # render killed outright leaves no unreadable "video.mp4"); closed, they take theirs
-    traj = _line(0.3)
+    # render killed outright leaves no "video.mp4" that cannot be read); complete, they
+    # take theirs
     out = tmp_path / "video.mp4"
     seen = []
 
     def progress(done, total):
         seen.append(sorted(p.name for p in tmp_path.iterdir()))
 
-    render_video(CAM, ROOM, traj, out, fps=10, settings=RenderSettings(seed=1), progress=progress)
+    look = RenderSettings(seed=1)
+    render_video(CAM, ROOM, _line(0.3), out, fps=10, settings=look, progress=progress)
     partial = {"video.partial.mp4", "video_fixtures.partial.csv", "video_truth.partial.csv"}
     assert len(seen) == 4 and all(set(names) <= partial for names in seen)  # (the encoder
     assert all("video_truth.partial.csv" in names for names in seen)  # may write late)
@@ -154,8 +156,8 @@ def test_a_video_takes_its_name_only_when_closed(tmp_path):
     assert len(list(open_frames(out, fps=10))) == 4
 
 
-def test_an_interrupted_video_keeps_its_frames_so_far(tmp_path):
-    traj = _line(0.3)
+def test_an_interrupted_video_keeps_its_frames_so_far_under_its_partial_names(tmp_path):
+    # not under the video's own name, which would pass for a complete render
     out = tmp_path / "video.mp4"
 
     def progress(done, total):
@@ -164,9 +166,20 @@ def test_an_interrupted_video_keeps_its_frames_so_far(tmp_path):
 
     with pytest.raises(KeyboardInterrupt):
         render_video(
-            CAM, ROOM, traj, out, fps=10, settings=RenderSettings(seed=1), progress=progress
+            CAM, ROOM, _line(0.3), out, fps=10, settings=RenderSettings(seed=1), progress=progress
         )
-    assert len(list(open_frames(out, fps=10))) == 2
-    rows = list(csv.DictReader((tmp_path / "video_truth.csv").open()))
-    assert len(rows) == 2
-    assert not list(tmp_path.glob("*.partial.*"))
+    assert not out.exists() and not (tmp_path / "video_truth.csv").exists()
+    assert len(list(open_frames(tmp_path / "video.partial.mp4", fps=10))) == 2
+    assert len(list(csv.DictReader((tmp_path / "video_truth.partial.csv").open()))) == 2
+
+
+def test_a_video_stopped_before_its_first_frame_leaves_no_file(tmp_path, monkeypatch):
+    # the error that stopped it is the one raised (the encoder had written nothing)
+    def broken(*args, **kwargs):
+        raise KeyboardInterrupt
+        yield
+
+    monkeypatch.setattr(video, "iter_frames", broken)
+    with pytest.raises(KeyboardInterrupt):
+        render_video(CAM, ROOM, _line(0.3), tmp_path / "video.mp4", fps=10)
+    assert list(tmp_path.iterdir()) == []

@@ -17,7 +17,7 @@ from camvlp.io.video import open_frames
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.pipeline.track import Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.video import VIDEO_SUFFIXES, load_trajectory, render_video
+from camvlp.sim.video import VIDEO_SUFFIXES, load_trajectory, partial_path, render_video
 
 from ._app import (
     EXIT_NOT_LOCATED,
@@ -305,16 +305,22 @@ def render_video_command(
         fail(f"every fixture needs a diameter to be rendered ({map_path})")
     n_total = int(trajectory.duration_s * fps + 1e-9) + 1
     total = n_total if frames is None else min(frames, n_total)
-    with _progress(total, "rendering") as advance:
-        n = render_video(
-            camera,
-            fixture_map,
-            trajectory,
-            out,
-            fps=fps,
-            settings=settings,
-            crf=crf,
-            max_frames=frames,
-            progress=lambda done, _total: advance(done),
-        )
+    try:
+        with _progress(total, "rendering") as advance:
+            n = render_video(
+                camera,
+                fixture_map,
+                trajectory,
+                out,
+                fps=fps,
+                settings=settings,
+                crf=crf,
+                max_frames=frames,
+                progress=lambda done, _total: advance(done),
+            )
+    except KeyboardInterrupt:
+        kept = partial_path(out) if Path(out).suffix.lower() in VIDEO_SUFFIXES else None
+        if kept is not None and kept.exists():
+            fail(f"interrupted: the frames so far are in {kept}", 130)
+        raise
     print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")

@@ -420,7 +420,10 @@ def _run_modes(lit: np.ndarray, axis: str) -> tuple[int, int]:
     lit runs' commonest length ``L`` would make a chip ``(L + 1) / 2`` pixels long, and the
     dark runs left, of two chips, ``(L + 3) / 2``: when the commonest of them is further
     than the modes' rounding (1.5 pixels) from that, the runs of one pixel were flicker, and
-    the modes counted again are the stripes'."""
+    the modes counted again are the stripes'.  Where the stripes' own single dark chips are
+    about that long (lit runs of ``p + e`` and dark ones of ``p - e`` pixels with
+    ``p`` about ``3 e + 3``: 8 rows per chip at 0.1 chip, lit 9 and dark 7 against 6) the two
+    cannot be told apart this way, and the modes stay as counted, one-pixel runs and all."""
     lines = lit if axis == "columns" else lit.T  # one line along the readout per row
     lit_mode, dark_mode = _modes(lines)
     if dark_mode == 1:

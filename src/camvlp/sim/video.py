@@ -47,6 +47,7 @@ __all__ = [
     "Trajectory",
     "VideoFrame",
     "load_trajectory",
+    "partial_path",
     "render_frame",
     "render_video",
     "row_truths",
@@ -352,10 +353,12 @@ def render_video(
         ``*.mp4`` / ``*.mov`` / ``*.mkv``: an H.264 video (PyAV's libx264, constant quality
         ``crf``, 4:2:0); anything else: a folder of ``frame_000000.png`` ... with
         ``timestamps.csv`` (``frame,t``).  The truth goes beside it (:func:`truth_paths`).
-        A video and its truth are written under names of their own (``x.partial.mp4``, ...)
-        and take theirs when the video is closed, at the end or when the render stops on an
-        error or an interruption (the frames so far): a render killed outright leaves no file
-        under the video's name, never one that cannot be read.
+        A video and its truth are written under names of their own (``x.partial.mp4``,
+        ``x_truth.partial.csv``, ``x_fixtures.partial.csv``) and take theirs when the render
+        is complete (the truth first, the video last): a render stopped by an error or an
+        interruption keeps its frames so far under those names, and one killed outright
+        leaves nothing under the video's name either (never a video that cannot be read, nor
+        one taken for complete).
     fps : float
         Frames per second; frame ``i`` is at ``trajectory.t[0] + i / fps`` (its middle row).
         Its ``t`` in the files is ``i / fps`` (the video's own clock).
@@ -381,12 +384,13 @@ def render_video(
     else:
         out.mkdir(parents=True, exist_ok=True)
     finals = (out, *truth_paths(out)) if is_video else ()
-    # a video's files under names of their own until it is closed (see above)
-    target = _partial(out) if is_video else out
-    truth_path, fixtures_path = (_partial(p) for p in finals[1:]) if is_video else truth_paths(out)
+    # a video's files under names of their own until it is complete (see above)
+    target = partial_path(out) if is_video else out
+    truths = truth_paths(out)
+    truth_path, fixtures_path = (partial_path(p) for p in truths) if is_video else truths
     writer = _VideoWriter(target, camera.width, camera.height, fps, crf) if is_video else None
     stamps = None if is_video else (out / "timestamps.csv").open("w", newline="")
-    closed = False
+    completed = False
     try:
         with truth_path.open("w", newline="") as tf, fixtures_path.open("w", newline="") as ff:
             tw, fw = csv.writer(tf), csv.writer(ff)
@@ -396,55 +400,60 @@ def render_video(
             if stamps is not None:
                 sw = csv.writer(stamps)
                 sw.writerow(("frame", "t"))
-            try:
-                frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
-                for i, frame in enumerate(frames):
-                    t_video = i / fps
-                    name = f"frame_{i:06d}.png"
-                    if writer is not None:
-                        writer.write(frame.image)
-                    else:
-                        if not cv2.imwrite(str(out / name), frame.image):
-                            raise InputError("cannot write a frame", out / name)
-                        sw.writerow((name, f"{t_video:.6f}"))
-                    pos, eul = frame.pose.position, frame.pose.euler_deg
-                    tw.writerow(
+            frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
+            for i, frame in enumerate(frames):
+                t_video = i / fps
+                name = f"frame_{i:06d}.png"
+                if writer is not None:
+                    writer.write(frame.image)
+                else:
+                    if not cv2.imwrite(str(out / name), frame.image):
+                        raise InputError("cannot write a frame", out / name)
+                    sw.writerow((name, f"{t_video:.6f}"))
+                pos, eul = frame.pose.position, frame.pose.euler_deg
+                tw.writerow(
+                    (
+                        name if writer is None else i,
+                        f"{t_video:.6f}",
+                        *(f"{v:.6f}" for v in pos),
+                        *(f"{v:.5f}" for v in eul),
+                    )
+                )
+                for ft in frame.fixtures:
+                    fw.writerow(
                         (
                             name if writer is None else i,
-                            f"{t_video:.6f}",
-                            *(f"{v:.6f}" for v in pos),
-                            *(f"{v:.5f}" for v in eul),
+                            ft.id,
+                            f"{ft.pixel[0]:.3f}",
+                            f"{ft.pixel[1]:.3f}",
+                            int(ft.fully_inside),
+                            f"{ft.frames_spanned:.3f}",
                         )
                     )
-                    for ft in frame.fixtures:
-                        fw.writerow(
-                            (
-                                name if writer is None else i,
-                                ft.id,
-                                f"{ft.pixel[0]:.3f}",
-                                f"{ft.pixel[1]:.3f}",
-                                int(ft.fully_inside),
-                                f"{ft.frames_spanned:.3f}",
-                            )
-                        )
-                    if progress is not None:
-                        progress(i + 1, total)
-            finally:
-                if writer is not None:
-                    writer.close()
-                    closed = True
-                if stamps is not None:
-                    stamps.close()
+                if progress is not None:
+                    progress(i + 1, total)
+        completed = True
     finally:
-        if closed:  # the video and its truth (the frames so far): under their own names
-            for final in finals:
-                _partial(final).replace(final)
+        if writer is not None:
+            try:
+                writer.close()
+            except Exception:
+                if completed:
+                    raise  # (else the error that stopped the render is the one to tell)
+        if stamps is not None:
+            stamps.close()
+        if not completed and is_video and not target.exists():  # nothing encoded
+            for p in (truth_path, fixtures_path):
+                p.unlink(missing_ok=True)
+    for final in (*finals[1:], *finals[:1]):  # complete: the truth first, the video last
+        partial_path(final).replace(final)
     return total
 
 
-def _partial(path: Path) -> Path:
+def partial_path(path: str | Path) -> Path:
     """Where :func:`render_video` writes ``path`` until it is complete: ``x.partial.mp4``
     for ``x.mp4`` (the suffix kept: it says the video's container)."""
+    path = Path(path)
     return path.with_name(f"{path.stem}.partial{path.suffix}")
 
 
