@@ -319,8 +319,8 @@ def render_video_command(
                 progress=lambda done, _total: advance(done),
             )
     except KeyboardInterrupt:
-        kept = partial_path(out) if Path(out).suffix.lower() in VIDEO_SUFFIXES else None
-        if kept is not None and kept.exists():
+        kept = partial_path(out)  # (a video's: a folder of frames has none)
+        if kept.is_file():
             fail(f"interrupted: the frames so far are in {kept}", 130)
         raise
     print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")

@@ -318,10 +318,11 @@ def _solve(
     return est, "" if est else est.reason
 
 
-def _sigma_inputs(camera, fixture_map, est, found: Identified, pose, down):
+def _sigma_inputs(camera, fixture_map, est, found: Identified, down):
     """What ``LocateResult.position_sigma`` needs (the camera, the pose, the used fixtures'
     map positions and reprojection errors), or None: not located, or solved with gravity
     (its covariance weighs the gravity too)."""
+    pose = est.pose if est is not None else None
     if pose is None or down is not None or isinstance(est, GravityPose):
         return None
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
@@ -535,8 +536,7 @@ def locate(
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
         readout = man.readout
-    pose = est.pose if est is not None else None
-    inputs = _sigma_inputs(camera, fixture_map, est, found, pose, down)
+    inputs = _sigma_inputs(camera, fixture_map, est, found, down)
     sigma = None if inputs is None else Later(_finite_sigma, *inputs)  # when first read
     if inputs is not None and st.max_position_sigma is not None:  # now, against the limit
         est, reason, sigma = _sure_enough(est, inputs, st.max_position_sigma)

@@ -383,10 +383,11 @@ def render_video(
         out.parent.mkdir(parents=True, exist_ok=True)
     else:
         out.mkdir(parents=True, exist_ok=True)
-    finals = (out, *truth_paths(out)) if is_video else ()
-    # a video's files under names of their own until it is complete (see above)
-    target = partial_path(out) if is_video else out
+    # a video's files under names of their own until it is complete (see above), renamed in
+    # this order: the truth first, the video last
     truths = truth_paths(out)
+    finals = (*truths, out) if is_video else ()
+    target = partial_path(out) if is_video else out
     truth_path, fixtures_path = (partial_path(p) for p in truths) if is_video else truths
     writer = _VideoWriter(target, camera.width, camera.height, fps, crf) if is_video else None
     stamps = None if is_video else (out / "timestamps.csv").open("w", newline="")
@@ -445,7 +446,7 @@ def render_video(
         if not completed and is_video and not target.exists():  # nothing encoded
             for p in (truth_path, fixtures_path):
                 p.unlink(missing_ok=True)
-    for final in (*finals[1:], *finals[:1]):  # complete: the truth first, the video last
+    for final in finals:  # complete
         partial_path(final).replace(final)
     return total
 
