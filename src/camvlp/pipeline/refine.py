@@ -651,9 +651,28 @@ def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict,
     r = [0.5 * float(b["axes_px"][1]) for b, _ in found]
     keep: list[int] = []
     for i in order:
-        if all(dist[i][j] > max(r[i], r[j]) for j in keep):
+        if all(dist[i][j] > max(r[i], r[j]) or _two_cells(found[i][0], found[j][0]) for j in keep):
             keep.append(i)
     return [found[i] for i in keep]
+
+
+def _two_cells(a: dict, b: dict) -> bool:
+    """Whether two candidates are lights that a joined region was split into (each has a
+    :attr:`Blob.cell`) whose discs share less than half the smaller one's pixels: two lights
+    by the split's own account, however close their centres.  (An outline fitted to a cell's
+    edge, where the cell cut its light off from the other, may come out far too large:
+    half its smaller axis reached past the other light's centre, and the other light, 7 px
+    from its lamp, was dropped as its duplicate.)"""
+    if a["cell"] is None or b["cell"] is None:
+        return False
+    (ax0, ay0, ax1, ay1), (bx0, by0, bx1, by1) = a["box"], b["box"]
+    x0, y0, x1, y1 = max(ax0, bx0), max(ay0, by0), min(ax1, bx1), min(ay1, by1)
+    shared = 0
+    if x0 < x1 and y0 < y1:
+        ma = a["mask"][y0 - ay0 : y1 - ay0, x0 - ax0 : x1 - ax0]
+        mb = b["mask"][y0 - by0 : y1 - by0, x0 - bx0 : x1 - bx0]
+        shared = np.count_nonzero(ma & mb)
+    return shared < 0.5 * min(np.count_nonzero(a["mask"]), np.count_nonzero(b["mask"]))
 
 
 def _blobs(found: list[tuple[dict, tuple | None]]) -> list[Blob]:

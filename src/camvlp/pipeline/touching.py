@@ -22,6 +22,7 @@ __all__ = [
     "CODES_APART",
     "CODES_CLEAR",
     "NECK",
+    "ONE_DISC",
     "SOLIDITY",
     "codes_differ",
     "dark_level",
@@ -29,6 +30,7 @@ __all__ = [
     "faces",
     "light_seeds",
     "not_convex",
+    "one_disc",
     "one_per_light",
     "own_face",
     "power_cell",
@@ -48,6 +50,29 @@ def not_convex(contour: np.ndarray, area: float) -> bool:
     """Whether a region's outline (OpenCV contour) of ``area`` (pixels) is less solid than
     :data:`SOLIDITY`: one that may hold several lights."""
     return area < SOLIDITY * cv2.contourArea(cv2.convexHull(contour))
+
+
+#: A region whose area is within this factor of its inscribed circle's is one disc.  A disc
+#: whose stripes' bridged ends roughen its outline by ``b`` pixels comes out about
+#: ``1 + 2 b / R`` (1.15 for a lamp of 43 reduced pixels); two discs of radius ``R``
+#: whose centres lie ``d`` apart make 1.31 at ``d = R / 2`` and 2 where they just touch.
+ONE_DISC = 1.25
+
+
+def one_disc(region: np.ndarray) -> bool:
+    """Whether a lit region (uint8, nonzero inside) is one disc: its area at most
+    :data:`ONE_DISC` times its inscribed circle's (the largest of its distance transform).
+
+    Such a region holds one light, whatever the chords its lines clip say
+    (:func:`~camvlp.pipeline.chords.chord_seeds`): two lights' glows make a region longer
+    than wide, by the distance between them.  A lamp that clips only in part (its level
+    about full scale, a phone's vignetting and tone curve) clips runs that are no chords of
+    its disc, whose middles pile up off its centre: a 1080p phone photo's lamp (0.85 chip,
+    8 rows per chip, brightness 0.99, vignetting 0.37) was cut into two lights there, 69 and
+    113 px from it, neither read."""
+    dist = _distances((region > 0).astype(np.uint8))
+    r = float(dist.max()) if dist.size else 0.0
+    return r > 0 and np.count_nonzero(region) <= ONE_DISC * np.pi * r * r
 
 
 def _distances(mask: np.ndarray) -> np.ndarray:
@@ -336,7 +361,7 @@ def one_per_light(
         ``chords_of((x, y, w, h), inside, axis)``: a region's lights from the chords its
         lines clip (:func:`~camvlp.pipeline.chords.chord_seeds`), ``[x, y, r]`` (k, 3) in
         the box's pixels; taken when they are more lights than the region's peaks found
-        (:func:`_with_chords`).
+        (:func:`_with_chords`), unless the region is one disc (:func:`one_disc`).
 
     Yields
     ------
@@ -374,7 +399,7 @@ def one_per_light(
             if dark is not None and len(dark) > len(_lamp_sized(seeds)):
                 seeds = dark
         seeds = np.column_stack([seeds, np.full(len(seeds), np.inf)])  # (no bound)
-        if chords_of is not None:  # more lights in the chords their lines clip?
+        if chords_of is not None and not one_disc(inside):  # more lights in the chords?
             seeds = _with_chords(seeds, chords_of((x, y, w, h), inside, axis()))
         if len(seeds) < 2:
             yield (x, y, w, h), None
