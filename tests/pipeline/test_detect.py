@@ -23,7 +23,7 @@ from camvlp.pipeline.detect import (
     to_gray,
 )
 from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
-from camvlp.pipeline.refine import _bridged
+from camvlp.pipeline.refine import _bridged, _drop_duplicates
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -343,3 +343,39 @@ def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
         np.testing.assert_array_equal(full, whole)
         cropped += (x, y) != (0, 0)
     assert cropped > 100
+
+
+def _candidate(box, centre, axes, radii, cell=True, pixel=None):
+    """A refined candidate's fields for ``_drop_duplicates``: an elliptical mask of ``radii``
+    (x, y) about ``centre`` (photo px) in ``box`` ``(x0, y0, x1, y1)``, its outline ``axes``
+    about ``pixel`` (default ``centre``)."""
+    x0, y0, x1, y1 = box
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    mask = ((xx - centre[0]) / radii[0]) ** 2 + ((yy - centre[1]) / radii[1]) ** 2 < 1.0
+    cell_mask = np.ones(mask.shape, bool) if cell else None
+    b = dict(pixel=np.array(centre if pixel is None else pixel, float), box=box, mask=mask)
+    b["cell"] = cell_mask
+    return b | dict(axes_px=np.array(axes, float)), None
+
+
+def test_a_split_regions_round_light_is_not_a_wild_neighbours_duplicate():
+    # lamps 8 and 1 of a joined region (stress_decode --seed 29 --phone): lamp 8's outline,
+    # fitted to its cell's straight edge too, came out 544 x 229 px; lamp 1's round disc lay
+    # within half that outline's smaller axis and was dropped
+    wild = _candidate((0, 0, 240, 400), (120, 200), (544, 229), (110, 160), pixel=(230, 200))
+    round_ = _candidate((200, 60, 460, 340), (330, 200), (106, 96), (50, 48))
+    kept = _drop_duplicates([wild, round_])
+    assert len(kept) == 2
+    # the same two without cells (two regions of one lamp, or glow): as before, one
+    alone = [(dict(c[0], cell=None), None) for c in (wild, round_)]
+    assert len(_drop_duplicates(alone)) == 1
+
+
+def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
+    # a photo of stress_centres --seed 11 --phone: a sliver of glow 315 x 76 px beside a lamp
+    # of 458 x 347, both cells of one joined region; kept, it drew the glows' joint fit 11 px
+    # off the lamp
+    lamp = _candidate((300, 300, 800, 700), (550, 515), (458, 347), (220, 170))
+    sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
+    kept = _drop_duplicates([lamp, sliver])
+    assert len(kept) == 1 and kept[0][0] is lamp[0]

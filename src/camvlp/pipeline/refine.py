@@ -656,14 +656,25 @@ def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict,
     return [found[i] for i in keep]
 
 
+#: Least ratio of a disc's outline's axes: a round fixture seen at most 60 degrees from
+#: face-on (the ratio is the cosine of that angle).
+MIN_AXIS_RATIO = 0.5
+
+
 def _two_cells(a: dict, b: dict) -> bool:
-    """Whether two candidates are lights that a joined region was split into (each has a
-    :attr:`Blob.cell`) whose discs share less than half the smaller one's pixels: two lights
-    by the split's own account, however close their centres.  (An outline fitted to a cell's
-    edge, where the cell cut its light off from the other, may come out far too large:
-    half its smaller axis reached past the other light's centre, and the other light, 7 px
-    from its lamp, was dropped as its duplicate.)"""
+    """Whether candidate ``a`` is a light of its own beside ``b``, however close their
+    centres: both are lights that a joined region was split into (each has a
+    :attr:`Blob.cell`), their discs share less than half the smaller one's pixels, and
+    ``a``'s outline is a disc's (its axes' ratio at least :data:`MIN_AXIS_RATIO`).
+
+    An outline fitted to a cell's edge, where the cell cut its light off from the other, may
+    come out far too large: half its smaller axis reached past the other light's centre, and
+    the other light, 7 px from its lamp, was dropped as its duplicate.  A piece of glow that
+    a split took for a light stays dropped (a sliver 315 x 76 px beside a lamp of 458 x 347:
+    kept, it drew the joint fit of the glows 11 px off that lamp)."""
     if a["cell"] is None or b["cell"] is None:
+        return False
+    if a["axes_px"][1] < MIN_AXIS_RATIO * a["axes_px"][0]:
         return False
     (ax0, ay0, ax1, ay1), (bx0, by0, bx1, by1) = a["box"], b["box"]
     x0, y0, x1, y1 = max(ax0, bx0), max(ay0, by0), min(ax1, bx1), min(ay1, by1)
