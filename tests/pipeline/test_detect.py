@@ -23,7 +23,7 @@ from camvlp.pipeline.detect import (
     to_gray,
 )
 from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
-from camvlp.pipeline.refine import _bridged, _drop_duplicates, _drop_pieces
+from camvlp.pipeline.refine import _bridged, _drop_duplicates
 from camvlp.sim.render import render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -379,18 +379,3 @@ def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
     sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
     kept = _drop_duplicates([lamp, sliver])
     assert len(kept) == 1 and kept[0][0] is lamp[0]
-
-
-def test_a_window_into_a_lights_glow_is_no_light_of_its_own():
-    # a 20 MP phone photo's glow (stress_decode --seed 29 --phone, 0.5 chip / 12 rows per
-    # chip): the tips of its stripes made regions of their own, lit from side to side at
-    # full resolution, which gave no edge points (their centres their masks' centroids):
-    # 31 such pieces beside 13 lamps
-    lamp, _ = _candidate((300, 300, 900, 900), (600, 600), (520, 500), (260, 250))
-    outlined = (lamp, ("edge points", (300.0, 300.0), (520.0, 500.0), 0.0))
-    window = _candidate((860, 560, 944, 644), (902, 602), (95, 95), (60, 60))
-    alone = _candidate((1400, 560, 1484, 644), (1442, 602), (95, 95), (60, 60))
-    kept = _drop_pieces([outlined, window, alone])
-    assert [k[0]["pixel"][0] for k in kept] == [600, 1442]
-    # without a light found whole beside it, a window stays (a lamp too faint for edges)
-    assert len(_drop_pieces([window, alone])) == 2

@@ -452,7 +452,7 @@ def refine_regions(
             if r is not None:
                 regions.append(r)
     found = [_fitted(r, p) for r, p in zip(regions, _edge_points(regions), strict=True)]
-    return _blobs(_drop_duplicates(_drop_pieces(found)))
+    return _blobs(_drop_duplicates(found))
 
 
 def _region(
@@ -637,30 +637,6 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
         face=r.face,
     )
     return fields, fit
-
-
-def _drop_pieces(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict, tuple | None]]:
-    """The candidates (each blob's fields with its ellipse fit) less the pieces of a light
-    found whole beside them: a candidate without an outline (fewer than 12 edge points, its
-    centre its mask's centroid) whose region overlaps the region of one with an outline.
-
-    A region holds a disc of its own when some of its lit sensor rows end inside it (its
-    edge points); one whose every lit row runs to its box's edge is a window into a lit
-    area larger than itself.  At the reduction of a 20 MP photo (8 times) the tips of a
-    glow's stripes that stick out beyond the photo-wide threshold make components of a
-    reduced pixel or two; refined at full resolution on their own levels, their boxes came
-    out lit from side to side: 31 such pieces beside 13 lamps in a phone photo of halos of
-    0.36 (``stress_decode.py --seed 29 --phone``, 0.5 chip / 12 rows per chip), where the
-    joint fit of the glows refitted each of them in turn (34 s for the photo)."""
-    outlined = [b["box"] for b, fit in found if fit is not None]
-
-    def piece(b: dict, fit: tuple | None) -> bool:
-        x0, y0, x1, y1 = b["box"]
-        return fit is None and any(
-            x0 < bx1 and bx0 < x1 and y0 < by1 and by0 < y1 for bx0, by0, bx1, by1 in outlined
-        )
-
-    return [f for f in found if not piece(*f)]
 
 
 def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict, tuple | None]]:
