@@ -215,10 +215,6 @@ def test_mirrored_photo_without_mirroring_is_not_located(small_room):
     assert not res
     assert res.position is None
     assert "mirror" in res.error
-    # each fixture the pose was tried with says why there is none, as the photo does
-    tried = [f for f in res.fixtures if f.id is not None]
-    assert len(tried) >= 4
-    assert all("mirror" in f.reason for f in tried), [f.reason for f in tried]
 
 
 def test_perspective_correction_helps_a_tilted_camera(renders, small_camera, small_room):

@@ -382,8 +382,8 @@ def _fixture_results(
                 residual = float(est.residuals_px[j])
                 if not used:
                     reason = f"does not fit the pose of the others ({residual:.1f} px off)"
-            elif est is not None:  # the photo's own reason (e.g. mirrored, degenerate)
-                reason = est.reason or "no pose"
+            elif est is not None:
+                reason = "no pose"
             else:
                 reason = f"fewer than {needed} usable fixtures"
         results.append(
