@@ -31,6 +31,14 @@ photo holds it at all (``camvlp.sim.oracle.id_separation``: the renderer's own m
 else in the photo known, on the plain sensor).  Run::
 
     python benchmarks/stress_decode.py --per-cell 4 --plot docs/stress/decode_map.png
+
+To look at one photo of a run (a miss it reported): ``--photo E R K`` renders and locates only
+photo K of the cell of E chips and R rows per chip (the same photo as in the run of the same
+``--seed``, ``--per-cell`` and options), prints its conditions, its lamps and what ``locate``
+reports of each, and with ``--save DIR`` writes the JPEG, the result drawn on it (the truth's
+centres as yellow crosses) and the pictures of each stage::
+
+    python benchmarks/stress_decode.py --seed 29 --phone --photo 0.85 8 0 --save out/photo
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSett
 from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
 from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
 from camvlp.sim.oracle import id_separation
+from camvlp.viz.annotate import annotate, write_debug_pictures
 
 EXPOSURES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
 ROWS_PER_CHIP = (2.0, 2.5, 3.0, 4.0, 6.0, 8.0, 12.0)
@@ -122,7 +131,21 @@ def phone_look(rng: np.random.Generator) -> dict:
     )
 
 
-def one_photo(
+@dataclasses.dataclass(frozen=True)
+class Drawn:
+    """One photo's conditions as drawn (nothing rendered yet)."""
+
+    camera: Camera
+    fmap: FixtureMap
+    settings: RenderSettings
+    quality: int
+    big: bool
+    given_rate: bool
+    readout: str
+    n: int
+
+
+def draw_photo(
     rng,
     exposure: float,
     rows_per_chip: float,
@@ -130,7 +153,9 @@ def one_photo(
     phone: bool = False,
     tone_given: bool = False,
     tone_gamma: float | None = None,
-):
+) -> Drawn:
+    """A photo's random conditions, drawn from ``rng`` as :func:`one_photo` draws them (so
+    that photos can be skipped without rendering them, and the next ones stay the same)."""
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
@@ -163,33 +188,112 @@ def one_photo(
         settings = dataclasses.replace(
             settings, **phone_look(np.random.default_rng([settings.seed, 7]))
         )
-    photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
+    quality = int(rng.integers(70, 96))  # (the render draws nothing from rng)
     if tone_given or tone_gamma:  # the camera file says its tone curve, or a guess at it
         camera = dataclasses.replace(camera, tone_gamma=tone_gamma or settings.gamma)
-    quality = int(rng.integers(70, 96))
-    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    return Drawn(camera, fmap, settings, quality, big, given_rate, readout, n)
+
+
+def one_photo(
+    rng,
+    exposure: float,
+    rows_per_chip: float,
+    looks: bool = True,
+    phone: bool = False,
+    tone_given: bool = False,
+    tone_gamma: float | None = None,
+):
+    """A photo drawn (:func:`draw_photo`) and taken (:func:`shoot`); returns the render,
+    ``locate``'s result, the conditions, the time of ``locate`` (s) and the map."""
+    d = draw_photo(rng, exposure, rows_per_chip, looks, phone, tone_given, tone_gamma)
+    photo, res, cond, dt, _ = shoot(d)
+    return photo, res, cond, dt, d.fmap
+
+
+def shoot(d: Drawn):
+    """A drawn photo rendered, stored as a JPEG and located (``keep_stages``); returns the
+    render, ``locate``'s result, the conditions, the time of ``locate`` (s) and the JPEG's
+    bytes."""
+    camera, fmap, settings = d.camera, d.fmap, d.settings
+    photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
+    _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, d.quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     t = time.perf_counter()
     res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
     dt = time.perf_counter() - t
     cond = dict(
-        big=big,
-        readout=readout,
-        n=n,
-        quality=quality,
+        big=d.big,
+        readout=d.readout,
+        n=d.n,
+        quality=d.quality,
         k1=float(camera.distortion[0]) if camera.distortion.size else 0.0,
         brightness=round(settings.brightness, 2),
         off=round(settings.off_level, 3),
         blur=round(settings.blur_px, 2),
         core=round(settings.core, 2),
         halo=round(settings.halo, 2),
-        chip_rate_given=given_rate,
+        chip_rate_given=d.given_rate,
         gamma=round(settings.gamma, 2),
         sharpen=round(settings.sharpen, 2),
         vignetting=round(settings.vignetting, 2),
         black_point=round(settings.black_point, 3),
     )
-    return photo, res, cond, dt, fmap
+    return photo, res, cond, dt, buf.tobytes()
+
+
+def replay(args, look: dict) -> int:
+    """``--photo E R K``: the sweep's photo K of cell (E chips, R rows per chip) alone (the
+    photos before it drawn, not rendered): its conditions, its lamps, what ``locate``
+    reports of each, and with ``--save DIR`` the JPEG, the result drawn on it (the truth's
+    centres as yellow crosses) and the pictures of each stage."""
+    target = (float(args.photo[0]), float(args.photo[1]), int(args.photo[2]))
+    rng = np.random.default_rng(args.seed)
+    for e in EXPOSURES:
+        for r in ROWS_PER_CHIP:
+            for k in range(args.per_cell):
+                d = draw_photo(rng, e, r, **look)
+                if (e, r, k) == target:
+                    return _report(d, args.save)
+    cells = f"exposures {EXPOSURES}, rows per chip {ROWS_PER_CHIP}, photos 0 to {args.per_cell - 1}"
+    print(f"error: no photo {target} in the sweep ({cells})", file=sys.stderr)
+    return 2
+
+
+def _report(d: Drawn, save: Path | None) -> int:
+    """Print one photo of :func:`replay`, and save its pictures into ``save``."""
+    photo, res, cond, dt, jpeg = shoot(d)
+    print("conditions", cond)
+    print("render settings", d.settings)
+    truth = list(photo.fixtures)
+    for t in truth:
+        eligible = t.fully_inside and t.frames_spanned >= 1.2
+        print(
+            f"  lamp {t.id:2d} at ({t.pixel[0]:7.1f}, {t.pixel[1]:7.1f}), "
+            f"{t.frames_spanned:.2f} frames{'' if eligible else ' (not eligible)'}"
+        )
+    for f in res.fixtures:
+        t = min(truth, key=lambda t: float(np.hypot(*(t.pixel - f.pixel))))
+        off = float(np.hypot(*(t.pixel - f.pixel)))
+        got = "no ID" if f.id is None else f"ID {f.id}"
+        how = "used" if f.used else f"not used: {f.reason}"
+        print(
+            f"  {got} at ({f.pixel[0]:7.1f}, {f.pixel[1]:7.1f}), {off:.1f} px from lamp "
+            f"{t.id}; {how}"
+        )
+    print(f"located: {bool(res)}{'' if res else ', ' + res.reason}; locate took {dt:.2f} s")
+    if save is not None:
+        save.mkdir(parents=True, exist_ok=True)
+        (save / "photo.jpg").write_bytes(jpeg)
+        image = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)
+        drawn = annotate(image, res, d.camera, d.fmap)
+        size = max(4, round(max(image.shape[:2]) / 150))
+        for t in truth:
+            centre = (round(float(t.pixel[0])), round(float(t.pixel[1])))
+            cv2.drawMarker(drawn, centre, (0, 255, 255), cv2.MARKER_CROSS, 4 * size, size // 2)
+        cv2.imwrite(str(save / "annotated.png"), drawn)
+        write_debug_pictures(save / "stages", image, res, res.stages)
+        print(f"wrote {save / 'photo.jpg'}, {save / 'annotated.png'} and {save / 'stages'}/")
+    return 0
 
 
 def separation(
@@ -258,7 +362,22 @@ def main() -> int:
         metavar="G",
         help="with --phone: the camera file gives tone_gamma G, whatever the photo's",
     )
+    ap.add_argument(
+        "--photo",
+        nargs=3,
+        metavar=("E", "R", "K"),
+        help="only photo K of the cell of E chips and R rows per chip (see --save)",
+    )
+    ap.add_argument("--save", type=Path, help="with --photo: save its pictures in this folder")
     args = ap.parse_args()
+    look = dict(
+        looks=not args.plain,
+        phone=args.phone,
+        tone_given=args.tone_given,
+        tone_gamma=args.tone_gamma,
+    )
+    if args.photo:
+        return replay(args, look)
     rng = np.random.default_rng(args.seed)
     cells = {}
     records = []
@@ -270,15 +389,7 @@ def main() -> int:
         eligible = decoded = told = wrong = located = ambiguous = 0
         times = []
         for i_photo in range(args.per_cell):
-            photo, res, cond, dt, fmap = one_photo(
-                rng,
-                exposure,
-                rpc,
-                looks=not args.plain,
-                phone=args.phone,
-                tone_given=args.tone_given,
-                tone_gamma=args.tone_gamma,
-            )
+            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc, **look)
             times.append(dt)
             slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
             located += bool(res)
