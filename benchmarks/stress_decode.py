@@ -141,8 +141,6 @@ class Drawn:
     quality: int
     big: bool
     given_rate: bool
-    readout: str
-    n: int
 
 
 def draw_photo(
@@ -154,8 +152,8 @@ def draw_photo(
     tone_given: bool = False,
     tone_gamma: float | None = None,
 ) -> Drawn:
-    """A photo's random conditions, drawn from ``rng`` as :func:`one_photo` draws them (so
-    that photos can be skipped without rendering them, and the next ones stay the same)."""
+    """A photo's random conditions, drawn from ``rng`` (nothing rendered: the render draws
+    nothing from ``rng``, so photos can be skipped and the next ones stay the same)."""
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
@@ -188,24 +186,17 @@ def draw_photo(
         settings = dataclasses.replace(
             settings, **phone_look(np.random.default_rng([settings.seed, 7]))
         )
-    quality = int(rng.integers(70, 96))  # (the render draws nothing from rng)
+    quality = int(rng.integers(70, 96))
     if tone_given or tone_gamma:  # the camera file says its tone curve, or a guess at it
         camera = dataclasses.replace(camera, tone_gamma=tone_gamma or settings.gamma)
-    return Drawn(camera, fmap, settings, quality, big, given_rate, readout, n)
+    return Drawn(camera, fmap, settings, quality, big, given_rate)
 
 
-def one_photo(
-    rng,
-    exposure: float,
-    rows_per_chip: float,
-    looks: bool = True,
-    phone: bool = False,
-    tone_given: bool = False,
-    tone_gamma: float | None = None,
-):
-    """A photo drawn (:func:`draw_photo`) and taken (:func:`shoot`); returns the render,
-    ``locate``'s result, the conditions, the time of ``locate`` (s) and the map."""
-    d = draw_photo(rng, exposure, rows_per_chip, looks, phone, tone_given, tone_gamma)
+def one_photo(rng, exposure: float, rows_per_chip: float, **look):
+    """A photo drawn (:func:`draw_photo`, with its keyword arguments ``look``) and taken
+    (:func:`shoot`); returns the render, ``locate``'s result, the conditions, the time of
+    ``locate`` (s) and the map."""
+    d = draw_photo(rng, exposure, rows_per_chip, **look)
     photo, res, cond, dt, _ = shoot(d)
     return photo, res, cond, dt, d.fmap
 
@@ -223,8 +214,8 @@ def shoot(d: Drawn):
     dt = time.perf_counter() - t
     cond = dict(
         big=d.big,
-        readout=d.readout,
-        n=d.n,
+        readout=str(settings.readout.value),
+        n=len(fmap.fixtures),
         quality=d.quality,
         k1=float(camera.distortion[0]) if camera.distortion.size else 0.0,
         brightness=round(settings.brightness, 2),
