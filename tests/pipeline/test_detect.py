@@ -352,10 +352,14 @@ def _candidate(box, centre, axes, radii, cell=True, pixel=None):
     x0, y0, x1, y1 = box
     yy, xx = np.mgrid[y0:y1, x0:x1]
     mask = ((xx - centre[0]) / radii[0]) ** 2 + ((yy - centre[1]) / radii[1]) ** 2 < 1.0
-    cell_mask = np.ones(mask.shape, bool) if cell else None
-    b = dict(pixel=np.array(centre if pixel is None else pixel, float), box=box, mask=mask)
-    b["cell"] = cell_mask
-    return b | dict(axes_px=np.array(axes, float)), None
+    fields = dict(
+        pixel=np.array(centre if pixel is None else pixel, float),
+        box=box,
+        mask=mask,
+        cell=np.ones(mask.shape, bool) if cell else None,
+        axes_px=np.array(axes, float),
+    )
+    return fields, None
 
 
 def test_a_split_regions_round_light_is_not_a_wild_neighbours_duplicate():
