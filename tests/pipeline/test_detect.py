@@ -19,6 +19,7 @@ from camvlp.pipeline.detect import (
     _close_lit,
     _decimated_gray,
     _median_u8,
+    _outlines,
     detect_fixtures,
     to_gray,
 )
@@ -207,7 +208,8 @@ def test_bad_arguments_raise_value_error():
 
 
 def test_closing_around_lit_pixels_equals_whole_image_closing():
-    """The candidate closing, done box by box around the lit pixels, gives the whole image's."""
+    """The candidate closing, done box by box around the lit pixels, gives the whole image's,
+    and its outlines found box by box are the whole image's, in OpenCV's order."""
     rng = np.random.default_rng(4)
     boxed = 0
     for case in range(300):
@@ -222,8 +224,15 @@ def test_closing_around_lit_pixels_equals_whole_image_closing():
         k = int(rng.choice([3, 5, 11, 13]))
         kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
         whole = cv2.morphologyEx(binary, cv2.MORPH_CLOSE, kernel)
-        np.testing.assert_array_equal(_close_lit(binary, k, max_boxes=1000), whole)
-        np.testing.assert_array_equal(_close_lit(binary, k), whole)
+        closed, boxes = _close_lit(binary, k, max_boxes=1000)
+        np.testing.assert_array_equal(closed, whole)
+        np.testing.assert_array_equal(_close_lit(binary, k)[0], whole)
+        # the outlines found box by box: OpenCV's, in its order
+        outlines = cv2.findContours(whole, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)[0]
+        got = _outlines(closed, boxes)
+        assert len(got) == len(outlines)
+        for a, b in zip(got, outlines, strict=True):
+            np.testing.assert_array_equal(a, b)
         boxed += np.count_nonzero(binary) > 0
     assert boxed > 200
 
