@@ -172,8 +172,9 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
 
 def _axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
     """:func:`find_readout_axis` of a uint8 region and a uint8 mask of 0 and 1: the sums by
-    OpenCV, exact in float32 like NumPy's (whole levels, below 2**24)."""
-    g = cv2.multiply(gray8, mask01)
+    OpenCV, exact in float32 like NumPy's (whole levels, below 2**24).  (The product by
+    NumPy: ``cv2.multiply`` of a crop that is not contiguous costs several times as much.)"""
+    g = np.multiply(gray8, mask01)
     sums = [
         cv2.reduce(a, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
         for dim in (1, 0)
@@ -212,13 +213,16 @@ def _kernel(shape: int, ksize: tuple[int, int]) -> np.ndarray:
     return k
 
 
-def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
+def _disc_mask(
+    lit: np.ndarray, axis: str, kernel_px: int, lit_box: tuple[int, int, int, int] | None = None
+) -> np.ndarray | None:
     """The disc under a striped light: lit pixels with the dark stripes bridged.
 
     A closing along the readout axis as long as the widest dark gap across the middle third
     of the region (at least ``kernel_px``), a small round closing, and the largest outline
-    with its holes filled.  ``lit`` is bool, or uint8 of 0 and 1.  Returns a bool mask
-    (h, w), or None when nothing is lit.
+    with its holes filled.  ``lit`` is bool, or uint8 of 0 and 1; ``lit_box`` its
+    bounding box ``(x, y, w, h)`` (``cv2.boundingRect``) when already known.  Returns a bool
+    mask (h, w), or None when nothing is lit.
     """
     lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
@@ -231,11 +235,11 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
         # lines more than half lit (the lit pixels counted by OpenCV); the widest dark run
         # between two of them
         counts = cv2.reduce(centre, 1 if rows else 0, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-        lit_lines = (counts * 2 > min(n, b) - a).nonzero()[0]
-        if lit_lines.size >= 2:
-            gap = int((lit_lines[1:] - lit_lines[:-1]).max()) - 1
+        lit_lines = (counts > (min(n, b) - a) // 2).nonzero()[0]  # 2 c > m: c > m // 2
+        if lit_lines.size >= 2:  # (the ufunc's reduce: ndarray.max() goes through Python)
+            gap = int(np.maximum.reduce(lit_lines[1:] - lit_lines[:-1])) - 1
     length = max(kernel_px, gap + 3) | 1
-    closed, offset = _bridged(lit_u8, length, rows)
+    closed, offset = _bridged(lit_u8, length, rows, box=lit_box)
     # the largest outline, holes filled
     contours, _ = cv2.findContours(
         closed, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE, offset=offset
@@ -248,22 +252,30 @@ def _disc_mask(lit: np.ndarray, axis: str, kernel_px: int) -> np.ndarray | None:
 
 
 def _bridged(
-    lit: np.ndarray, length: int, rows: bool, crop: bool = True
+    lit: np.ndarray,
+    length: int,
+    rows: bool,
+    crop: bool = True,
+    box: tuple[int, int, int, int] | None = None,
 ) -> tuple[np.ndarray, tuple[int, int]]:
     """The lit pixels closed along the readout axis (``length`` pixels), then by a 5 x 5
     ellipse; returns the closed part and its offset ``(x, y)`` in ``lit``, zero elsewhere.
+    ``box``: the lit pixels' bounding box ``(x, y, w, h)`` when already known.
 
     The whole region is closed as a copy padded by repeating its edge: OpenCV's own border
     keeps whatever the dilation brought to the edge, which would join a disc near the border
     to it.  When the lit pixels stay far enough from the region's edge (so that edge is dark
-    and its padding too), only their bounding box is closed, with the margin that the two
-    closings reach (twice the radius of each, along and across): the same values, where
-    the closing of the whole region is zero outside that box (``crop``: allowed).
+    and its padding too), only their bounding box is closed, with a margin one pixel wider
+    than the two dilations reach (``r + 2`` along, 2 across, ``r = length // 2``): on the
+    margin's outer line both dilations are 0, and each kernel's middle line is whole, so an
+    erosion whose kernel reaches past the box (onto OpenCV's border, taken as lit) meets a
+    0 on that line first, as the whole region's does.  The same values, where the closing
+    of the whole region is zero outside that box (``crop``: allowed).
     """
     r = length // 2
     ksize = (1, length) if rows else (length, 1)  # (width, height): across the stripes
-    x, y, w, h = cv2.boundingRect(lit)
-    along, across = max(2 * r, r + 4), 4
+    x, y, w, h = cv2.boundingRect(lit) if box is None else box
+    along, across = r + 3, 3
     my, mx = (along, across) if rows else (across, along)
     height, width = lit.shape
     inside = y >= my and x >= mx and y + h + my <= height and x + w + mx <= width
@@ -479,17 +491,22 @@ def _region(
     if cell is not None:  # a light whose glow joins others': its own cell only
         beyond = lit & ~cell
         lit = lit & cell
+    lit_box = cv2.boundingRect(lit)
+    # the readout axis on the lit pixels' box grown by the dilation's reach (nothing beyond)
+    x, y, w, h = lit_box
+    near = (slice(max(0, y - 1), y + h + 1), slice(max(0, x - 1), x + w + 1))
     axis = readout
     if axis is None:
-        axis, contrast = _axis_contrast(gray8, cv2.dilate(lit, _AXIS_KERNEL))
+        axis, contrast = _axis_contrast(gray8[near], cv2.dilate(lit[near], _AXIS_KERNEL))
     else:
-        contrast = _axis_contrast(gray8, lit)[1]
+        contrast = _axis_contrast(gray8[near], lit[near])[1]
     edges, edge_bg, on_face = gray8, background, False  # the image of the edge points
     found = None if seed is None or cell is None else own_face(gray8, lit, cell, axis, seed)
     if found is not None:  # its face, unclipped in its dark stripes
         lit, edges, on_face = found[0], found[1], True
         edge_bg = _percentiles_u8(edges, [10])[0]
-    mask = _disc_mask(lit, axis, kernel_px)
+        lit_box = None
+    mask = _disc_mask(lit, axis, kernel_px, lit_box)
     if mask is None:
         return None
     area = float(np.count_nonzero(mask))
@@ -538,7 +555,7 @@ def _edge_rows(gray: np.ndarray, mask: np.ndarray, background: float, axis: str)
     # whole levels: the float32 sums are exact (below 2**24)
     sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
     level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
-    top = level.max()
+    top = float(np.maximum.reduce(level))
     rows = ((counts >= 4) & (level > background + 0.35 * (top - background))).nonzero()[0]
     half = background + 0.5 * (level[rows] - background)
     near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
