@@ -461,30 +461,37 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     bleeding ``b`` each, rows): per profile its chips (uint8), which of them are sure, the
     chips as text (``?`` where unsure) and its run margin."""
     n = r.n_edges.size
-    tt, bb = np.ones(n), np.zeros(n)
-    tt[which], bb[which] = t, b
-    x = np.where(r.bright, r.lengths - bb[r.run_of], r.lengths + bb[r.run_of]) / tt[r.run_of]
+    if which.size < n:  # (the other profiles' runs read at t = 1, b = 0, then left out)
+        tt, bb = np.ones(n), np.zeros(n)
+        tt[which], bb[which] = t, b
+        t_run, b_run = tt[r.run_of], bb[r.run_of]
+    else:
+        t_run, b_run = t[r.run_of], b[r.run_of]
+    x = np.where(r.bright, r.lengths - b_run, r.lengths + b_run) / t_run
     whole = np.rint(x)
     counts = whole.astype(int)
+    sure = (counts >= 1) & (counts <= 2)
+    np.minimum(np.maximum(counts, 1), 2, out=counts)  # one chip or two
     # runs cut by the disc's edge: count only the chips surely inside
     first = r.run_starts
     ends = np.concatenate([first, first + r.n_edges])
     counts[ends] = np.minimum(np.maximum(np.floor(x[ends] + 0.25), 0), 2)
-    sure = (counts >= 1) & (counts <= 2)
     sure[ends] = True
-    inner = np.ones(counts.size, bool)
-    inner[ends] = False
-    counts[inner] = np.minimum(np.maximum(counts[inner], 1), 2)
+    counts_all = counts
     dev = np.abs(x - whole)
     dev[ends] = -1.0
     worst = np.maximum.reduceat(dev, first)[which]
-    chosen = np.zeros(n, bool)
-    chosen[which] = True
-    kept = chosen[r.run_of]
-    chip_vals = r.bright[kept].astype(np.uint8).repeat(counts[kept])
-    known = sure[kept].repeat(counts[kept])
+    if which.size < n:
+        kept = np.zeros(n, bool)
+        kept[which] = True
+        kept = kept[r.run_of]
+        bright, counts, sure = r.bright[kept], counts[kept], sure[kept]
+    else:
+        bright = r.bright
+    chip_vals = bright.astype(np.uint8).repeat(counts)
+    known = sure.repeat(counts)
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    bounds = [0, *np.add.reduceat(counts, first)[which].cumsum().tolist()]
+    bounds = [0, *np.add.reduceat(counts_all, first)[which].cumsum().tolist()]
     return [
         (
             chip_vals[c0:c1],
