@@ -542,14 +542,15 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
         zip(read, t.tolist(), b.tolist(), strict=True)
     ):
         res, other = whole[k], others[k]
-        common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=chips.size / n)
+        frames = chips.size / n
+        common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=frames)
         if not res:
             out.append(_refused(res.reason, hamming=res.distance, **common))
         elif other is not None:
             reason = f"copies of the frame disagree ({res.id} and {other})"
             out.append(_refused(reason, hamming=res.distance, **common))
         else:
-            out.append(StripeDecode(res.id, "", res.distance, margin, **common))
+            out.append(StripeDecode(res.id, "", res.distance, margin, rpc, bleed, text, frames))
     return out
 
 
