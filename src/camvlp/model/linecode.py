@@ -273,13 +273,11 @@ class FrameFormat:
             return []
         sizes = [c.size for c, _ in stretches]
         width = -(-max(sizes) // n) * n if max(sizes) > 0 else n  # whole frames
-        real = np.arange(width)[None, :] < np.array(sizes)[:, None]
         k = np.zeros((m, width), bool)
-        k[real] = np.concatenate(
-            [np.ones(ch.size, bool) if kn is None else kn for ch, kn in stretches]
-        )
         on = np.zeros((m, width), bool)
-        on[real] = np.concatenate([ch for ch, _ in stretches])
+        for k_row, on_row, (ch, kn) in zip(k, on, stretches, strict=True):  # (a few stretches)
+            k_row[: ch.size] = True if kn is None else kn
+            on_row[: ch.size] = ch
         on &= k
         # per stretch and frame position: known chips, and known ones
         seen = k.reshape(m, -1, n).sum(axis=1)  # (m, n)
@@ -292,16 +290,20 @@ class FrameFormat:
         # more that disagrees, one chip 1 fewer), on top of the known ones; exact, every sum
         # a whole number below 2**24
         weight = (seen - 2 * ones).astype(np.float32)
-        dist = (weight @ self._rotations_f32.reshape(-1, n).T).astype(np.int64)
-        dist = (dist + ones.sum(axis=1)[:, None]).reshape(m, n_ids, n)
-        per_id = dist.min(axis=2)
+        dist = (weight @ self._rotations_by_chip).astype(np.int64)
+        dist += np.add.reduce(ones, axis=1)[:, None]
+        dist = dist.reshape(m, n_ids, n)
+        per_id = np.minimum.reduce(dist, axis=2)
         best = per_id.argmin(axis=1)  # the first of the nearest, as a stable sort's
-        offset = dist[np.arange(m), best].argmin(axis=1)
-        n_seen = seen.sum(axis=1)
-        if n_ids > 1:  # the nearest and the next (an ID as near, or the nearest other)
-            d_best, d_second = np.partition(per_id, 1, axis=1)[:, :2].T
+        rows = np.arange(m)
+        offset = dist[rows, best].argmin(axis=1)
+        n_seen = np.add.reduce(seen, axis=1)
+        d_best = per_id[rows, best]
+        if n_ids > 1:  # the next: an ID as near, or the nearest other
+            per_id[rows, best] = np.iinfo(np.int64).max  # (the nearest left out)
+            d_second = np.minimum.reduce(per_id, axis=1)
         else:
-            d_best, d_second = per_id[:, 0], n_seen + 1
+            d_second = n_seen + 1
         return [
             _chip_decode(*v, n)
             for v in zip(
@@ -311,9 +313,10 @@ class FrameFormat:
         ]
 
     @cached_property
-    def _rotations_f32(self) -> np.ndarray:
-        """:attr:`_rotations` as float32 (for :meth:`decode_many`'s matrix product)."""
-        r = self._rotations.astype(np.float32)
+    def _rotations_by_chip(self) -> np.ndarray:
+        """:attr:`_rotations` as float32, one column per ID and rotation (n_chips,
+        n_ids * n_chips): :meth:`decode_many`'s matrix product's right-hand side."""
+        r = np.ascontiguousarray(self._rotations.astype(np.float32).reshape(-1, self.n_chips).T)
         r.flags.writeable = False
         return r
 

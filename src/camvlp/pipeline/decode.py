@@ -21,13 +21,14 @@ measured chip length and bleeding.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.profile import row_profile, shape_profile
-from camvlp.pipeline.ragged import padded, starts
+from camvlp.pipeline.ragged import starts
 
 __all__ = [
     "Runs",
@@ -57,27 +58,39 @@ def _otsu(values: np.ndarray) -> float:
 
 def stripe_levels(profile: np.ndarray) -> tuple[float, float]:
     """Dark and bright levels of a row profile: its 2nd and 98th percentiles."""
-    lo, hi = _levels([np.asarray(profile, dtype=float).reshape(-1)])
-    return float(lo[0]), float(hi[0])
+    lo, hi = _level_list([np.asarray(profile, dtype=float).reshape(-1)])
+    return lo, hi
 
 
 def _levels(profiles: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`stripe_levels` of several non-empty 1-D profiles: (dark, bright) arrays.
+    """:func:`stripe_levels` of several non-empty 1-D profiles: (dark, bright) arrays."""
+    out = _level_list(profiles)
+    return np.array(out[0::2]), np.array(out[1::2])
+
+
+def _level_list(profiles: list[np.ndarray]) -> list[float]:
+    """:func:`stripe_levels` of several non-empty 1-D profiles, one after another in a list
+    of Python floats (dark, bright, dark, ...).
 
     NumPy's default (linear) percentiles, each profile sorted in a row of its own (NaN
-    after its values, where NaN sorts)."""
-    sizes = np.array([p.size for p in profiles], dtype=np.int64)
-    v = padded(np.concatenate(profiles), sizes, np.nan)
+    after its values, where NaN sorts); the few values each needs gathered at once and
+    worked in Python floats (the same operations as NumPy's)."""
+    sizes = [p.size for p in profiles]
+    v = np.full((len(sizes), max(sizes)), np.nan)
+    for row, p in zip(v, profiles, strict=True):
+        row[: p.size] = p
     v.sort(axis=1)
-    last = sizes - 1
-    rows = np.arange(sizes.size)
-    out = []
-    for q in (0.02, 0.98):
-        x = q * last
-        i = np.minimum(np.floor(x).astype(np.int64), last)
-        a, b = v[rows, i], v[rows, np.minimum(i + 1, last)]
-        out.append(a + (x - i) * (b - a))
-    return out[0], out[1]
+    # per profile and percentile: the fraction x, the values at floor(x) and the next
+    at = [
+        (x, i, min(i + 1, n - 1))
+        for n in sizes
+        for x in (0.02 * (n - 1), 0.98 * (n - 1))
+        for i in (min(math.floor(x), n - 1),)
+    ]
+    rows = [k // 2 for k in range(len(at))]
+    a = v[rows, [i for _, i, _ in at]].tolist()
+    b = v[rows, [j for _, _, j in at]].tolist()
+    return [a0 + (x - i) * (b0 - a0) for (x, i, _), a0, b0 in zip(at, a, b, strict=True)]
 
 
 def stripe_threshold(profile: np.ndarray, level: float = 0.6) -> float:
@@ -141,7 +154,7 @@ class _FlatRuns:
 
     ``edges``, ``rising`` and ``edge_of`` (the profile) per threshold crossing; ``lengths``,
     ``bright`` and ``run_of`` per run (``n_edges + 1`` a profile, the first and last cut by
-    the disc's edge)."""
+    the disc's edge); ``run_starts``, each profile's first run."""
 
     edges: np.ndarray
     rising: np.ndarray
@@ -150,11 +163,7 @@ class _FlatRuns:
     lengths: np.ndarray
     bright: np.ndarray
     run_of: np.ndarray
-
-    @property
-    def run_starts(self) -> np.ndarray:
-        """Each profile's first run."""
-        return starts(self.n_edges + 1)
+    run_starts: np.ndarray
 
 
 def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
@@ -181,11 +190,12 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     keep = np.ones(steps.size, bool)
     keep[(first + n_e + 1)[:-1]] = False  # from one profile's last bound to the next's first
     bright = np.empty(edges.size + n, bool)
-    bright[starts(n_e + 1)] = above[start]
-    bright[np.arange(edges.size) + eo + 1] = above[i + 1]
-    return _FlatRuns(
-        edges, above[i + 1], eo, n_e, steps[keep], bright, np.arange(n).repeat(n_e + 1)
-    )
+    run_starts = starts(n_e + 1)
+    bright[run_starts] = above[start]
+    rising = above[i + 1]
+    bright[np.arange(edges.size) + eo + 1] = rising
+    run_of = np.arange(n).repeat(n_e + 1)
+    return _FlatRuns(edges, rising, eo, n_e, steps[keep], bright, run_of, run_starts)
 
 
 @dataclass(frozen=True)
@@ -245,15 +255,16 @@ def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
 _CHIP_STEP = 0.01
 
 
-def _chip_grids(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``np.arange(lo, hi, 0.01)`` of each profile, one row each (as NumPy fills it: ``lo``
-    plus ``i`` times the step it takes, ``(lo + 0.01) - lo``), continued beyond ``hi`` to
-    the longest; each row's length, and its step."""
-    sizes = np.ceil((hi - lo) / _CHIP_STEP).astype(np.intp)
-    delta = (lo + _CHIP_STEP) - lo
-    grid = np.arange(int(sizes.max()), dtype=float)[None, :] * delta[:, None]
-    grid += lo[:, None]
-    return grid, sizes, delta
+def _chip_grids(lo: list[float], hi: list[float]) -> tuple[np.ndarray, list[int], np.ndarray]:
+    """``np.arange(lo, hi, 0.01)`` of each profile (its ``lo`` and ``hi`` Python floats), one
+    row each (as NumPy fills it: ``lo`` plus ``i`` times the step it takes,
+    ``(lo + 0.01) - lo``), continued beyond ``hi`` to the longest; each row's length, and
+    each row's ``lo`` and step (an array (2, rows))."""
+    sizes = [math.ceil((h - low) / _CHIP_STEP) for low, h in zip(lo, hi, strict=True)]
+    lo_delta = np.array([lo, [(low + _CHIP_STEP) - low for low in lo]])
+    grid = np.arange(max(sizes), dtype=float)[None, :] * lo_delta[1][:, None]
+    grid += lo_delta[0][:, None]
+    return grid, sizes, lo_delta
 
 
 def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
@@ -264,43 +275,57 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
     least on the grid), 3 or more while ``g < d / 2.5`` and 4 while ``g <= d / 3.5`` (where
     ``m`` changes, both counts are half a chip off: the cost is continuous).  So each grid
     value's cost, ``sum(d^2) - 2 g sum(m d) + g^2 sum(m^2)``, follows from running sums of
-    the steps each spacing makes along the grid, not a (spacings, grid) array.
+    the steps each spacing makes along the grid, not a (spacings, grid) array.  (The few
+    values a profile has, its shortest spacing and its grid's ends, are Python floats.)
     """
     n = r.n_edges.size
     d, p = _spacings(r)
-    counts = np.bincount(p, minlength=n)
     out = np.full(n, np.nan)
-    if counts.max(initial=0) < 2:
+    counts = np.bincount(p, minlength=n).tolist()
+    if max(counts) < 2:
         return out
-    shortest = padded(d, counts, np.inf).min(axis=1)
-    lo, hi = np.maximum(0.8, shortest / 4.6), np.minimum(max_rows_per_chip, shortest / 1.6)
-    ok = ((counts >= 2) & (hi > lo)).nonzero()[0]  # two spacings or more, and a grid
-    if ok.size == 0:
+    # each profile's spacings in d (sorted by profile), its shortest, and its grid's ends
+    bounds = [0, *itertools.accumulate(counts)]
+    dl = d.tolist()
+    ok, lo, hi, n_d = [], [], [], []
+    for k, (a, b) in enumerate(itertools.pairwise(bounds)):
+        if b - a < 2:
+            continue
+        shortest = min(dl[a:b])
+        low, high = max(0.8, shortest / 4.6), min(max_rows_per_chip, shortest / 1.6)
+        if high > low:  # two spacings or more, and a grid
+            ok.append(k), lo.append(low), hi.append(high), n_d.append(b - a)
+    if not ok:
         return out
-    lo, hi, n_d = lo[ok], hi[ok], counts[ok]
-    slot = np.full(n, -1)
-    slot[ok] = np.arange(ok.size)
-    q = slot[p]
-    keep = q >= 0
-    d, q = d[keep], q[keep]
-    grid, sizes, delta = _chip_grids(lo, hi)
+    if len(ok) < n:  # the spacings of the profiles with a grid, q their grid's row
+        slot = np.full(n, -1)
+        slot[ok] = np.arange(len(ok))
+        q = slot[p]
+        keep = q >= 0
+        d, q = d[keep], q[keep]
+        bounds = [0, *itertools.accumulate(n_d)]
+    else:
+        q = p
+    rows = len(ok)
+    grid, sizes, lo_delta = _chip_grids(lo, hi)
     size = grid.shape[1]
     # where each spacing's count drops from 4 to 3 chips (row 0) and from 3 to 2 (row 1)
     # along its grid; what each drop takes from sum(m d) and from sum(m^2)
-    drops = np.floor((d / _DROPS - lo[q]) / delta[q]) + 1
+    low_q, delta_q = lo_delta[:, q]
+    drops = np.floor((d / _DROPS - low_q) / delta_q) + 1
     at = (q * (size + 1) + np.minimum(np.maximum(drops, 0), size).astype(np.intp)).ravel()
     sums = np.bincount(
-        np.concatenate([at, at + ok.size * (size + 1)]),
+        np.concatenate([at, at + rows * (size + 1)]),
         weights=np.concatenate([d, d, _DROP_WEIGHTS.repeat(d.size)]),
-        minlength=2 * ok.size * (size + 1),
+        minlength=2 * rows * (size + 1),
     )
-    taken = sums.reshape(2, ok.size, size + 1)[:, :, :size].cumsum(axis=2)
-    sum_d2 = np.bincount(q, weights=d * d, minlength=ok.size)
-    sum_md = 4.0 * np.bincount(q, weights=d, minlength=ok.size)[:, None] - taken[0]
-    sum_mm = 16.0 * n_d[:, None] - taken[1]
+    taken = np.add.accumulate(sums.reshape(2, rows, size + 1)[:, :, :size], axis=2)
+    sum_d2 = np.bincount(q, weights=d * d, minlength=rows)
+    sum_md = 4.0 * np.bincount(q, weights=d, minlength=rows)[:, None] - taken[0]
+    sum_mm = 16.0 * np.array(n_d, dtype=float)[:, None] - taken[1]
     cost = sum_d2[:, None] - 2.0 * grid * sum_md + grid * grid * sum_mm
-    cost[np.arange(size)[None, :] >= sizes[:, None]] = np.inf
-    bounds = [0, *itertools.accumulate(n_d.tolist())]  # each profile's spacings in d
+    for k, grid_size in enumerate(sizes):
+        cost[k, grid_size:] = np.inf  # beyond the row's own grid
 
     def exact(k: int, j: np.ndarray) -> np.ndarray:
         # as the grid's terms were first summed: (d / g - m) g, squared
@@ -310,13 +335,13 @@ def _chip_lengths(r: _FlatRuns, max_rows_per_chip: float) -> np.ndarray:
         x *= g
         return np.square(x).sum(axis=1)
 
-    t = grid[np.arange(ok.size), _grid_best(cost, sum_d2, exact)]
+    t = grid[range(rows), _grid_best(cost, sum_d2, exact)]
     # least squares refinement: each spacing's chips at the grid's best
     m = np.minimum(np.maximum(np.rint(d / t[q]), 2.0), 4.0)
-    mm = np.bincount(q, weights=m * m, minlength=ok.size)  # (whole numbers: exact sums)
+    mm = np.bincount(q, weights=m * m, minlength=rows)  # (whole numbers: exact sums)
     vm = d * m
     sums = zip(bounds[:-1], bounds[1:], mm.tolist(), strict=True)
-    out[ok] = [vm[a:b].sum() / c for a, b, c in sums]
+    out[ok] = [np.add.reduce(vm[a:b]) / c for a, b, c in sums]
     return out
 
 
@@ -349,7 +374,7 @@ def _step_sums(at: np.ndarray, weights: np.ndarray, size: int, rows: int) -> np.
     ``row * (size + 1) + k``) with ``k <= j``: steps placed on a grid of ``size`` values,
     summed along it (a (rows, size) array)."""
     placed = np.bincount(at, weights=weights, minlength=rows * (size + 1))
-    return placed.reshape(rows, size + 1)[:, :size].cumsum(axis=1)
+    return np.add.accumulate(placed.reshape(rows, size + 1)[:, :size], axis=1)
 
 
 #: Costs within this fraction of their scale of a grid's least are computed again, term by
@@ -362,11 +387,10 @@ def _grid_best(cost: np.ndarray, scale: np.ndarray, exact) -> np.ndarray:
     :data:`_TIE` times the row's ``scale`` of the least (a tie, up to rounding), the first
     least of ``exact(row, indices)``, their costs computed term by term."""
     best = cost.argmin(axis=1)
-    near = cost <= (cost.min(axis=1) + _TIE * scale)[:, None]
-    tied = near.sum(axis=1) > 1
-    for q in tied.nonzero()[0].tolist() if tied.any() else ():
+    near = cost <= (np.minimum.reduce(cost, axis=1) + _TIE * scale)[:, None]
+    for q in (np.add.reduce(near, axis=1) > 1).nonzero()[0].tolist():
         j = near[q].nonzero()[0]
-        best[q] = j[int(np.argmin(exact(q, j)))]
+        best[q] = j[int(exact(q, j).argmin())]
     return best
 
 
@@ -388,10 +412,13 @@ def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
     interior = np.ones(r.lengths.size, bool)
     interior[first] = False
     interior[first + r.n_edges] = False
-    slot = np.full(r.n_edges.size, -1)
-    slot[which] = np.arange(which.size)
-    q = slot[r.run_of]
-    interior &= q >= 0
+    if which.size < r.n_edges.size:  # q: the run's profile's place in which
+        slot = np.full(r.n_edges.size, -1)
+        slot[which] = np.arange(which.size)
+        q = slot[r.run_of]
+        interior &= q >= 0
+    else:
+        q = r.run_of
     q, lengths, bright = q[interior], r.lengths[interior], r.bright[interior]
     n_q, tt = which.size, t[which]
     grid = _bleed_grids(tt)
@@ -403,12 +430,17 @@ def _bleeds(r: _FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
     start, step = grid[:, 0], (grid[:, -1] - grid[:, 0]) / (_BLEED_STEPS - 1)
     at = np.floor((sign * (lengths - 1.5 * tq) - start[q]) / step[q]) + 1
     at = q * (_BLEED_STEPS + 1) + np.minimum(np.maximum(at, 0), _BLEED_STEPS).astype(np.intp)
-    sum_c = np.bincount(q, weights=c_low, minlength=n_q)[:, None] + _step_sums(
-        at, tq, _BLEED_STEPS, n_q
+    # the steps of sum(c) and of sum(c^2), summed along the grid in one go (each row alone)
+    steps = _step_sums(
+        np.concatenate([at, at + n_q * (_BLEED_STEPS + 1)]),
+        np.concatenate([tq, c_high * c_high - c_low * c_low]),
+        _BLEED_STEPS,
+        2 * n_q,
     )
+    sum_c = np.bincount(q, weights=c_low, minlength=n_q)[:, None] + steps[:n_q]
     low2 = np.bincount(q, weights=c_low * c_low, minlength=n_q)
-    sum_c2 = low2[:, None] + _step_sums(at, c_high * c_high - c_low * c_low, _BLEED_STEPS, n_q)
-    runs = np.bincount(q, minlength=n_q)
+    sum_c2 = low2[:, None] + steps[n_q:]
+    runs = r.n_edges[which] - 1  # (a profile's runs but its two cut ones)
     cost = sum_c2 - 2.0 * grid * sum_c + runs[:, None] * (grid * grid)
 
     def exact(k: int, j: np.ndarray) -> np.ndarray:
@@ -429,30 +461,37 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     bleeding ``b`` each, rows): per profile its chips (uint8), which of them are sure, the
     chips as text (``?`` where unsure) and its run margin."""
     n = r.n_edges.size
-    tt, bb = np.ones(n), np.zeros(n)
-    tt[which], bb[which] = t, b
-    x = np.where(r.bright, r.lengths - bb[r.run_of], r.lengths + bb[r.run_of]) / tt[r.run_of]
+    if which.size < n:  # (the other profiles' runs read at t = 1, b = 0, then left out)
+        tt, bb = np.ones(n), np.zeros(n)
+        tt[which], bb[which] = t, b
+        t_run, b_run = tt[r.run_of], bb[r.run_of]
+    else:
+        t_run, b_run = t[r.run_of], b[r.run_of]
+    x = np.where(r.bright, r.lengths - b_run, r.lengths + b_run) / t_run
     whole = np.rint(x)
     counts = whole.astype(int)
+    sure = (counts >= 1) & (counts <= 2)
+    np.minimum(np.maximum(counts, 1), 2, out=counts)  # one chip or two
     # runs cut by the disc's edge: count only the chips surely inside
     first = r.run_starts
     ends = np.concatenate([first, first + r.n_edges])
     counts[ends] = np.minimum(np.maximum(np.floor(x[ends] + 0.25), 0), 2)
-    sure = (counts >= 1) & (counts <= 2)
     sure[ends] = True
-    inner = np.ones(counts.size, bool)
-    inner[ends] = False
-    counts[inner] = np.minimum(np.maximum(counts[inner], 1), 2)
+    counts_all = counts
     dev = np.abs(x - whole)
     dev[ends] = -1.0
     worst = np.maximum.reduceat(dev, first)[which]
-    chosen = np.zeros(n, bool)
-    chosen[which] = True
-    kept = chosen[r.run_of]
-    chip_vals = r.bright[kept].astype(np.uint8).repeat(counts[kept])
-    known = sure[kept].repeat(counts[kept])
+    if which.size < n:
+        kept = np.zeros(n, bool)
+        kept[which] = True
+        kept = kept[r.run_of]
+        bright, counts, sure = r.bright[kept], counts[kept], sure[kept]
+    else:
+        bright = r.bright
+    chip_vals = bright.astype(np.uint8).repeat(counts)
+    known = sure.repeat(counts)
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    bounds = [0, *np.add.reduceat(counts, first)[which].cumsum().tolist()]
+    bounds = [0, *np.add.reduceat(counts_all, first)[which].cumsum().tolist()]
     return [
         (
             chip_vals[c0:c1],
@@ -503,14 +542,15 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
         zip(read, t.tolist(), b.tolist(), strict=True)
     ):
         res, other = whole[k], others[k]
-        common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=chips.size / n)
+        frames = chips.size / n
+        common = dict(rows_per_chip=rpc, bleed_rows=bleed, chips=text, frames=frames)
         if not res:
             out.append(_refused(res.reason, hamming=res.distance, **common))
         elif other is not None:
             reason = f"copies of the frame disagree ({res.id} and {other})"
             out.append(_refused(reason, hamming=res.distance, **common))
         else:
-            out.append(StripeDecode(res.id, "", res.distance, margin, **common))
+            out.append(StripeDecode(res.id, "", res.distance, margin, rpc, bleed, text, frames))
     return out
 
 
@@ -568,18 +608,17 @@ def decode_profiles(
         if p.size < 8:
             out[k] = _refused(f"too small to decode ({p.size} rows)")
     if live:
-        lo, hi = _levels([ps[k] for k in live])
-        flat = hi - lo < 8
-        for k in flat.nonzero()[0].tolist():
-            out[live[k]] = _refused("no stripes (a steady light, or too little contrast)")
-        live, lo, hi = (
-            [k for k, f in zip(live, flat.tolist(), strict=True) if not f],
-            lo[~flat],
-            hi[~flat],
-        )
+        levels = _level_list([ps[k] for k in live])
+        thresholds = []
+        for k, lo, hi in zip(live, levels[0::2], levels[1::2], strict=True):
+            if hi - lo < 8:
+                out[k] = _refused("no stripes (a steady light, or too little contrast)")
+            else:
+                thresholds.append(lo + threshold_level * (hi - lo))
+        live = [k for k in live if out[k] is None]
     if not live:
         return out
-    r = _flat_runs([ps[k] for k in live], lo + threshold_level * (hi - lo))
+    r = _flat_runs([ps[k] for k in live], np.array(thresholds))
     if rows_per_chip:
         t = np.full(len(live), float(rows_per_chip))
     else:

@@ -83,7 +83,7 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     on_sin = np.array([-(b * st), b * ct]).T[:, :, None, None]
     xy = geo[:, :2, None, None] + _RADII * (on_cos * _COS + on_sin * _SIN)
     size = np.array([w, h], dtype=np.float64)[:, None, None]
-    ok = ((xy > -0.5) & (xy < size - 0.5)).all(axis=1)
+    ok = np.logical_and.reduce((xy > -0.5) & (xy < size - 0.5), axis=1)
     xi, yi = (
         np.minimum(np.maximum(np.rint(xy), 0.0), size - 1.0).astype(np.intp).transpose(1, 0, 2, 3)
     )
@@ -95,17 +95,20 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     if px.ndim == 4:  # BGR(A): OpenCV's luma weights
         px = px[..., :3] @ _LUMA
     # samples within the photo, per light: inside, in the ring, and further out
+    # (the reductions by the ufuncs' own methods: ndarray.sum wraps them in Python)
     n_in, n_ring, n_out = np.add.reduceat(
-        ok.sum(axis=2), [_IN.start, _RING.start, _OUT.start], axis=1
+        np.add.reduce(ok, axis=2), [_IN.start, _RING.start, _OUT.start], axis=1
     ).T
-    inside = np.where(ok[:, _IN], px[:, _IN], 0.0).sum(axis=(1, 2)) / np.maximum(n_in, 1)
+    inside = np.add.reduce(np.where(ok[:, _IN], px[:, _IN], 0.0), axis=(1, 2)) / np.maximum(n_in, 1)
     px = np.where(ok, px, np.nan)
     # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
     # outline that misses the disc somewhere puts a few ring samples on the disc itself
     ranked = px[:, _RING].reshape(len(blobs), -1).copy()
     ranked.sort(axis=1)  # NaNs last
     kept = np.arange(ranked.shape[1]) < (n_ring - n_ring // 10)[:, None]
-    ring = np.where(kept, ranked, 0.0).sum(axis=1) / np.maximum(kept.sum(axis=1), 1)
+    ring = np.add.reduce(np.where(kept, ranked, 0.0), axis=1) / np.maximum(
+        np.add.reduce(kept, axis=1), 1
+    )
     out = px[:, _OUT].reshape(len(blobs), -1).copy()
     out.sort(axis=1)  # NaNs last
     background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]

@@ -103,6 +103,8 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     out: list[StripeDecode | None] = [None] * len(profiles)
     lengths = np.full(len(profiles), np.nan)
     todo = [k for k in range(len(profiles)) if not (k < len(skip) and skip[k])]
+    if not todo:  # (every profile skipped: read backwards after all were taken forwards)
+        return out, lengths
     for k, d in zip(todo, decode_profiles([profiles[k] for k in todo], frame), strict=True):
         sure = d.id is not None and d.id in map_ids and d.hamming == 0
         out[k] = d if sure and d.margin >= MIN_FAST_MARGIN else None
@@ -114,7 +116,7 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
 def _median(values) -> float:
     """``np.median`` of a few chip lengths (at least one; a sequence or an array), in Python
     floats: the middle value, or the mean of the middle two; NaN when one is NaN."""
-    v = sorted(np.asarray(values, dtype=float).tolist())
+    v = sorted(values.tolist() if isinstance(values, np.ndarray) else map(float, values))
     if any(math.isnan(x) for x in v):
         return float("nan")
     n = len(v)
@@ -329,18 +331,18 @@ def _decode_manchester(
     fast_f = fwd  # (fwd is narrowed below to the chip lengths both ways agree on)
     backwards = [p[::-1] for p in profiles]
     bw = None if weights is None else [w[::-1] for w in weights]
-    flipped = Readout.of(readout.axis, not readout.reversed)
     # read backwards, the chips of an ID read forwards with none in error are that ID's frame
     # reversed: a frame (rev[id], which does not say the direction) or none
     bwd, _ = _fast(backwards, frame, map_ids, skip=[d is not None for d in fwd])
     t, (fwd, bwd) = _agreeing([fwd, bwd], seed)
     t = t or seed or _measured(lengths)
-    rev = _reversed_ids(frame)
+    rev = _reversed_ids(frame).tolist()  # (Python ints: indexed once a fixture)
     firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
     firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
     if firm_f >= 2 and firm_b == 0:
         decodes, model = _with_model(profiles, fwd, frame, ids, t, weights)
         return _manchester(decodes, readout, model, t)
+    flipped = Readout.of(readout.axis, not readout.reversed)
     if firm_b >= 2 and firm_f == 0:
         decodes, model = _with_model(backwards, bwd, frame, ids, t, bw)
         return _manchester(decodes, flipped, model, t)

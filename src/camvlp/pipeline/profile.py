@@ -33,8 +33,8 @@ def _trim(mask: np.ndarray) -> tuple[np.ndarray, int]:
     """:func:`_trimmed`, and the pixels it keeps."""
     m = mask.view(np.uint8) if mask.dtype == bool else mask.astype(np.uint8)
     eroded = cv2.erode(m, _RIM_KERNEL)
-    n = cv2.countNonZero(eroded)
-    return (eroded, n) if n >= 0.3 * np.count_nonzero(m) else (m, cv2.countNonZero(m))
+    n, whole = cv2.countNonZero(eroded), cv2.countNonZero(m)
+    return (eroded, n) if n >= 0.3 * whole else (m, whole)
 
 
 def _filled(prof: np.ndarray) -> np.ndarray:
@@ -88,9 +88,10 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
         if axis == "columns":
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
-    empty = c == 0  # a line between the first and the last without pixels: NaN, filled
-    if empty.any() or gray.dtype != np.uint8:  # (float levels may be NaN themselves)
-        return _filled(np.where(empty, np.nan, s / np.maximum(c, 1))), first, c
+    # a line between the first and the last without pixels: NaN, filled (float levels may be
+    # NaN themselves)
+    if gray.dtype != np.uint8 or not np.logical_and.reduce(c):
+        return _filled(np.where(c == 0, np.nan, s / np.maximum(c, 1))), first, c
     return s / c, first, c
 
 
@@ -270,7 +271,9 @@ def shape_profiles(
         [rho for _, _, rho in sampled],
     )
     for k, (middle, level) in zip(live, envelopes, strict=True):
-        if level.min() >= (1.0 - _FLAT) * level.max():  # a flat light: its row mean
+        if np.minimum.reduce(level) >= (1.0 - _FLAT) * np.maximum.reduce(
+            level
+        ):  # flat: its row mean
             out[k] = _mean_profile(grays[k], trimmed[k], axis)
         else:
             out[k] = _shaped(
