@@ -111,13 +111,13 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
         Unit normals.
     """
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
-    cam = np.asarray(toward, dtype=float).reshape(3)
     out = np.full_like(c, np.nan) if normals is None else np.array(normals, float).reshape(-1, 3)
-    known = np.isfinite(out).all(axis=1)
+    known = [all(map(math.isfinite, row)) for row in out.tolist()]
     out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))  # (NaN rows stay NaN)
-    if known.all():
+    if all(known):
         return out
-    to_cam = cam - c
+    known = np.array(known)
+    to_cam = np.asarray(toward, dtype=float).reshape(3) - c
     plane = None
     if c.shape[0] >= 3:
         _, s, vt = np.linalg.svd(c - c.mean(axis=0))
@@ -213,19 +213,34 @@ def _pinhole_offsets(camera: Camera, pose: Pose, centres, diameters, normals) ->
     """
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     n = np.asarray(normals, dtype=float).reshape(-1, 3)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    n = n / np.sqrt(np.add.reduce(n * n, axis=1, keepdims=True))  # (np.linalg.norm's)
     r = 0.5 * np.asarray(diameters, dtype=float).reshape(-1)
     cc = pose.to_camera(c)
     nc = n @ pose.world_from_camera  # normals in the camera frame
     w = -nc[:, 2:3] * nc
     w[:, 2] += 1.0  # z - n_z n: the optical axis' part in the disc's plane
     e = cc[:, 2:3] * cc - (r * r)[:, None] * w
-    front = cc[:, 2] > r * np.sqrt(np.maximum(0.0, 1.0 - nc[:, 2] ** 2))
-    out = np.zeros((c.shape[0], 2))
+    # rims in front, in Python floats (NumPy's arithmetic: a NaN normal's rim is not in front)
+    front = [
+        z > rad * math.sqrt(v if not v < 0.0 else 0.0)
+        for z, rad, v in zip(
+            cc[:, 2].tolist(), r.tolist(), (1.0 - nc[:, 2] * nc[:, 2]).tolist(), strict=True
+        )
+    ]
     k = camera.matrix
-    he, hc = e[front] @ k.T, cc[front] @ k.T
-    out[front] = he[:, :2] / he[:, 2:] - hc[:, :2] / hc[:, 2:]
+    if all(front):  # (as usual: every disc, no rows picked)
+        return _centre_shifts(e, cc, k)
+    out = np.zeros((c.shape[0], 2))
+    if any(front):
+        out[front] = _centre_shifts(e[front], cc[front], k)
     return out
+
+
+def _centre_shifts(e: np.ndarray, cc: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The pixels of the ellipses' centres ``K e`` less those of the discs' centres ``K cc``
+    (both (M, 3), camera frame), (M, 2)."""
+    he, hc = e @ k.T, cc @ k.T
+    return he[:, :2] / he[:, 2:] - hc[:, :2] / hc[:, 2:]
 
 
 #: Smallest centre uncertainty an ellipse fit is credited with, pixels (1-sigma per axis):

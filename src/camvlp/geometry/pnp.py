@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose, in_front
+from camvlp.model.camera import Camera, Pose, all_finite, in_front
 
 __all__ = [
     "IPPE_JITTER_PX",
@@ -184,31 +184,28 @@ def pnp_candidates(
     list of Pose
         Possibly empty; non-finite solutions are left out.
     """
-    obj = np.asarray(object_points, dtype=np.float64)
-    img = np.asarray(image_points, dtype=np.float64)
-    o = np.ascontiguousarray(obj, dtype=np.float64).reshape(-1, 1, 3)
-    i = np.ascontiguousarray(img, dtype=np.float64).reshape(-1, 1, 2)
+    o = np.ascontiguousarray(object_points, dtype=np.float64).reshape(-1, 1, 3)
+    i = np.ascontiguousarray(image_points, dtype=np.float64).reshape(-1, 1, 2)
     k, d = camera.matrix, camera.dist_or_none
     if methods is None:
-        methods = candidate_methods(solver, planar, obj.shape[0])
-    seeds: list[tuple[np.ndarray, np.ndarray]] = []
+        methods = candidate_methods(solver, planar, o.shape[0])
+    refine = solver != "epnp" and solver != "ippe"
+    poses = []
     for method in methods:
         try:
             n, rvecs, tvecs, _ = cv2.solvePnPGeneric(o, i, k, d, flags=method)
         except cv2.error:
             continue
-        seeds += [(rvecs[j], tvecs[j]) for j in range(n)]
-    poses = []
-    for rvec, tvec in seeds:
-        if not (np.isfinite(rvec).all() and np.isfinite(tvec).all()):
-            continue
-        rvec, tvec = rvec.copy(), tvec.copy()
-        if solver != "epnp" and solver != "ippe":
-            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
-        try:
-            poses.append(Pose.from_rvec_tvec(rvec, tvec))
-        except ValueError:
-            continue
+        for j in range(n):
+            rvec, tvec = rvecs[j], tvecs[j]  # (this call's own arrays: refined in place)
+            if not all_finite(rvec, tvec):
+                continue
+            if refine:
+                rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
+            try:
+                poses.append(Pose.from_rvec_tvec(rvec, tvec))
+            except ValueError:
+                continue
     return poses
 
 

@@ -27,6 +27,7 @@ __all__ = [
     "PLANE_ROUNDING",
     "Camera",
     "Pose",
+    "all_finite",
     "euler_to_matrix",
     "in_front",
     "matrix_to_euler",
@@ -105,16 +106,24 @@ def matrix_to_euler(rotation) -> np.ndarray:
     if r.shape != (3, 3):
         raise ValueError(f"rotation must have shape (3, 3), got {r.shape}")
     # R = Rx Ry Rz: R[0,2] = sin(ty); R[0,0] = cy cz; R[0,1] = -cy sz;
-    # R[1,2] = -sx cy; R[2,2] = cx cy.
-    sy = min(max(float(r[0, 2]), -1.0), 1.0)
-    ty = np.arcsin(sy)
+    # R[1,2] = -sx cy; R[2,2] = cx cy.  The entries as Python floats, the angles by NumPy's
+    # own arcsin and arctan2 (whose last bits may differ from the math module's)
+    (r00, r01, r02), (_, r11, r12), (_, r21, r22) = r.tolist()
+    sy = min(max(r02, -1.0), 1.0)
     if abs(sy) < 1.0 - 1e-12:
-        tx = np.arctan2(-r[1, 2], r[2, 2])
-        tz = np.arctan2(-r[0, 1], r[0, 0])
+        tx, tz = np.arctan2([-r12, -r01], [r22, r00]).tolist()
     else:  # gimbal lock: only tx + sign*tz is defined; put it all in tx
-        tz = 0.0
-        tx = np.arctan2(r[2, 1], r[1, 1])
-    return np.rad2deg(np.array([tx, ty, tz]))
+        tx, tz = float(np.arctan2(r21, r11)), 0.0
+    return np.rad2deg(np.array([tx, float(np.arcsin(sy)), tz]))
+
+
+def all_finite(*arrays: np.ndarray) -> bool:
+    """Whether every value of these (small) float arrays is finite: ``np.isfinite(a).all()``
+    of each, in Python floats (for a few values cheaper than NumPy's two calls)."""
+    for a in arrays:
+        if not all(map(math.isfinite, a.ravel().tolist())):
+            return False
+    return True
 
 
 def _vector(value, n: int, name: str) -> np.ndarray:
@@ -172,7 +181,7 @@ class Pose:
         """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
         r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
         t = np.asarray(tvec, dtype=float).reshape(3)
-        if not (np.isfinite(r_cw).all() and np.isfinite(t).all()):
+        if not all_finite(r_cw, t):
             raise ValueError("rvec and tvec must be finite")
         # a rotation by construction: the checks of __init__ are not needed
         pose = object.__new__(cls)

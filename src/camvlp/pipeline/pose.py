@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.pnp import candidate_methods, check_solver, pnp_candidates
-from camvlp.model.camera import Camera, Pose, project_camera_points
+from camvlp.model.camera import Camera, Pose, all_finite, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
 
@@ -105,32 +105,41 @@ def _distances(squared: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(r), r, np.inf)
 
 
-def _scores(
-    camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Each candidate's reprojection RMS (pixels; inf with a fixture behind the camera),
-    whether every fixture is in front of it, whether it is in front of every fixture with a
-    normal, and its fixtures' reprojection errors (pixels, (B, N); inf where it has one
-    behind it): all candidates in one projection."""
+def _scores(camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals) -> list:
+    """``(rms, in_front, facing, pose, errors)`` of each candidate: its reprojection RMS
+    (pixels; inf with a fixture behind the camera), whether every fixture is in front of it,
+    whether it is in front of every fixture with a normal, the pose, and its fixtures'
+    reprojection errors (pixels, (N,); inf where it has one behind it): all candidates in one
+    projection (a candidate with a fixture behind it is projected too, its values not used).
+
+    The tests and the RMS are worked out in Python floats from NumPy's sums (the same values
+    as NumPy's, in fewer calls on these few values)."""
+    b, n = len(poses), obj.shape[0]
     rot = np.array([p.world_from_camera for p in poses])  # (B, 3, 3)
     pos = np.array([p.position for p in poses])  # (B, 3)
-    cam = (obj[None] - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
-    in_front = (cam[:, :, 2] > 0).all(axis=1)
-    facing = np.ones(len(poses), bool)
+    cam = (obj - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
+    # (the poses and points are finite, so is cam: min is the test of every depth)
+    in_front = [min(z) > 0 for z in cam[:, :, 2].tolist()]
+    facing = [True] * b
     if normals is not None:
-        has = np.isfinite(normals).all(axis=1)
-        nrm, at = normals[has], obj[has]
-        facing = (np.add.reduce(nrm * (pos[:, None] - at), axis=2) > 0).all(axis=1)
-    rms = np.full(len(poses), np.inf)  # behind the camera: neither valid nor a mirrored fit
-    errors = np.full((len(poses), obj.shape[0]), np.inf)
-    if in_front.any():
-        uv = project_camera_points(camera, cam[in_front].reshape(-1, 3))
-        e = uv.reshape(-1, obj.shape[0], 2) - img
-        r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B', N)
-        ok = np.isfinite(r2).all(axis=1)
-        rms[in_front] = np.where(ok, np.sqrt(np.add.reduce(r2, axis=1) / r2.shape[1]), np.inf)
-        errors[in_front] = _distances(r2)
-    return rms, in_front, facing, errors
+        has = [all(map(math.isfinite, row)) for row in normals.tolist()]
+        if any(has):
+            nrm, at = (normals, obj) if all(has) else (normals[has], obj[has])
+            ahead = np.add.reduce(nrm * (pos[:, None] - at), axis=2)  # (B, N'), finite
+            facing = [min(row) > 0 for row in ahead.tolist()]
+    uv = project_camera_points(camera, cam.reshape(-1, 3))
+    e = uv.reshape(b, n, 2) - img
+    r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B, N)
+    errors = _distances(r2)
+    if not all(in_front):
+        errors[[not f for f in in_front]] = np.inf
+    # the RMS: inf unless every squared residual is finite (so is their sum, and the other
+    # way round: a sum of finite squares that overflows gives inf either way)
+    rms = [
+        math.sqrt(total / n) if front and math.isfinite(total) else math.inf
+        for total, front in zip(np.add.reduce(r2, axis=1).tolist(), in_front, strict=True)
+    ]
+    return list(zip(rms, in_front, facing, poses, errors, strict=True))
 
 
 #: Reprojection RMS (pixels) within which the better of IPPE's two refined poses is taken as
@@ -143,10 +152,7 @@ def _scored(camera: Camera, obj, img, normals, solver: str, planar: bool, method
     if not methods:
         return []
     poses = pnp_candidates(obj, img, camera, solver, planar=planar, methods=methods)
-    if not poses:
-        return []
-    rms, in_front, facing, errors = _scores(camera, poses, obj, img, normals)
-    return list(zip(rms.tolist(), in_front.tolist(), facing.tolist(), poses, errors, strict=True))
+    return _scores(camera, poses, obj, img, normals) if poses else []
 
 
 def _choose(
@@ -187,15 +193,20 @@ def _choose(
     # the same minimum differ by the optimiser's tolerance (up to about 1e-4 of the distance
     # for a small target), the planar ambiguity's other pose by about twice the tilt.
     best = valid[0][3]
-    scale = math.dist(best.position.tolist(), obj.mean(axis=0).tolist())
     alt = (np.nan, None, None, None, None)
-    for s in valid[1:]:
-        # the turn between the two: trace(R1^T R2) = sum of the elementwise products
-        cos_turn = (float((s[3].world_from_camera * best.world_from_camera).sum()) - 1.0) / 2.0
-        turn_deg = math.degrees(math.acos(min(max(cos_turn, -1.0), 1.0)))
-        if math.dist(s[3].position, best.position) > 1e-3 * scale or turn_deg > 0.1:
-            alt = s
-            break
+    if len(valid) > 1:
+        at = best.position.tolist()
+        scale = math.dist(at, (np.add.reduce(obj, axis=0) / obj.shape[0]).tolist())  # (the mean)
+        for s in valid[1:]:
+            # the turn between the two: trace(R1^T R2) = sum of the elementwise products
+            cos_turn = (
+                float(np.add.reduce(s[3].world_from_camera * best.world_from_camera, axis=None))
+                - 1.0
+            ) / 2.0
+            turn_deg = math.degrees(math.acos(min(max(cos_turn, -1.0), 1.0)))
+            if math.dist(s[3].position.tolist(), at) > 1e-3 * scale or turn_deg > 0.1:
+                alt = s
+                break
     return best, valid[0][0], alt[3], float(alt[0]), mirrored, valid[0][4]
 
 
@@ -240,7 +251,7 @@ def estimate_pose(
     n = obj.shape[0]
     if n < 4:
         return _failure(n, f"{n} identified fixture{'s' if n != 1 else ''}, at least 4 are needed")
-    if not (np.isfinite(img).all() and np.isfinite(obj).all()):
+    if not all_finite(img, obj):
         raise ValueError("image_points and object_points must be finite")
     sw, si = _object_spread(obj.tobytes(), n), _spread(img)
     if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
@@ -249,7 +260,9 @@ def estimate_pose(
         return _failure(n, "two fixtures were detected at the same pixel")
 
     def solve(idx: np.ndarray):
-        spread = sw if idx.size == n else _object_spread(obj[idx].tobytes(), idx.size)
+        if idx.size == n:  # every fixture, in order: the arrays as they are
+            return _choose(camera, obj, img, nrm, solver, bool(sw[2] <= 1e-4 * sw[0]))
+        spread = _object_spread(obj[idx].tobytes(), idx.size)
         planar = bool(spread[2] <= 1e-4 * spread[0])
         return _choose(
             camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
@@ -281,13 +294,14 @@ def estimate_pose(
     residuals = fit if idx.size == n else _residuals(camera, pose, obj, img)
     used = np.zeros(n, bool)
     used[idx] = True
-    if float(residuals[used].max()) > outlier_px:
+    worst = float(np.maximum.reduce(residuals[used]))
+    if worst > outlier_px:
         return PoseEstimate(
             None,
             float("nan"),
             np.zeros(n, bool),
             residuals,
             reason=f"the fixtures do not fit one pose (reprojection error up to "
-            f"{float(np.max(residuals[used])):.1f} px): a wrong ID, map or camera file",
+            f"{worst:.1f} px): a wrong ID, map or camera file",
         )
     return PoseEstimate(pose, rms, used, residuals, alt, alt_rms)
