@@ -312,7 +312,8 @@ def _solve(
         # discs without a map normal lie on the plane of the others, facing the camera
         facing = disc_normals(obj, normals, est.pose.position)
         offsets = perspective_offsets(camera, est.pose, obj, [f.diameter for f in fixtures], facing)
-        if np.abs(offsets).max() >= 0.02:  # below: facing the lights, nothing to correct
+        # below: facing the lights, nothing to correct (the ufuncs' own calls: NumPy's max)
+        if np.maximum.reduce(np.abs(offsets), axis=None) >= 0.02:
             corrected = solve(pixels - offsets)
             est = corrected if corrected else est
     return est, "" if est else est.reason
@@ -371,15 +372,18 @@ def _fixture_results(
 ) -> tuple[FixtureResult, ...]:
     """Stage 6: every fixture seen, identified or not, with why it was not used."""
     results = []
+    at = {k: j for j, k in enumerate(found.usable)}  # a usable fixture's place in the pose's
+    posed = est is not None and est.pose is not None
+    if posed:  # (as Python bools and floats, once)
+        used_by_pose, residuals = est.used.tolist(), est.residuals_px.tolist()
     for k, (b, dec) in enumerate(zip(blobs, decodes, strict=True)):
         reason = found.reasons[k]
         used = False
         residual = float("nan")
-        if k in found.usable:
-            j = found.usable.index(k)
-            if est is not None and est.pose is not None:
-                used = bool(est.used[j])
-                residual = float(est.residuals_px[j])
+        j = at.get(k)
+        if j is not None:
+            if posed:
+                used, residual = used_by_pose[j], residuals[j]
                 if not used:
                     reason = f"does not fit the pose of the others ({residual:.1f} px off)"
             elif est is not None:

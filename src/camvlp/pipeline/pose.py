@@ -72,45 +72,51 @@ def _failure(n: int, reason: str, *, mirrored: bool = False) -> PoseEstimate:
     )
 
 
-def _spread(points: np.ndarray) -> np.ndarray:
+def _spread(points: np.ndarray) -> tuple[float, ...]:
     """Singular values of the centred points (how far they are from a point, line, plane),
     largest first; of image points (N, 2) in closed form (the square roots of their scatter
-    matrix's eigenvalues), without the SVD's set-up."""
-    c = points - np.add.reduce(points, axis=0) / points.shape[0]  # (its mean, as NumPy's)
-    if c.shape[1] != 2:
-        return np.linalg.svd(c, compute_uv=False)
-    (a, b), (_, d) = (c.T @ c).tolist()
+    matrix's eigenvalues) in Python floats, without the SVD's set-up (a test of a few points,
+    for which NumPy's calls cost more than the arithmetic; its sums are not NumPy's, so the
+    last bits may differ from theirs: a value only compared with a threshold)."""
+    if points.shape[1] != 2:
+        c = points - np.add.reduce(points, axis=0) / points.shape[0]  # (its mean, as NumPy's)
+        return tuple(np.linalg.svd(c, compute_uv=False).tolist())
+    xs, ys = points.T.tolist()
+    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
+    a = b = d = 0.0  # the scatter matrix [[a, b], [b, d]]
+    for x, y in zip(xs, ys, strict=True):
+        x, y = x - mx, y - my
+        a, b, d = a + x * x, b + x * y, d + y * y
     mid, half = 0.5 * (a + d), math.hypot(0.5 * (a - d), b)
-    return np.array([math.sqrt(mid + half), math.sqrt(max(mid - half, 0.0))])
+    return math.sqrt(mid + half), math.sqrt(max(mid - half, 0.0))
 
 
 @functools.lru_cache(maxsize=64)
-def _object_spread(data: bytes, n: int) -> np.ndarray:
+def _object_spread(data: bytes, n: int) -> tuple[float, ...]:
     """:func:`_spread` of (n, 3) map points given as their float64 bytes: the same map
     fixtures come back photo after photo."""
-    s = _spread(np.frombuffer(data).reshape(n, 3))
-    s.flags.writeable = False
-    return s
+    return _spread(np.frombuffer(data).reshape(n, 3))
 
 
 def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
     d = camera.project(pose, obj) - img
-    return _distances(np.add.reduce(d * d, axis=-1))
+    return _distances(np.add.reduce(d * d, axis=-1).tolist())
 
 
-def _distances(squared: np.ndarray) -> np.ndarray:
+def _distances(squared: list[float]) -> np.ndarray:
     """Reprojection errors (pixels) from their squares, inf where not finite (a fixture
-    behind the camera): ``np.linalg.norm`` of the differences, without its checks."""
-    r = np.sqrt(squared)
-    return np.where(np.isfinite(r), r, np.inf)
+    behind the camera): ``np.linalg.norm`` of the differences, without its checks (a few
+    values: their square roots in Python floats, correctly rounded as NumPy's)."""
+    return np.array([math.sqrt(v) if math.isfinite(v) else math.inf for v in squared])
 
 
 def _scores(camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals) -> list:
-    """``(rms, in_front, facing, pose, errors)`` of each candidate: its reprojection RMS
+    """``(rms, in_front, facing, pose, squared)`` of each candidate: its reprojection RMS
     (pixels; inf with a fixture behind the camera), whether every fixture is in front of it,
     whether it is in front of every fixture with a normal, the pose, and its fixtures'
-    reprojection errors (pixels, (N,); inf where it has one behind it): all candidates in one
-    projection (a candidate with a fixture behind it is projected too, its values not used).
+    squared reprojection errors (pixels^2, a list of N; :func:`_distances` gives the errors):
+    all candidates in one projection (a candidate with a fixture behind it is projected too,
+    its values not used).
 
     The tests and the RMS are worked out in Python floats from NumPy's sums (the same values
     as NumPy's, in fewer calls on these few values)."""
@@ -130,16 +136,13 @@ def _scores(camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray,
     uv = project_camera_points(camera, cam.reshape(-1, 3))
     e = uv.reshape(b, n, 2) - img
     r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B, N)
-    errors = _distances(r2)
-    if not all(in_front):
-        errors[[not f for f in in_front]] = np.inf
     # the RMS: inf unless every squared residual is finite (so is their sum, and the other
     # way round: a sum of finite squares that overflows gives inf either way)
     rms = [
         math.sqrt(total / n) if front and math.isfinite(total) else math.inf
         for total, front in zip(np.add.reduce(r2, axis=1).tolist(), in_front, strict=True)
     ]
-    return list(zip(rms, in_front, facing, poses, errors, strict=True))
+    return list(zip(rms, in_front, facing, poses, r2.tolist(), strict=True))
 
 
 #: Reprojection RMS (pixels) within which the better of IPPE's two refined poses is taken as
@@ -148,7 +151,7 @@ CLEAR_FIT_PX = 1.0
 
 
 def _scored(camera: Camera, obj, img, normals, solver: str, planar: bool, methods) -> list:
-    """``(rms, in_front, facing, pose, errors)`` of the candidates from ``methods``."""
+    """:func:`_scores` of the candidates from ``methods``."""
     if not methods:
         return []
     poses = pnp_candidates(obj, img, camera, solver, planar=planar, methods=methods)
@@ -207,7 +210,7 @@ def _choose(
             if math.dist(s[3].position.tolist(), at) > 1e-3 * scale or turn_deg > 0.1:
                 alt = s
                 break
-    return best, valid[0][0], alt[3], float(alt[0]), mirrored, valid[0][4]
+    return best, valid[0][0], alt[3], float(alt[0]), mirrored, _distances(valid[0][4])
 
 
 def estimate_pose(
@@ -261,9 +264,9 @@ def estimate_pose(
 
     def solve(idx: np.ndarray):
         if idx.size == n:  # every fixture, in order: the arrays as they are
-            return _choose(camera, obj, img, nrm, solver, bool(sw[2] <= 1e-4 * sw[0]))
+            return _choose(camera, obj, img, nrm, solver, sw[2] <= 1e-4 * sw[0])
         spread = _object_spread(obj[idx].tobytes(), idx.size)
-        planar = bool(spread[2] <= 1e-4 * spread[0])
+        planar = spread[2] <= 1e-4 * spread[0]
         return _choose(
             camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
         )
@@ -290,11 +293,13 @@ def estimate_pose(
         if best is None:
             break
         idx, rms, pose, alt, alt_rms, fit = best
-    # (with every fixture used, the chosen candidate's own errors)
-    residuals = fit if idx.size == n else _residuals(camera, pose, obj, img)
-    used = np.zeros(n, bool)
-    used[idx] = True
-    worst = float(np.maximum.reduce(residuals[used]))
+    if idx.size == n:  # every fixture used: the chosen candidate's own errors
+        residuals, used = fit, np.ones(n, bool)
+        worst = float(np.maximum.reduce(residuals))
+    else:
+        residuals, used = _residuals(camera, pose, obj, img), np.zeros(n, bool)
+        used[idx] = True
+        worst = float(np.maximum.reduce(residuals[used]))
     if worst > outlier_px:
         return PoseEstimate(
             None,
