@@ -362,13 +362,15 @@ _EDGE_KERNELS = {"rows": np.ones((3, 7), np.uint8), "columns": np.ones((7, 3), n
 _AXIS_KERNEL = np.ones((3, 3), np.uint8)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # (not frozen: a frozen dataclass sets each of its fields by a call)
 class _Region:
-    """A candidate region's disc, and its sensor rows lit enough for edge points (internal).
+    """A candidate region's disc, and the sensor rows that cross it (internal).
 
-    ``rows`` are those rows (image rows or columns), ``half`` each one's half-way level,
-    ``gray`` and ``near`` their pixels along the row (gray levels; near the disc), one row
-    each, ``near`` from the row's pixel ``near_at`` on (none is near before or after it)."""
+    Of those rows (image rows or columns, from ``first`` on; :func:`_edge_rows`),
+    ``counts`` and ``sums`` are their pixels and gray sums inside the disc, ``lines`` and
+    ``near`` their pixels along the row (gray levels of the edge points' image; near the
+    disc), one row each, ``near`` from the row's pixel ``near_at`` on (none is near before
+    or after it); ``background`` is the edge points' image's background level."""
 
     box: tuple[int, int, int, int]
     gray8: np.ndarray
@@ -378,9 +380,10 @@ class _Region:
     contrast: float
     touches: bool
     background: float
-    rows: np.ndarray
-    half: np.ndarray
-    gray: np.ndarray
+    counts: np.ndarray
+    sums: np.ndarray
+    lines: np.ndarray
+    first: int
     near: np.ndarray
     near_at: int
     cell: np.ndarray | None
@@ -542,7 +545,7 @@ def _region(
         contrast,
         touches,
         edge_bg,
-        *_edge_rows(edges, mask, disc_box, edge_bg, axis),
+        *_edge_rows(edges, mask, disc_box, axis),
         cell,
         beyond,
         on_face,
@@ -553,18 +556,17 @@ def _edge_rows(
     gray: np.ndarray,
     mask: np.ndarray,
     disc_box: tuple[int, int, int, int],
-    background: float,
     axis: str,
 ):
-    """The sensor rows whose edge points :func:`_edge_points` looks for: those crossing the
-    disc (four pixels or more) whose level inside it is more than 0.35 of the way from the
-    background to the brightest row's; returns them, their half-way levels, their gray levels
-    (one row each), and their pixels near the disc (the mask dilated) from the column given
-    last on.
+    """The sensor rows that cross a disc, for :func:`_edge_points`: those of its bounding
+    box ``disc_box`` ``(x, y, w, h)``.  Returns their pixels inside the disc and their gray
+    sums there (float32, exact: whole levels below 2**24), their gray levels (a view, one row
+    each), the first one's index, and their pixels near the disc (the mask dilated) from the
+    column given last on.
 
-    Worked on the disc's bounding box ``disc_box`` ``(x, y, w, h)`` widened along the rows by
-    the dilation's reach (OpenCV's morphology costs by area): the disc has no pixel beyond it,
-    so the rows' sums and the dilation there are the whole region's."""
+    Worked on the box widened along the rows by the dilation's reach (OpenCV's morphology
+    costs by area): the disc has no pixel beyond it, so the rows' sums and the dilation there
+    are the whole region's."""
     x, y, w, h = disc_box
     rows_axis = axis == "rows"
     if not rows_axis:  # the same on the transposed box (the rows are columns)
@@ -574,45 +576,55 @@ def _edge_rows(
     m8 = mask.view(np.uint8)[box]
     dim = 1 if rows_axis else 0  # cv2.reduce to one value per sensor row
     counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    # whole levels: the float32 sums are exact (below 2**24); the product by NumPy, of the
-    # whole region (contiguous: of the crops it takes twice as long, by OpenCV more still)
+    # the product by NumPy, of the whole region (contiguous: of the crops it takes twice as
+    # long, by OpenCV more still)
     lit = np.multiply(gray, mask.view(np.uint8))[box]
     sums = cv2.reduce(lit, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
-    level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
-    top = float(np.maximum.reduce(level))
-    rows = ((counts >= 4) & (level > background + 0.35 * (top - background))).nonzero()[0]
-    half = background + 0.5 * (level[rows] - background)
     near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
     if rows_axis:
-        return rows + y, half, gray[rows + y], near[rows], a
-    return rows + y, half, gray[:, rows + y].T, near[:, rows].T, a
+        return counts, sums, gray[y : y + h], y, near, a
+    return counts, sums, gray[:, y : y + h].T, y, near.T, a
 
 
 def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     """Sub-pixel disc edge points along each region's lit sensor rows, each (M, 2) as (x, y).
 
-    Each lit sensor row crosses the disc once; its two ends are found where the row's
-    intensity crosses half-way between the background and the row's own level inside the
-    disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
-    Pixels away from the disc (other lights) are left out.  The rows of all regions are
-    worked as one stack; each region's points are its rows' left ends, then their right
-    ends.
+    A sensor row is lit when it crosses the disc by four pixels or more and its level inside
+    it is more than 0.35 of the way from the background to the brightest row's.  Each lit
+    row crosses the disc once; its two ends are found where the row's intensity crosses
+    half-way between the background and the row's own level inside the disc, so partly lit
+    rows (stripe transitions) give the same chord as fully lit ones.  Pixels away from the
+    disc (other lights) are left out.  The rows of all regions are worked as one stack;
+    each region's points are its rows' left ends, then their right ends.
     """
-    sizes = [r.rows.size for r in regions]
+    sizes = [r.counts.size for r in regions]
     total = sum(sizes)
     if total == 0:
         return [np.zeros((0, 2)) for _ in regions]
-    widths = [r.gray.shape[1] for r in regions]
+    widths = [r.lines.shape[1] for r in regions]
     width = max(widths)
     g = np.zeros((total, width), np.uint8)
     near = np.zeros((total, width), bool)
     at = 0
     for r, n, w in zip(regions, sizes, widths, strict=True):
-        g[at : at + n, :w] = r.gray
+        g[at : at + n, :w] = r.lines
         near[at : at + n, r.near_at : r.near_at + r.near.shape[1]] = r.near
         at += n
-    half = np.concatenate([r.half for r in regions])
-    rows = np.concatenate([r.rows for r in regions])
+    # the lit rows, each region's brightest row's level from its rows' levels
+    counts = np.concatenate([r.counts for r in regions])
+    level = np.concatenate([r.sums for r in regions]) / np.maximum(counts, 1)  # 0 outside
+    begin = [0, *itertools.accumulate(sizes[:-1])]
+    top = np.maximum.reduceat(level, begin)
+    bg = np.array([r.background for r in regions])
+    rise = (bg + 0.35 * (top - bg)).repeat(sizes)
+    lit = ((counts >= 4) & (level > rise)).nonzero()[0]
+    g, near = g[lit], near[lit]
+    background = bg.repeat(sizes)[lit]
+    half = background + 0.5 * (level[lit] - background)
+    rows = (
+        lit
+        + np.array([r.first - a for r, a in zip(regions, begin, strict=True)]).repeat(sizes)[lit]
+    )
     # above half-way (other lights masked out: the background is below half-way); the
     # half-way levels lie between 0 and 255, and a whole level is above one when it is above
     # its floor: compared as uint8, not as floats
@@ -621,15 +633,14 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     # the last above: the first of the rows flipped (by OpenCV, contiguous, which NumPy's
     # argmax of bools scans fast, where it steps through a reversed view one by one)
     right = width - 1 - cv2.flip(above.view(np.uint8), 1).view(bool).argmax(axis=1)
-    last = width - 1 if min(widths) == width else np.array(widths).repeat(sizes) - 1
+    last = width - 1 if min(widths) == width else np.array(widths).repeat(sizes)[lit] - 1
     j = ((left > 0) & (right < last) & (right - left >= 3)).nonzero()[0]
-    left, right, half, rows = left[j], right[j], half[j], rows[j]
+    left, right, half, rows, background = left[j], right[j], half[j], rows[j], background[j]
     # the rows' levels either side of both crossings, other lights masked out (gathered from
     # the flat stack: NumPy's 2-D fancy indexing costs several times as much)
     at = j * width
     a, b = at + left, at + right
     cols = np.array([a - 1, a, b, b + 1])
-    background = np.array([r.background for r in regions]).repeat(sizes)[j]
     a0, a1, b0, b1 = np.where(near.take(cols), g.take(cols), background).astype(np.float32)
     # per kept row: its left end, its right end, along the row; its row across
     pts = np.empty((2, j.size, 2))
@@ -637,7 +648,7 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     pts[1, :, 0] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
     pts[:, :, 1] = rows
     # each region's left ends, then its right ends; x in the column its axis says
-    ends = j.searchsorted(list(itertools.accumulate(sizes))).tolist()  # its kept rows' end
+    ends = lit[j].searchsorted(list(itertools.accumulate(sizes))).tolist()  # its rows' end
     return [
         pts[:, a:b].reshape(-1, 2) if r.axis == "rows" else pts[:, a:b, ::-1].reshape(-1, 2)
         for r, a, b in zip(regions, [0, *ends[:-1]], ends, strict=True)
