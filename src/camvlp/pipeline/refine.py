@@ -578,8 +578,8 @@ def _edge_rows(
     counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
     # the product by NumPy, of the whole region (contiguous: of the crops it takes twice as
     # long, by OpenCV more still)
-    lit = np.multiply(gray, mask.view(np.uint8))[box]
-    sums = cv2.reduce(lit, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
+    inside = np.multiply(gray, mask.view(np.uint8))[box]
+    sums = cv2.reduce(inside, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
     near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
     if rows_axis:
         return counts, sums, gray[y : y + h], y, near, a
@@ -610,7 +610,7 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
         g[at : at + n, :w] = r.lines
         near[at : at + n, r.near_at : r.near_at + r.near.shape[1]] = r.near
         at += n
-    # the lit rows, each region's brightest row's level from its rows' levels
+    # the lit rows: each row's level inside its disc, against its region's brightest row's
     counts = np.concatenate([r.counts for r in regions])
     level = np.concatenate([r.sums for r in regions]) / np.maximum(counts, 1)  # 0 outside
     begin = [0, *itertools.accumulate(sizes[:-1])]
@@ -621,10 +621,8 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     g, near = g[lit], near[lit]
     background = bg.repeat(sizes)[lit]
     half = background + 0.5 * (level[lit] - background)
-    rows = (
-        lit
-        + np.array([r.first - a for r, a in zip(regions, begin, strict=True)]).repeat(sizes)[lit]
-    )
+    first = np.array([r.first - a for r, a in zip(regions, begin, strict=True)])
+    rows = lit + first.repeat(sizes)[lit]  # in its region
     # above half-way (other lights masked out: the background is below half-way); the
     # half-way levels lie between 0 and 255, and a whole level is above one when it is above
     # its floor: compared as uint8, not as floats
