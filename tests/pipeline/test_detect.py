@@ -371,17 +371,22 @@ def _candidate(box, centre, axes, radii, cell=True, pixel=None):
     return fields, None
 
 
+def _areas(found) -> list[float]:
+    """The candidates' discs' pixels, as ``_drop_duplicates`` is given them."""
+    return [float(np.count_nonzero(fields["mask"])) for fields, _ in found]
+
+
 def test_a_split_regions_round_light_is_not_a_wild_neighbours_duplicate():
     # lamps 8 and 1 of a joined region (stress_decode --seed 29 --phone): lamp 8's outline,
     # fitted to its cell's straight edge too, came out 544 x 229 px; lamp 1's round disc lay
     # within half that outline's smaller axis and was dropped
     wild = _candidate((0, 0, 240, 400), (120, 200), (544, 229), (110, 160), pixel=(230, 200))
     round_ = _candidate((200, 60, 460, 340), (330, 200), (106, 96), (50, 48))
-    kept = _drop_duplicates([wild, round_])
+    kept = _drop_duplicates([wild, round_], _areas([wild, round_]))
     assert len(kept) == 2
     # the same two without cells (two regions of one lamp, or glow): as before, one
     alone = [(dict(c[0], cell=None), None) for c in (wild, round_)]
-    assert len(_drop_duplicates(alone)) == 1
+    assert len(_drop_duplicates(alone, _areas(alone))) == 1
 
 
 def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
@@ -390,5 +395,5 @@ def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
     # off the lamp
     lamp = _candidate((300, 300, 800, 700), (550, 515), (458, 347), (220, 170))
     sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
-    kept = _drop_duplicates([lamp, sliver])
+    kept = _drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
     assert len(kept) == 1 and kept[0][0] is lamp[0]

@@ -14,6 +14,7 @@ axis a disc's stripes show, and a light's whole striped area (:func:`light_suppo
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -215,14 +216,15 @@ def _kernel(shape: int, ksize: tuple[int, int]) -> np.ndarray:
 
 def _disc_mask(
     lit: np.ndarray, axis: str, kernel_px: int, lit_box: tuple[int, int, int, int] | None = None
-) -> np.ndarray | None:
+) -> tuple[np.ndarray, tuple[int, int, int, int]] | None:
     """The disc under a striped light: lit pixels with the dark stripes bridged.
 
     A closing along the readout axis as long as the widest dark gap across the middle third
     of the region (at least ``kernel_px``), a small round closing, and the largest outline
     with its holes filled.  ``lit`` is bool, or uint8 of 0 and 1; ``lit_box`` its
     bounding box ``(x, y, w, h)`` (``cv2.boundingRect``) when already known.  Returns a bool
-    mask (h, w), or None when nothing is lit.
+    mask (h, w) and its bounding box ``(x, y, w, h)`` (the outline's), or None when nothing
+    is lit.
     """
     lit_u8 = lit.view(np.uint8) if lit.dtype == bool else lit
     # Bridge the dark stripes: a closing along the readout axis, as long as the widest gap.
@@ -246,9 +248,10 @@ def _disc_mask(
     )
     if not contours:
         return None
+    outline = max(contours, key=cv2.contourArea)
     filled = np.zeros(lit_u8.shape, np.uint8)
-    cv2.drawContours(filled, [max(contours, key=cv2.contourArea)], -1, 1, thickness=cv2.FILLED)
-    return filled.view(bool)
+    cv2.drawContours(filled, [outline], -1, 1, thickness=cv2.FILLED)
+    return filled.view(bool), cv2.boundingRect(outline)
 
 
 def _bridged(
@@ -347,10 +350,10 @@ def light_support(
     lit |= m
     if cell is not None:
         lit &= cell
-    support = _disc_mask(lit, axis, kernel_px)
-    if support is None or not (support & m).any():
+    found = _disc_mask(lit, axis, kernel_px)
+    if found is None or not (found[0] & m).any():
         return m
-    return support | m
+    return found[0] | m
 
 
 #: Dilation of a disc's mask that masks other lights out of its rows' crossings, per axis.
@@ -359,13 +362,15 @@ _EDGE_KERNELS = {"rows": np.ones((3, 7), np.uint8), "columns": np.ones((7, 3), n
 _AXIS_KERNEL = np.ones((3, 3), np.uint8)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)  # (not frozen: a frozen dataclass sets each of its fields by a call)
 class _Region:
-    """A candidate region's disc, and its sensor rows lit enough for edge points (internal).
+    """A candidate region's disc, and the sensor rows that cross it (internal).
 
-    ``rows`` are those rows (image rows or columns), ``half`` each one's half-way level,
-    ``gray`` and ``near`` their pixels along the row (gray levels; near the disc), one row
-    each."""
+    Of those rows (image rows or columns, from ``first`` on; :func:`_edge_rows`),
+    ``counts`` and ``sums`` are their pixels and gray sums inside the disc, ``lines`` and
+    ``near`` their pixels along the row (gray levels of the edge points' image; near the
+    disc), one row each, ``near`` from the row's pixel ``near_at`` on (none is near before
+    or after it); ``background`` is the edge points' image's background level."""
 
     box: tuple[int, int, int, int]
     gray8: np.ndarray
@@ -375,10 +380,12 @@ class _Region:
     contrast: float
     touches: bool
     background: float
-    rows: np.ndarray
-    half: np.ndarray
-    gray: np.ndarray
+    counts: np.ndarray
+    sums: np.ndarray
+    lines: np.ndarray
+    first: int
     near: np.ndarray
+    near_at: int
     cell: np.ndarray | None
     beyond: np.ndarray | None
     face: bool = False
@@ -464,7 +471,7 @@ def refine_regions(
             if r is not None:
                 regions.append(r)
     found = [_fitted(r, p) for r, p in zip(regions, _edge_points(regions), strict=True)]
-    return _blobs(_drop_duplicates(found))
+    return _blobs(_drop_duplicates(found, [r.area for r in regions]))
 
 
 def _region(
@@ -506,9 +513,10 @@ def _region(
         lit, edges, on_face = found[0], found[1], True
         edge_bg = _percentiles_u8(edges, [10])[0]
         lit_box = None
-    mask = _disc_mask(lit, axis, kernel_px, lit_box)
-    if mask is None:
+    found = _disc_mask(lit, axis, kernel_px, lit_box)
+    if found is None:
         return None
+    mask, disc_box = found
     area = float(np.count_nonzero(mask))
     if area < min_area:
         return None
@@ -537,60 +545,84 @@ def _region(
         contrast,
         touches,
         edge_bg,
-        *_edge_rows(edges, mask, edge_bg, axis),
+        *_edge_rows(edges, mask, disc_box, axis),
         cell,
         beyond,
         on_face,
     )
 
 
-def _edge_rows(gray: np.ndarray, mask: np.ndarray, background: float, axis: str):
-    """The sensor rows whose edge points :func:`_edge_points` looks for: those crossing the
-    disc (four pixels or more) whose level inside it is more than 0.35 of the way from the
-    background to the brightest row's; returns them, their half-way levels, and their gray
-    levels and pixels near the disc (the mask dilated), one row each."""
-    m8 = mask.view(np.uint8)
-    dim = 1 if axis == "rows" else 0  # cv2.reduce to one value per sensor row
+def _edge_rows(
+    gray: np.ndarray,
+    mask: np.ndarray,
+    disc_box: tuple[int, int, int, int],
+    axis: str,
+):
+    """The sensor rows that cross a disc, for :func:`_edge_points`: those of its bounding
+    box ``disc_box`` ``(x, y, w, h)``.  Returns their pixels inside the disc and their gray
+    sums there (float32, exact: whole levels below 2**24), their gray levels (a view, one row
+    each), the first one's index, and their pixels near the disc (the mask dilated) from the
+    column given last on.
+
+    Worked on the box widened along the rows by the dilation's reach (OpenCV's morphology
+    costs by area): the disc has no pixel beyond it, so the rows' sums and the dilation there
+    are the whole region's."""
+    x, y, w, h = disc_box
+    rows_axis = axis == "rows"
+    if not rows_axis:  # the same on the transposed box (the rows are columns)
+        x, y, w, h = y, x, h, w
+    a, b = max(x - 3, 0), x + w + 3  # (_EDGE_KERNELS' reach along a row)
+    box = (slice(y, y + h), slice(a, b)) if rows_axis else (slice(a, b), slice(y, y + h))
+    m8 = mask.view(np.uint8)[box]
+    dim = 1 if rows_axis else 0  # cv2.reduce to one value per sensor row
     counts = cv2.reduce(m8, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S).ravel()
-    # whole levels: the float32 sums are exact (below 2**24)
-    sums = cv2.reduce(cv2.multiply(gray, m8), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
-    level = sums / np.maximum(counts, 1)  # 0 in rows outside the disc, the levels >= 0
-    top = float(np.maximum.reduce(level))
-    rows = ((counts >= 4) & (level > background + 0.35 * (top - background))).nonzero()[0]
-    half = background + 0.5 * (level[rows] - background)
+    # the product by NumPy, of the whole region (contiguous: of the crops it takes twice as
+    # long, by OpenCV more still)
+    inside = np.multiply(gray, mask.view(np.uint8))[box]
+    sums = cv2.reduce(inside, dim, cv2.REDUCE_SUM, dtype=cv2.CV_32F).ravel()
     near = cv2.dilate(m8, _EDGE_KERNELS[axis]).view(bool)
-    if axis == "rows":
-        return rows, half, gray[rows], near[rows]
-    return rows, half, gray[:, rows].T, near[:, rows].T
+    if rows_axis:
+        return counts, sums, gray[y : y + h], y, near, a
+    return counts, sums, gray[:, y : y + h].T, y, near.T, a
 
 
 def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     """Sub-pixel disc edge points along each region's lit sensor rows, each (M, 2) as (x, y).
 
-    Each lit sensor row crosses the disc once; its two ends are found where the row's
-    intensity crosses half-way between the background and the row's own level inside the
-    disc, so partly lit rows (stripe transitions) give the same chord as fully lit ones.
-    Pixels away from the disc (other lights) are left out.  The rows of all regions are
-    worked as one stack; each region's points are its rows' left ends, then their right
-    ends.
+    A sensor row is lit when it crosses the disc by four pixels or more and its level inside
+    it is more than 0.35 of the way from the background to the brightest row's.  Each lit
+    row crosses the disc once; its two ends are found where the row's intensity crosses
+    half-way between the background and the row's own level inside the disc, so partly lit
+    rows (stripe transitions) give the same chord as fully lit ones.  Pixels away from the
+    disc (other lights) are left out.  The rows of all regions are worked as one stack;
+    each region's points are its rows' left ends, then their right ends.
     """
-    counts = np.array([r.rows.size for r in regions], dtype=np.int64)
-    total = int(counts.sum())
+    sizes = [r.counts.size for r in regions]
+    total = sum(sizes)
     if total == 0:
         return [np.zeros((0, 2)) for _ in regions]
-    width = max(r.gray.shape[1] for r in regions)
+    widths = [r.lines.shape[1] for r in regions]
+    width = max(widths)
     g = np.zeros((total, width), np.uint8)
     near = np.zeros((total, width), bool)
     at = 0
-    for r, n in zip(regions, counts.tolist(), strict=True):
-        g[at : at + n, : r.gray.shape[1]] = r.gray
-        near[at : at + n, : r.gray.shape[1]] = r.near
+    for r, n, w in zip(regions, sizes, widths, strict=True):
+        g[at : at + n, :w] = r.lines
+        near[at : at + n, r.near_at : r.near_at + r.near.shape[1]] = r.near
         at += n
-    of = np.arange(len(regions)).repeat(counts)
-    half = np.concatenate([r.half for r in regions])
-    rows = np.concatenate([r.rows for r in regions])
-    w = np.array([r.gray.shape[1] for r in regions])[of]
-    background = np.array([r.background for r in regions])[of]
+    # the lit rows: each row's level inside its disc, against its region's brightest row's
+    counts = np.concatenate([r.counts for r in regions])
+    level = np.concatenate([r.sums for r in regions]) / np.maximum(counts, 1)  # 0 outside
+    begin = [0, *itertools.accumulate(sizes[:-1])]
+    top = np.maximum.reduceat(level, begin)
+    bg = np.array([r.background for r in regions])
+    rise = (bg + 0.35 * (top - bg)).repeat(sizes)
+    lit = ((counts >= 4) & (level > rise)).nonzero()[0]
+    g, near = g[lit], near[lit]
+    background = bg.repeat(sizes)[lit]
+    half = background + 0.5 * (level[lit] - background)
+    first = np.array([r.first - a for r, a in zip(regions, begin, strict=True)])
+    rows = lit + first.repeat(sizes)[lit]  # in its region
     # above half-way (other lights masked out: the background is below half-way); the
     # half-way levels lie between 0 and 255, and a whole level is above one when it is above
     # its floor: compared as uint8, not as floats
@@ -599,22 +631,26 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     # the last above: the first of the rows flipped (by OpenCV, contiguous, which NumPy's
     # argmax of bools scans fast, where it steps through a reversed view one by one)
     right = width - 1 - cv2.flip(above.view(np.uint8), 1).view(bool).argmax(axis=1)
-    j = ((left > 0) & (right < w - 1) & (right - left >= 3)).nonzero()[0]
-    left, right, half, rows, of = left[j], right[j], half[j], rows[j], of[j]
-    # the rows' levels either side of both crossings, other lights masked out
-    cols = np.array([left - 1, left, right, right + 1])
-    a0, a1, b0, b1 = np.where(near[j, cols], g[j, cols], background[j]).astype(np.float32)
+    last = width - 1 if min(widths) == width else np.array(widths).repeat(sizes)[lit] - 1
+    j = ((left > 0) & (right < last) & (right - left >= 3)).nonzero()[0]
+    left, right, half, rows, background = left[j], right[j], half[j], rows[j], background[j]
+    # the rows' levels either side of both crossings, other lights masked out (gathered from
+    # the flat stack: NumPy's 2-D fancy indexing costs several times as much)
+    at = j * width
+    a, b = at + left, at + right
+    cols = np.array([a - 1, a, b, b + 1])
+    a0, a1, b0, b1 = np.where(near.take(cols), g.take(cols), background).astype(np.float32)
+    # per kept row: its left end, its right end, along the row; its row across
+    pts = np.empty((2, j.size, 2))
+    pts[0, :, 0] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
+    pts[1, :, 0] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
+    pts[:, :, 1] = rows
     # each region's left ends, then its right ends; x in the column its axis says
-    kept = np.bincount(of, minlength=len(regions))
-    start = starts(kept)[of]
-    at = start + np.arange(of.size)  # twice the region's start, plus the row's place in it
-    u = np.array([0 if r.axis == "rows" else 1 for r in regions])[of]
-    pts = np.empty((2 * of.size, 2))
-    pts[at, u] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
-    pts[at + kept[of], u] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
-    pts[at, 1 - u] = rows
-    pts[at + kept[of], 1 - u] = rows
-    return [pts[a:b] for a, b in pieces(2 * kept.cumsum()[:-1], pts.shape[0])]
+    ends = lit[j].searchsorted(list(itertools.accumulate(sizes))).tolist()  # its rows' end
+    return [
+        pts[:, a:b].reshape(-1, 2) if r.axis == "rows" else pts[:, a:b, ::-1].reshape(-1, 2)
+        for r, a, b in zip(regions, [0, *ends[:-1]], ends, strict=True)
+    ]
 
 
 def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
@@ -656,19 +692,25 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
     return fields, fit
 
 
-def _drop_duplicates(found: list[tuple[dict, tuple | None]]) -> list[tuple[dict, tuple | None]]:
+def _drop_duplicates(
+    found: list[tuple[dict, tuple | None]], areas: list[float]
+) -> list[tuple[dict, tuple | None]]:
     """Two candidates whose refined discs are the same fixture: keep the larger (each blob's
-    fields with its ellipse fit), the larger first."""
-    order = sorted(range(len(found)), key=lambda i: -np.count_nonzero(found[i][0]["mask"]))
-    if len(found) < 2:
-        return [found[i] for i in order]
-    xy = np.array([b["pixel"] for b, _ in found])
-    d = xy[:, None, :] - xy[None, :, :]
-    dist = np.hypot(d[..., 0], d[..., 1]).tolist()  # every pair's distance, pixels
+    fields with its ellipse fit; ``areas``: each one's disc's pixels), the larger first.
+
+    A photo has a few candidates: their centres' distances are taken in Python floats, each
+    pair's when it is asked (NumPy's calls cost more than the arithmetic on a few values)."""
+    order = sorted(range(len(found)), key=lambda i: -areas[i])
+    xy = [b["pixel"].tolist() for b, _ in found]
     r = [0.5 * float(b["axes_px"][1]) for b, _ in found]
     keep: list[int] = []
     for i in order:
-        if all(dist[i][j] > max(r[i], r[j]) or _two_cells(found[i][0], found[j][0]) for j in keep):
+        (x, y), ri = xy[i], r[i]
+        if all(
+            math.hypot(x - xy[j][0], y - xy[j][1]) > max(ri, r[j])
+            or _two_cells(found[i][0], found[j][0])
+            for j in keep
+        ):
             keep.append(i)
     return [found[i] for i in keep]
 
