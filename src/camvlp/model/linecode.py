@@ -280,9 +280,10 @@ class FrameFormat:
             on_row[: ch.size] = ch
         on &= k
         # per stretch and frame position: known chips, and known ones
-        seen = k.reshape(m, -1, n).sum(axis=1)  # (m, n)
-        ones = on.reshape(m, -1, n).sum(axis=1)
-        coverage = seen.min(axis=1)
+        # (the reductions by the ufuncs' own methods: ndarray.sum and .min wrap them in Python)
+        seen = np.add.reduce(k.reshape(m, -1, n), axis=1, dtype=np.intp)  # (m, n)
+        ones = np.add.reduce(on.reshape(m, -1, n), axis=1, dtype=np.intp)
+        coverage = np.minimum.reduce(seen, axis=1)
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = np.minimum(limit, int(max_errors))
@@ -300,7 +301,7 @@ class FrameFormat:
         n_seen = np.add.reduce(seen, axis=1)
         d_best = per_id[rows, best]
         if n_ids > 1:  # the next: an ID as near, or the nearest other
-            per_id[rows, best] = np.iinfo(np.int64).max  # (the nearest left out)
+            per_id[rows, best] = _INT64_MAX  # (the nearest left out)
             d_second = np.minimum.reduce(per_id, axis=1)
         else:
             d_second = n_seen + 1
@@ -319,6 +320,10 @@ class FrameFormat:
         r = np.ascontiguousarray(self._rotations.astype(np.float32).reshape(-1, self.n_chips).T)
         r.flags.writeable = False
         return r
+
+
+#: The largest int64 (``np.iinfo`` builds an object each time it is called).
+_INT64_MAX = np.iinfo(np.int64).max
 
 
 def _chip_decode(

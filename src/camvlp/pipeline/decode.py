@@ -168,34 +168,43 @@ class _FlatRuns:
 
 def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     """:func:`find_runs` of several non-empty 1-D profiles at given thresholds, worked on
-    the profiles laid end to end (no crossing between two profiles)."""
+    the profiles laid end to end (no crossing between two profiles).
+
+    (The profiles are few: their own bounds, and their runs' lengths and levels, are laid
+    out profile by profile in Python, by slices, rather than by scattering index arrays.)"""
     n = len(profiles)
-    sizes = np.array([p.size for p in profiles], dtype=np.int64)
+    sizes = [p.size for p in profiles]
+    begin = [0, *itertools.accumulate(sizes)]  # each profile's first value, and the end
     flat = np.concatenate(profiles)
-    of = np.arange(n).repeat(sizes)
-    start = starts(sizes)
-    above = flat > thresholds[of]
-    i = ((above[1:] != above[:-1]) & (of[1:] == of[:-1])).nonzero()[0]  # between i, i+1
-    eo = of[i]
-    a, b = flat[i], flat[i + 1]
-    edges = (i - start[eo]) + (thresholds[eo] - a) / np.where(b != a, b - a, 1.0)
-    n_e = np.bincount(eo, minlength=n)
-    # each profile's bounds: -0.5, its edges, its size - 0.5; the runs between them
-    first = starts(n_e) + 2 * np.arange(n)
-    bounds = np.empty(edges.size + 2 * n)
-    bounds[np.arange(edges.size) + 2 * eo + 1] = edges
-    bounds[first] = -0.5
-    bounds[first + n_e + 1] = sizes - 0.5
-    steps = bounds[1:] - bounds[:-1]
-    keep = np.ones(steps.size, bool)
-    keep[(first + n_e + 1)[:-1]] = False  # from one profile's last bound to the next's first
+    above = flat > thresholds.repeat(sizes)
+    change = above[1:] != above[:-1]  # between i and i + 1
+    change[[b - 1 for b in begin[1:-1]]] = False  # not from one profile's last to the next's
+    i = change.nonzero()[0]
+    cut = i.searchsorted(begin).tolist()  # each profile's first crossing, and the last's end
+    n_e = np.array([b - a for a, b in itertools.pairwise(cut)])
+    eo = np.arange(n).repeat(n_e)
+    a, b = flat[i], flat[1:][i]
+    edges = (i - np.array(begin[:-1])[eo]) + (thresholds[eo] - a) / np.where(b != a, b - a, 1.0)
+    rising = above[1:][i]
+    # each profile's runs: from -0.5 to its first edge, between its edges, from its last
+    # edge to its size - 0.5 (one run from -0.5 to size - 0.5 without edges)
+    gaps = edges[1:] - edges[:-1]
+    ends = edges.tolist()
+    lengths = np.empty(edges.size + n)
     bright = np.empty(edges.size + n, bool)
-    run_starts = starts(n_e + 1)
-    bright[run_starts] = above[start]
-    rising = above[i + 1]
-    bright[np.arange(edges.size) + eo + 1] = rising
+    for k, (e0, e1) in enumerate(itertools.pairwise(cut)):
+        r0, r1 = e0 + k, e1 + k  # its first run and its last
+        bright[r0] = above[begin[k]]
+        if e1 == e0:
+            lengths[r0] = (sizes[k] - 0.5) - -0.5
+            continue
+        lengths[r0] = ends[e0] - -0.5
+        lengths[r0 + 1 : r1] = gaps[e0 : e1 - 1]
+        lengths[r1] = (sizes[k] - 0.5) - ends[e1 - 1]
+        bright[r0 + 1 : r1 + 1] = rising[e0:e1]
+    run_starts = np.array([a + k for k, a in enumerate(cut[:-1])])
     run_of = np.arange(n).repeat(n_e + 1)
-    return _FlatRuns(edges, rising, eo, n_e, steps[keep], bright, run_of, run_starts)
+    return _FlatRuns(edges, rising, eo, n_e, lengths, bright, run_of, run_starts)
 
 
 @dataclass(frozen=True)

@@ -73,19 +73,26 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     if not len(blobs):
         return np.zeros(0)
     h, w = img.shape[:2]
-    geo = np.array([(*b.pixel, *b.axes_px, b.angle_deg) for b in blobs], dtype=np.float64)
-    a, b = (0.5 * np.maximum(geo[:, k], 1.0) for k in (2, 3))
-    t = np.deg2rad(geo[:, 4])
-    ct, st = np.cos(t), np.sin(t)
+    # per light (a few): its centre, semi-axes, and the cosine and sine of its angle (NumPy's,
+    # for all at once), worked in Python floats (the same operations as NumPy's)
+    centres = [b.pixel.tolist() for b in blobs]
+    semi = [(0.5 * max(a, 1.0), 0.5 * max(b, 1.0)) for a, b in (b.axes_px.tolist() for b in blobs)]
+    t = np.deg2rad(np.array([float(b.angle_deg) for b in blobs]))
+    cs = zip(np.cos(t).tolist(), np.sin(t).tolist(), strict=True)
     # x and y as one array (n, 2, radii, angles): the centre plus each radius times
     # (a cos t cos - b sin t sin, a sin t cos + b cos t sin)
-    on_cos = np.array([a * ct, a * st]).T[:, :, None, None]
-    on_sin = np.array([-(b * st), b * ct]).T[:, :, None, None]
-    xy = geo[:, :2, None, None] + _RADII * (on_cos * _COS + on_sin * _SIN)
-    size = np.array([w, h], dtype=np.float64)[:, None, None]
-    ok = np.logical_and.reduce((xy > -0.5) & (xy < size - 0.5), axis=1)
+    geo = np.array(
+        [
+            (centre, (a * ct, a * st), (-(b * st), b * ct))
+            for centre, (a, b), (ct, st) in zip(centres, semi, cs, strict=True)
+        ]
+    )[:, :, :, None, None]  # (n, 3: centre, on cos, on sin, 2: x and y, 1, 1)
+    xy = geo[:, 0] + _RADII * (geo[:, 1] * _COS + geo[:, 2] * _SIN)
+    ok = np.logical_and.reduce((xy > -0.5) & (xy < _column(w - 0.5, h - 0.5)), axis=1)
     xi, yi = (
-        np.minimum(np.maximum(np.rint(xy), 0.0), size - 1.0).astype(np.intp).transpose(1, 0, 2, 3)
+        np.minimum(np.maximum(np.rint(xy), 0.0), _column(w - 1.0, h - 1.0))
+        .astype(np.intp)
+        .transpose(1, 0, 2, 3)
     )
     if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
         px = img.reshape(h * w, -1).take(yi * w + xi, axis=0).reshape(*yi.shape, -1)
@@ -100,20 +107,26 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
         np.add.reduce(ok, axis=2), [_IN.start, _RING.start, _OUT.start], axis=1
     ).T
     inside = np.add.reduce(np.where(ok[:, _IN], px[:, _IN], 0.0), axis=(1, 2)) / np.maximum(n_in, 1)
+    # (a new array: the ring's and the background's samples are sorted in place below, each
+    # light's a view of its own contiguous values)
     px = np.where(ok, px, np.nan)
     # the ring's mean without its brightest tenth: a glow lifts the whole ring, while an
     # outline that misses the disc somewhere puts a few ring samples on the disc itself
-    ranked = px[:, _RING].reshape(len(blobs), -1).copy()
+    ranked = px[:, _RING].reshape(len(blobs), -1)
     ranked.sort(axis=1)  # NaNs last
-    kept = np.arange(ranked.shape[1]) < (n_ring - n_ring // 10)[:, None]
-    ring = np.add.reduce(np.where(kept, ranked, 0.0), axis=1) / np.maximum(
-        np.add.reduce(kept, axis=1), 1
-    )
-    out = px[:, _OUT].reshape(len(blobs), -1).copy()
+    n_kept = n_ring - n_ring // 10  # (at most the ring's 96 samples)
+    kept = np.arange(ranked.shape[1]) < n_kept[:, None]
+    ring = np.add.reduce(np.where(kept, ranked, 0.0), axis=1) / np.maximum(n_kept, 1)
+    out = px[:, _OUT].reshape(len(blobs), -1)
     out.sort(axis=1)  # NaNs last
     background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]
     level = (ring - background) / np.maximum(inside - background, 1.0)
     return np.where((n_ring >= 16) & (n_out >= 16) & (n_in > 0), level, np.nan)
+
+
+def _column(x: float, y: float) -> np.ndarray:
+    """``[x, y]`` as a column (2, 1, 1), against the samples' x and y (n, 2, radii, angles)."""
+    return np.array([x, y])[:, None, None]
 
 
 def glow_level(img: np.ndarray, blob: Blob) -> float:
@@ -189,9 +202,10 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
         for k, (b, w) in enumerate(zip(blobs, which, strict=True))
     ]
     joined = np.array([b.cell is not None for b in blobs], dtype=bool)
-    fitted = which | (joined & which.any())
+    glows = bool(which.any())
+    fitted = which | (joined & glows)
     rims: dict[int, tuple | None] = {}
-    if which.any():  # each light not centred on its glow, checked against its rim
+    if glows:  # each light not centred on its glow, checked against its rim
         rims = {
             k: rim_from_chords(img, moved, k, axis)
             for k, (b, w) in enumerate(zip(moved, which, strict=True))
