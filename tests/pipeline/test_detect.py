@@ -16,6 +16,7 @@ import pytest
 
 from camvlp.model.camera import Pose
 from camvlp.pipeline.detect import (
+    _blurred_peak,
     _close_lit,
     _decimated_gray,
     _median_u8,
@@ -257,6 +258,29 @@ def test_median_by_counting_is_the_histograms():
             g[::16] = rng.integers(0, 20)
         g = g.astype(np.uint8)
         assert _median_u8(g) == _percentiles_u8(g, [50])[0]
+
+
+def test_blurred_peak_is_the_blurs_maximum():
+    """The reduced image's peak without the blur is the blur's maximum: saturated blocks
+    inside, on the edges and corners, saturated stripes one or two rows thick (no 3 x 3
+    block: blurred whole), single saturated pixels, images below saturation, tiny ones."""
+    rng = np.random.default_rng(21)
+    for k in range(600):
+        h, w = (int(v) for v in rng.integers(1, 60, 2))
+        g = rng.integers(0, 256 if k % 3 else 200, (h, w)).astype(np.uint8)
+        kind = k % 5
+        if kind == 1:  # a saturated block anywhere, edges and corners too
+            y, x = int(rng.integers(0, h)), int(rng.integers(0, w))
+            g[max(0, y - 1) : y + 2, max(0, x - 1) : x + 2] = 255
+        elif kind == 2:  # saturated stripes, one or two rows: no 3 x 3 block
+            g[:: int(rng.integers(3, 5))] = 255
+            g[1::4] = 255
+        elif kind == 3:  # a few single saturated pixels
+            g.flat[rng.integers(0, g.size, 3)] = 255
+        elif kind == 4:  # flat
+            g[:] = rng.choice([200, 255])
+        want = float(cv2.GaussianBlur(g, (3, 3), 0).max())
+        assert _blurred_peak(g) == want, (k, g.shape)
 
 
 def test_percentiles_by_counting_are_the_histograms():

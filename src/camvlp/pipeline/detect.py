@@ -82,7 +82,28 @@ def _median_u8(gray: np.ndarray) -> float:
     (:func:`_counted_percentiles`)."""
     if gray.ndim != 2 or gray.size < 4096:
         return _percentiles_u8(gray, [50])[0]
-    return _counted_percentiles(gray, [50], _percentiles_u8(gray[::16, ::4], [50]))[0]
+    sample = gray[::16, ::4]
+    # the guess by NumPy's partition (8 us against 17 for the sample's histogram): any
+    # guess gives the same median, a near one in fewer counts
+    guess = np.partition(sample, sample.size // 2, axis=None)[sample.size // 2]
+    return _counted_percentiles(gray, [50], [guess])[0]
+
+
+def _blurred_peak(gray: np.ndarray) -> float:
+    """``float(cv2.GaussianBlur(gray, (3, 3), 0).max())`` of a uint8 image, without the blur
+    when the image is saturated (its maximum 255) in a 3 x 3 block somewhere.
+
+    The blur is a weighted mean of each pixel's 3 x 3 neighbours (OpenCV's fixed-point
+    weights sum exactly to one; its border repeats the image's own pixels), so it is nowhere
+    above the image's maximum, and it is that maximum where all nine neighbours are: where
+    the 3 x 3 erosion is.  The erosion and its maximum cost about half the blur and its
+    maximum (27 against 49 us at 640 x 360); tried on saturated photos only (lights often
+    are, with flat tops), the others pay one maximum more (4 us) and are blurred whole.
+    """
+    top = float(np.maximum.reduce(gray, axis=None))
+    if top == 255 and cv2.minMaxLoc(cv2.erode(gray, None))[1] == top:
+        return top
+    return float(cv2.GaussianBlur(gray, (3, 3), 0).max())
 
 
 def _region_chords(
@@ -182,7 +203,7 @@ def detect_fixtures(
     # keeps about half its sampled rows lit; the closing below joins them.
     small = _decimated_gray(img, s)
     background = _median_u8(small)
-    peak = float(cv2.GaussianBlur(small, (3, 3), 0).max())
+    peak = _blurred_peak(small)
     if peak - background < 12:  # nothing stands out of the noise
         return Detection((), s, np.zeros_like(small), peak)
     thr = background + relative_threshold * (peak - background)

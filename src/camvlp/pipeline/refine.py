@@ -248,7 +248,7 @@ def _disc_mask(
     )
     if not contours:
         return None
-    outline = max(contours, key=cv2.contourArea)
+    outline = contours[0] if len(contours) == 1 else max(contours, key=cv2.contourArea)
     filled = np.zeros(lit_u8.shape, np.uint8)
     cv2.drawContours(filled, [outline], -1, 1, thickness=cv2.FILLED)
     return filled.view(bool), cv2.boundingRect(outline)
