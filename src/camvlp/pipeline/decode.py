@@ -28,7 +28,6 @@ import numpy as np
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.profile import row_profile, shape_profile
-from camvlp.pipeline.ragged import starts
 
 __all__ = [
     "Runs",

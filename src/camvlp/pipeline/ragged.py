@@ -1,5 +1,5 @@
 """Groups of values laid one after another in one flat array (a photo's lights, profiles or
-runs worked at once): where each group begins, the groups as padded rows, the pieces back."""
+runs worked at once): where each group begins, and the pieces back."""
 
 from __future__ import annotations
 
@@ -7,21 +7,13 @@ import itertools
 
 import numpy as np
 
-__all__ = ["padded", "pieces", "starts"]
+__all__ = ["pieces", "starts"]
 
 
 def starts(counts: np.ndarray) -> np.ndarray:
     """Where each group begins, given how many values each has (``counts``, (G,))."""
     out = np.zeros(counts.size, np.intp)
     np.add.accumulate(counts[:-1], out=out[1:])  # (ndarray.cumsum's wrapping costs as much)
-    return out
-
-
-def padded(flat: np.ndarray, counts: np.ndarray, fill: float) -> np.ndarray:
-    """The groups as rows of a (groups, longest) array, each row's tail filled with ``fill``."""
-    out = np.empty((counts.size, int(counts.max()) if counts.size else 0), flat.dtype)
-    out.fill(fill)
-    out[np.arange(out.shape[1])[None, :] < counts[:, None]] = flat
     return out
 
 
