@@ -29,31 +29,31 @@ def _counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
     if n >= 1 << 24:  # beyond float32's whole numbers: the histogram's own float32 counts
         return _percentiles_u8(gray, qs)
 
-    def at_or_below(v: int) -> int:  # pixels at or below level v
-        return n - cv2.countNonZero(cv2.threshold(gray, v, 255, cv2.THRESH_BINARY)[1])
+    def enough(v: int, most_above: float) -> bool:  # at least the share at or below v
+        # (one frame a count: it is called a few times per region)
+        return v >= 255 or (
+            cv2.countNonZero(cv2.threshold(gray, v, 255, cv2.THRESH_BINARY)[1]) <= most_above
+        )
 
     out = []
     for q, guess in zip(qs, guesses, strict=True):
-        at = float(np.float32(q / 100.0) * np.float32(n))
-
-        def enough(v: int, at: float = at) -> bool:  # at least the share at or below v
-            return v >= 255 or at_or_below(v) >= at
-
+        # at least q % at or below v: at most n less that share above it (exact in float64)
+        most_above = n - float(np.float32(q / 100.0) * np.float32(n))
         v = min(max(int(guess), 0), 255)
         step = 1  # then: enough(hi), not enough(lo) (lo -1: no level below hi)
-        if enough(v):
+        if enough(v, most_above):
             hi, lo = v, v - 1
-            while lo >= 0 and enough(lo):
+            while lo >= 0 and enough(lo, most_above):
                 hi, step = lo, 2 * step
                 lo = max(hi - step, -1)
         else:
             lo, hi = v, v + 1
-            while not enough(hi):
+            while not enough(hi, most_above):
                 lo, step = hi, 2 * step
                 hi = min(lo + step, 255)
         while hi - lo > 1:
             mid = (lo + hi) // 2
-            lo, hi = (lo, mid) if enough(mid) else (mid, hi)
+            lo, hi = (lo, mid) if enough(mid, most_above) else (mid, hi)
         out.append(float(hi))
     return out
 
