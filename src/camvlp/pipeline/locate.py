@@ -161,6 +161,13 @@ def _extent(blob: Blob, axis: str) -> float:
     return float(h if axis == "rows" else w)
 
 
+def _in_box(blob: Blob) -> tuple[float, float]:
+    """A blob's centre ``(x, y)`` in its region of interest's pixels (Python floats: two
+    subtractions, where NumPy's of a tuple from an array builds two arrays)."""
+    x, y = blob.pixel.tolist()
+    return x - blob.box[0], y - blob.box[1]
+
+
 def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.ndarray, bool]:
     """Stage 0: the checked image, its levels mapped back to light when the camera gives its
     tone curve, flipped left-right when the photo is mirrored."""
@@ -207,7 +214,7 @@ def _profiles(
         gray_rois,
         [b.mask for b in blobs],
         readout.axis,
-        [b.pixel - b.box[:2] for b in blobs],
+        [_in_box(b) for b in blobs],
         [b.axes_px for b in blobs],
         [b.angle_deg for b in blobs],
     )

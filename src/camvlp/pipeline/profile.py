@@ -82,7 +82,7 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
     if gray.dtype == np.uint8:  # whole levels: the sums exact, as NumPy's in float64
         lines = (slice(first, last), slice(None)) if dim == 1 else (slice(None), slice(first, last))
         s = cv2.reduce(cv2.multiply(gray[lines], m[lines]), dim, cv2.REDUCE_SUM, dtype=cv2.CV_32S)
-        s = s.ravel().astype(np.float64)
+        s = s.ravel()  # int32: exact in float64, where the division below takes it
     else:
         g = gray.astype(np.float32)
         if axis == "columns":
@@ -90,9 +90,10 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     # a line between the first and the last without pixels: NaN, filled (float levels may be
     # NaN themselves)
-    if gray.dtype != np.uint8 or not np.logical_and.reduce(c):
+    # every line with pixels when each has two or more (``rows`` is all of them)
+    if gray.dtype != np.uint8 or (rows.size != last - first and not np.logical_and.reduce(c)):
         return _filled(np.where(c == 0, np.nan, s / np.maximum(c, 1))), first, c
-    return s / c, first, c
+    return np.divide(s, c), first, c
 
 
 #: Pixels per ring of :func:`shape_profile`'s envelope (at least 16 rings, at most 256); the
