@@ -586,6 +586,15 @@ def _edge_rows(
     return counts, sums, gray[:, y : y + h].T, y, near.T, a
 
 
+#: For :func:`_edge_points`, shapes (2, 2, 1) and (2, 1): the columns either side of a
+#: row's crossings from its two ends (the left end's one before and itself, the right
+#: end's itself and one after), each end's sign of the steps along the row (float32, as the
+#: levels), and each end's offset of the crossing from the first of its columns.
+_SIDES = np.array([[[-1], [0]], [[0], [1]]])
+_SIGNS = np.array([[1], [-1]], np.float32)
+_BEFORE = np.array([[1], [0]])
+
+
 def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
     """Sub-pixel disc edge points along each region's lit sensor rows, each (M, 2) as (x, y).
 
@@ -611,42 +620,44 @@ def _edge_points(regions: list[_Region]) -> list[np.ndarray]:
         near[at : at + n, r.near_at : r.near_at + r.near.shape[1]] = r.near
         at += n
     # the lit rows: each row's level inside its disc, against its region's brightest row's
+    # (the regions' few levels as Python floats)
     counts = np.concatenate([r.counts for r in regions])
     level = np.concatenate([r.sums for r in regions]) / np.maximum(counts, 1)  # 0 outside
     begin = [0, *itertools.accumulate(sizes[:-1])]
-    top = np.maximum.reduceat(level, begin)
-    bg = np.array([r.background for r in regions])
-    rise = (bg + 0.35 * (top - bg)).repeat(sizes)
+    bg = [r.background for r in regions]
+    top = np.maximum.reduceat(level, begin).tolist()
+    rise = np.array([b + 0.35 * (t - b) for b, t in zip(bg, top, strict=True)]).repeat(sizes)
     lit = ((counts >= 4) & (level > rise)).nonzero()[0]
-    g, near = g[lit], near[lit]
-    background = bg.repeat(sizes)[lit]
-    half = background + 0.5 * (level[lit] - background)
-    first = np.array([r.first - a for r, a in zip(regions, begin, strict=True)])
-    rows = lit + first.repeat(sizes)[lit]  # in its region
+    background = np.array(bg).repeat(sizes)
+    half = background + 0.5 * (level - background)
     # above half-way (other lights masked out: the background is below half-way); the
     # half-way levels lie between 0 and 255, and a whole level is above one when it is above
-    # its floor: compared as uint8, not as floats
-    above = near & (g > np.floor(half).astype(np.uint8)[:, None])
+    # its floor: compared as uint8, not as floats.  Compared in the whole stack, the lit
+    # rows then copied once (rather than both the stack's gray levels and its mask)
+    above = (near & (g > np.floor(half).astype(np.uint8)[:, None]))[lit]
     left = above.argmax(axis=1)  # 0 also when nothing is above: such a row is left out
     # the last above: the first of the rows flipped (by OpenCV, contiguous, which NumPy's
     # argmax of bools scans fast, where it steps through a reversed view one by one)
     right = width - 1 - cv2.flip(above.view(np.uint8), 1).view(bool).argmax(axis=1)
     last = width - 1 if min(widths) == width else np.array(widths).repeat(sizes)[lit] - 1
     j = ((left > 0) & (right < last) & (right - left >= 3)).nonzero()[0]
-    left, right, half, rows, background = left[j], right[j], half[j], rows[j], background[j]
+    ends = np.array([left[j], right[j]])  # (2, m): each kept row's left, right end
+    k = lit[j]  # the kept rows in the stack
+    half = half[k]
     # the rows' levels either side of both crossings, other lights masked out (gathered from
-    # the flat stack: NumPy's 2-D fancy indexing costs several times as much)
-    at = j * width
-    a, b = at + left, at + right
-    cols = np.array([a - 1, a, b, b + 1])
-    a0, a1, b0, b1 = np.where(near.take(cols), g.take(cols), background).astype(np.float32)
-    # per kept row: its left end, its right end, along the row; its row across
+    # the flat stack: NumPy's 2-D fancy indexing costs several times as much): (2, 2, m),
+    # the left end's [a0, a1], the right end's [b0, b1]
+    cols = (ends + k * width)[:, None] + _SIDES
+    v = np.where(near.take(cols), g.take(cols), background[k]).astype(np.float32)
+    # per kept row: its left end, its right end, along the row; its row across.  The right
+    # end's steps are the left's negated (exact): (b0 - half) / max(b0 - b1, 1e-6)
     pts = np.empty((2, j.size, 2))
-    pts[0, :, 0] = left - 1 + (half - a0) / np.maximum(a1 - a0, 1e-6)
-    pts[1, :, 0] = right + (b0 - half) / np.maximum(b0 - b1, 1e-6)
-    pts[:, :, 1] = rows
+    step = np.maximum((v[:, 1] - v[:, 0]) * _SIGNS, 1e-6)
+    pts[:, :, 0] = ends - _BEFORE + (half - v[:, 0]) * _SIGNS / step
+    first = np.array([r.first - a for r, a in zip(regions, begin, strict=True)])
+    pts[:, :, 1] = k + first.repeat(sizes)[k]  # in its region
     # each region's left ends, then its right ends; x in the column its axis says
-    ends = lit[j].searchsorted(list(itertools.accumulate(sizes))).tolist()  # its rows' end
+    ends = k.searchsorted(list(itertools.accumulate(sizes))).tolist()  # its rows' end
     return [
         pts[:, a:b].reshape(-1, 2) if r.axis == "rows" else pts[:, a:b, ::-1].reshape(-1, 2)
         for r, a, b in zip(regions, [0, *ends[:-1]], ends, strict=True)
