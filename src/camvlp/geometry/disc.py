@@ -11,7 +11,7 @@ import math
 import cv2
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose
+from camvlp.model.camera import Camera, Pose, finite_rows
 
 __all__ = [
     "CENTRE_SIGMA_FLOOR_PX",
@@ -112,7 +112,7 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
     """
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     out = np.full_like(c, np.nan) if normals is None else np.array(normals, float).reshape(-1, 3)
-    known = [all(map(math.isfinite, row)) for row in out.tolist()]
+    known = finite_rows(out)
     out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))  # (NaN rows stay NaN)
     if all(known):
         return out

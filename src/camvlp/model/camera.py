@@ -29,6 +29,7 @@ __all__ = [
     "Pose",
     "all_finite",
     "euler_to_matrix",
+    "finite_rows",
     "in_front",
     "matrix_to_euler",
     "project_points",
@@ -124,6 +125,12 @@ def all_finite(*arrays: np.ndarray) -> bool:
         if not all(map(math.isfinite, a.ravel().tolist())):
             return False
     return True
+
+
+def finite_rows(a: np.ndarray) -> list[bool]:
+    """Whether each row of a small 2-D float array is finite throughout:
+    ``np.isfinite(a).all(axis=1)`` as a list, in Python floats."""
+    return [all(map(math.isfinite, row)) for row in a.tolist()]
 
 
 def _vector(value, n: int, name: str) -> np.ndarray:

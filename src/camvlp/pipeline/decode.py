@@ -485,21 +485,19 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     ends = np.concatenate([first, first + r.n_edges])
     counts[ends] = np.minimum(np.maximum(np.floor(x[ends] + 0.25), 0), 2)
     sure[ends] = True
-    counts_all = counts
     dev = np.abs(x - whole)
     dev[ends] = -1.0
     worst = np.maximum.reduceat(dev, first)[which]
-    if which.size < n:
+    bounds = [0, *np.add.reduceat(counts, first)[which].cumsum().tolist()]
+    bright = r.bright
+    if which.size < n:  # the runs of the profiles read only
         kept = np.zeros(n, bool)
         kept[which] = True
         kept = kept[r.run_of]
-        bright, counts, sure = r.bright[kept], counts[kept], sure[kept]
-    else:
-        bright = r.bright
+        bright, counts, sure = bright[kept], counts[kept], sure[kept]
     chip_vals = bright.astype(np.uint8).repeat(counts)
     known = sure.repeat(counts)
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
-    bounds = [0, *np.add.reduceat(counts_all, first)[which].cumsum().tolist()]
     return [
         (
             chip_vals[c0:c1],

@@ -103,8 +103,6 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     out: list[StripeDecode | None] = [None] * len(profiles)
     lengths = np.full(len(profiles), np.nan)
     todo = [k for k in range(len(profiles)) if not (k < len(skip) and skip[k])]
-    if not todo:  # (every profile skipped: read backwards after all were taken forwards)
-        return out, lengths
     for k, d in zip(todo, decode_profiles([profiles[k] for k in todo], frame), strict=True):
         sure = d.id is not None and d.id in map_ids and d.hamming == 0
         out[k] = d if sure and d.margin >= MIN_FAST_MARGIN else None

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.pnp import candidate_methods, check_solver, pnp_candidates
-from camvlp.model.camera import Camera, Pose, all_finite, project_camera_points
+from camvlp.model.camera import Camera, Pose, all_finite, finite_rows, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
 
@@ -128,7 +128,7 @@ def _scores(camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray,
     in_front = [min(z) > 0 for z in cam[:, :, 2].tolist()]
     facing = [True] * b
     if normals is not None:
-        has = [all(map(math.isfinite, row)) for row in normals.tolist()]
+        has = finite_rows(normals)
         if any(has):
             nrm, at = (normals, obj) if all(has) else (normals[has], obj[has])
             ahead = np.add.reduce(nrm * (pos[:, None] - at), axis=2)  # (B, N'), finite

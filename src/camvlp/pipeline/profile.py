@@ -89,8 +89,7 @@ def _mean_profile(gray: np.ndarray, m: np.ndarray, axis: str) -> tuple[np.ndarra
             g, m = g.T, m.T
         s = (g[first:last] * m[first:last]).sum(axis=1, dtype=np.float64)
     # a line between the first and the last without pixels: NaN, filled (float levels may be
-    # NaN themselves)
-    # every line with pixels when each has two or more (``rows`` is all of them)
+    # NaN themselves); when ``rows`` holds every line, each has two pixels or more
     if gray.dtype != np.uint8 or (rows.size != last - first and not np.logical_and.reduce(c)):
         return _filled(np.where(c == 0, np.nan, s / np.maximum(c, 1))), first, c
     return np.divide(s, c), first, c
@@ -272,9 +271,8 @@ def shape_profiles(
         [rho for _, _, rho in sampled],
     )
     for k, (middle, level) in zip(live, envelopes, strict=True):
-        if np.minimum.reduce(level) >= (1.0 - _FLAT) * np.maximum.reduce(
-            level
-        ):  # flat: its row mean
+        lowest, highest = np.minimum.reduce(level), np.maximum.reduce(level)
+        if lowest >= (1.0 - _FLAT) * highest:  # a flat light: its row mean
             out[k] = _mean_profile(grays[k], trimmed[k], axis)
         else:
             out[k] = _shaped(
