@@ -30,6 +30,7 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
+from camvlp.pipeline.levels import CLIP_LEVEL, FULL_SCALE
 from camvlp.pipeline.rim import GridShape, refine_wave
 from camvlp.pipeline.square_wave import _integrated, fit_square_wave, sharp_period
 from camvlp.pipeline.threads import one_blas_thread
@@ -40,10 +41,7 @@ __all__ = ["LightWave", "light_wave", "outline_ellipse"]
 #: 1/40 of its radius (a big light needs no finer shape).
 _BIN_PX = 0.5
 _BINS_PER_RADIUS = 40
-#: Gray level at or above which a pixel counts as clipped (8-bit photos; JPEG rings below 255).
-_CLIP = 235.0
-#: The sensor's full scale (8-bit photos).
-_FULL = 255.0
+_CLIP, _FULL = CLIP_LEVEL, FULL_SCALE
 #: Pixels (at most, every k-th) whose fit refines the light's outline.
 _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis

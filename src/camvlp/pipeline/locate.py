@@ -29,6 +29,7 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.by_pose import position_sigma
+from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
@@ -65,6 +66,11 @@ class LocateSettings:
         Readout ("rows", "columns", "rows-reversed", "columns-reversed"; see
         :class:`camvlp.model.readout.Readout`); None takes the camera's, else finds the axis
         from the stripes (forward).
+    readout_hint : Readout, str or None
+        A readout the photo's metadata suggests (:func:`camvlp.io.exif_readout`, from its
+        EXIF orientation), when neither ``readout`` nor the camera gives one: the stripes
+        still decide the axis; where the hint's axis is theirs, its direction is taken, and
+        where the stripes do not show the axis, the hint's is read.
     mirrored : bool or None
         Flip the image left-right first; None takes the camera file's ``mirrored``.
     correct_perspective : bool
@@ -94,6 +100,7 @@ class LocateSettings:
     kernel_px: int = 16
     min_diameter_px: float = 8.0
     readout: Readout | None = None
+    readout_hint: Readout | None = None
     mirrored: bool | None = None
     correct_perspective: bool = True
     keep_stages: bool = False
@@ -112,6 +119,8 @@ class LocateSettings:
             ):
                 raise InputError(f"{name} must be a positive number, got {sigma!r}")
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
+        hint = Readout.parse_optional(self.readout_hint, "readout_hint")
+        object.__setattr__(self, "readout_hint", hint)
 
 
 _DEFAULT_SETTINGS = LocateSettings()  # frozen: one instance serves every call without settings
@@ -128,23 +137,44 @@ def _check_arguments(camera: object, fixture_map: object, settings: object) -> N
             raise InputError(f"{name} must be a {wanted}, got {type(value).__name__}")
 
 
+def fitted_camera(camera: Camera, width: int, height: int) -> tuple[Camera, str]:
+    """The camera for a photo of ``width`` x ``height`` pixels, and a note ("" or why it was
+    turned): the camera itself, or turned a quarter turn (:meth:`Camera.turned`) for a photo
+    stored the other way round when the way it was turned does not matter.
+
+    Raises
+    ------
+    InputError
+        The photo is of another size, or turned where the way it was turned would matter.
+    """
+    if (width, height) == (camera.width, camera.height):
+        return camera, ""
+    turned = camera.turned() if (height, width) == (camera.width, camera.height) else None
+    if turned is not None:
+        return turned, (
+            f"the photo is {width} x {height}, the camera file's {camera.width} x "
+            f"{camera.height} turned a quarter turn: the camera is turned with it"
+        )
+    hint = (
+        " (turned? the camera file describes the other orientation, and its principal point "
+        "or distortion depend on which way: write a camera file for this orientation)"
+        if (height, width) == (camera.width, camera.height)
+        else ""
+    )
+    raise InputError(
+        f"image is {width} x {height} but the camera file says {camera.width} x "
+        f"{camera.height}{hint}"
+    )
+
+
 def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
     img = as_image(image)
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
         raise InputError(f"image must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
     h, w = img.shape[:2]
     if (w, h) != (camera.width, camera.height):
-        hint = (
-            " (rotated? the camera file describes the other orientation)"
-            if (h, w)
-            == (
-                camera.width,
-                camera.height,
-            )
-            else ""
-        )
         raise InputError(
-            f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}{hint}"
+            f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}"
         )
     if min(h, w) < MIN_SIDE_PX:
         raise InputError(
@@ -178,23 +208,70 @@ def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.
     return (img[:, ::-1] if mirrored else img), mirrored
 
 
+#: A blob counts as striped, and votes for its readout axis, when the stripes' energy along
+#: one axis is at least this many times that along the other (:attr:`Blob.stripe_contrast`).
+_STRIPED = 2.0
+#: The photo's readout axis is clear when the striped blobs' votes for it (each the log of its
+#: contrast) outweigh those for the other axis this many times over.
+_AXIS_MARGIN = 3.0
+
+
+def stripes_axis(blobs) -> tuple[str | None, float, float]:
+    """The readout axis the photo's stripes show, voted by its striped blobs.
+
+    Each blob whose stripes run clearly one way (:data:`_STRIPED`) votes for its axis with
+    the log of its contrast; a text, a steady light or a blob of noise, whose energy is the
+    same both ways, has no say.  Returns the axis ("rows" or "columns"), or None when the
+    votes do not clear :data:`_AXIS_MARGIN` (no striped blob, or blobs striped both ways),
+    and the votes for rows and for columns.
+    """
+    votes = {"rows": 0.0, "columns": 0.0}
+    for b in blobs:
+        if b.stripe_contrast > _STRIPED:
+            votes[b.axis] += float(np.log(b.stripe_contrast))
+    rows, cols = votes["rows"], votes["columns"]
+    if max(rows, cols) <= 0 or max(rows, cols) < _AXIS_MARGIN * min(rows, cols):
+        return None, rows, cols
+    return ("rows" if rows > cols else "columns"), rows, cols
+
+
 def _detect(
     img: np.ndarray, given: Readout | None, st: LocateSettings
-) -> tuple[Detection, Readout]:
-    """Stage 1: the fixtures, and the readout (given, else the axis most striped blobs show)."""
-    detection = detect_fixtures(
-        img,
-        readout=None if given is None else given.axis,
-        kernel_px=st.kernel_px,
-        min_diameter_px=st.min_diameter_px,
-    )
+) -> tuple[Detection, Readout | None, bool, str]:
+    """Stage 1: the fixtures, and the readout: ``given`` (the call's or the camera file's),
+    else the axis the stripes show (:func:`stripes_axis`), its direction the photo's EXIF
+    hint's (``st.readout_hint``) where that hint's axis is the same, else forward and found
+    later.  Returns the detection, the readout (None: the axis is unclear), whether its
+    direction is known, and a note ("" or where the hint was overruled or needed)."""
+
+    def detect(axis: str | None) -> Detection:
+        return detect_fixtures(
+            img, readout=axis, kernel_px=st.kernel_px, min_diameter_px=st.min_diameter_px
+        )
+
     if given is not None:
-        return detection, given
-    blobs = detection.blobs
-    striped = [b for b in blobs if b.stripe_contrast > 2.0] or list(blobs)
-    votes = [b.axis for b in striped]
-    axis = max(set(votes), key=votes.count) if votes else "rows"
-    return detection, Readout.of(axis)
+        return detect(given.axis), given, True, ""
+    detection = detect(None)
+    axis, rows, cols = stripes_axis(detection.blobs)
+    hint, note = st.readout_hint, ""
+    if axis is None and hint is not None:
+        axis = hint.axis
+        note = (
+            f"the stripes do not show the readout axis (votes rows {rows:.1f}, columns "
+            f"{cols:.1f}): the photo's EXIF orientation gives {hint}"
+        )
+    elif axis is not None and hint is not None and hint.axis != axis:
+        note = (
+            f"the photo's EXIF orientation suggests a {hint} readout; its stripes run along {axis}"
+        )
+        hint = None
+    if axis is None:
+        return detection, None, False, ""
+    if any(b.axis != axis for b in detection.blobs):  # each disc bridged along the photo's axis
+        detection = detect(axis)
+    if hint is not None:
+        return detection, hint, True, note
+    return detection, Readout.of(axis), False, note
 
 
 def _profiles(
@@ -245,6 +322,18 @@ def _decode(
         for b, c in zip(blobs, centres, strict=True)
     ]
     return decodes, frequencies, [note] if note else [], moved
+
+
+#: Why no light of a photo is read when its stripes do not say the readout axis.
+UNCLEAR_AXIS = (
+    "the stripes do not show which way the sensor read (rows or columns): give the readout "
+    "(--readout, or readout in the camera file)"
+)
+
+
+def _unread(blobs) -> list[StripeDecode]:
+    """Every blob left unread, as when the photo's readout axis is unclear."""
+    return [StripeDecode(None, UNCLEAR_AXIS, -1, 0.0, np.nan, np.nan, "", np.nan) for _ in blobs]
 
 
 def _from_glows(img, blobs, man: Manchester, fixture_map, profiles, weights, readout) -> Manchester:
@@ -515,25 +604,33 @@ def locate(
     st = settings or _DEFAULT_SETTINGS
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
+    shape = np.shape(image)
+    camera, turned_note = fitted_camera(camera, *(shape[1::-1] if len(shape) >= 2 else (0, 0)))
     img, mirrored = _prepare(image, camera, st)
     down = None if gravity is None else _gravity(gravity, camera, fixture_map)
-    given = st.readout or camera.readout
-    detection, readout = _detect(img, given, st)
+    detection, found_readout, direction_known, axis_note = _detect(
+        img, st.readout or camera.readout, st
+    )
+    readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is decoded below)
     blobs = detection.blobs
-    if fixture_map.mode != "frequency":  # (a frequency-coded light is centred as it is measured)
-        blobs = centred_on_glow(img, blobs, readout.axis)
+    if fixture_map.mode != "frequency" and found_readout is not None:
+        blobs = centred_on_glow(img, blobs, readout.axis)  # (frequency: centred as measured)
     t1 = time.perf_counter()
     gray_rois, extents, profiles, weights = _profiles(img, blobs, readout)
     man: Manchester | None = None
-    if fixture_map.mode == "frequency":
-        decodes, frequencies, notes, blobs = _decode(
+    notes = [n for n in (turned_note, axis_note) if n]
+    if found_readout is None:
+        decodes, frequencies = _unread(blobs), np.full(len(blobs), np.nan)
+    elif fixture_map.mode == "frequency":
+        decodes, frequencies, more, blobs = _decode(
             blobs, gray_rois, profiles, readout, camera, fixture_map
         )
+        notes += more
     else:
-        man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
+        man = decode_manchester(profiles, readout, direction_known, camera, fixture_map, weights)
         man = _from_glows(img, blobs, man, fixture_map, profiles, weights, readout)
         decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
-        notes = [man.note] if man.note else []
+        notes += [man.note] if man.note else []
     t2 = time.perf_counter()
 
     def solve(f: Identified):
@@ -543,6 +640,8 @@ def locate(
     identified = identifier(camera, fixture_map, blobs, outlier_px, solve, needed)
     man, kept = decided(blobs, fixture_map, man, decodes, identified, solve, needed)
     decodes, found, est, reason, told = kept.decodes, kept.found, kept.est, kept.reason, kept.told
+    if found_readout is None:
+        reason = UNCLEAR_AXIS
     if man is not None:
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]

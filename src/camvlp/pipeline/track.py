@@ -268,13 +268,16 @@ class Tracker:
         st = self.settings.locate
         t0 = time.perf_counter()
         img, mirrored = _prepare(image, self.camera, st)
-        detection, readout = _detect(img, self.readout, st)
+        detection, found_readout, _, _ = _detect(img, self.readout, st)
+        readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is read below)
         blobs = list(detection.blobs)
-        if self.readout is None:  # the first frame that decides the direction, from now on
+        if self.readout is None and found_readout is not None:
+            # the first frame that decides the direction, from now on
             args = (self.camera, self.map, st, self._outlier_px)
             self.readout = readout_direction(img, blobs, readout, *args)
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
-        undecided = self.readout is None and self.map.mode != "frequency"  # no ID read reversed
+        # no ID read reversed, nor along an axis the stripes do not show
+        undecided = found_readout is None or (self.readout is None and self.map.mode != "frequency")
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
         decodes = self._decode(img, blobs, self.readout or readout, skip)
         found = identify(blobs, decodes, self.map)

@@ -1,0 +1,502 @@
+"""A frequency-coded light's stripes held against the forward model of a beacon.
+
+A beacon's LED blinks a 50 % square wave at its frequency ``f``; the rolling shutter exposes
+each sensor line over its own window of time, so the light's mean level on line ``y`` (along
+the readout axis) is
+
+    s(y) = a(y) + b(y) q(y; P, phase, e)
+
+with ``q`` the square wave of period ``P = 1 / (f row_time)`` lines integrated over a window
+of ``e`` lines (the exposure, the LED's slow edges and the blur: 0 to 1, trapezoids), ``a``
+the floor under the light (background, glow, the LED's off level) and ``b`` its on level along
+the readout (the light's shape: its chord, a hot core off its centre, vignetting).  ``a`` and
+``b`` are smooth: polynomials of :data:`DEGREE` over the light's span.  A real light's shape
+leaks into any waveform separated from it under a stricter model (a radial one fails on a core
+off the disc's centre); smooth envelopes absorb it, and only the stripes' edges tell ``P``.
+
+:class:`BeaconProfile` fits that model to a light's profile for many waves at once (the
+envelopes' least squares per wave from moments of the wave against the profile: one matrix
+product for thousands of waves), and :func:`hold_against` decides which of a map's
+frequencies, if any, the stripes are: the one that explains them best, by a margin over
+every other map frequency, nearly as well as any frequency at all, and explaining most of
+them, line by line as well as in the residual's sum.  Data sent by a light, flicker and text
+fail one of those tests and are refused with the reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import legendre
+
+from camvlp.pipeline.levels import CLIP_LEVEL
+
+__all__ = [
+    "DEGREE",
+    "BeaconProfile",
+    "FrequencyTest",
+    "hold_against",
+    "light_profile",
+    "square_wave",
+    "stripes_period",
+]
+
+#: Degree of the envelopes ``a`` and ``b``: a light's shape over its span (a chord, a hot core
+#: off its centre).  On the real photos' 55 small lights (1.3 to 5 periods), degree 4 leaves
+#: the true frequency's fit at least 2.5 times better than the next map frequency's; degree 2
+#: lets a core off the centre pass into the stripes (1.4 times at worst).
+DEGREE = 4
+#: Degree of the floor ``a``: smoother than the on level, so that the floor cannot rise to
+#: the on level where a disc ends and pass for a stripe.
+FLOOR_DEGREE = 2
+#: Weight of the ridge on the envelopes' variation, per unit of the profile's weight: how
+#: much a change of the on level or floor by the profile's scale costs against the residual.
+SMOOTH = 0.01
+#: Phases tried per period, windows (fractions of the shorter part of the period) per phase,
+#: and duties (the high part's share of the period: a driver's own, or a clipped light's
+#: bright stripes widened by their ramps reaching the full scale early).
+PHASES = 24
+WINDOWS = (0.1, 0.4, 0.7, 1.0)
+DUTIES = (0.5,)
+#: The duties the fit may refine to.
+DUTY_RANGE = (0.5, 0.5)
+#: Shortest window, lines: a line samples the wave once, an edge sharper than a line lies
+#: anywhere between two lines.
+MIN_WINDOW = 1.0
+#: Shortest period searched, lines (two lines a half period).
+MIN_PERIOD = 2.5
+#: Fewest lines with signal a profile needs: on fewer some short period fits anything.
+MIN_LINES = 10
+#: A line whose pixels clip for this share or more is a bound, not a level: the light
+#: reached its mean level there at least.
+CLIPPED_LINE = 0.5
+
+
+def square_wave(lines, period, phase, window, duty=0.5) -> np.ndarray:
+    """A square wave (high first, for ``duty`` of each period) integrated over a centred
+    window, 0 to 1.
+
+    All arguments broadcast (lines, period, phase and window in lines).  The window is at
+    most the shorter part of a period, so that it spans one edge at most: the wave is then a
+    trapezoid, ramping over ``window`` lines centred on each edge; ``phase`` is a rising
+    edge's line.
+    """
+    window = np.maximum(window, 1e-3)
+    period = np.asarray(period, dtype=float)
+    high = 0.5 * duty * period  # half the high part
+    # distance from the middle of the nearest high part, 0 to period / 2
+    v = np.mod(lines - (phase + high), period)
+    v = np.abs(v - 0.5 * period)
+    v = 0.5 * period - v
+    t = (high + 0.5 * window - v) / window
+    return np.clip(t, 0.0, 1.0)
+
+
+def light_profile(
+    gray: np.ndarray, support: np.ndarray, axis: str
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A light's mean gray level per line of its support along the readout.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (h, w)
+        The light's region of interest, gray levels 0-255 (any real dtype).
+    support : ndarray of bool, shape (h, w)
+        The light's striped area.
+    axis : {"rows", "columns"}
+        The readout axis: lines are rows (``"rows"``) or columns.
+
+    Returns
+    -------
+    lines : ndarray, shape (n,)
+        The lines (index along the readout) holding support pixels.
+    level : ndarray, shape (n,)
+        Their mean gray level over the support.
+    weight : ndarray, shape (n,)
+        Their support pixel counts.
+    clipped : ndarray, shape (n,)
+        The share of their support pixels at :data:`~camvlp.pipeline.levels.CLIP_LEVEL` or
+        more (0 to 1).
+    """
+    g = np.asarray(gray, dtype=np.float64)
+    m = np.asarray(support, dtype=bool)
+    across = 1 if axis == "rows" else 0
+    count = m.sum(axis=across)
+    total = np.where(m, g, 0.0).sum(axis=across)
+    hot = (m & (g >= CLIP_LEVEL)).sum(axis=across)
+    lines = np.flatnonzero(count)
+    n = count[lines].astype(float)
+    return lines.astype(float), total[lines] / n, n, hot[lines] / n
+
+
+class BeaconProfile:
+    """One light's profile, ready for the beacon model's fits.
+
+    Parameters
+    ----------
+    lines, level, weight : array_like, shape (n,)
+        The profile (:func:`light_profile`): line coordinates, levels, weights (0 leaves a
+        line out).
+    degree : int
+        Degree of the on level's envelope ``b``.
+    floor_degree : int
+        Degree of the floor ``a``.
+    """
+
+    def __init__(
+        self,
+        lines,
+        level,
+        weight,
+        clipped=None,
+        degree: int = DEGREE,
+        floor_degree: int = FLOOR_DEGREE,
+    ) -> None:
+        y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, level, weight))
+        c = np.zeros(y.size) if clipped is None else np.asarray(clipped, dtype=float).ravel()
+        keep = (w > 0) & np.isfinite(s)
+        y, s, w, c = y[keep], s[keep], w[keep], c[keep]
+        self.all_lines = y
+        self.span = float(y.max() - y.min() + 1) if y.size else 0.0
+        # a line mostly clipped says only that the light reached its level there, at least
+        bound = c >= CLIPPED_LINE
+        self.lines, self.bound_lines = y[~bound], y[bound]
+        w = w / w.max() if w.size else w
+        self.weight, self.bound_weight = w[~bound], w[bound]
+        self.usable = (~bound).sum() >= MIN_LINES and self.span >= 2 * MIN_PERIOD
+        if not self.usable:
+            return
+        ref = np.median(s[~bound])
+        scale = float(np.percentile(np.abs(s - ref), 95)) or 1.0
+        s = (s - ref) / scale  # costs of order 1 per line
+        self.level, self.bounds = s[~bound], s[bound]
+        centre, half = 0.5 * (y.max() + y.min()), max(0.5 * (y.max() - y.min()), 1.0)
+        u = (y - centre) / half
+        fa, fb = legendre.legvander(u, floor_degree), legendre.legvander(u, degree)
+        self._fa, self._fb = fa[~bound], fb[~bound]
+        self._fa_bound, self._fb_bound = fa[bound], fb[bound]
+        fa, fb = self._fa, self._fb
+        s, w = self.level, self.weight
+        w = self.weight
+        ma, mb = fa.shape[1], fb.shape[1]
+        self._cross = [(i, j) for i in range(ma) for j in range(mb)]
+        self._pairs = [(i, j) for i in range(mb) for j in range(i, mb)]
+        ci, cj = np.array(self._cross).T
+        pi, pj = np.array(self._pairs).T
+        # moments of a wave t against the profile: t @ [cross, pairs, s] and t^2 @ [pairs]
+        self._moments = np.concatenate(
+            [
+                w[:, None] * fa[:, ci] * fb[:, cj],
+                w[:, None] * fb[:, pi] * fb[:, pj],
+                (w * s)[:, None] * fb,
+            ],
+            axis=1,
+        )
+        # a ridge on the envelopes' variation (each Legendre term's mean square is 1 / (2k + 1)):
+        # a few lines at a disc's end cannot bend them into a stripe's edge
+        total = float(w.sum())
+        self._ridge_b = np.diag([0.0] + [SMOOTH * total / (2 * k + 1) for k in range(1, mb)])
+        ridge_a = np.diag([0.0] + [SMOOTH * total / (2 * k + 1) for k in range(1, ma)])
+        gram = fa.T @ (w[:, None] * fa) + ridge_a
+        r0 = fa.T @ (w * s)
+        self._gram_inv = np.linalg.inv(gram + 1e-12 * np.eye(ma))
+        self._a_r0 = self._gram_inv @ r0
+        self.null_cost = max(float(s @ (w * s)) - float(r0 @ self._a_r0), 0.0)
+
+    def wave(self, *params) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`square_wave` of ``params`` (period, phase, window, duty; broadcasting) on
+        :attr:`lines` and on :attr:`bound_lines`: the arguments of :meth:`costs`."""
+        return square_wave(self.lines, *params), square_wave(self.bound_lines, *params)
+
+    def costs(self, t: np.ndarray, tb: np.ndarray | None = None) -> np.ndarray:
+        """Weighted residual sum of squares of the best envelopes for each wave ``t`` (shape
+        (..., n), on :attr:`lines`), in units of the profile's scale squared; shape (...).
+        ``tb``, the waves on :attr:`bound_lines`: each clipped line the fit stays under adds
+        its shortfall squared (the envelopes are fitted to the unclipped lines).
+
+        The floor's least squares are eliminated once (its Gram matrix is the same for
+        every wave); per wave, the on level's normal equations are the Schur complement, of
+        the size of its basis, from moments of the wave against the profile."""
+        ma, mb = self._fa.shape[1], self._fb.shape[1]
+        nc, npairs = len(self._cross), len(self._pairs)
+        mt = t @ self._moments  # (..., cross + pairs + mb)
+        mtt = (t * t) @ self._moments[:, nc : nc + npairs]
+        lead = t.shape[:-1]
+        cross = mt[..., :nc].reshape(*lead, ma, mb)
+        c = np.empty((*lead, mb, mb))
+        for k, (i, j) in enumerate(self._pairs):
+            c[..., i, j] = c[..., j, i] = mtt[..., k]
+        r1 = mt[..., nc + npairs :]
+        schur = c - np.swapaxes(cross, -1, -2) @ (self._gram_inv @ cross)
+        resid = r1 - np.einsum("...ij,i->...j", cross, self._a_r0)
+        schur += self._ridge_b + 1e-9 * np.eye(mb)
+        beta = np.linalg.solve(schur, resid[..., None])[..., 0]  # (..., mb): the on level's
+        cost = np.maximum(self.null_cost - np.einsum("...i,...i->...", resid, beta), 0.0)
+        if tb is None or not self.bound_lines.size:
+            return cost
+        # each clipped line the fit does not reach adds its shortfall, squared
+        alpha = self._a_r0 - np.einsum("ij,...jk,...k->...i", self._gram_inv, cross, beta)
+        fit = alpha @ self._fa_bound.T + tb * (beta @ self._fb_bound.T)
+        short = np.maximum(self.bounds - fit, 0.0)
+        return cost + (short * short) @ self.bound_weight
+
+    def grid(
+        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES
+    ) -> np.ndarray:
+        """:meth:`costs` over ``periods`` (lines) x ``phases`` phases x ``windows`` (fractions
+        of the period) x ``duties``: shape (len(periods), phases, len(windows), len(duties))."""
+        p = np.asarray(periods, dtype=float)[:, None, None, None, None]
+        ph = (np.arange(phases) / phases)[None, :, None, None, None] * p
+        d = np.asarray(duties, dtype=float)[None, None, None, :, None]
+        frac = np.asarray(windows, dtype=float)[None, None, :, None, None]
+        win = np.maximum(frac * np.minimum(d, 1 - d) * 2 * p, MIN_WINDOW)
+        return self.costs(*self.wave(p, ph, win, d))
+
+    def best(
+        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES
+    ) -> tuple[float, np.ndarray]:
+        """The least cost over :meth:`grid`, and its wave ``[period, phase, window, duty]``."""
+        cost = self.grid(periods, phases, windows, duties)
+        k = np.unravel_index(int(np.argmin(cost)), cost.shape)
+        p = float(np.asarray(periods, dtype=float)[k[0]])
+        d = float(np.asarray(duties)[k[3]])
+        window = max(float(np.asarray(windows)[k[2]]) * 2 * min(d, 1 - d) * p, MIN_WINDOW)
+        return float(cost[k]), np.array([p, k[1] / phases * p, window, d])
+
+    def refine(self, wave: np.ndarray, lo: float, hi: float) -> tuple[float, np.ndarray]:
+        """The wave refined by Nelder-Mead over period (kept within ``lo`` to ``hi`` lines),
+        phase, window and duty (within :data:`DUTY_RANGE`); (cost, the wave)."""
+        from scipy.optimize import minimize
+
+        def clipped(x: np.ndarray) -> np.ndarray:
+            p = float(np.clip(x[0], lo, hi))
+            d = float(np.clip(x[3], *DUTY_RANGE))
+            return np.array([p, x[1], np.clip(x[2], MIN_WINDOW, 2 * min(d, 1 - d) * p), d])
+
+        def cost(x: np.ndarray) -> float:
+            return float(self.costs(*self.wave(*clipped(x))))
+
+        step = np.array([0.01 * wave[0], 0.05 * wave[0], 0.1 * wave[0], 0.03])
+        simplex = wave + np.vstack([np.zeros(4), np.diag(step)])
+        res = minimize(
+            cost,
+            wave,
+            method="Nelder-Mead",
+            options={"xatol": 1e-3, "fatol": 1e-9, "maxfev": 300, "initial_simplex": simplex},
+        )
+        return float(res.fun), clipped(np.asarray(res.x, dtype=float))
+
+    def envelopes(self, wave: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The floor ``a`` and on level ``b`` per line (the profile's scale, less its median)
+        of the best fit with ``wave``: shape (n,) each."""
+        t = square_wave(self.lines, *wave)
+        x = np.concatenate([self._fa, t[:, None] * self._fb], axis=1)
+        ma, mb = self._fa.shape[1], self._fb.shape[1]
+        w = self.weight
+        ridge = np.zeros((ma + mb, ma + mb))
+        ridge[ma:, ma:] = self._ridge_b
+        ridge[:ma, :ma] = np.diag([0.0] + [SMOOTH * w.sum() / (2 * k + 1) for k in range(1, ma)])
+        beta = np.linalg.solve(x.T @ (w[:, None] * x) + ridge + 1e-9 * np.eye(ma + mb), x.T @ (w * self.level))
+        return self._fa @ beta[:ma], self._fb @ beta[ma:]
+
+    def agreement(self, wave: np.ndarray) -> float:
+        """The share of the lines clearly on or off in ``wave`` whose own level says the same:
+        the profile less its floor, over its on level, above or below one half.  Only lines
+        of many pixels (a disc's caps, few, leave the envelopes loose) where the on level is
+        a quarter of its peak or more count."""
+        a, b = self.envelopes(wave)
+        t = square_wave(self.lines, *wave)
+        if b.mean() < 0:  # the wave's complement fits (a + b t = a + b - b (1 - t))
+            a, b, t = a + b, -b, 1.0 - t
+        wide = self.weight >= 0.3
+        strong = wide & (b >= 0.25 * (b[wide].max() if wide.any() else 0.0))
+        clear = strong & ((t <= 0.2) | (t >= 0.8))
+        if not clear.any():
+            return 0.0
+        on = (self.level - a) > 0.5 * b
+        return float(np.mean(on[clear] == (t[clear] >= 0.5)))
+
+
+@dataclass(frozen=True)
+class FrequencyTest:
+    """A light's stripes held against a map's frequencies (:func:`hold_against`).
+
+    Attributes
+    ----------
+    index : int or None
+        The map frequency the stripes are (index into the periods given), None when refused.
+    reason : str
+        Why no frequency was chosen ("" when one was).
+    period_px : float
+        The stripes' own period, lines (the best fit over every period; NaN if none).
+    periods_seen : float
+        The profile's span over that period.
+    explained : float
+        The share of the profile's variation (about its envelopes) the chosen frequency's
+        wave explains, 0 to 1 (the best map frequency's when refused).
+    margin : float
+        ``1 - cost / next cost``: how much better the chosen frequency explains the stripes
+        than the next map frequency (0: as well, 1: the next explains nothing).
+    agreement : float
+        The share of clearly lit or dark lines the chosen wave agrees with.
+    costs : ndarray, shape (K,)
+        Each map frequency's least residual (the profile's scale), inf where not searched.
+    """
+
+    index: int | None
+    reason: str
+    period_px: float
+    periods_seen: float
+    explained: float
+    margin: float
+    agreement: float
+    costs: np.ndarray
+
+    def __bool__(self) -> bool:
+        return self.index is not None
+
+
+#: A map frequency is chosen only when it explains this share of the stripes' variation...
+MIN_EXPLAINED = 0.6
+#: ...leaves every other map frequency this many times its residual (margin 1 - 1/ratio)...
+MIN_RATIO = 1.5
+#: ...is within this factor of the best residual of any frequency at all...
+OFF_MAP_RATIO = 1.5
+#: ...and agrees with this share of the clearly lit or dark lines.
+MIN_AGREEMENT = 0.9
+#: Fewest periods a profile must show to be tested: under one a light is steady or too small.
+MIN_PERIODS_SEEN = 0.75
+#: Each map frequency's period is searched within this relative distance (the row time's
+#: uncertainty), and never past half-way to the next map frequency.
+TOLERANCE = 0.03
+
+
+def _search_periods(target: float, lo: float, hi: float, step: float = 0.005) -> np.ndarray:
+    """Periods around ``target`` from ``lo`` to ``hi`` lines, ``step`` apart (relative)."""
+    n = max(1, int(np.ceil(np.log(hi / lo) / step)))
+    return np.exp(np.linspace(np.log(lo), np.log(hi), n + 1))
+
+
+def _window(periods: np.ndarray, k: int, tolerance: float) -> tuple[float, float]:
+    """The periods (lines) searched for map period ``k``: within ``tolerance`` of it, and
+    never past half-way (geometrically) to its neighbours."""
+    p = float(periods[k])
+    below, above = periods[periods < p], periods[periods > p]
+    lo = max(p * (1 - tolerance), float(np.sqrt(p * below.max())) if below.size else 0.0)
+    hi = min(p * (1 + tolerance), float(np.sqrt(p * above.min())) if above.size else np.inf)
+    return lo, hi
+
+
+def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
+    """The square wave that best fits a light's stripes, any period: (its residual, its
+    ``[period, phase, window, duty]``, lines); (inf, NaNs) for a profile too short.
+
+    Every period the profile spans 0.75 of or more is tried (4 % apart, 12 phases, 3
+    windows); the best, and each of ``periods`` (lines: the map's, whose own search may find
+    a better phase), are searched finer, and the best of those refined (:meth:`refine`).
+    """
+    if not profile.usable:
+        return np.inf, np.full(4, np.nan)
+    longest = profile.span / MIN_PERIODS_SEEN
+    coarse = np.exp(np.arange(np.log(MIN_PERIOD), np.log(longest), 0.04))
+    grid = profile.grid(coarse, 12, (0.2, 0.6, 1.0)).reshape(coarse.size, -1).min(1)
+    seeds = [float(coarse[int(np.argmin(grid))])]
+    seeds += [float(p) for p in np.asarray(periods, dtype=float) if MIN_PERIOD <= p <= longest]
+    best = (np.inf, np.full(4, np.nan))
+    for p in seeds:
+        got = profile.best(_search_periods(p, p * 0.97, p * 1.03))
+        if got[0] < best[0]:
+            best = got
+    return profile.refine(best[1], MIN_PERIOD, longest)
+
+
+def hold_against(
+    profile: BeaconProfile,
+    periods,
+    free: tuple[float, np.ndarray] | None = None,
+    tolerance: float = TOLERANCE,
+    row_time_s: float | None = None,
+) -> FrequencyTest:
+    """Which of a map's frequencies a light's stripes are, or why none.
+
+    The map frequency whose wave (its period within ``tolerance``) leaves the least residual
+    is chosen when it explains :data:`MIN_EXPLAINED` of the stripes' variation, leaves the
+    next map frequency :data:`MIN_RATIO` times its residual, is within
+    :data:`OFF_MAP_RATIO` of the best residual of any period, and agrees with
+    :data:`MIN_AGREEMENT` of the clearly lit or dark lines.
+
+    Parameters
+    ----------
+    profile : BeaconProfile
+        The light's profile.
+    periods : array_like, shape (K,)
+        The map's frequencies as periods, lines (``1 / (f row_time)``).
+    free : tuple, optional
+        :func:`stripes_period`'s result when already known.
+    tolerance : float
+        Relative distance around each period searched (the row time's uncertainty).
+    row_time_s : float, optional
+        Seconds per line, to give periods as frequencies in the reasons.
+
+    Returns
+    -------
+    FrequencyTest
+    """
+    target = np.asarray(periods, dtype=float).reshape(-1)
+    nan = float("nan")
+    costs = np.full(target.size, np.inf)
+    if not profile.usable:
+        why = "too few lines with signal to measure stripes"
+        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs)
+    null = profile.null_cost
+    free_cost, free_wave = free if free is not None else stripes_period(profile, target)
+    period = float(free_wave[0])
+    seen = profile.span / period
+    longest = profile.span / MIN_PERIODS_SEEN
+    # each map frequency within its tolerance, never past half-way to its neighbours
+    waves: list[np.ndarray | None] = [None] * target.size
+    for k, p in enumerate(target):
+        if MIN_PERIOD <= p <= longest * 1.5:
+            costs[k], waves[k] = profile.best(_search_periods(p, *_window(target, k, tolerance)))
+    j = int(np.argmin(costs))
+    if waves[j] is not None:  # refined as the stripes' own period was, within its window
+        costs[j], waves[j] = profile.refine(waves[j], *_window(target, j, tolerance))
+    free_cost = min(free_cost, float(costs[j]))
+    ranked = np.sort(costs)
+
+    def share(cost: float) -> float:
+        return float(1.0 - cost / null) if null > 0 and np.isfinite(cost) else 0.0
+
+    explained = share(costs[j])
+    nxt = ranked[1] if ranked.size > 1 else np.inf
+    margin = float(1.0 - costs[j] / nxt) if np.isfinite(nxt) and nxt > 0 else 1.0
+    agreement = profile.agreement(waves[j]) if waves[j] is not None else 0.0
+    own = f"{1.0 / (period * row_time_s):.0f} Hz" if row_time_s else f"a period of {period:.1f} px"
+
+    def refused(why: str) -> FrequencyTest:
+        return FrequencyTest(None, why, period, seen, explained, margin, agreement, costs)
+
+    if not np.isfinite(period) or seen < MIN_PERIODS_SEEN:
+        return refused(f"the light shows {seen:.2f} stripe periods, too few (steady, or too small)")
+    off_map = not np.isfinite(costs[j]) or costs[j] > OFF_MAP_RATIO * free_cost
+    if off_map and share(free_cost) >= MIN_EXPLAINED:
+        return refused(f"its stripes are a square wave of {own}, which is no map frequency")
+    if explained < MIN_EXPLAINED:
+        return refused(
+            f"its stripes are not a square wave of any map frequency (the best explains "
+            f"{100 * explained:.0f} % of them): data, flicker or not a beacon"
+        )
+    if off_map:
+        return refused(f"its stripes fit {own} better than any map frequency")
+    if margin < 1.0 - 1.0 / MIN_RATIO:
+        return refused(
+            f"two map frequencies fit its stripes about equally (margin {margin:.2f}): too "
+            "few periods to tell them apart"
+        )
+    if agreement < MIN_AGREEMENT:
+        return refused(
+            f"its stripes are not a regular square wave ({100 * agreement:.0f} % of its lines "
+            "agree with the best map frequency's): data, flicker or not a beacon"
+        )
+    return FrequencyTest(j, "", period, seen, explained, margin, agreement, costs)
