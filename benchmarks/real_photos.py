@@ -142,7 +142,11 @@ def judge(entry: dict, result, fixture_map) -> Row:
             continue
         d = [np.hypot(*(np.asarray(t["pixel"], float) - f.pixel)) for t in truth]
         k = int(np.argmin(d))
-        if d[k] <= entry["match_px"] and k not in claimed and freq[f.id] == truth[k]["frequency_hz"]:
+        if (
+            d[k] <= entry["match_px"]
+            and k not in claimed
+            and freq[f.id] == truth[k]["frequency_hz"]
+        ):
             row.right += 1
             claimed.add(k)
         else:

@@ -53,6 +53,9 @@ FLOOR_DEGREE = 2
 #: Weight of the ridge on the envelopes' variation, per unit of the profile's weight: how
 #: much a change of the on level or floor by the profile's scale costs against the residual.
 SMOOTH = 0.01
+#: The period is refined with flat envelopes when they leave the residual within this F
+#: ratio (per extra envelope term, against the residual per line) of the full ones'.
+FLAT_F = 3.0
 #: Phases tried per period, windows (fractions of the shorter part of the period) per phase,
 #: and duties (the high part's share of the period: a driver's own, or a clipped light's
 #: bright stripes widened by their ramps reaching the full scale early).
@@ -93,10 +96,9 @@ def square_wave(lines, period, phase, window, duty=0.5) -> np.ndarray:
     return np.clip(t, 0.0, 1.0)
 
 
-def light_profile(
-    gray: np.ndarray, support: np.ndarray, axis: str
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """A light's mean gray level per line of its support along the readout.
+def light_profile(gray: np.ndarray, support: np.ndarray, axis: str) -> tuple[np.ndarray, ...]:
+    """A light's mean gray level per line of its support along the readout: the arguments of
+    :class:`BeaconProfile`.
 
     Parameters
     ----------
@@ -109,15 +111,12 @@ def light_profile(
 
     Returns
     -------
-    lines : ndarray, shape (n,)
-        The lines (index along the readout) holding support pixels.
-    level : ndarray, shape (n,)
-        Their mean gray level over the support.
-    weight : ndarray, shape (n,)
-        Their support pixel counts.
-    clipped : ndarray, shape (n,)
-        The share of their support pixels at :data:`~camvlp.pipeline.levels.CLIP_LEVEL` or
-        more (0 to 1).
+    lines, level, weight : ndarray, shape (n,)
+        The lines (index along the readout) holding support pixels, of which less than
+        :data:`CLIPPED_LINE` clip (:data:`~camvlp.pipeline.levels.CLIP_LEVEL` or more): their
+        mean gray level over the support and their pixel counts.
+    bound_lines, bounds, bound_weight : ndarray, shape (m,)
+        The same of the lines mostly clipped: the light reached their level at least.
     """
     g = np.asarray(gray, dtype=np.float64)
     m = np.asarray(support, dtype=bool)
@@ -127,7 +126,10 @@ def light_profile(
     hot = (m & (g >= CLIP_LEVEL)).sum(axis=across)
     lines = np.flatnonzero(count)
     n = count[lines].astype(float)
-    return lines.astype(float), total[lines] / n, n, hot[lines] / n
+    level, y = total[lines] / n, lines.astype(float)
+    # a line mostly clipped says only that the light reached its level there, at least
+    bound = hot[lines] >= CLIPPED_LINE * n
+    return y[~bound], level[~bound], n[~bound], y[bound], level[bound], n[bound]
 
 
 class BeaconProfile:
@@ -138,6 +140,8 @@ class BeaconProfile:
     lines, level, weight : array_like, shape (n,)
         The profile (:func:`light_profile`): line coordinates, levels, weights (0 leaves a
         line out).
+    bound_lines, bounds, bound_weight : array_like, shape (m,)
+        Lines where the light clipped: it reached at least ``bounds`` there.
     degree : int
         Degree of the on level's envelope ``b``.
     floor_degree : int
@@ -149,30 +153,43 @@ class BeaconProfile:
         lines,
         level,
         weight,
-        clipped=None,
+        bound_lines=(),
+        bounds=(),
+        bound_weight=(),
         degree: int = DEGREE,
         floor_degree: int = FLOOR_DEGREE,
     ) -> None:
+        self._data = (lines, level, weight, bound_lines, bounds, bound_weight)
+        self.degrees = (degree, floor_degree)
         y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, level, weight))
-        c = np.zeros(y.size) if clipped is None else np.asarray(clipped, dtype=float).ravel()
         keep = (w > 0) & np.isfinite(s)
-        y, s, w, c = y[keep], s[keep], w[keep], c[keep]
-        self.all_lines = y
-        self.span = float(y.max() - y.min() + 1) if y.size else 0.0
-        # a line mostly clipped says only that the light reached its level there, at least
-        bound = c >= CLIPPED_LINE
-        self.lines, self.bound_lines = y[~bound], y[bound]
-        w = w / w.max() if w.size else w
-        self.weight, self.bound_weight = w[~bound], w[bound]
-        self.usable = (~bound).sum() >= MIN_LINES and self.span >= 2 * MIN_PERIOD
+        y, s, w = y[keep], s[keep], w[keep]
+        yb, sb, wb = (
+            np.asarray(v, dtype=float).reshape(-1) for v in (bound_lines, bounds, bound_weight)
+        )
+        kb = (wb > 0) & np.isfinite(sb)
+        yb, sb, wb = yb[kb], sb[kb], wb[kb]
+        every = np.concatenate([y, yb])
+        self.span = float(every.max() - every.min() + 1) if every.size else 0.0
+        self.lines, self.bound_lines = y, yb
+        top = max(float(w.max()) if w.size else 0.0, float(wb.max()) if wb.size else 0.0) or 1.0
+        self.weight, self.bound_weight = w / top, wb / top
+        # lines the fit has left over: the weighted count less the model's unknowns
+        n_eff = float(w.sum()) ** 2 / max(float((w * w).sum()), 1e-300) if w.size else 0.0
+        self.free_lines = max(n_eff - (degree + 1) - (floor_degree + 1) - 4, 1.0)
+        self.usable = y.size >= MIN_LINES and self.span >= 2 * MIN_PERIOD
         if not self.usable:
             return
-        ref = np.median(s[~bound])
-        scale = float(np.percentile(np.abs(s - ref), 95)) or 1.0
-        s = (s - ref) / scale  # costs of order 1 per line
-        self.level, self.bounds = s[~bound], s[bound]
-        centre, half = 0.5 * (y.max() + y.min()), max(0.5 * (y.max() - y.min()), 1.0)
-        u = (y - centre) / half
+        s_all = np.concatenate([s, sb])
+        bound = np.r_[np.zeros(y.size, bool), np.ones(yb.size, bool)]
+        y_all = every
+        ref = np.median(s)
+        scale = float(np.percentile(np.abs(s_all - ref), 95)) or 1.0
+        s_all = (s_all - ref) / scale  # costs of order 1 per line
+        self.level, self.bounds = s_all[~bound], s_all[bound]
+        centre = 0.5 * (y_all.max() + y_all.min())
+        half = max(0.5 * (y_all.max() - y_all.min()), 1.0)
+        u = (y_all - centre) / half
         fa, fb = legendre.legvander(u, floor_degree), legendre.legvander(u, degree)
         self._fa, self._fb = fa[~bound], fb[~bound]
         self._fa_bound, self._fb_bound = fa[bound], fb[bound]
@@ -203,6 +220,10 @@ class BeaconProfile:
         self._gram_inv = np.linalg.inv(gram + 1e-12 * np.eye(ma))
         self._a_r0 = self._gram_inv @ r0
         self.null_cost = max(float(s @ (w * s)) - float(r0 @ self._a_r0), 0.0)
+
+    def with_degrees(self, degree: int, floor_degree: int) -> BeaconProfile:
+        """The same profile with envelopes of other degrees."""
+        return BeaconProfile(*self._data, degree=degree, floor_degree=floor_degree)
 
     def wave(self, *params) -> tuple[np.ndarray, np.ndarray]:
         """:func:`square_wave` of ``params`` (period, phase, window, duty; broadcasting) on
@@ -241,9 +262,7 @@ class BeaconProfile:
         short = np.maximum(self.bounds - fit, 0.0)
         return cost + (short * short) @ self.bound_weight
 
-    def grid(
-        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES
-    ) -> np.ndarray:
+    def grid(self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES) -> np.ndarray:
         """:meth:`costs` over ``periods`` (lines) x ``phases`` phases x ``windows`` (fractions
         of the period) x ``duties``: shape (len(periods), phases, len(windows), len(duties))."""
         p = np.asarray(periods, dtype=float)[:, None, None, None, None]
@@ -297,7 +316,9 @@ class BeaconProfile:
         ridge = np.zeros((ma + mb, ma + mb))
         ridge[ma:, ma:] = self._ridge_b
         ridge[:ma, :ma] = np.diag([0.0] + [SMOOTH * w.sum() / (2 * k + 1) for k in range(1, ma)])
-        beta = np.linalg.solve(x.T @ (w[:, None] * x) + ridge + 1e-9 * np.eye(ma + mb), x.T @ (w * self.level))
+        beta = np.linalg.solve(
+            x.T @ (w[:, None] * x) + ridge + 1e-9 * np.eye(ma + mb), x.T @ (w * self.level)
+        )
         return self._fa @ beta[:ma], self._fb @ beta[ma:]
 
     def agreement(self, wave: np.ndarray) -> float:
@@ -342,6 +363,10 @@ class FrequencyTest:
         The share of clearly lit or dark lines the chosen wave agrees with.
     costs : ndarray, shape (K,)
         Each map frequency's least residual (the profile's scale), inf where not searched.
+    crowded : bool
+        Refused because another map frequency lies within twice the tolerance of the one
+        that fits: a tighter tolerance (the row time rescaled by the photo's other lights)
+        may tell them apart.
     """
 
     index: int | None
@@ -352,6 +377,7 @@ class FrequencyTest:
     margin: float
     agreement: float
     costs: np.ndarray
+    crowded: bool = False
 
     def __bool__(self) -> bool:
         return self.index is not None
@@ -359,16 +385,19 @@ class FrequencyTest:
 
 #: A map frequency is chosen only when it explains this share of the stripes' variation...
 MIN_EXPLAINED = 0.6
-#: ...leaves every other map frequency this many times its residual (margin 1 - 1/ratio)...
-MIN_RATIO = 1.5
+#: ...leaves every other map frequency this much more residual, in units of its own residual
+#: per free line (a likelihood ratio: 25 is five standard deviations where the residual is
+#: noise, more where it is the model's misfit)...
+MIN_EVIDENCE = 25.0
 #: ...is within this factor of the best residual of any frequency at all...
 OFF_MAP_RATIO = 1.5
 #: ...and agrees with this share of the clearly lit or dark lines.
 MIN_AGREEMENT = 0.9
 #: Fewest periods a profile must show to be tested: under one a light is steady or too small.
 MIN_PERIODS_SEEN = 0.75
-#: Each map frequency's period is searched within this relative distance (the row time's
-#: uncertainty), and never past half-way to the next map frequency.
+#: Each map frequency's period is searched within this relative distance: how well the
+#: camera file's row time is known (and the drivers' frequencies: the real photos' LEDs are
+#: up to 1.5 % off their nominal ones).
 TOLERANCE = 0.03
 
 
@@ -379,13 +408,11 @@ def _search_periods(target: float, lo: float, hi: float, step: float = 0.005) ->
 
 
 def _window(periods: np.ndarray, k: int, tolerance: float) -> tuple[float, float]:
-    """The periods (lines) searched for map period ``k``: within ``tolerance`` of it, and
-    never past half-way (geometrically) to its neighbours."""
+    """The periods (lines) searched for map period ``k``: within ``tolerance`` of it.  Two
+    map frequencies closer than the row time is known overlap: a light whose period falls
+    where both reach fits both alike, and is refused."""
     p = float(periods[k])
-    below, above = periods[periods < p], periods[periods > p]
-    lo = max(p * (1 - tolerance), float(np.sqrt(p * below.max())) if below.size else 0.0)
-    hi = min(p * (1 + tolerance), float(np.sqrt(p * above.min())) if above.size else np.inf)
-    return lo, hi
+    return p * (1 - tolerance), p * (1 + tolerance)
 
 
 def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
@@ -408,7 +435,17 @@ def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarra
         got = profile.best(_search_periods(p, p * 0.97, p * 1.03))
         if got[0] < best[0]:
             best = got
-    return profile.refine(best[1], MIN_PERIOD, longest)
+    cost, wave = profile.refine(best[1], MIN_PERIOD, longest)
+    # the period from flat envelopes where they explain the stripes as well (a light whose
+    # shape the waveform is free of): fewer unknowns, a sharper period
+    flat = profile.with_degrees(0, 0)
+    if flat.usable and np.isfinite(cost):
+        flat_cost, flat_wave = flat.refine(wave, MIN_PERIOD, longest)
+        extra = sum(profile.degrees)  # the envelopes' terms beyond the flat ones
+        dof = max(profile.lines.size - 6 - extra, 1)
+        if (flat_cost - cost) * dof <= FLAT_F * extra * max(cost, 1e-12):
+            wave = np.array([flat_wave[0], *wave[1:]])
+    return cost, wave
 
 
 def hold_against(
@@ -422,7 +459,7 @@ def hold_against(
 
     The map frequency whose wave (its period within ``tolerance``) leaves the least residual
     is chosen when it explains :data:`MIN_EXPLAINED` of the stripes' variation, leaves the
-    next map frequency :data:`MIN_RATIO` times its residual, is within
+    next map frequency :data:`MIN_EVIDENCE` residuals per line more, is within
     :data:`OFF_MAP_RATIO` of the best residual of any period, and agrees with
     :data:`MIN_AGREEMENT` of the clearly lit or dark lines.
 
@@ -459,9 +496,15 @@ def hold_against(
     for k, p in enumerate(target):
         if MIN_PERIOD <= p <= longest * 1.5:
             costs[k], waves[k] = profile.best(_search_periods(p, *_window(target, k, tolerance)))
+    for k in range(target.size):  # the stripes' own wave, where its period is in the window
+        lo, hi = _window(target, k, tolerance)
+        if lo <= period <= hi and free_cost < costs[k]:
+            costs[k], waves[k] = free_cost, free_wave
     j = int(np.argmin(costs))
     if waves[j] is not None:  # refined as the stripes' own period was, within its window
-        costs[j], waves[j] = profile.refine(waves[j], *_window(target, j, tolerance))
+        refined = profile.refine(waves[j], *_window(target, j, tolerance))
+        if refined[0] < costs[j]:
+            costs[j], waves[j] = refined
     free_cost = min(free_cost, float(costs[j]))
     ranked = np.sort(costs)
 
@@ -471,6 +514,8 @@ def hold_against(
     explained = share(costs[j])
     nxt = ranked[1] if ranked.size > 1 else np.inf
     margin = float(1.0 - costs[j] / nxt) if np.isfinite(nxt) and nxt > 0 else 1.0
+    # the next map frequency's excess residual, in units of the residual per free line
+    evidence = (nxt - costs[j]) / max(costs[j] / profile.free_lines, 1e-12)
     agreement = profile.agreement(waves[j]) if waves[j] is not None else 0.0
     own = f"{1.0 / (period * row_time_s):.0f} Hz" if row_time_s else f"a period of {period:.1f} px"
 
@@ -489,10 +534,27 @@ def hold_against(
         )
     if off_map:
         return refused(f"its stripes fit {own} better than any map frequency")
-    if margin < 1.0 - 1.0 / MIN_RATIO:
+    near = target[(np.abs(np.log(target / target[j])) < 2.0 * tolerance) & (target != target[j])]
+    if near.size:
+        other = 1.0 / (near[0] * row_time_s) if row_time_s else float("nan")
+        mine = 1.0 / (target[j] * row_time_s) if row_time_s else float("nan")
+        return FrequencyTest(
+            None,
+            f"its stripes fit {mine:.0f} Hz, but the map's {other:.0f} Hz is too near it to tell "
+            f"apart (closer than twice the {100 * tolerance:.1f} % the row time and drivers "
+            "are known to)",
+            period,
+            seen,
+            explained,
+            margin,
+            agreement,
+            costs,
+            crowded=True,
+        )
+    if evidence < MIN_EVIDENCE:
         return refused(
             f"two map frequencies fit its stripes about equally (margin {margin:.2f}): too "
-            "few periods to tell them apart"
+            "few periods, or too little between them, to tell them apart"
         )
     if agreement < MIN_AGREEMENT:
         return refused(

@@ -27,6 +27,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.beacon import BeaconProfile, hold_against, light_profile, stripes_period
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import light_support
+from camvlp.pipeline.light_wave import LightWave, separated_wave
 
 __all__ = [
     "FrequencyAssignment",
@@ -239,23 +240,42 @@ def _disc_support(blob) -> np.ndarray:
     return blob.mask | circle
 
 
-def _support(blob, gray: np.ndarray, axis: str) -> np.ndarray:
-    """A light's striped area: down to the background for a light that glows (its support
-    covers :data:`_GLOW_RATIO` times the disc or more,
+def _support(blob, gray: np.ndarray, axis: str) -> tuple[np.ndarray, bool]:
+    """A light's striped area, and whether it glows: down to the background for a light that
+    glows (its support covers :data:`_GLOW_RATIO` times the disc or more,
     :func:`~camvlp.pipeline.detect.light_support`), the disc's own outline otherwise."""
     support = light_support(gray, blob.mask, axis, cell=blob.cell)
     if support.sum() >= _GLOW_RATIO * blob.mask.sum():
-        return support
-    return _disc_support(blob)
+        return support, True
+    return _disc_support(blob), False
+
+
+def _profile(blob, gray: np.ndarray, support: np.ndarray, axis: str) -> BeaconProfile:
+    """A light's waveform per line, separated from its radial shape
+    (:func:`~camvlp.pipeline.light_wave.separated_wave`: on the real photos' lights the true
+    frequency's fit then leaves every other map frequency 2.6 times its residual or more,
+    against 1.6 on the mean level per line), else (the separation fails, or leaves too few
+    lines unclipped: a light saturated all over) its mean level per line
+    (:func:`~camvlp.pipeline.beacon.light_profile`)."""
+    x0, y0 = blob.box[0], blob.box[1]
+    ellipse = ((blob.pixel[0] - x0, blob.pixel[1] - y0), tuple(blob.axes_px), blob.angle_deg)
+    got = separated_wave(gray, support, ellipse, axis)
+    if not isinstance(got, LightWave):
+        profile = BeaconProfile(*got[:6])
+        if profile.usable:
+            return profile
+    return BeaconProfile(*light_profile(gray, support, axis))
 
 
 def _centre(blob, support: np.ndarray) -> np.ndarray:
-    """A light's centre ``[u, v]`` (photo pixels): the centre of an ellipse fitted to the
-    outline of its whole striped area, down to the background.  A real light's stripes, its
-    hot core and its glow are all about its centre, where its bright part (what detection
-    outlines) is not: on Luxapose's photo of five lights, 2 to 10 px from the lights' own
-    pixels where the bright parts' are 5 to 52 px.  The blob's own centre when the outline
-    is too short to fit or its centre falls outside the support."""
+    """A glowing light's centre ``[u, v]`` (photo pixels): the centre of an ellipse fitted to
+    the outline of its whole striped area, down to the background.  A real light's stripes,
+    its hot core and its glow are all about its centre, where its bright part (what
+    detection outlines) is not: on Luxapose's photo of five lights, 2 to 10 px from the
+    lights' own pixels where the bright parts' are 5 to 52 px, and 1.0 cm from Luxapose's
+    position where the centres of their radial shapes give 8.7 cm.  The blob's own centre
+    when the outline is too short to fit or its centre falls outside the support.  (A plain
+    disc keeps the centre detection fitted to its edges.)"""
     contours, _ = cv2.findContours(
         support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
     )
@@ -269,6 +289,36 @@ def _centre(blob, support: np.ndarray) -> np.ndarray:
     if not (0 <= cx < w and 0 <= cy < h and support[int(cy), int(cx)]):
         return np.asarray(blob.pixel, dtype=float)
     return np.array([cx + blob.box[0], cy + blob.box[1]], dtype=float)
+
+
+#: Fewest lights identified at the camera file's row time that rescale it for the others.
+_SCALE_LIGHTS = 2
+#: The least relative uncertainty left once the row time is rescaled by the photo's lights:
+#: drivers blink off their nominal frequencies (the real photos' LEDs by up to 1.5 %), so map
+#: frequencies closer than about twice this are not told apart.
+_SCALE_FLOOR = 0.01
+
+
+def _told_apart(tests, profiles, free, map_freqs, row_time: float, periods) -> list:
+    """The tests again, of lights whose map frequencies lie too close together to tell apart
+    at the row time's tolerance, with the row time rescaled by the lights identified (their
+    stripes' periods against their map frequencies; :data:`_SCALE_LIGHTS` or more) and a
+    tolerance of what that scale's spread leaves (three times its standard error, at least
+    :data:`_SCALE_FLOOR`).  A photo's lights share one row time, so the lights of far-apart
+    frequencies tell it to all."""
+    sure = [k for k, t in enumerate(tests) if t.index is not None]
+    close = [k for k, t in enumerate(tests) if t.crowded]
+    if len(sure) < _SCALE_LIGHTS or not close:
+        return tests
+    ratios = np.array([periods[k] * map_freqs[tests[k].index] * row_time for k in sure])
+    scale = float(np.median(ratios))
+    spread = 1.4826 * float(np.median(np.abs(ratios - scale))) / np.sqrt(len(sure))
+    tolerance = max(3.0 * spread, _SCALE_FLOOR)
+    rt = row_time * scale
+    out = list(tests)
+    for k in close:
+        out[k] = hold_against(profiles[k], 1.0 / (map_freqs * rt), free[k], tolerance, rt)
+    return out
 
 
 def decode_frequencies(
@@ -315,12 +365,16 @@ def decode_frequencies(
     n = len(blobs)
     map_freqs = np.array([f.frequency_hz for f in fixture_map.fixtures], dtype=float)
     ids_of = [f.id for f in fixture_map.fixtures]
-    supports = [_support(b, g, axis) for b, g in zip(blobs, gray_rois, strict=True)]
-    centres = np.array([_centre(b, m) for b, m in zip(blobs, supports, strict=True)])
+    found = [_support(b, g, axis) for b, g in zip(blobs, gray_rois, strict=True)]
+    supports = [m for m, _ in found]
+    centres = np.array(
+        [
+            _centre(b, m) if glows else np.asarray(b.pixel, dtype=float)
+            for b, (m, glows) in zip(blobs, found, strict=True)
+        ]
+    )
     centres = centres.reshape(n, 2)
-    profiles = [
-        BeaconProfile(*light_profile(g, m, axis)) for g, m in zip(gray_rois, supports, strict=True)
-    ]
+    profiles = [_profile(b, g, m, axis) for b, g, m in zip(blobs, gray_rois, supports, strict=True)]
     row_time = camera.row_time_s
     seeds = 1.0 / (map_freqs * row_time) if row_time else ()
     free = [stripes_period(p, seeds) for p in profiles]
@@ -344,6 +398,7 @@ def decode_frequencies(
         hold_against(p, 1.0 / (map_freqs * row_time), f, row_time_s=row_time)
         for p, f in zip(profiles, free, strict=True)
     ]
+    tests = _told_apart(tests, profiles, free, map_freqs, row_time, periods)
     chosen = [t.index for t in tests]
     decodes = []
     for t in tests:

@@ -35,7 +35,7 @@ from camvlp.pipeline.rim import GridShape, refine_wave
 from camvlp.pipeline.square_wave import _integrated, fit_square_wave, sharp_period
 from camvlp.pipeline.threads import one_blas_thread
 
-__all__ = ["LightWave", "light_wave", "outline_ellipse"]
+__all__ = ["LightWave", "light_wave", "outline_ellipse", "separated_wave"]
 
 #: Width of the bins of the light's radial shape ``g``: at least half a pixel, at most
 #: 1/40 of its radius (a big light needs no finer shape).
@@ -482,6 +482,32 @@ def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> Lig
             centre = centre[::-1]
         seen = (used[-1] - used[0] + 1) / period
     return LightWave(period, window, phase, (low, high), centre, float(seen))
+
+
+@one_blas_thread
+def separated_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str):
+    """A round light's waveform per line, separated from its radial shape: the lines with
+    signal, the waveform and its weight, the clipped lines' lower bounds and their weights,
+    and the shape's centre ``[x, y]`` in the region; or a failed :class:`LightWave` with
+    why.  The arguments are as :func:`light_wave`'s, whose first step this is."""
+    fitted = _radial(gray, support, ellipse, axis)
+    if isinstance(fitted, LightWave):
+        return fitted
+    cy_, cx_ = fitted.clipped
+    _, s, weight, shape = fitted.fit(fitted.best, fitted.warm, 12)
+    bound_lines, bounds, bound_weight = _clip_bounds(
+        _radius(_axes(cx_, cy_, fitted.cs), fitted.best, fitted.cs) / fitted.bin_px,
+        cy_,
+        shape,
+        _CLIP - fitted.background,
+        fitted.n_lines,
+    )
+    weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)
+    centre = np.array(fitted.best[:2], dtype=float)
+    if axis == "columns":
+        centre = centre[::-1]
+    lines = np.arange(fitted.n_lines, dtype=float)
+    return lines, s, weight, bound_lines, bounds, bound_weight, centre
 
 
 def _rim_only(fitted: _Radial, shape: np.ndarray, high: float) -> float:

@@ -167,10 +167,16 @@ def fitted_camera(camera: Camera, width: int, height: int) -> tuple[Camera, str]
     )
 
 
-def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
+def _check_dims(image) -> np.ndarray:
+    """The image as an array (:func:`~camvlp.io.images.as_image`) of a photo's dimensions."""
     img = as_image(image)
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
         raise InputError(f"image must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
+    return img
+
+
+def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
+    img = _check_dims(image)
     h, w = img.shape[:2]
     if (w, h) != (camera.width, camera.height):
         raise InputError(
@@ -400,7 +406,13 @@ def _solve(
                 outlier_px=outlier_px,
             )
         return estimate_pose(
-            points, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
+            points,
+            obj,
+            camera,
+            normals=normals,
+            solver=st.solver,
+            outlier_px=outlier_px,
+            centre_sigma_px=lambda: float(np.median(_centre_sigmas(blobs, usable, st))),
         )
 
     est = solve(pixels)
@@ -604,8 +616,8 @@ def locate(
     st = settings or _DEFAULT_SETTINGS
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
-    shape = np.shape(image)
-    camera, turned_note = fitted_camera(camera, *(shape[1::-1] if len(shape) >= 2 else (0, 0)))
+    image = _check_dims(image)
+    camera, turned_note = fitted_camera(camera, image.shape[1], image.shape[0])
     img, mirrored = _prepare(image, camera, st)
     down = None if gravity is None else _gravity(gravity, camera, fixture_map)
     detection, found_readout, direction_known, axis_note = _detect(
@@ -676,6 +688,7 @@ def locate(
         if est is None or est.alternative is None
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
+        pose_margin=float(getattr(est, "margin", float("nan"))) if est is not None else np.nan,
         notes=tuple(notes),
         stages=LocateStages(
             detection, tuple(gray_rois), tuple(profiles), tuple(decodes), tuple(weights)
