@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import socket
 import sys
@@ -62,17 +63,17 @@ def serve_command(
     if log_level not in LOG_LEVELS:
         fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
     _check_listen(host, port)
-    admin_key = os.environ.get("CAMVLP_ADMIN_KEY", "")
-    try:
-        settings = ServiceSettings(
+    try:  # the options, and the rest (the admin key, the timeouts) from CAMVLP_* variables
+        settings = dataclasses.replace(
+            ServiceSettings.from_env(),
             db=db,
             max_upload_bytes=round(max_upload_mb * 1024 * 1024),
             max_pixels=round(max_megapixels * 1e6),
             locate_threads=threads,
-            admin_key=admin_key,
         )
     except ValueError as exc:
-        fail(str(exc))
+        fail(f"{exc} (environment)")
+    admin_key = settings.admin_key
     _open_database(db)
     os.environ.update(settings.to_env())  # the workers build their app from these
     shown = sa.engine.make_url(db).render_as_string(hide_password=True)
