@@ -850,4 +850,22 @@ def api_cases(root: Path) -> list[tuple[str, Callable[[], object]]]:
             lambda: map_from_dict({"fixtures": [{"id": 1, "position": [float("nan"), 0, 0]}]}),
         ),
     ]
+    # the second round: a JPEG's scans, the tracker's times, a render's size
+    from camvlp.pipeline.track import Tracker
+
+    calls.append(("decode_image(20,000 scans)", lambda: decode_image(scan_bomb(20_000, 512))))
+    for t in (1e300, float("nan"), -1.0):
+
+        def backwards(t=t):
+            tracker = Tracker(camera, fmap)
+            tracker.update(np.zeros((48, 64), np.uint8), 0.0)
+            try:
+                return tracker.update(np.zeros((48, 64), np.uint8), t)
+            finally:  # the tracker must still take the next frame
+                tracker.update(np.zeros((48, 64), np.uint8), 0.1)
+
+        calls.append((f"Tracker.update(t={t})", backwards))
+    huge = camvlp.Camera.from_focal(100_000, 100_000, 5e4)
+    pose = camvlp.Pose.from_euler([0, 0, 0], [0, 0, 0])
+    calls.append(("render(100000 x 100000 camera)", lambda: camvlp.render(huge, fmap, pose)))
     return calls
