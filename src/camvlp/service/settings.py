@@ -58,7 +58,7 @@ class ServiceSettings:
     admin_key: str = field(default="", repr=False)
     header_timeout_s: float = 10.0
     body_timeout_s: float = 10.0
-    max_connections: int = 200
+    max_connections: int = 500
 
     def __post_init__(self) -> None:
         for f in fields(self):
