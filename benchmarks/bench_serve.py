@@ -18,6 +18,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import os
+import secrets
 import socket
 import statistics
 import subprocess
@@ -39,6 +40,8 @@ from camvlp.sim.render import RenderSettings, render
 
 ROOT = Path(__file__).resolve().parents[1]
 HOST = "127.0.0.1"
+#: The admin key of the benchmark's servers (it creates their one site).
+ADMIN_KEY = secrets.token_urlsafe(32)
 
 
 @dataclass(frozen=True)
@@ -88,6 +91,7 @@ def _free_port() -> int:
 def start_server(db: Path, port: int, workers: int, threads: int) -> subprocess.Popen:
     """``camvlp serve`` on 127.0.0.1:port; returns once it answers (or raises)."""
     env = dict(os.environ)
+    env["CAMVLP_ADMIN_KEY"] = ADMIN_KEY
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src"), env.get("PYTHONPATH", "")])
     cmd = [sys.executable, "-m", "camvlp", "serve", "--db", f"sqlite:///{db}", "--host", HOST]
     cmd += ["--port", str(port), "--workers", str(workers), "--threads", str(threads)]
@@ -182,6 +186,7 @@ def run(photo: Photo, workers: int, threads: int, args, tmp: Path) -> dict:
         r = httpx.post(
             f"{base}/api/v1/sites",
             json={"name": "bench", "map": room, "camera": photo.camera},
+            headers={"Authorization": f"Bearer {ADMIN_KEY}"},
         )
         r.raise_for_status()
         site, headers = r.json()["id"], {"Authorization": f"Bearer {r.json()['api_key']}"}

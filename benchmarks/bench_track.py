@@ -42,7 +42,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 import camvlp  # noqa: E402
-from camvlp.analysis.track import run_track, summarize  # noqa: E402
+from camvlp.analysis.track import read_truths, run_track, summarize  # noqa: E402
 from camvlp.io.video import open_frames, read_truth  # noqa: E402
 from camvlp.pipeline.track import Tracker, TrackSettings  # noqa: E402
 from camvlp.sim.render import RenderSettings  # noqa: E402
@@ -80,7 +80,7 @@ def _video(
 def _track(video: Path, room, camera, out: Path, rolling_shutter: bool) -> dict:
     src = open_frames(video, threads=1, gray=True)
     run = run_track(src, Tracker(camera, room, TrackSettings(rolling_shutter=rolling_shutter)), out)
-    s = summarize(run, truth_path=src.truth_path, fixtures_truth_path=src.fixtures_truth_path)
+    s = summarize(run, read_truths(src))
     sources = [b.source for f in run.frames for b in f.fixtures if b.id is not None]
     s["decoded_ids"] = sources.count("decoded")
     s["carried_ids"] = sources.count("carried")

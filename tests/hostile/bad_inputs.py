@@ -114,6 +114,70 @@ def tiff_header_only(width: int, height: int, dtype: str = "float64") -> bytes:
     return bytes(b)
 
 
+def _jpeg_segments(b: bytes) -> list[tuple[int, int, int]]:
+    """``(marker, start, end)`` of each segment of a well-formed JPEG (a scan with its data)."""
+    out, i = [], 2
+    while i < len(b):
+        marker = b[i + 1]
+        if marker == 0xD9:
+            out.append((marker, i, i + 2))
+            break
+        j = i + 2 + ((b[i + 2] << 8) | b[i + 3])
+        if marker == 0xDA:
+            while b[j] != 0xFF or b[j + 1] == 0 or 0xD0 <= b[j + 1] <= 0xD7:
+                j += 1
+        out.append((marker, i, j))
+        i = j
+    return out
+
+
+def scan_bomb(scans: int, side: int) -> bytes:
+    """A progressive JPEG of a flat ``side`` x ``side`` picture whose smallest scan (a few
+    bytes: one run of zeros over the whole picture) is repeated ``scans`` times: each one is a
+    decoding pass over every block."""
+    ok, buf = cv2.imencode(
+        ".jpg", np.full((side, side, 3), 128, np.uint8), [cv2.IMWRITE_JPEG_PROGRESSIVE, 1]
+    )
+    assert ok
+    b = buf.tobytes()
+    found = [s for s in _jpeg_segments(b) if s[0] == 0xDA]
+    small = min(found, key=lambda s: s[2] - s[1])
+    return b[: found[-1][2]] + b[small[1] : small[2]] * scans + b"\xff\xd9"
+
+
+def small_video(path: Path, size: tuple[int, int] = (64, 48), frames: int = 5) -> Path:
+    """A short H.264 video of flat grey frames (``size`` = width, height, both even)."""
+    import av
+
+    with av.open(str(path), "w") as out:
+        stream = out.add_stream("libx264", rate=10)
+        stream.width, stream.height, stream.pix_fmt = size[0], size[1], "yuv420p"
+        for i in range(frames):
+            image = np.full((size[1], size[0], 3), 60 + 10 * i, np.uint8)
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="bgr24")):
+                out.mux(packet)
+        for packet in stream.encode():
+            out.mux(packet)
+    return path
+
+
+def many_fixtures_map(n: int) -> str:
+    """A frequency-coded map (JSON) of ``n`` fixtures on a 0.5 m grid at 2.7 m."""
+    import json
+
+    side = int(np.ceil(np.sqrt(n)))
+    fixtures = [
+        {
+            "id": k + 1,
+            "position": [0.5 * (k % side - side // 2), 0.5 * (k // side - side // 2), 2.7],
+            "diameter": 0.15,
+            "frequency_hz": 1000 + k,
+        }
+        for k in range(n)
+    ]
+    return json.dumps({"units": "m", "frame": {"mode": "frequency"}, "fixtures": fixtures})
+
+
 def deep_json(depth: int = 100_000) -> str:
     """A camera file's JSON with a list nested ``depth`` deep."""
     return '{"image_width": 64, "image_height": 48, "x": ' + "[" * depth + "]" * depth + "}"
@@ -143,7 +207,8 @@ class Case:
 
     ``argv`` are camvlp's arguments; ``code`` the exit code it must give (2: bad input, 1: not
     located, 0: done); ``left_behind`` the paths that must not exist afterwards; ``stdout``
-    the file the command's stdout is sent to (None: a pipe).
+    the file the command's stdout is sent to (None: a pipe); ``env`` environment variables set
+    for it (a limit lowered).
     """
 
     name: str
@@ -153,6 +218,7 @@ class Case:
     left_behind: list[Path] = field(default_factory=list)
     stdout: str | None = None
     json_stdout: bool = False
+    env: dict[str, str] = field(default_factory=dict)
 
 
 def make_files(root: Path) -> dict[str, Path]:
@@ -210,6 +276,38 @@ def make_files(root: Path) -> dict[str, Path]:
     existing.write_text("x")
     f["existing_file"] = existing
     (root / "truth_dir_out.json").mkdir(exist_ok=True)  # blocks render's truth file
+    # the second round: costly structures, videos, track's and render-video's outputs
+    put("scans_500.jpg", scan_bomb(500, 64))
+    f["video.mp4"] = small_video(root / "video.mp4")
+    f["video_128.mp4"] = small_video(root / "video_128.mp4", (128, 96), 2)
+    fifo_video = root / "pipe.mp4"
+    if not fifo_video.exists():
+        os.mkfifo(fifo_video)
+    f["pipe.mp4"] = fifo_video
+    put("camera_641.yaml", "image_width: 641\nimage_height: 361\nfocal_length_px: 500\n")
+    put("camera_1.yaml", "image_width: 1\nimage_height: 1\nfocal_length_px: 1\n")
+    put("map_2500.json", many_fixtures_map(2500))
+    put("second.csv", "t,x,y,z,theta_x,theta_y,theta_z\n0,0,0,0,0,0,0\n1,0.1,0,0,0,0,0\n")
+    frames = root / "frames"
+    frames.mkdir(exist_ok=True)
+    for k in range(2):
+        (frames / f"f{k}.png").write_bytes(
+            cv2.imencode(".png", np.full((48, 64), 40, np.uint8))[1].tobytes()
+        )
+    f["frames"] = frames
+    bad_truth = root / "frames_bad_truth"
+    bad_truth.mkdir(exist_ok=True)
+    for k in range(2):
+        (bad_truth / f"f{k}.png").write_bytes((frames / f"f{k}.png").read_bytes())
+    (bad_truth / "truth.csv").write_text("frame,t,x,y,z,theta_x,theta_y,theta_z\nf0.png,0,a\n")
+    f["frames_bad_truth"] = bad_truth
+    noted = root / "frames_noted"  # a file that is not a frame (a warning) and no lamp
+    noted.mkdir(exist_ok=True)
+    (noted / "f0.png").write_bytes((frames / "f0.png").read_bytes())
+    (noted / "readme.txt").write_text("not a frame")
+    f["frames_noted"] = noted
+    for blocked in ("summary.json", "trajectory.png"):  # an output place that is a folder
+        (root / f"track_blocked_{Path(blocked).stem}" / blocked).mkdir(parents=True, exist_ok=True)
     return f
 
 
@@ -463,6 +561,112 @@ def cases(root: Path) -> list[Case]:
         left_behind=[root / "evaluate_blocked" / n for n in ("results.csv", "error_map.png")],
     )
     add("encode > /dev/full", "traceback: full device", ["encode", "5"], stdout="/dev/full")
+    # the second round
+    add(
+        "locate scans_500.jpg",
+        "cpu: JPEG scans",
+        ["locate", f["scans_500.jpg"], *loc],
+    )
+
+    def video_argv(camera, out_path, *extra) -> list:
+        """``camvlp render-video`` of ``camera`` and the small map along a 1 s trajectory."""
+        return [
+            *("render-video", "--camera", camera, "--map", fmap),
+            *("--trajectory", f["second.csv"], "--out", out_path, *extra),
+        ]
+
+    rv = root / "rv"
+    rv.mkdir(exist_ok=True)
+    for blur, kind in (("1e6", "crash: blur"), ("1000", "hang: blur")):
+        add(
+            f"render-video --blur {blur}",
+            f"render-video: {kind}",
+            video_argv(cam, rv / f"blur{blur}", "--frames", "1", "--blur", blur),
+            left_behind=[rv / f"blur{blur}"],
+        )
+    add(
+        "render-video --fps 1e9 without --frames",
+        "render-video: frame budget",
+        video_argv(cam, rv / "fps", "--fps", "1e9"),
+        left_behind=[rv / "fps"],
+    )
+    for name in ("camera_641.yaml", "camera_1.yaml"):
+        add(
+            f"render-video {name} to mp4",
+            "render-video: odd picture for H.264",
+            video_argv(f[name], rv / f"{name}.mp4", "--frames", "1"),
+            left_behind=[rv / f"{name}.mp4", rv / f"{name}.partial.mp4"],
+        )
+    add(
+        "render-video map_2500.json",
+        "render-video: many fixtures",
+        video_argv(cam, rv / "many", "--map", f["map_2500.json"], "--frames", "1"),
+        code=0,
+    )
+    tr = root / "tr"
+    tr.mkdir(exist_ok=True)
+    written = ("trajectory.csv", "fixtures.csv", "summary.json", "trajectory.png")
+
+    def track_case(name: str, kind: str, source, out_dir: Path, *extra, code=2, **kw) -> None:
+        left = [out_dir / n for n in written if code == 2 and not (out_dir / n).is_dir()]
+        add(
+            name,
+            kind,
+            ["track", source, *loc, "--out", out_dir, *extra],
+            code,
+            left_behind=left,
+            **kw,
+        )
+
+    track_case("track FIFO pipe.mp4", "track: hang on a pipe", f["pipe.mp4"], tr / "fifo")
+    track_case(
+        "track a video over the pixel limit",
+        "track: video pixels",
+        f["video_128.mp4"],
+        tr / "pixels",
+        env={"CAMVLP_MAX_PIXELS": "5000"},
+    )
+    track_case(
+        "track a video over the frame limit",
+        "track: video frames",
+        f["video.mp4"],
+        tr / "count",
+        env={"CAMVLP_MAX_FRAMES": "3"},
+    )
+    track_case(
+        "track --fps 1e-300",
+        "track: half-written outputs",
+        f["frames"],
+        tr / "fps",
+        "--fps",
+        "1e-300",
+    )
+    for blocked in ("summary", "trajectory"):
+        track_case(
+            f"track --out: {blocked} blocked",
+            "track: half-written outputs",
+            f["frames"],
+            root / f"track_blocked_{blocked}",
+            "--fps",
+            "10",
+        )
+    track_case(
+        "track a malformed truth.csv",
+        "track: half-written outputs",
+        f["frames_bad_truth"],
+        tr / "truth",
+        "--fps",
+        "10",
+    )
+    track_case(
+        "track: the error line alone (no warning before it)",
+        "track: warning before the error",
+        f["frames_noted"],
+        tr / "noted",
+        "--fps",
+        "10",
+        code=1,
+    )
     add(
         "locate --json (not located)",
         "wrong answer: JSON with NaN",
@@ -499,6 +703,7 @@ def run_case(
     of address space, killed after ``timeout_s`` seconds."""
     src = str(Path(__file__).resolve().parents[2] / "src")
     child_env = dict(os.environ if env is None else env)
+    child_env.update(case.env)
     child_env["PYTHONPATH"] = src + os.pathsep + child_env.get("PYTHONPATH", "")
     child_env.setdefault("OPENBLAS_NUM_THREADS", "1")
 
@@ -645,4 +850,22 @@ def api_cases(root: Path) -> list[tuple[str, Callable[[], object]]]:
             lambda: map_from_dict({"fixtures": [{"id": 1, "position": [float("nan"), 0, 0]}]}),
         ),
     ]
+    # the second round: a JPEG's scans, the tracker's times, a render's size
+    from camvlp.pipeline.track import Tracker
+
+    calls.append(("decode_image(20,000 scans)", lambda: decode_image(scan_bomb(20_000, 512))))
+    for t in (1e300, float("nan"), -1.0):
+
+        def backwards(t=t):
+            tracker = Tracker(camera, fmap)
+            tracker.update(np.zeros((48, 64), np.uint8), 0.0)
+            try:
+                return tracker.update(np.zeros((48, 64), np.uint8), t)
+            finally:  # the tracker must still take the next frame
+                tracker.update(np.zeros((48, 64), np.uint8), 0.1)
+
+        calls.append((f"Tracker.update(t={t})", backwards))
+    huge = camvlp.Camera.from_focal(100_000, 100_000, 5e4)
+    pose = camvlp.Pose.from_euler([0, 0, 0], [0, 0, 0])
+    calls.append(("render(100000 x 100000 camera)", lambda: camvlp.render(huge, fmap, pose)))
     return calls

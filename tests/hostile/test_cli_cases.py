@@ -31,6 +31,11 @@ ISOLATED = {
     "render-video --frames 2 of a years-long trajectory",
     "study image-error --trials 1e9",
     "encode > /dev/full",
+    "render-video --blur 1e6",
+    "render-video --blur 1000",
+    "render-video --fps 1e9 without --frames",
+    "render-video map_2500.json",
+    "track FIFO pipe.mp4",
 }
 #: Cases left to benchmarks/hostile_retry.py: they spawn worker processes (seconds each).
 BENCHMARK_ONLY = {"evaluate --jobs 1000"}
@@ -59,8 +64,10 @@ def test_isolated_case(all_cases, name):
 
 
 @pytest.mark.parametrize("name", [n for n in _ALL if n not in ISOLATED | BENCHMARK_ONLY])
-def test_in_process_case(all_cases, name, capfd):
+def test_in_process_case(all_cases, name, capfd, monkeypatch):
     case = all_cases[name]
+    for variable, value in case.env.items():
+        monkeypatch.setenv(variable, value)
     code = main(case.argv)
     out, err = capfd.readouterr()
     lines = err.splitlines()

@@ -38,6 +38,10 @@ MAP_JSON = {
         for i, (x, z) in zip(SMALL_ROOM_IDS, SMALL_ROOM_XZ, strict=True)
     ],
 }
+#: The admin key the test services run with (``CAMVLP_ADMIN_KEY``), and its header: it
+#: creates sites.
+ADMIN_KEY = "test-admin-key-of-the-service"
+ADMIN = {"Authorization": f"Bearer {ADMIN_KEY}"}
 #: Where the photos of :func:`render_photo` are taken (metres, thesis angles in degrees).
 PHOTO_POSITION = (0.1, 0.0, -0.05)
 PHOTO_EULER = (LOOK_UP[0], 0.0, 30.0)
@@ -78,6 +82,7 @@ def make_client(tmp_path: Path, **settings):
     from camvlp.service.db import make_engine, metadata
 
     settings.setdefault("stream_max_s", 0.5)
+    settings.setdefault("admin_key", ADMIN_KEY)
     settings.setdefault("stream_poll_s", 0.05)
     url = f"sqlite:///{tmp_path / 'service.db'}"
     if TEST_DB_URL:
@@ -98,7 +103,9 @@ def client(tmp_path: Path):
 def create_site(client, name: str = "small room", **extra) -> tuple[int, dict]:
     """Create the small room's site: ``(site_id, headers with its key)``."""
     r = client.post(
-        "/api/v1/sites", json={"name": name, "map": MAP_JSON, "camera": CAMERA_JSON, **extra}
+        "/api/v1/sites",
+        json={"name": name, "map": MAP_JSON, "camera": CAMERA_JSON, **extra},
+        headers=ADMIN,
     )
     assert r.status_code == 201, r.text
     body = r.json()
@@ -132,6 +139,7 @@ def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
     import camvlp
 
     env = dict(os.environ)
+    env.setdefault("CAMVLP_ADMIN_KEY", ADMIN_KEY)
     src = str(Path(camvlp.__file__).resolve().parents[1])
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
     cmd = [sys.executable, "-m", "camvlp", "serve", "--db", f"sqlite:///{db_path}"]

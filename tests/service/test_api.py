@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 from service_helpers import (
+    ADMIN,
     CAMERA_JSON,
     MAP_JSON,
     PHOTO_POSITION,
@@ -102,20 +103,26 @@ def _bad_map_message(tmp_path: Path, bad: dict) -> str:
 def test_a_malformed_map_is_422_with_the_file_loaders_message(client, tmp_path, change):
     bad = copy.deepcopy(MAP_JSON)
     change(bad)
-    r = client.post("/api/v1/sites", json={"name": "x", "map": bad, "camera": CAMERA_JSON})
+    r = client.post(
+        "/api/v1/sites", json={"name": "x", "map": bad, "camera": CAMERA_JSON}, headers=ADMIN
+    )
     assert r.status_code == 422
     assert detail(r) == f"{_bad_map_message(tmp_path, bad)} (map)"
 
 
 def test_a_malformed_camera_or_body_is_422_in_one_line(client):
     bad = {**CAMERA_JSON, "image_width": -5}
-    r = client.post("/api/v1/sites", json={"name": "x", "map": MAP_JSON, "camera": bad})
+    r = client.post(
+        "/api/v1/sites", json={"name": "x", "map": MAP_JSON, "camera": bad}, headers=ADMIN
+    )
     assert r.status_code == 422
     assert detail(r) == "image_width must be a positive integer, got -5 (camera)"
-    r = client.post("/api/v1/sites", json={"map": MAP_JSON, "camera": CAMERA_JSON})
+    r = client.post("/api/v1/sites", json={"map": MAP_JSON, "camera": CAMERA_JSON}, headers=ADMIN)
     assert r.status_code == 422 and detail(r) == "name: Field required"
     r = client.post(
-        "/api/v1/sites", content=b"{not json", headers={"Content-Type": "application/json"}
+        "/api/v1/sites",
+        content=b"{not json",
+        headers={**ADMIN, "Content-Type": "application/json"},
     )
     assert r.status_code == 422 and "JSON" in detail(r)
 

@@ -12,6 +12,7 @@ from pathlib import Path
 import httpx
 import pytest
 from service_helpers import (
+    ADMIN,
     CAMERA_JSON,
     MAP_JSON,
     free_port,
@@ -42,7 +43,9 @@ def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
     proc = start_server(tmp_path / "page.db", port)
     try:
         site = httpx.post(
-            f"{base}/api/v1/sites", json={"name": "browser", "map": MAP_JSON, "camera": CAMERA_JSON}
+            f"{base}/api/v1/sites",
+            json={"name": "browser", "map": MAP_JSON, "camera": CAMERA_JSON},
+            headers=ADMIN,
         ).json()
         photo = tmp_path / "photo.png"
         photo.write_bytes(photo_png)

@@ -7,6 +7,7 @@ from pathlib import Path
 import httpx
 import numpy as np
 from service_helpers import (
+    ADMIN,
     CAMERA_JSON,
     MAP_JSON,
     PHOTO_POSITION,
@@ -26,7 +27,9 @@ def test_a_fix_survives_a_restart(tmp_path: Path, photo_png):
     proc = start_server(db, port)
     try:
         r = httpx.post(
-            f"{base}/sites", json={"name": "e2e", "map": MAP_JSON, "camera": CAMERA_JSON}
+            f"{base}/sites",
+            json={"name": "e2e", "map": MAP_JSON, "camera": CAMERA_JSON},
+            headers=ADMIN,
         )
         assert r.status_code == 201, r.text
         site_id, key = r.json()["id"], r.json()["api_key"]
@@ -103,7 +106,9 @@ def test_the_stream_carries_fixes_of_every_worker(tmp_path: Path, photo_png):
     proc = start_server(tmp_path / "two.db", port, "--workers", "2")
     try:
         r = httpx.post(
-            f"{base}/sites", json={"name": "two", "map": MAP_JSON, "camera": CAMERA_JSON}
+            f"{base}/sites",
+            json={"name": "two", "map": MAP_JSON, "camera": CAMERA_JSON},
+            headers=ADMIN,
         )
         site_id, headers = r.json()["id"], {"Authorization": f"Bearer {r.json()['api_key']}"}
         seen: list[int] = []

@@ -1,8 +1,9 @@
 """Running the tracker over a video: the files it writes, and its figures against the truth.
 
 :func:`run_track` feeds the frames of a :class:`camvlp.io.video.FrameSource` to a
-:class:`camvlp.pipeline.track.Tracker` and writes, as it goes (so that whatever was processed
-is kept when the input breaks off or the run is interrupted):
+:class:`camvlp.pipeline.track.Tracker` and writes, as it goes, into a folder (``camvlp track``
+gives it a temporary one and moves the files into place once every output is written, so a
+failure leaves nothing; a run that the input's end or an interruption stops early is whole):
 
 * ``trajectory.csv``: one row per frame, ``frame,t,x,y,z,theta_x,theta_y,theta_z,
   fixtures_used,reprojection_rms_px,status`` (filtered pose; ``fixtures_used`` the IDs,
@@ -11,12 +12,13 @@ is kept when the input breaks off or the run is interrupted):
 * ``fixtures.csv``: one row per blob per frame, ``frame,id,u,v,source,used,reason``.
 
 :func:`summarize` gives the figures of ``summary.json``, with the errors when the input has
-its truth beside it (see :mod:`camvlp.sim.video`).
+its truth beside it (see :mod:`camvlp.sim.video`), read before the run by :func:`read_truths`.
 """
 
 from __future__ import annotations
 
 import csv
+import io
 import math
 import time
 from collections.abc import Callable
@@ -26,10 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.files import read_text_file
 from camvlp.io.video import FrameSource, read_truth
 from camvlp.pipeline.track import STATUSES, Tracker, TrackFrame
 
-__all__ = ["TRAJECTORY_CSV_COLUMNS", "TrackRun", "run_track", "summarize"]
+__all__ = ["TRAJECTORY_CSV_COLUMNS", "TrackRun", "Truths", "read_truths", "run_track", "summarize"]
 
 #: Columns of ``trajectory.csv``.
 TRAJECTORY_CSV_COLUMNS = (
@@ -122,7 +125,7 @@ def run_track(
     tracker : Tracker
         A fresh tracker for the video's camera and room.
     out_dir : str or Path
-        Where to write (created).
+        Where to write (created when missing).
     progress : callable, optional
         Called with the number of frames done after each frame.
 
@@ -185,25 +188,55 @@ def run_track(
     return run
 
 
-def _read_fixture_truth(path: Path) -> dict[str, list[tuple[int, float, float, bool]]]:
-    out: dict[str, list[tuple[int, float, float, bool]]] = {}
+#: A frame's fixtures in the truth: ``(id, u, v, fully_inside)`` per fixture, by frame name.
+FixturesTruth = dict[str, list[tuple[int, float, float, bool]]]
+
+
+@dataclass(frozen=True)
+class Truths:
+    """The truth beside an input (what ``camvlp render-video`` writes), read before the run.
+
+    Attributes
+    ----------
+    poses : dict or None
+        Frame name -> ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees).
+    fixtures : dict or None
+        Frame name -> ``(id, u, v, fully_inside)`` of each fixture (pixels).
+    """
+
+    poses: dict[str, np.ndarray] | None = None
+    fixtures: FixturesTruth | None = None
+
+
+def read_truths(source: FrameSource) -> Truths:
+    """The truth files found beside ``source`` (none when there are none).
+
+    Raises
+    ------
+    InputError
+        A truth file that cannot be read, naming it (before any frame is processed).
+    """
+    poses = read_truth(source.truth_path) if source.truth_path is not None else None
+    fixtures = None
+    if source.fixtures_truth_path is not None:
+        fixtures = _read_fixture_truth(source.fixtures_truth_path)
+    return Truths(poses, fixtures)
+
+
+def _read_fixture_truth(path: Path) -> FixturesTruth:
+    out: FixturesTruth = {}
+    text = read_text_file(path, "fixtures' truth")
     try:
-        with path.open(newline="") as fh:
-            for r in csv.DictReader(fh):
-                out.setdefault(str(r["frame"]).strip(), []).append(
-                    (int(r["id"]), float(r["u"]), float(r["v"]), r["fully_inside"] == "1")
-                )
-    except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError):
+        for r in csv.DictReader(io.StringIO(text, newline="")):
+            out.setdefault(str(r["frame"]).strip(), []).append(
+                (int(r["id"]), float(r["u"]), float(r["v"]), r["fully_inside"] == "1")
+            )
+    except (KeyError, TypeError, ValueError):
         raise InputError("cannot read the fixtures' truth", path) from None
     return out
 
 
-def summarize(
-    run: TrackRun,
-    *,
-    truth_path: Path | None = None,
-    fixtures_truth_path: Path | None = None,
-) -> dict:
+def summarize(run: TrackRun, truths: Truths | None = None) -> dict:
     """The figures of ``summary.json``.
 
     Keys: ``frames``, one count per status (``fix``, ``tracked``, ``predicted``, ``lost``),
@@ -228,12 +261,11 @@ def summarize(
         "reading_share": run.read_seconds / run.seconds if run.seconds > 0 else None,
         "warnings": list(run.warnings),
     }
-    if truth_path is not None:
-        truth = read_truth(truth_path)
-        out["errors"] = _errors(run, truth)
-    if fixtures_truth_path is not None:
-        ft = _read_fixture_truth(fixtures_truth_path)
-        out.update(_id_checks(run, ft))
+    truths = truths or Truths()
+    if truths.poses is not None:
+        out["errors"] = _errors(run, truths.poses)
+    if truths.fixtures is not None:
+        out.update(_id_checks(run, truths.fixtures))
     return out
 
 
@@ -273,7 +305,7 @@ def _errors(run: TrackRun, truth: dict[str, np.ndarray]) -> dict:
     }
 
 
-def _id_checks(run: TrackRun, ft: dict[str, list[tuple[int, float, float, bool]]]) -> dict:
+def _id_checks(run: TrackRun, ft: FixturesTruth) -> dict:
     wrong = 0
     checked = 0
     used_outside = 0

@@ -11,16 +11,12 @@ import typer
 from camvlp.format import format_number
 from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_file
-from camvlp.io.limits import limit
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Pose
 from camvlp.model.readout import Readout
-from camvlp.sim.render import RenderSettings, distinct_colours, render
+from camvlp.sim.render import RenderSettings, check_render_size, distinct_colours, render
 
 from ._app import app, fail, handle_errors, parse_floats, parse_readout
-
-#: Largest --blur sigma, pixels: past it no stripe is left and the blur's cost grows as sigma.
-MAX_BLUR_PX = 100.0
 
 
 @app.command("render")
@@ -140,8 +136,6 @@ def render_command(
         fail(f"--out must end in {', '.join(IMAGE_SUFFIXES)} ({out})")
     check_output_file(out, "--out")
     check_output_file(out.with_suffix(".json"), "--out's truth file")
-    if _number(blur, "--blur") > MAX_BLUR_PX:
-        fail(f"--blur must be at most {MAX_BLUR_PX:g} px (no stripe survives more), got {blur}")
     jpeg_quality = _integer(quality, "--quality")
     if not 1 <= jpeg_quality <= 100:
         fail(f"--quality must be from 1 to 100, got {quality}")
@@ -152,12 +146,7 @@ def render_command(
     xyz = parse_floats(position, 3, "--position")
     angles = parse_floats(euler, 3, "--euler")
     camera = load_camera(camera_path)
-    most = limit("CAMVLP_MAX_RENDER_PIXELS")
-    if camera.width * camera.height > most:  # the photo and its encoding: ~5.5 bytes a pixel
-        fail(
-            f"a render of {camera.width} x {camera.height} pixels is over the limit of {most:,} "
-            f"(set CAMVLP_MAX_RENDER_PIXELS) ({camera_path})"
-        )
+    check_render_size(camera, camera_path)
     fixture_map = load_map(map_path)
     try:
         settings = RenderSettings(

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import socket
+import sys
+from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -41,14 +44,15 @@ def serve_command(
     """Serve the HTTP API (/api/v1, docs at /docs) and each site's live page (/sites/ID).
 
     Sites, cameras, maps and fixes are kept in the database; several processes share it
-    (--workers, or several machines with one PostgreSQL database).
+    (--workers, or several machines with one PostgreSQL database). Sites are created with
+    the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
     """
     import sqlalchemy as sa
     import uvicorn
     from uvicorn.config import LOG_LEVELS
 
     from camvlp.service import ServiceSettings
-    from camvlp.service.db import Store, make_engine
+    from camvlp.service.connections import TimedH11Protocol
 
     for value, option in ((workers, "--workers"), (threads, "--threads")):
         check_positive(value, option)
@@ -59,21 +63,26 @@ def serve_command(
     if log_level not in LOG_LEVELS:
         fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
     _check_listen(host, port)
-    try:
-        settings = ServiceSettings(
+    try:  # the options, and the rest (the admin key, the timeouts) from CAMVLP_* variables
+        settings = dataclasses.replace(
+            ServiceSettings.from_env(),
             db=db,
             max_upload_bytes=round(max_upload_mb * 1024 * 1024),
             max_pixels=round(max_megapixels * 1e6),
             locate_threads=threads,
         )
-        engine = make_engine(db)
-        Store(engine).create_tables()  # once, before the workers start
-        engine.dispose()
-    except (sa.exc.ArgumentError, sa.exc.OperationalError, ModuleNotFoundError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        fail(f"cannot open the database: {first} (--db {db})")
+    except ValueError as exc:
+        fail(f"{exc} (environment)")
+    admin_key = settings.admin_key
+    _open_database(db)
     os.environ.update(settings.to_env())  # the workers build their app from these
     shown = sa.engine.make_url(db).render_as_string(hide_password=True)
+    if not admin_key:
+        print(
+            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
+            "docs/serve/README.md)",
+            file=sys.stderr,
+        )
     print(f"camvlp serve: http://{host}:{port}/docs  (database {shown}, {workers} worker(s))")
     uvicorn.run(
         "camvlp.service:app_from_env",
@@ -82,7 +91,41 @@ def serve_command(
         port=port,
         workers=workers,
         log_level=log_level,
+        http=TimedH11Protocol,  # uvicorn's h11, with header and body timeouts
+        timeout_keep_alive=KEEP_ALIVE_S,
+        limit_concurrency=settings.max_connections,
+        h11_max_incomplete_event_size=MAX_HEADER_BYTES,
     )
+
+
+#: Seconds an idle connection is kept open between two requests (uvicorn's default).
+KEEP_ALIVE_S = 5
+#: Largest request line and headers, bytes (h11's default): larger gets 431.
+MAX_HEADER_BYTES = 16 * 1024
+
+
+def _open_database(db: str) -> None:
+    """Create the tables (once, before the workers start), or fail in one line: a URL that is
+    not one, a driver that is missing, a file that is not a database (or not a file)."""
+    import sqlalchemy as sa
+
+    from camvlp.service.db import Store, make_engine
+
+    try:
+        url = sa.engine.make_url(db)
+        if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
+            path = Path(url.database)
+            if path.exists() and not path.is_file():
+                fail(f"cannot open the database: {path} is not a file (--db {db})")
+        engine = make_engine(db)
+        try:
+            Store(engine).create_tables()
+        finally:
+            engine.dispose()
+    except (sa.exc.SQLAlchemyError, ModuleNotFoundError, OSError, ValueError) as exc:
+        text = str(getattr(exc, "orig", None) or exc).strip()
+        first = text.splitlines()[0] if text else type(exc).__name__
+        fail(f"cannot open the database: {first} (--db {db})")
 
 
 def _check_listen(host: str, port: int) -> None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from contextlib import contextmanager
 from pathlib import Path
@@ -11,13 +10,23 @@ from typing import Annotated
 import numpy as np
 import typer
 
-from camvlp.analysis.track import run_track, summarize
+from camvlp.analysis.track import Truths, read_truths, run_track, summarize
 from camvlp.io import load_camera, load_map
+from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
 from camvlp.io.video import open_frames
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.pipeline.track import Tracker, TrackSettings
-from camvlp.sim.render import RenderSettings
-from camvlp.sim.video import VIDEO_SUFFIXES, load_trajectory, partial_path, render_video
+from camvlp.sim.render import RenderSettings, check_render_size
+from camvlp.sim.video import (
+    VIDEO_SUFFIXES,
+    check_frame_budget,
+    check_video_size,
+    frame_count,
+    load_trajectory,
+    partial_path,
+    render_video,
+    truth_paths,
+)
 
 from ._app import (
     EXIT_NOT_LOCATED,
@@ -31,6 +40,9 @@ from ._app import (
     parse_readout,
 )
 from .render import option_names
+
+#: The files ``camvlp track`` writes into its --out folder.
+TRACK_FILES = ("trajectory.csv", "fixtures.csv", "summary.json", "trajectory.png")
 
 
 @contextmanager
@@ -103,62 +115,65 @@ def track_command(
 ) -> None:
     """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
-    Writes DIR/trajectory.csv, fixtures.csv, summary.json and trajectory.png. Exit code 0
-    when at least one frame was located, 1 when none was, 2 on bad input.
+    Writes DIR/trajectory.csv, fixtures.csv, summary.json and trajectory.png, all four or
+    none. Exit code 0 when at least one frame was located, 1 when none was, 2 on bad input.
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(fps, "--fps")
     given_readout = parse_readout(readout)
+    check_output_dir(out, "--out")
+    for name in TRACK_FILES if out.is_dir() else ():
+        check_output_file(out / name, "--out")
     camera = load_camera(camera_path)
     fixture_map = load_map(map_path)
     frames_src = open_frames(
         source, fps=fps, start_s=start, max_frames=frames, threads=0, gray=True
     )
+    truths = read_truths(frames_src)  # before any frame: a bad truth file stops nothing midway
     settings = TrackSettings(
         locate=LocateSettings(solver=solver, readout=given_readout, outlier_px=outlier_px),
         rolling_shutter=rolling_shutter,
     )
     tracker = Tracker(camera, fixture_map, settings)
     total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
-    with _progress(total, "tracking") as advance:
-        run = run_track(frames_src, tracker, out, progress=advance)
-    summary = summarize(
-        run,
-        truth_path=frames_src.truth_path,
-        fixtures_truth_path=frames_src.fixtures_truth_path,
-    )
-    summary["input"] = str(source)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    _plot(out, fixture_map, run, frames_src.truth_path)
-    for w in run.warnings:
-        print(f"warning: {w} ({source})", file=sys.stderr)
-    if as_json:
-        print(json.dumps(summary))
-    else:
-        _print_human(summary, fixture_map.units, out)
+    with StagedOutputs() as outputs:  # the four files: all or none
+        staged = outputs.folder(out)
+        with _progress(total, "tracking") as advance:
+            run = run_track(frames_src, tracker, staged, progress=advance)
+        summary = summarize(run, truths)
+        summary["input"] = str(source)
+        (staged / "summary.json").write_text(strict_json(summary, indent=2) + "\n")
+        _plot(staged / "trajectory.png", fixture_map, run, truths)
     located = summary["fix"] + summary["tracked"]
-    if not located:
+    if not located:  # the error line only: the warnings are in summary.json
         why = "no frame could be located"
         if not summary["frames"]:  # nothing was read: say why rather than "not located"
             why = f"no frame at or after --start {start:g} s" if start else "no frame was read"
+            if run.warnings:
+                why += f": {run.warnings[0]}"
         print(f"error: {why} ({source})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
+    for w in run.warnings:
+        print(f"warning: {w} ({source})", file=sys.stderr)
+    if as_json:
+        print(strict_json(summary))
+    else:
+        _print_human(summary, fixture_map.units, out)
 
 
-def _plot(out: Path, fixture_map, run, truth_path: Path | None) -> None:
-    from camvlp.io.video import read_truth
+def _plot(path: Path, fixture_map, run, truths: Truths) -> None:
     from camvlp.viz.trajectory import plot_trajectory
 
     nan3 = np.full(3, np.nan)
     pos = np.array([f.position if f.position is not None else nan3 for f in run.frames])
     raw = np.array([f.raw_position if f.raw_position is not None else nan3 for f in run.frames])
     truth = None
-    if truth_path is not None:
-        t = read_truth(truth_path)
+    if truths.poses is not None:
+        t = truths.poses
         truth = np.array([t[n][:3] if n in t else nan3 for n in run.names])
     plot_trajectory(
-        out / "trajectory.png",
+        path,
         fixture_map,
         pos.reshape(-1, 3),
         [f.status for f in run.frames],
@@ -277,7 +292,15 @@ def render_video_command(
         fail(f"--seed must be a non-negative integer, got {seed}")
     if out.suffix and out.suffix.lower() not in VIDEO_SUFFIXES:
         fail(f"--out must be a .mp4, .mov or .mkv video or a folder ({out})")
+    if out.suffix:  # the video and its truth beside it
+        for path in (out, *truth_paths(out)):
+            check_output_file(path, "--out")
+    else:
+        check_output_dir(out, "--out")
+        for path in (out / "timestamps.csv", *truth_paths(out)) if out.is_dir() else ():
+            check_output_file(path, "--out")
     camera = load_camera(camera_path)
+    check_render_size(camera, camera_path)
     fixture_map = load_map(map_path)
     trajectory = load_trajectory(trajectory_path)
     try:
@@ -303,8 +326,10 @@ def render_video_command(
         fail(option_names(str(exc)))
     if any(f.diameter is None for f in fixture_map.fixtures):
         fail(f"every fixture needs a diameter to be rendered ({map_path})")
-    n_total = int(trajectory.duration_s * fps + 1e-9) + 1
-    total = n_total if frames is None else min(frames, n_total)
+    total = frame_count(trajectory, fps, frames)
+    check_frame_budget(total, trajectory_path)
+    if out.suffix:
+        check_video_size(camera, camera_path)
     try:
         with _progress(total, "rendering") as advance:
             n = render_video(

@@ -120,7 +120,7 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
     to_cam = np.asarray(toward, dtype=float).reshape(3) - c
     plane = None
     if c.shape[0] >= 3:
-        _, s, vt = np.linalg.svd(c - c.mean(axis=0))
+        _, s, vt = np.linalg.svd(c - c.mean(axis=0), full_matrices=False)  # vt: 3 x 3
         # a plane: not all on a line, and every centre on it (within 1 % of the spread)
         if s[1] > 1e-9 * max(s[0], 1e-300) and s[2] <= 0.01 * s[0]:
             plane = vt[2]

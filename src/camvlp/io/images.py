@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import io
 import os
+import re
 import struct
 import sys
 import tempfile
 import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,7 +24,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.limits import limit, read_regular_file
+from camvlp.io.limits import check_pixels, limit, read_regular_file
 from camvlp.model.readout import Readout
 
 __all__ = [
@@ -158,10 +160,10 @@ def _decode(raw: np.ndarray, max_pixels: int | None) -> np.ndarray:
     if raw.size > most:
         raise InputError(f"photo is {raw.size:,} bytes, over the limit of {most:,}")
     header = image_header(raw)
-    _check_pixels(header.width, header.height, max_pixels, None)
+    check_pixels(header.width, header.height, max_pixels)
     _check_decoded_bytes(header, max_pixels)
-    if header.format == "jpeg" and _truncated_jpeg(raw):
-        raise InputError("photo is a truncated JPEG")
+    if header.format == "jpeg":
+        _check_jpeg(raw)
     # Not IMREAD_UNCHANGED: the other modes apply the EXIF orientation, so the array is the
     # picture as viewers show it (phones often store landscape pixels with a "rotate" tag).
     img, messages = _decode_quietly(raw)
@@ -222,7 +224,7 @@ def as_image(image: object, *, max_pixels: int | None = None, name: str = "image
     h, w = img.shape[:2]
     if h == 0 or w == 0:
         raise InputError(f"{name} is empty (shape {img.shape})")
-    _check_pixels(w, h, max_pixels, None)
+    check_pixels(w, h, max_pixels)
     if kind == "b":
         return np.ascontiguousarray(img, dtype=np.uint8) * np.uint8(255)
     if img.dtype == np.uint8 or img.dtype == np.uint16:
@@ -325,29 +327,81 @@ def image_header(data: bytes | np.ndarray) -> ImageHeader:
     raise InputError("not an image, or a corrupt one: camvlp reads PNG, JPEG, TIFF, BMP, WebP")
 
 
-def _jpeg_header(b: bytes) -> ImageHeader:
-    """Size, components and precision from a JPEG's first frame header (SOF0 to SOF15, not
-    DHT, JPG or DAC)."""
-    i = 2
-    n = len(b)
-    while i + 3 < n:
+#: A marker in a JPEG's entropy-coded data: FF followed by neither a stuffed 00, a restart
+#: marker (D0 to D7) nor a fill byte FF.
+_NEXT_MARKER = re.compile(rb"\xff[\x01-\xcf\xd8-\xfe]")
+
+
+def _jpeg_segments(b: bytes | memoryview) -> Iterator[tuple[int, int]]:
+    """The marker segments of a JPEG, in order: ``(marker, offset)`` (the offset of its FF).
+
+    A short walk over the segments' lengths, without decoding: a start of scan (DA) is
+    followed to the next marker past its entropy-coded data (stuffed bytes and restart
+    markers skipped).  Ends after the end of image (D9), or where the chain of markers is
+    lost or the data ends (a truncated or corrupt file: the last item is then
+    ``(-1, offset)``).
+    """
+    i, n = 2, len(b)
+    while i + 1 < n:
         if b[i] != 0xFF:
-            break
+            break  # lost the marker chain
         marker = b[i + 1]
         if marker == 0xFF:  # fill byte
             i += 1
             continue
-        if 0xD0 <= marker <= 0xD9 or marker == 0x01:
+        yield marker, i
+        if marker == 0xD9:
+            return
+        if 0xD0 <= marker <= 0xD8 or marker == 0x01:  # no length
             i += 2
             continue
+        if i + 3 >= n:
+            break
         length = (b[i + 2] << 8) | b[i + 3]
+        if length < 2:
+            break
+        i += 2 + length
+        if marker == 0xDA:  # skip the scan's entropy-coded data
+            found = _NEXT_MARKER.search(b, i)
+            if found is None:
+                break
+            i = found.start()
+    yield -1, i
+
+
+def _jpeg_header(b: bytes) -> ImageHeader:
+    """Size, components and precision from a JPEG's first frame header (SOF0 to SOF15, not
+    DHT, JPG or DAC)."""
+    for marker, i in _jpeg_segments(b):
         if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
             precision, h, w, components = struct.unpack(">BHHB", b[i + 4 : i + 10])
             return ImageHeader("jpeg", w, h, components, 2 if precision > 8 else 1)
-        if marker == 0xDA or length < 2:
+        if marker in (0xDA, 0xD9, -1):
             break
-        i += 2 + length
     raise InputError("malformed JPEG: no frame header before the image data")
+
+
+def _check_jpeg(raw: np.ndarray) -> None:
+    """Refuse a JPEG that is cut short (no end-of-image marker) or whose decoding would cost
+    more than its size says: more scans than ``CAMVLP_MAX_JPEG_SCANS`` (each scan is a pass
+    over the whole picture: a few hundred bytes of them can take minutes to decode).
+
+    Some phones append data after the image (motion-photo video, vendor trailers): the walk
+    ends at the image's end-of-image marker.
+    """
+    most = limit("CAMVLP_MAX_JPEG_SCANS")
+    scans = 0
+    for marker, _ in _jpeg_segments(memoryview(raw).cast("B")):
+        if marker == 0xDA:
+            scans += 1
+            if scans > most:
+                raise InputError(
+                    f"JPEG has more than {most:,} scans (decoding passes); refused before "
+                    "decoding (set CAMVLP_MAX_JPEG_SCANS)"
+                )
+        elif marker == 0xD9:
+            return
+    raise InputError("photo is a truncated or corrupt JPEG (no end of image)")
 
 
 def _tiff_header(b: bytes) -> ImageHeader:
@@ -395,18 +449,6 @@ def _webp_size(b: bytes) -> tuple[int, int]:
     raise InputError("malformed WebP: unknown first chunk")
 
 
-def _check_pixels(width: int, height: int, max_pixels: int | None, source: Path | None) -> None:
-    cap = limit("CAMVLP_MAX_PIXELS", max_pixels)
-    if width <= 0 or height <= 0:
-        raise InputError(f"image header says {width} x {height} pixels", source)
-    if width * height > cap:
-        raise InputError(
-            f"image is {width} x {height} = {width * height:,} pixels, over the limit of "
-            f"{cap:,} (set CAMVLP_MAX_PIXELS)",
-            source,
-        )
-
-
 def _check_decoded_bytes(header: ImageHeader, max_pixels: int | None) -> None:
     """Refuse an image whose decoded samples would take more bytes than an 8-bit colour image
     at the pixel limit (a 32-bit float TIFF at the limit would otherwise take 2.4 GB)."""
@@ -427,14 +469,12 @@ def _decode_quietly(raw: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
     libjpeg and libpng report damage only on the process's stderr (file descriptor 2), so it
     is redirected to a temporary file for the decode.  That is safe only while no other thread
     can write there: with several threads (a server), the photo is decoded without the capture
-    and only a decode failure refuses it.
+    and only a decode failure refuses it, within a time budget
+    (:func:`_decode_within_budget`).
     """
     flags = cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH
     if threading.active_count() > 1:
-        try:
-            return cv2.imdecode(raw, flags), []
-        except cv2.error as exc:
-            return None, ["error: " + _first_line(exc)]
+        return _decode_within_budget(raw, flags)
     with _STDERR_LOCK, tempfile.TemporaryFile() as capture:
         sys.stderr.flush()
         saved = os.dup(2)
@@ -453,45 +493,35 @@ def _decode_quietly(raw: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
     return img, [line.strip() for line in text.splitlines() if line.strip()]
 
 
+def _decode_within_budget(raw: np.ndarray, flags: int) -> tuple[np.ndarray | None, list[str]]:
+    """``cv2.imdecode`` in a thread of its own, waited for at most ``CAMVLP_MAX_DECODE_SECONDS``.
+
+    A decode that runs past the budget is abandoned: the caller (a server's worker thread) gets
+    an InputError and is free again, while the decode runs to its end in the background (its
+    cost is bounded by the pixel and scan limits checked before it started) and its result is
+    dropped.
+    """
+    budget = limit("CAMVLP_MAX_DECODE_SECONDS")
+    done: list[tuple[np.ndarray | None, list[str]]] = []
+
+    def work() -> None:
+        try:
+            done.append((cv2.imdecode(raw, flags), []))
+        except cv2.error as exc:
+            done.append((None, ["error: " + _first_line(exc)]))
+        except MemoryError:
+            done.append((None, ["error: out of memory"]))
+
+    worker = threading.Thread(target=work, name="camvlp-decode", daemon=True)
+    worker.start()
+    worker.join(budget)
+    if not done:
+        raise InputError(
+            f"photo took over {budget} s to decode; abandoned (set CAMVLP_MAX_DECODE_SECONDS)"
+        )
+    return done[0]
+
+
 def _first_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return text.splitlines()[-1] if text else exc.__class__.__name__
-
-
-def _truncated_jpeg(raw: np.ndarray) -> bool:
-    """A JPEG (starts with FF D8) whose end-of-image marker FF D9 is missing.
-
-    Some phones append data after the image (motion-photo video, vendor trailers), so when
-    the file does not end with FF D9 the marker segments are walked to find the image's end.
-    """
-    if raw.size < 4 or raw[0] != 0xFF or raw[1] != 0xD8:
-        return False
-    if b"\xff\xd9" in raw[-64:].tobytes():
-        return False
-    b = raw.tobytes()
-    i = 2
-    while i + 1 < len(b):
-        if b[i] != 0xFF:
-            return True  # lost the marker chain: corrupt or cut
-        marker = b[i + 1]
-        if marker == 0xD9:
-            return False
-        if marker == 0xFF or 0xD0 <= marker <= 0xD7 or marker == 0x01:
-            i += 1 if marker == 0xFF else 2  # fill byte or marker without a length
-            continue
-        if i + 3 >= len(b):
-            return True
-        i += 2 + ((b[i + 2] << 8) | b[i + 3])
-        if marker == 0xDA:  # start of scan: skip entropy-coded data to the next marker
-            while True:
-                j = b.find(b"\xff", i)
-                if j < 0 or j + 1 >= len(b):
-                    return True
-                if b[j + 1] == 0x00 or 0xD0 <= b[j + 1] <= 0xD7:
-                    i = j + 2  # stuffed byte or restart marker
-                elif b[j + 1] == 0xFF:
-                    i = j + 1  # fill byte before a marker
-                else:
-                    i = j
-                    break
-    return True

@@ -3,13 +3,18 @@
 :func:`open_frames` opens either:
 
 * a video file (mp4, mov, mkv ... anything FFmpeg reads, through PyAV): frame times from the
-  stream's timestamps (or ``index / fps`` when ``fps`` is given);
+  stream's timestamps (or ``index / fps`` when ``fps`` is given).  It must be a regular file
+  (a named pipe would block FFmpeg), and its frame size and frame count are checked from its
+  header before a frame is decoded, against ``CAMVLP_MAX_PIXELS`` (as photos) and
+  ``CAMVLP_MAX_FRAMES``; FFmpeg's decoder is told the pixel limit too, so a frame that grows
+  past it later in the stream is not decoded;
 * a folder of images, taken in name order: times from ``timestamps.csv`` in the folder
   (columns ``frame,t``, ``frame`` the image's file name), else ``index / fps``.  Files that
   are not images are skipped with a warning.
 
 A frame that cannot be read comes out with ``image`` None and an ``error``; a video that
-breaks off ends early with a warning.  Nothing raises once the source is open.
+breaks off ends early with a warning, as does one that has more frames than its header said
+and reaches ``CAMVLP_MAX_FRAMES``.  Nothing raises once the source is open.
 """
 
 from __future__ import annotations
@@ -28,8 +33,13 @@ import numpy as np
 from camvlp.errors import InputError
 from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.io.images import load_image
+from camvlp.io.limits import check_pixels, limit, open_regular_file
 
-__all__ = ["IMAGE_SUFFIXES", "Frame", "FrameSource", "open_frames", "read_truth"]
+__all__ = ["IMAGE_SUFFIXES", "MIN_FPS", "Frame", "FrameSource", "open_frames", "read_truth"]
+
+#: Slowest ``fps`` accepted, frames per second: one frame every 1000 s (slower ones put the
+#: frames' times beyond the +-1e9 s every time must keep to).
+MIN_FPS = 1e-3
 
 #: Image file suffixes taken from a folder (lower case).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
@@ -99,11 +109,17 @@ class FrameSource:
 
     def __iter__(self) -> Iterator[Frame]:
         frames = self._video() if self.kind == "video" else self._folder()
+        most = self.max_frames if self.max_frames is not None else limit("CAMVLP_MAX_FRAMES")
         n = 0
         for frame in frames:
             if frame.t < self.start_s - 1e-9:
                 continue
-            if self.max_frames is not None and n >= self.max_frames:
+            if n >= most:
+                if self.max_frames is None:
+                    self.warnings.append(
+                        f"stopped after {most:,} frames, the limit (set CAMVLP_MAX_FRAMES, or "
+                        "give --frames)"
+                    )
                 return
             n += 1
             yield frame
@@ -124,14 +140,15 @@ class FrameSource:
         import av
 
         try:
-            container = av.open(str(self.path))
-        except (OSError, av.FFmpegError) as exc:  # checked in open_frames; raced away
-            self.warnings.append(f"cannot read the video any more: {exc}")
+            container, fh = _open_video(self.path)
+        except InputError as exc:  # checked in open_frames; raced away
+            self.warnings.append(f"cannot read the video any more: {exc.what}")
             return
         try:
             stream = container.streams.video[0]
             stream.thread_type = "AUTO" if self.threads != 1 else "SLICE"
             stream.codec_context.thread_count = max(int(self.threads), 0)
+            stream.codec_context.options = _decoder_limits()
             i = 0
             try:
                 for frame in container.decode(stream):
@@ -150,6 +167,7 @@ class FrameSource:
                 self.warnings.append(f"the video breaks off after {i} frames: {exc}")
         finally:
             container.close()
+            fh.close()
 
 
 #: A limited-range ("TV") luma plane's black and white (8-bit): stretched to 0 and 255, as
@@ -234,26 +252,23 @@ def open_frames(
         without times (no ``timestamps.csv`` and no ``fps``), a bad ``timestamps.csv``.
     """
     p = Path(path)
-    if fps is not None and not (math.isfinite(fps) and fps > 0):
-        raise InputError(f"--fps must be a positive number, got {fps}")
-    if max_frames is not None and max_frames < 1:
-        raise InputError(f"--frames must be at least 1, got {max_frames}")
+    if fps is not None and not (math.isfinite(fps) and fps >= MIN_FPS):
+        raise InputError(f"--fps must be a number of at least {MIN_FPS:g} frames/s, got {fps}")
+    most = limit("CAMVLP_MAX_FRAMES")
+    if max_frames is not None and not 1 <= max_frames <= most:
+        raise InputError(
+            f"--frames must be from 1 to {most:,} (set CAMVLP_MAX_FRAMES), got {max_frames}"
+        )
     if not math.isfinite(start_s) or start_s < 0:
         raise InputError(f"--start must be a time of 0 s or later, got {start_s}")
     if not p.exists():
         raise InputError("no such video or folder", p)
     if p.is_dir():
-        return _open_folder(p, fps, start_s, max_frames)
-    import av
-
-    try:
-        with av.open(str(p)) as container:
-            if not container.streams.video:
-                raise InputError("the file has no video stream", p)
-            stream = container.streams.video[0]
-            total = int(stream.frames) or None
-    except (OSError, av.FFmpegError, UnicodeDecodeError):
-        raise InputError("not a video that can be read", p) from None
+        source = _open_folder(p, fps, start_s, max_frames)
+        if max_frames is None and source.total is not None and source.total > most:
+            raise InputError(_too_many(source.total, most), p)
+        return source
+    total = _video_header(p, max_frames is None)
     truth = p.with_name(p.stem + "_truth.csv")
     fixtures = p.with_name(p.stem + "_fixtures.csv")
     return FrameSource(
@@ -268,6 +283,66 @@ def open_frames(
         fixtures_truth_path=fixtures if fixtures.is_file() else None,
         gray=gray,
     )
+
+
+def _decoder_limits() -> dict[str, str]:
+    """FFmpeg's decoder options that hold it to the pixel limit (it refuses a larger frame)."""
+    return {"max_pixels": str(limit("CAMVLP_MAX_PIXELS"))}
+
+
+def _open_video(p: Path):
+    """``(container, file)``: the video opened by PyAV through a regular file of ours (a
+    named pipe or a device is refused: FFmpeg would block on it), its header read with the
+    decoder held to the pixel limit."""
+    import av
+
+    fh = open_regular_file(p, "video")
+    try:
+        return av.open(fh, stream_options=[_decoder_limits()]), fh
+    except (OSError, av.FFmpegError, UnicodeDecodeError, ValueError):
+        fh.close()
+        raise InputError("not a video that can be read", p) from None
+    except BaseException:
+        fh.close()
+        raise
+
+
+def _too_many(n: int, most: int) -> str:
+    return (
+        f"the input has {n:,} frames, over the limit of {most:,} "
+        "(set CAMVLP_MAX_FRAMES, or give --frames)"
+    )
+
+
+def _video_header(p: Path, check_count: bool) -> int | None:
+    """The frames a video says it has (None when it does not say), once its header is known to
+    describe frames within the pixel limit and (``check_count``) a count within the frame
+    limit; nothing is decoded beyond what FFmpeg reads to know the stream."""
+    container, fh = _open_video(p)
+    try:
+        if not container.streams.video:
+            raise InputError("the file has no video stream", p)
+        stream = container.streams.video[0]
+        width, height = stream.codec_context.width, stream.codec_context.height
+        if not (width > 0 and height > 0):
+            raise InputError(
+                "the video's frame size cannot be read within the pixel limit "
+                f"{limit('CAMVLP_MAX_PIXELS'):,} (set CAMVLP_MAX_PIXELS)",
+                p,
+            )
+        check_pixels(width, height, None, p)
+        total = int(stream.frames) or None
+        estimate = total
+        rate = float(stream.average_rate or 0)
+        if estimate is None and container.duration and rate > 0:
+            estimate = math.ceil(container.duration / 1e6 * rate)
+        most = limit("CAMVLP_MAX_FRAMES")
+        if check_count and estimate is not None and estimate > most:
+            raise InputError(_too_many(estimate, most), p)
+        return total
+    finally:
+        container.close()
+        fh.close()
 
 
 def _open_folder(p: Path, fps: float | None, start_s: float, max_frames: int | None) -> FrameSource:
@@ -320,14 +395,13 @@ def read_truth(path: str | Path) -> dict[str, np.ndarray]:
     """
     p = Path(path)
     cols = ("x", "y", "z", "theta_x", "theta_y", "theta_z")
+    rows = list(csv.DictReader(io.StringIO(read_text_file(p, "truth"), newline="")))
     try:
-        with p.open(newline="") as fh:
-            rows = list(csv.DictReader(fh))
         return {
             str(r["frame"]).strip(): np.array([float(r[c]) for c in cols], dtype=float)
             for r in rows
         }
-    except (OSError, UnicodeDecodeError, KeyError, TypeError, ValueError):
+    except (KeyError, TypeError, ValueError):
         raise InputError(
             "cannot read the truth (frame,t,x,y,z,theta_x,theta_y,theta_z)", p
         ) from None

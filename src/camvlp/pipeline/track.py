@@ -37,8 +37,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camvlp.errors import InputError
 from camvlp.geometry.disc import perspective_offset
 from camvlp.geometry.pnp import PriorSolve, project_moving, refine_pose
+from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
@@ -108,6 +110,7 @@ class Tracker:
         self.filter: ConstantVelocityFilter | None = None
         self._t_last: float | None = None  # time of the filter's state
         self._t_measured: float | None = None  # time of the last fix or tracked pose
+        self._t_given: float | None = None  # time of the last frame given to update
         self._seen: dict[int, _Sighting] = {}
         self._chip_rows: list[float] = []
         self._ids = np.array([f.id for f in fixture_map.fixtures])
@@ -244,6 +247,20 @@ class Tracker:
             for k, b in zip(usable, moved, strict=True):
                 blobs[k] = b
 
+    def _checked_time(self, t: object) -> float:
+        """``t`` as a float when it is a finite time within +-1e9 s and later than the last
+        frame's; InputError otherwise (before anything of the tracker changes)."""
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)):
+            raise InputError(f"t must be a number of seconds, got {type(t).__name__}")
+        value = float(t)
+        if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+            raise InputError(f"t must be a finite time within +-{MAX_MAGNITUDE:g} s, got {t!r}")
+        if self._t_given is not None and not value > self._t_given:
+            raise InputError(
+                f"t must increase from frame to frame: {value!r} s after {self._t_given!r} s"
+            )
+        return value
+
     def update(self, image: np.ndarray, t: float) -> TrackFrame:
         """Process the next frame.
 
@@ -252,7 +269,7 @@ class Tracker:
         image : ndarray, shape (H, W, 3) or (H, W)
             The frame, of the camera's size.
         t : float
-            Its time, s (increasing from frame to frame).
+            Its time, s: a finite number within +-1e9 s, later than the previous frame's.
 
         Returns
         -------
@@ -261,13 +278,16 @@ class Tracker:
         Raises
         ------
         InputError
-            The frame is not an image of the camera's size.
+            ``t`` is not such a time, or the frame is not an image of the camera's size; the
+            tracker is left as it was, ready for the next frame.
         """
-        index = self._index
-        self._index += 1
+        t = self._checked_time(t)
         st = self.settings.locate
         t0 = time.perf_counter()
         img, mirrored = _prepare(image, self.camera, st)
+        index = self._index  # the frame is taken: its time and index count from here
+        self._index += 1
+        self._t_given = t
         detection, found_readout, _, _ = _detect(img, self.readout, st)
         readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is read below)
         blobs = list(detection.blobs)

@@ -20,10 +20,14 @@ from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from camvlp import __version__
 from camvlp.service import routes_api, routes_page
 from camvlp.service.db import Store, make_engine
-from camvlp.service.deps import Gate
+from camvlp.service.deps import Gate, parse_count
 from camvlp.service.settings import ServiceSettings
 
 __all__ = ["app_from_env", "create_app"]
+
+
+#: Largest Content-Length read as a number (bytes); a longer one is not a length but an attack.
+_MAX_LENGTH = 2**63 - 1
 
 
 class _BodyLimit:
@@ -43,7 +47,11 @@ class _BodyLimit:
             await self.app(scope, receive, send)
             return
         length = Headers(scope=scope).get("content-length")
-        if length is not None and (not length.isdigit() or int(length) > self.max_bytes):
+        if length is not None and parse_count(length, _MAX_LENGTH) is None:
+            detail = "Content-Length must be a whole number of bytes"
+            await JSONResponse({"detail": detail}, status_code=400)(scope, receive, send)
+            return
+        if length is not None and int(length) > self.max_bytes:
             await JSONResponse({"detail": self.message}, status_code=413)(scope, receive, send)
             return
         total, started = 0, False

@@ -5,22 +5,26 @@
 (``store: StoreDep``), and for an authorised site with ``site_id: Site``.
 """
 
-import json
+import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Annotated
+from pathlib import PurePath
+from typing import Annotated, Any
 
 from fastapi import Depends, Path, Request
 from fastapi.exceptions import HTTPException
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
-from camvlp.io.files import unique_keys
+from camvlp.errors import InputError
+from camvlp.io.files import parse_mapping
+from camvlp.io.limits import limit
 from camvlp.service.auth import hash_key, keys_match
 from camvlp.service.db import Store
 from camvlp.service.settings import ServiceSettings
 
 __all__ = [
     "MAX_ROW_ID",
+    "Admin",
     "Gate",
     "GateDep",
     "PoolDep",
@@ -28,11 +32,13 @@ __all__ = [
     "SettingsDep",
     "Site",
     "StoreDep",
+    "admin_access",
     "get_gate",
     "get_pool",
     "get_settings",
     "get_store",
-    "keys_once",
+    "json_body_gate",
+    "parse_count",
     "site_access",
 ]
 
@@ -54,19 +60,72 @@ class Gate:
 # each one to a worker thread: they only read ``app.state``.
 
 
-async def keys_once(request: Request) -> None:
-    """A JSON body whose objects give a key twice is refused (422, naming the key), as the
-    camera and map files are: JSON keeps the last one without a word, so a map with a
-    fixture's ``position`` given twice would be stored as one of them.  A body that is not
-    JSON is left to the route's own parsing."""
-    if "json" not in request.headers.get("content-type", ""):
+def _json_content(request: Request) -> bool:
+    """Whether FastAPI reads the request's body as JSON: no content type, or a JSON one."""
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    return not kind or kind == "application/json" or kind.endswith("+json")
+
+
+async def json_body_gate(request: Request) -> None:
+    """A JSON body is checked before any route reads it, as the camera and map files are
+    (:func:`camvlp.io.files.parse_mapping`): at most ``CAMVLP_MAX_FILE_BYTES`` (413), UTF-8,
+    an object nested at most ``CAMVLP_MAX_DEPTH`` deep, no number of more than 30 digits, no
+    key given twice in one object (JSON keeps the last one without a word, so a map with a
+    fixture's ``position`` given twice would be stored as one of them), and (what a JSON
+    answer could not give back) no NaN or infinity and no string that is not valid Unicode
+    (a lone surrogate).  Each refusal is one line: 422 (413 for the size)."""
+    if not _json_content(request):
         return
+    body = await request.body()
+    if not body:
+        return  # the route says what is missing
+    most = limit("CAMVLP_MAX_FILE_BYTES")
+    if len(body) > most:
+        raise HTTPException(413, f"JSON body is {len(body):,} bytes, over the limit of {most:,}")
     try:
-        json.loads(await request.body(), object_pairs_hook=unique_keys)
-    except json.JSONDecodeError:
-        return  # malformed: the route's parsing says so
-    except (ValueError, RecursionError) as err:
-        raise HTTPException(422, f"malformed JSON body: {err}") from None
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise HTTPException(422, f"JSON body is not UTF-8 (byte {exc.start})") from None
+    try:
+        data = parse_mapping(text, _JSON_BODY, "JSON body")
+        _plain_values(data)
+    except InputError as exc:
+        raise HTTPException(422, exc.what) from None
+
+
+#: How a request's JSON body is named to the file parser (its suffix says: JSON).
+_JSON_BODY = PurePath("body.json")
+
+
+def _plain_values(value: Any, where: str = "") -> None:
+    """Refuse NaN and infinite numbers and strings that are not valid Unicode, anywhere in
+    ``value`` (nested at most ``CAMVLP_MAX_DEPTH`` deep: checked before)."""
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _plain_values(key, where)
+            _plain_values(item, f"{where}.{key}" if where else str(key))
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            _plain_values(item, f"{where}[{k}]")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise InputError(f"malformed JSON body: {value} at {where or 'the top'} is not a number")
+    elif isinstance(value, str):
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:
+            raise InputError(
+                f"malformed JSON body: a string that is not valid Unicode (a lone surrogate) "
+                f"at {where or 'a key'}"
+            ) from None
+
+
+def parse_count(text: str, most: int) -> int | None:
+    """``text`` as a whole number from 0 to ``most`` (ASCII digits only), else None."""
+    text = text.strip()
+    if not (text.isascii() and text.isdigit()) or len(text) > len(str(most)):
+        return None
+    value = int(text)
+    return value if value <= most else None
 
 
 async def get_settings(request: Request) -> ServiceSettings:
@@ -126,3 +185,29 @@ def site_access(
 
 #: A path's ``site_id`` once the request's key has been checked against it.
 Site = Annotated[int, Depends(site_access)]
+
+
+def admin_access(
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+    settings: SettingsDep,
+) -> None:
+    """Nothing when the request carries the service's admin key (``CAMVLP_ADMIN_KEY``); 401
+    otherwise, and always when the service has none."""
+    if not settings.admin_key:
+        raise HTTPException(
+            401,
+            "this service creates no sites: it was started without an admin key (set "
+            "CAMVLP_ADMIN_KEY where it runs)",
+        )
+    if credentials is None or not credentials.credentials:
+        raise HTTPException(
+            401,
+            "creating a site needs the admin key: send Authorization: Bearer ADMIN_KEY",
+            headers={"WWW-Authenticate": "Bearer"},
+        )
+    if not keys_match(credentials.credentials, hash_key(settings.admin_key)):
+        raise HTTPException(401, "wrong admin key", headers={"WWW-Authenticate": "Bearer"})
+
+
+#: A request made with the service's admin key.
+Admin = Annotated[None, Depends(admin_access)]

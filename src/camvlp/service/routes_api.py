@@ -9,15 +9,18 @@ import math
 import time
 from collections.abc import AsyncIterator
 from datetime import UTC, datetime
-from typing import Annotated, Any
+from typing import Annotated, Any, BinaryIO
 
 import cv2
 import numpy as np
-from fastapi import APIRouter, Body, Depends, File, Form, Query, Request, UploadFile
+from fastapi import APIRouter, Body, Depends, Query, Request
 from fastapi import Path as PathParam
-from fastapi.exceptions import HTTPException
+from fastapi.exceptions import HTTPException, RequestValidationError
 from fastapi.responses import Response, StreamingResponse
+from pydantic import ValidationError
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import FormData, UploadFile
+from starlette.formparsers import MultiPartException
 
 from camvlp import __version__
 from camvlp.errors import InputError
@@ -29,13 +32,15 @@ from camvlp.service.auth import new_key
 from camvlp.service.db import FixRow, Store
 from camvlp.service.deps import (
     MAX_ROW_ID,
+    Admin,
     GateDep,
     PoolDep,
     RowId,
     SettingsDep,
     Site,
     StoreDep,
-    keys_once,
+    json_body_gate,
+    parse_count,
 )
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
@@ -44,16 +49,18 @@ from camvlp.service.schemas import (
     FixFields,
     FixOut,
     FixPage,
+    LocateForm,
     PlanFixture,
     SiteCreate,
     SiteCreated,
     SiteOut,
 )
+from camvlp.service.settings import ServiceSettings
 from camvlp.viz.annotate import annotate as annotate_photo
 
 __all__ = ["router"]
 
-router = APIRouter(prefix="/api/v1", dependencies=[Depends(keys_once)])
+router = APIRouter(prefix="/api/v1", dependencies=[Depends(json_body_gate)])
 
 
 class _LocateRefused(Exception):
@@ -113,16 +120,31 @@ def _parse_gravity(text: str | None) -> list[float] | None:
 
 
 def _locate_job(
-    raw: bytes,
+    upload: BinaryIO,
     camera: Camera,
     fixture_map: FixtureMap,
     settings: LocateSettings,
     want_picture: bool,
-    picture_max_px: int,
+    cfg: ServiceSettings,
     gravity: list[float] | None = None,
 ) -> tuple[dict[str, Any], bytes | None]:
-    """Decode, locate (with ``gravity``, camera frame, when given) and (optionally) annotate
-    one photo; runs in the locate pool."""
+    """Read the uploaded photo (its temporary file), check its header, decode, locate (with
+    ``gravity``, camera frame, when given) and (optionally) annotate it; runs in the locate
+    pool, so that at most its threads hold a photo's bytes in memory."""
+    upload.seek(0)
+    raw = upload.read()
+    if not raw:
+        raise _LocateRefused(400, "photo is empty (photo)")
+    header = read_image_header(raw)
+    if header is None:
+        raise _LocateRefused(415, "photo must be a JPEG or PNG (photo)")
+    if header.pixels > cfg.max_pixels:
+        raise _LocateRefused(
+            413,
+            f"photo is {header.width} x {header.height} pixels, over the limit of "
+            f"{cfg.max_pixels} (photo)",
+        )
+    picture_max_px = cfg.picture_max_px
     try:
         image = decode_image(raw, "photo")
     except InputError as exc:
@@ -154,8 +176,9 @@ def health() -> dict[str, Any]:
 
 
 @router.post("/sites", status_code=201, response_model=SiteCreated, tags=["sites"])
-def create_site(body: SiteCreate, store: StoreDep) -> SiteCreated:
-    """Create a site; its API key is in the answer, once (only its hash is kept)."""
+def create_site(body: SiteCreate, store: StoreDep, _admin: Admin) -> SiteCreated:
+    """Create a site (with the service's admin key: ``Authorization: Bearer ADMIN_KEY``); its
+    API key is in the answer, once (only its hash is kept)."""
     _parse_map(body.map)
     _parse_camera(body.camera)
     key, key_hash = new_key()
@@ -218,60 +241,57 @@ def put_camera(
     return CameraPut(site_id=site_id, name=name, created=created)
 
 
-@router.post("/sites/{site_id}/locate", tags=["fixes"])
+#: The multipart form of ``POST .../locate``, for the API's documentation (the route reads it
+#: itself, once the photo is admitted: see :func:`locate_photo`).
+_LOCATE_FORM = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "multipart/form-data": {
+                "schema": {
+                    "type": "object",
+                    "required": ["photo"],
+                    "properties": {
+                        "photo": {
+                            "type": "string",
+                            "format": "binary",
+                            "description": "The photo, JPEG or PNG.",
+                        },
+                        **{
+                            name: {"description": field.description}
+                            | ({"type": "string"} if name in ("readout", "gravity") else {})
+                            | ({"type": "boolean"} if name in ("mirrored", "annotate") else {})
+                            | ({"type": "number"} if name == "max_sigma" else {})
+                            | ({"type": "string", "maxLength": 200} if name == "device" else {})
+                            for name, field in LocateForm.model_fields.items()
+                        },
+                    },
+                }
+            }
+        },
+    }
+}
+
+
+@router.post("/sites/{site_id}/locate", tags=["fixes"], openapi_extra=_LOCATE_FORM)
 async def locate_photo(
     site_id: Site,
+    request: Request,
     store: StoreDep,
     cfg: SettingsDep,
     pool: PoolDep,
     gate: GateDep,
-    photo: Annotated[UploadFile, File(description="The photo, JPEG or PNG.")],
     camera: Annotated[str | None, Query(description="Which of the site's cameras took it.")] = None,
-    device: Annotated[str, Form(max_length=200, description="The client's name.")] = "",
-    readout: Annotated[
-        str | None,
-        Form(description="rows, columns, rows-reversed or columns-reversed."),
-    ] = None,
-    mirrored: Annotated[bool | None, Form(description="The photo is a mirror image.")] = None,
-    gravity: Annotated[
-        str | None,
-        Form(
-            description="gx,gy,gz: the phone's gravity in the camera frame (OpenCV axes, "
-            "any length); the locator uses it (two or three fixtures are then enough) and "
-            "it is kept with the fix."
-        ),
-    ] = None,
-    annotate: Annotated[
-        bool, Form(description="Keep an annotated picture of the fix (for the page).")
-    ] = False,
-    max_sigma: Annotated[
-        float | None,
-        Form(
-            description="The most the position's standard deviation may be along an axis (map "
-            "units): a photo whose position is less sure is not located (as --max-sigma)."
-        ),
-    ] = None,
 ) -> dict[str, Any]:
     """Locate a photo: the JSON of ``camvlp locate --json`` plus ``fix_id``.
 
     The fix is recorded whether or not the photo could be located (then ``position`` is
     null and ``error`` says why).  413: over the size or pixel limit (not decoded);
     415: not a JPEG or PNG; 400: corrupt; 422: not of the camera's size, or bad options;
-    503: too many photos waiting.
+    503: too many photos waiting.  The body is read only once the photo is admitted (not
+    503), into a temporary file (in memory up to 1 MB), and into memory only by the thread
+    that decodes it.
     """
-    grav = _parse_gravity(gravity)
-    raw = await photo.read()
-    header = read_image_header(raw)
-    if not raw:
-        raise HTTPException(400, "photo is empty (photo)")
-    if header is None:
-        raise HTTPException(415, "photo must be a JPEG or PNG (photo)")
-    if header.pixels > cfg.max_pixels:
-        raise HTTPException(
-            413,
-            f"photo is {header.width} x {header.height} pixels, over the limit of "
-            f"{cfg.max_pixels} (photo)",
-        )
     site_row, cameras = await run_in_threadpool(
         lambda: (store.site(site_id), store.cameras(site_id))
     )
@@ -283,27 +303,56 @@ async def locate_photo(
         camera = next(iter(cameras)) if len(cameras) == 1 else "default"
     if camera not in cameras:
         raise HTTPException(404, f"no camera {camera!r} in site {site_id}")
-    cam = camera_from_dict(cameras[camera], "camera")
-    fmap = map_from_dict(site_row.map, "map")
-    try:
-        settings = LocateSettings(readout=readout, mirrored=mirrored, max_position_sigma=max_sigma)
-    except ValueError as exc:
-        raise HTTPException(422, str(exc)) from None
     if gate.busy >= gate.limit:
         raise HTTPException(
             503, f"busy: {gate.busy} photos being located; retry", headers={"Retry-After": "1"}
         )
     gate.busy += 1
     try:
-        result, picture = await asyncio.get_running_loop().run_in_executor(
-            pool, _locate_job, raw, cam, fmap, settings, annotate, cfg.picture_max_px, grav
-        )
+        async with request.form(max_files=1, max_fields=len(LocateForm.model_fields)) as form:
+            fields, grav = _locate_form(form)
+            photo = form.get("photo")
+            if not isinstance(photo, UploadFile):
+                raise HTTPException(422, "photo: must be a file (multipart/form-data)")
+            cam = camera_from_dict(cameras[camera], "camera")
+            fmap = map_from_dict(site_row.map, "map")
+            try:
+                settings = LocateSettings(
+                    readout=fields.readout,
+                    mirrored=fields.mirrored,
+                    max_position_sigma=fields.max_sigma,
+                )
+            except ValueError as exc:
+                raise HTTPException(422, str(exc)) from None
+            job = (photo.file, cam, fmap, settings, fields.annotate, cfg, grav)
+            result, picture = await asyncio.get_running_loop().run_in_executor(
+                pool, _locate_job, *job
+            )
     except _LocateRefused as exc:
         raise HTTPException(exc.status, exc.detail) from None
+    except MultiPartException as exc:
+        raise HTTPException(400, f"malformed form: {exc.message}") from None
     finally:
         gate.busy -= 1
-    fix_id = await run_in_threadpool(store.add_fix, site_id, device, camera, result, picture, grav)
+    fix_id = await run_in_threadpool(
+        store.add_fix, site_id, fields.device, camera, result, picture, grav
+    )
     return {**result, "fix_id": fix_id}
+
+
+def _locate_form(form: FormData) -> tuple[LocateForm, list[float] | None]:
+    """The form's fields, checked (422 in one line, as FastAPI's own forms), and the gravity
+    parsed; the photo is required but not read here."""
+    values: dict[str, Any] = {k: v for k, v in form.items() if k in LocateForm.model_fields}
+    errors = [] if "photo" in form else [{"loc": ("body", "photo"), "msg": "Field required"}]
+    try:
+        fields = LocateForm.model_validate(values)
+    except ValidationError as exc:
+        errors += [{**e, "loc": ("body", *e["loc"])} for e in exc.errors()]
+        raise RequestValidationError(errors) from None
+    if errors:
+        raise RequestValidationError(errors)
+    return fields, _parse_gravity(fields.gravity)
 
 
 @router.get("/sites/{site_id}/fixes", response_model=FixPage, tags=["fixes"])
@@ -354,10 +403,12 @@ async def stream_fixes(
     closes after a while (``retry`` tells the client to reconnect) and resumes from the
     ``Last-Event-ID`` header.
     """
-    last_event = request.headers.get("last-event-id", "")
-    if after is None and last_event.isdigit():
-        after = int(last_event)
-        if after > MAX_ROW_ID:
+    last_event = request.headers.get("last-event-id", "").strip()
+    if after is None and last_event:
+        if not (last_event.isascii() and last_event.isdigit()):
+            raise HTTPException(400, "Last-Event-ID must be a fix id (digits 0 to 9)")
+        after = parse_count(last_event, MAX_ROW_ID)
+        if after is None:
             raise HTTPException(422, f"Last-Event-ID must be at most {MAX_ROW_ID}")
     if after is None:
         after = await run_in_threadpool(store.last_fix_id, site_id)

@@ -11,6 +11,7 @@ __all__ = [
     "FixFields",
     "FixOut",
     "FixPage",
+    "LocateForm",
     "PlanFixture",
     "SiteCreate",
     "SiteCreated",
@@ -99,3 +100,27 @@ class FixPage(BaseModel):
 
     fixes: list[FixOut]
     next_before: int | None
+
+
+class LocateForm(BaseModel):
+    """The fields of ``POST /sites/{id}/locate`` beside the photo (multipart form)."""
+
+    device: str = Field("", max_length=200, description="The client's name.")
+    readout: str | None = Field(
+        None, description="rows, columns, rows-reversed or columns-reversed."
+    )
+    mirrored: bool | None = Field(None, description="The photo is a mirror image.")
+    gravity: str | None = Field(
+        None,
+        description="gx,gy,gz: the phone's gravity in the camera frame (OpenCV axes, any "
+        "length); the locator uses it (two or three fixtures are then enough) and it is kept "
+        "with the fix.",
+    )
+    annotate: bool = Field(
+        False, description="Keep an annotated picture of the fix (for the page)."
+    )
+    max_sigma: float | None = Field(
+        None,
+        description="The most the position's standard deviation may be along an axis (map "
+        "units): a photo whose position is less sure is not located (as --max-sigma).",
+    )

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
-__all__ = ["ServiceSettings"]
+__all__ = ["MIN_ADMIN_KEY_CHARS", "ServiceSettings"]
 
 _ENV_PREFIX = "CAMVLP_"
+#: Shortest admin key accepted (``secrets.token_urlsafe(32)`` gives 43 characters).
+MIN_ADMIN_KEY_CHARS = 16
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,15 @@ class ServiceSettings:
         How long (seconds) one fix stream stays open; clients reconnect with Last-Event-ID.
     picture_max_px : int
         Longest side (pixels) of the annotated pictures kept for the page.
+    admin_key : str
+        The key that creates sites (``Authorization: Bearer KEY`` on ``POST /sites``), at
+        least 16 characters; empty: no site can be created.  From ``CAMVLP_ADMIN_KEY``.
+    header_timeout_s : float
+        Most seconds a client may take to send a request's line and headers.
+    body_timeout_s : float
+        Most seconds a request's body may pause between two pieces.
+    max_connections : int
+        Connections (and requests in progress) per process before new requests get 503.
     """
 
     db: str = "sqlite:///camvlp.db"
@@ -44,12 +55,21 @@ class ServiceSettings:
     stream_poll_s: float = 0.5
     stream_max_s: float = 600.0
     picture_max_px: int = 1280
+    admin_key: str = field(default="", repr=False)
+    header_timeout_s: float = 10.0
+    body_timeout_s: float = 10.0
+    max_connections: int = 500
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
             if f.type in ("int", "float") and not value > 0:
                 raise ValueError(f"{f.name} must be positive, got {value!r}")
+        if self.admin_key and len(self.admin_key) < MIN_ADMIN_KEY_CHARS:
+            raise ValueError(
+                f"CAMVLP_ADMIN_KEY must be at least {MIN_ADMIN_KEY_CHARS} characters, got "
+                f"{len(self.admin_key)}"
+            )
 
     def to_env(self) -> dict[str, str]:
         """The settings as ``CAMVLP_*`` environment variables (for worker processes)."""

@@ -39,11 +39,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
+from camvlp.errors import InputError
 from camvlp.geometry.disc import disc_normals, rim_points
+from camvlp.io.limits import limit
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose, in_front
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -53,10 +56,12 @@ from camvlp.sim.sensor import expose
 
 __all__ = [
     "IMAGE_SUFFIXES",
+    "MAX_BLUR_PX",
     "FixtureTruth",
     "Render",
     "RenderSettings",
     "all_fully_inside",
+    "check_render_size",
     "distinct_colours",
     "fixture_truths",
     "render",
@@ -66,6 +71,9 @@ __all__ = [
 
 #: Rim points used for a fixture's projected outline (bounding box, visibility, extent).
 N_RIM = 64
+#: Largest blur sigma, pixels: past it no stripe is left and the blur's cost grows as sigma
+#: (OpenCV's kernel of a sigma of 1e6 pixels crashes the process).
+MAX_BLUR_PX = 100.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -173,6 +181,11 @@ class RenderSettings:
                 raise ValueError(f"{name} must be a non-negative number, got {value!r}")
             if not math.isfinite(value):
                 raise ValueError(f"{name} must be finite, got {value!r}")
+        if self.blur_px > MAX_BLUR_PX:
+            raise ValueError(
+                f"blur_px must be at most {MAX_BLUR_PX:g} px (no stripe survives more), "
+                f"got {self.blur_px!r}"
+            )
         if isinstance(self.off_level, bool) or not (
             isinstance(self.off_level, (int, float)) and 0 <= self.off_level <= 1
         ):
@@ -207,6 +220,24 @@ class RenderSettings:
             row_time = camera.row_time_s if camera.row_time_s is not None else DEFAULT_ROW_TIME_S
         exposure = self.exposure_s if self.exposure_s is not None else 0.5 / self.chip_rate_hz
         return dataclasses.replace(self, row_time_s=float(row_time), exposure_s=float(exposure))
+
+
+def check_render_size(camera: Camera, source: str | Path | None = None) -> None:
+    """Refuse a camera whose picture is over ``CAMVLP_MAX_RENDER_PIXELS`` (a render takes
+    about 5.5 bytes a pixel with its encoding), before anything is allocated.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` (the camera file) when given.
+    """
+    most = limit("CAMVLP_MAX_RENDER_PIXELS")
+    if camera.width * camera.height > most:
+        raise InputError(
+            f"a render of {camera.width} x {camera.height} pixels is over the limit of "
+            f"{most:,} (set CAMVLP_MAX_RENDER_PIXELS)",
+            source,
+        )
 
 
 def _positive(value, name: str) -> None:
@@ -340,21 +371,39 @@ def _waveform(fixture_map: FixtureMap, fixture: Fixture, chip_rate_hz: float):
     return fixture_map.frame.chips(fixture.id), 1.0 / chip_rate_hz
 
 
+def _phases(fixture_map: FixtureMap, s: RenderSettings) -> list[tuple[float, float]]:
+    """Each fixture's ``(period, phase)``, s: its waveform's period and its LED's random time
+    offset (drawn in map order from the settings' seed)."""
+    rng = np.random.default_rng([int(s.seed), 1])
+    out = []
+    for f in fixture_map.fixtures:
+        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        period = chips.size * chip_s
+        out.append((period, float(rng.uniform(0.0, period))))
+    return out
+
+
 def _truths(
-    camera: Camera, fixture_map: FixtureMap, pose: Pose, settings: RenderSettings
+    camera: Camera,
+    fixture_map: FixtureMap,
+    pose: Pose,
+    settings: RenderSettings,
+    only: list[int] | None = None,
+    phases: list[tuple[float, float]] | None = None,
 ) -> tuple[tuple[FixtureTruth, ...], np.ndarray, list[np.ndarray]]:
-    """Truth per fixture, plus the normals and projected rim points used to render."""
+    """Truth per fixture, plus the normals and projected rim points used to render (of the
+    fixtures ``only``, by index in map order, when given; ``phases`` from :func:`_phases`)."""
     s = settings.resolved(camera)
     normals = _fixture_normals(fixture_map, pose)
-    rng = np.random.default_rng([int(s.seed), 1])
+    phases = phases or _phases(fixture_map, s)
     axis = s.readout.pixel_index
     truths, rims = [], []
     w, h = camera.width, camera.height
     field = _field_radius(camera)
-    for f, n in zip(fixture_map.fixtures, normals, strict=True):
-        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
-        period = chips.size * chip_s
-        phase = float(rng.uniform(0.0, period))
+    chosen = range(len(fixture_map.fixtures)) if only is None else only
+    for j in chosen:
+        f, n = fixture_map.fixtures[j], normals[j]
+        period, phase = phases[j]
         centre_px = camera.project(pose, f.position[None, :])[0]
         ahead = bool(in_front(pose.to_camera(f.position[None, :]))[0])
         rim = _rim_points(f, n)
@@ -380,7 +429,7 @@ def _truths(
                 phase_s=phase,
             )
         )
-    return tuple(truths), normals, rims
+    return tuple(truths), normals[list(chosen)], rims
 
 
 def _field_radius(camera: Camera) -> float:
@@ -669,9 +718,12 @@ def render(
 
     Raises
     ------
+    InputError
+        The camera's picture is over ``CAMVLP_MAX_RENDER_PIXELS``.
     ValueError
         A fixture without a diameter, or colours not matching the fixtures.
     """
+    check_render_size(camera)
     s = (settings or RenderSettings()).resolved(camera)
     for f in fixture_map.fixtures:
         if f.diameter is None:

@@ -34,18 +34,22 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.io.atomic import StagedOutputs
 from camvlp.io.files import MAX_MAGNITUDE, read_text_file
+from camvlp.io.limits import limit
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
-from camvlp.sim.render import FixtureTruth, RenderSettings
+from camvlp.sim.render import FixtureTruth, RenderSettings, check_render_size
 from camvlp.sim.sensor import expose
 
 __all__ = [
     "TRAJECTORY_COLUMNS",
     "Trajectory",
     "VideoFrame",
+    "check_frame_budget",
+    "check_video_size",
     "load_trajectory",
     "partial_path",
     "render_frame",
@@ -188,19 +192,28 @@ def row_truths(
     settings: RenderSettings | None = None,
 ) -> tuple[FixtureTruth, ...]:
     """What a frame at ``t`` shows of each fixture, each seen from the pose at the time of
-    the sensor row through its centre (where the rolling shutter saw it), in map order."""
+    the sensor row through its centre (where the rolling shutter saw it), in map order; a
+    fixture nowhere near the picture (its centre farther outside than its disc's extent) as
+    seen from the frame's middle pose."""
     s = (settings or RenderSettings()).resolved(camera)
     n_rows = camera.height if s.readout.by_rows else camera.width
-    mid = _render._truths(camera, fixture_map, trajectory.pose(t), s)[0]
+    size = np.array([camera.width, camera.height]) - 0.5
+    phases = _render._phases(fixture_map, s)
+    mid = _render._truths(camera, fixture_map, trajectory.pose(t), s, phases=phases)[0]
     out = []
     for j, truth in enumerate(mid):
+        reach = truth.rows_spanned  # the disc's extent, pixels: a cut disc is refined too
+        if not np.all(np.abs(truth.pixel - 0.5 * size) <= 0.5 * size + 0.5 + reach):
+            out.append(truth)  # behind, or nowhere near the picture: as the mid pose sees it
+            continue
         for _ in range(2):  # the row through the centre, then the centre seen from that row
             k = truth.pixel[s.readout.pixel_index]
             if not np.isfinite(k):
                 break
             k = (n_rows - 1 - k) if s.readout.reversed else k
             row_t = t + (k - 0.5 * (n_rows - 1)) * s.row_time_s
-            truth = _render._truths(camera, fixture_map, trajectory.pose(row_t), s)[0][j]
+            pose = trajectory.pose(row_t)
+            truth = _render._truths(camera, fixture_map, pose, s, [j], phases)[0][0]
         out.append(truth)
     return tuple(out)
 
@@ -236,6 +249,7 @@ def render_frame(
     -------
     VideoFrame
     """
+    check_render_size(camera)
     s = (settings or RenderSettings()).resolved(camera)
     for f in fixture_map.fixtures:
         if f.diameter is None:
@@ -304,6 +318,39 @@ def frame_count(trajectory: Trajectory, fps: float, max_frames: int | None = Non
     return n if max_frames is None else min(n, max(int(max_frames), 0))
 
 
+def check_frame_budget(frames: int, source: str | Path | None = None) -> None:
+    """Refuse a render of more than ``CAMVLP_MAX_FRAMES`` frames (before the first one).
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` (the trajectory) when given.
+    """
+    most = limit("CAMVLP_MAX_FRAMES")
+    if frames > most:
+        raise InputError(
+            f"a render of {frames:,} frames is over the limit of {most:,} "
+            "(set CAMVLP_MAX_FRAMES, or give --frames)",
+            source,
+        )
+
+
+def check_video_size(camera: Camera, source: str | Path | None = None) -> None:
+    """Refuse a camera whose picture cannot be an H.264 4:2:0 video: an odd width or height.
+
+    Raises
+    ------
+    InputError
+        Naming ``source`` (the camera file) when given.
+    """
+    if camera.width % 2 or camera.height % 2:
+        raise InputError(
+            f"an H.264 video needs an even width and height (4:2:0), the camera's picture is "
+            f"{camera.width} x {camera.height}: write a folder of PNG frames instead",
+            source,
+        )
+
+
 def truth_paths(out: str | Path) -> tuple[Path, Path]:
     """Where the truth of a video (``x.mp4``) or frame folder is written: (poses, fixtures)."""
     p = Path(out)
@@ -355,10 +402,11 @@ def render_video(
         ``timestamps.csv`` (``frame,t``).  The truth goes beside it (:func:`truth_paths`).
         A video and its truth are written under names of their own (``x.partial.mp4``,
         ``x_truth.partial.csv``, ``x_fixtures.partial.csv``) and take theirs when the render
-        is complete (the truth first, the video last): a render stopped by an error or an
-        interruption keeps its frames so far under those names, and one killed outright
-        leaves nothing under the video's name either (never a video that cannot be read, nor
-        one taken for complete).
+        is complete (the truth first, the video last): a render stopped by an error leaves
+        nothing, one interrupted (Ctrl-C) keeps its frames so far under those names, and one
+        killed outright leaves nothing under the video's name either (never a video that
+        cannot be read, nor one taken for complete).  A folder's files are written into a
+        temporary folder beside it and moved into it once the render is complete.
     fps : float
         Frames per second; frame ``i`` is at ``trajectory.t[0] + i / fps`` (its middle row).
         Its ``t`` in the files is ``i / fps`` (the video's own clock).
@@ -375,80 +423,112 @@ def render_video(
     -------
     int
         Frames written.
+
+    Raises
+    ------
+    InputError
+        The camera's picture over ``CAMVLP_MAX_RENDER_PIXELS``, more frames than
+        ``CAMVLP_MAX_FRAMES``, an odd width or height for a video, an output that cannot be
+        written.
     """
     out = Path(out)
+    check_render_size(camera)
     total = frame_count(trajectory, fps, max_frames)
+    check_frame_budget(total)
     is_video = out.suffix.lower() in VIDEO_SUFFIXES
     if is_video:
-        out.parent.mkdir(parents=True, exist_ok=True)
-    else:
-        out.mkdir(parents=True, exist_ok=True)
+        check_video_size(camera)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
+    if not is_video:  # a folder: every file in a temporary folder, moved into place at the end
+        with StagedOutputs() as outputs:
+            folder = outputs.folder(out)
+            with (folder / "timestamps.csv").open("w", newline="") as stamps:
+                sw = csv.writer(stamps)
+                sw.writerow(("frame", "t"))
+
+                def write(i: int, image: np.ndarray) -> str:
+                    name = f"frame_{i:06d}.png"
+                    if not cv2.imwrite(str(folder / name), image):
+                        raise InputError("cannot write a frame", out / name)
+                    sw.writerow((name, f"{i / fps:.6f}"))
+                    return name
+
+                _write_truths(frames, write, truth_paths(folder), fps, total, progress)
+        return total
     # a video's files under names of their own until it is complete (see above), renamed in
     # this order: the truth first, the video last
     truths = truth_paths(out)
-    finals = (*truths, out) if is_video else ()
-    target = partial_path(out) if is_video else out
-    truth_path, fixtures_path = (partial_path(p) for p in truths) if is_video else truths
-    writer = _VideoWriter(target, camera.width, camera.height, fps, crf) if is_video else None
-    stamps = None if is_video else (out / "timestamps.csv").open("w", newline="")
+    target = partial_path(out)
+    partials = (*(partial_path(p) for p in truths), target)
+    writer = _VideoWriter(target, camera.width, camera.height, fps, crf)
     completed = False
     try:
-        with truth_path.open("w", newline="") as tf, fixtures_path.open("w", newline="") as ff:
-            tw, fw = csv.writer(tf), csv.writer(ff)
-            tw.writerow(("frame", *TRAJECTORY_COLUMNS))
-            fw.writerow(("frame", "id", "u", "v", "fully_inside", "frames_spanned"))
-            sw = None
-            if stamps is not None:
-                sw = csv.writer(stamps)
-                sw.writerow(("frame", "t"))
-            frames = iter_frames(camera, fixture_map, trajectory, fps, settings, max_frames)
-            for i, frame in enumerate(frames):
-                t_video = i / fps
-                name = f"frame_{i:06d}.png"
-                if writer is not None:
-                    writer.write(frame.image)
-                else:
-                    if not cv2.imwrite(str(out / name), frame.image):
-                        raise InputError("cannot write a frame", out / name)
-                    sw.writerow((name, f"{t_video:.6f}"))
-                pos, eul = frame.pose.position, frame.pose.euler_deg
-                tw.writerow(
-                    (
-                        name if writer is None else i,
-                        f"{t_video:.6f}",
-                        *(f"{v:.6f}" for v in pos),
-                        *(f"{v:.5f}" for v in eul),
-                    )
-                )
-                for ft in frame.fixtures:
-                    fw.writerow(
-                        (
-                            name if writer is None else i,
-                            ft.id,
-                            f"{ft.pixel[0]:.3f}",
-                            f"{ft.pixel[1]:.3f}",
-                            int(ft.fully_inside),
-                            f"{ft.frames_spanned:.3f}",
-                        )
-                    )
-                if progress is not None:
-                    progress(i + 1, total)
+
+        def encode(i: int, image: np.ndarray) -> int:
+            writer.write(image)
+            return i
+
+        _write_truths(frames, encode, partials[:2], fps, total, progress)
         completed = True
-    finally:
-        if writer is not None:
-            try:
-                writer.close()
-            except Exception:
-                if completed:
-                    raise  # (else the error that stopped the render is the one to tell)
-        if stamps is not None:
-            stamps.close()
-        if not completed and is_video and not target.exists():  # nothing encoded
-            for p in (truth_path, fixtures_path):
+    except BaseException as exc:
+        if not isinstance(exc, KeyboardInterrupt):  # an error: nothing is kept
+            writer.abandon()
+            for p in partials:
                 p.unlink(missing_ok=True)
-    for final in finals:  # complete
+        raise
+    finally:
+        try:
+            writer.close()
+        except Exception:
+            if completed:
+                raise  # (else the error that stopped the render is the one to tell)
+        if not completed and not target.exists():  # nothing encoded
+            for p in partials[:2]:
+                p.unlink(missing_ok=True)
+    for final in (*truths, out):  # complete
         partial_path(final).replace(final)
     return total
+
+
+def _write_truths(
+    frames: Iterator[VideoFrame],
+    write: Callable[[int, np.ndarray], str | int],
+    paths: tuple[Path, Path],
+    fps: float,
+    total: int,
+    progress: Callable[[int, int], None] | None,
+) -> None:
+    """Hand each frame's image to ``write`` (which names the frame) and write the truth files
+    ``paths`` (poses, fixtures) row by row."""
+    with paths[0].open("w", newline="") as tf, paths[1].open("w", newline="") as ff:
+        tw, fw = csv.writer(tf), csv.writer(ff)
+        tw.writerow(("frame", *TRAJECTORY_COLUMNS))
+        fw.writerow(("frame", "id", "u", "v", "fully_inside", "frames_spanned"))
+        for i, frame in enumerate(frames):
+            name = write(i, frame.image)
+            pos, eul = frame.pose.position, frame.pose.euler_deg
+            tw.writerow(
+                (
+                    name,
+                    f"{i / fps:.6f}",
+                    *(f"{v:.6f}" for v in pos),
+                    *(f"{v:.5f}" for v in eul),
+                )
+            )
+            for ft in frame.fixtures:
+                fw.writerow(
+                    (
+                        name,
+                        ft.id,
+                        f"{ft.pixel[0]:.3f}",
+                        f"{ft.pixel[1]:.3f}",
+                        int(ft.fully_inside),
+                        f"{ft.frames_spanned:.3f}",
+                    )
+                )
+            if progress is not None:
+                progress(i + 1, total)
 
 
 def partial_path(path: str | Path) -> Path:
@@ -483,6 +563,16 @@ class _VideoWriter:
             self.container.mux(packet)
 
     def close(self) -> None:
+        """Flush the encoder and close the file (once; nothing after :meth:`abandon`)."""
+        if self.container is None:
+            return
+        container, self.container = self.container, None
         for packet in self.stream.encode():
-            self.container.mux(packet)
-        self.container.close()
+            container.mux(packet)
+        container.close()
+
+    def abandon(self) -> None:
+        """Close the file without flushing the encoder (the render failed: it is deleted)."""
+        if self.container is not None:
+            container, self.container = self.container, None
+            container.close()
