@@ -269,7 +269,7 @@ class BeaconProfile:
         ph = (np.arange(phases) / phases)[None, :, None, None, None] * p
         d = np.asarray(duties, dtype=float)[None, None, None, :, None]
         frac = np.asarray(windows, dtype=float)[None, None, :, None, None]
-        win = np.maximum(frac * np.minimum(d, 1 - d) * 2 * p, MIN_WINDOW)
+        win = np.maximum(frac * np.minimum(d, 1 - d) * p, MIN_WINDOW)
         return self.costs(*self.wave(p, ph, win, d))
 
     def best(
@@ -280,7 +280,7 @@ class BeaconProfile:
         k = np.unravel_index(int(np.argmin(cost)), cost.shape)
         p = float(np.asarray(periods, dtype=float)[k[0]])
         d = float(np.asarray(duties)[k[3]])
-        window = max(float(np.asarray(windows)[k[2]]) * 2 * min(d, 1 - d) * p, MIN_WINDOW)
+        window = max(float(np.asarray(windows)[k[2]]) * min(d, 1 - d) * p, MIN_WINDOW)
         return float(cost[k]), np.array([p, k[1] / phases * p, window, d])
 
     def refine(self, wave: np.ndarray, lo: float, hi: float) -> tuple[float, np.ndarray]:
@@ -291,7 +291,7 @@ class BeaconProfile:
         def clipped(x: np.ndarray) -> np.ndarray:
             p = float(np.clip(x[0], lo, hi))
             d = float(np.clip(x[3], *DUTY_RANGE))
-            return np.array([p, x[1], np.clip(x[2], MIN_WINDOW, 2 * min(d, 1 - d) * p), d])
+            return np.array([p, x[1], np.clip(x[2], MIN_WINDOW, min(d, 1 - d) * p), d])
 
         def cost(x: np.ndarray) -> float:
             return float(self.costs(*self.wave(*clipped(x))))
@@ -444,7 +444,8 @@ def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarra
         extra = sum(profile.degrees)  # the envelopes' terms beyond the flat ones
         dof = max(profile.lines.size - 6 - extra, 1)
         if (flat_cost - cost) * dof <= FLAT_F * extra * max(cost, 1e-12):
-            wave = np.array([flat_wave[0], *wave[1:]])
+            # the flat envelopes' wave, costed with the full ones
+            return float(profile.costs(*profile.wave(*flat_wave))), flat_wave
     return cost, wave
 
 

@@ -731,6 +731,23 @@ def _drop_duplicates(
 MIN_AXIS_RATIO = 0.5
 
 
+#: Two outlines are one disc when their centres lie within this share of its radius and
+#: their axes differ by at most this share.
+SAME_OUTLINE = 0.1
+
+
+def _one_outline(a: dict, b: dict) -> bool:
+    """Whether two candidates' fitted outlines are one ellipse (:data:`SAME_OUTLINE`): a
+    light whose wide bands were taken for several lights, each cell of it fitted with the
+    whole light's edges."""
+    ra, rb = np.asarray(a["axes_px"], dtype=float), np.asarray(b["axes_px"], dtype=float)
+    if not (np.all(np.isfinite(ra)) and np.all(np.isfinite(rb))):
+        return False
+    radius = 0.25 * float(ra.sum() + rb.sum()) / 2.0
+    near = math.dist(a["pixel"].tolist(), b["pixel"].tolist()) <= SAME_OUTLINE * radius
+    return near and bool(np.all(np.abs(ra - rb) <= SAME_OUTLINE * np.maximum(ra, rb)))
+
+
 def _two_cells(a: dict, b: dict) -> bool:
     """Whether candidate ``a`` is a light of its own beside ``b``, however close their
     centres: both are lights that a joined region was split into (each has a
@@ -745,6 +762,8 @@ def _two_cells(a: dict, b: dict) -> bool:
     if a["cell"] is None or b["cell"] is None:
         return False
     if a["axes_px"][1] < MIN_AXIS_RATIO * a["axes_px"][0]:
+        return False
+    if _one_outline(a, b):  # each cell's edge points drew the whole of one light
         return False
     (ax0, ay0, ax1, ay1), (bx0, by0, bx1, by1) = a["box"], b["box"]
     x0, y0, x1, y1 = max(ax0, bx0), max(ay0, by0), min(ax1, bx1), min(ay1, by1)
