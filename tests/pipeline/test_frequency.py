@@ -217,7 +217,7 @@ def test_decode_frequencies_returns_centres_and_leaves_the_blobs_alone():
     blobs = detect_fixtures(photo.image, readout="rows").blobs
     rois = [to_gray(photo.image[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
     before = [b.pixel.copy() for b in blobs]
-    decodes, freqs, centres, _ = decode_frequencies(blobs, rois, "rows", camera, room)
+    decodes, freqs, centres, _, _ = decode_frequencies(blobs, rois, "rows", camera, room)
     assert centres.shape == (len(blobs), 2) and len(decodes) == freqs.size == len(blobs)
     for b, p in zip(blobs, before, strict=True):
         assert np.array_equal(b.pixel, p)
@@ -256,6 +256,6 @@ def test_a_disc_whose_end_lies_in_a_dark_stripe_keeps_its_period():
         det = detect_fixtures(photo.image)
         gray = to_gray(photo.image)
         rois = [gray[b.box[1] : b.box[3], b.box[0] : b.box[2]] for b in det.blobs]
-        _, hz, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
+        _, hz, _, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
         errors.append(abs(hz[0] / 2000.0 - 1))
     assert np.median(errors) < 0.012 and max(errors) < 0.05, np.round(errors, 4)

@@ -62,8 +62,8 @@ FLAT_F = 3.0
 PHASES = 24
 WINDOWS = (0.1, 0.4, 0.7, 1.0)
 DUTIES = (0.5,)
-#: The duties the fit may refine to.
-DUTY_RANGE = (0.5, 0.5)
+#: Rounds of :meth:`BeaconProfile.refine`: its steps shrink to 0.4 ** 6 (0.4 %) of the first.
+REFINE_ROUNDS = 7
 #: Shortest window, lines: a line samples the wave once, an edge sharper than a line lies
 #: anywhere between two lines.
 MIN_WINDOW = 1.0
@@ -284,27 +284,36 @@ class BeaconProfile:
         return float(cost[k]), np.array([p, k[1] / phases * p, window, d])
 
     def refine(self, wave: np.ndarray, lo: float, hi: float) -> tuple[float, np.ndarray]:
-        """The wave refined by Nelder-Mead over period (kept within ``lo`` to ``hi`` lines),
-        phase, window and duty (within :data:`DUTY_RANGE`); (cost, the wave)."""
-        from scipy.optimize import minimize
-
-        def clipped(x: np.ndarray) -> np.ndarray:
-            p = float(np.clip(x[0], lo, hi))
-            d = float(np.clip(x[3], *DUTY_RANGE))
-            return np.array([p, x[1], np.clip(x[2], MIN_WINDOW, min(d, 1 - d) * p), d])
-
-        def cost(x: np.ndarray) -> float:
-            return float(self.costs(*self.wave(*clipped(x))))
-
-        step = np.array([0.01 * wave[0], 0.05 * wave[0], 0.1 * wave[0], 0.03])
-        simplex = wave + np.vstack([np.zeros(4), np.diag(step)])
-        res = minimize(
-            cost,
-            wave,
-            method="Nelder-Mead",
-            options={"xatol": 1e-3, "fatol": 1e-9, "maxfev": 300, "initial_simplex": simplex},
-        )
-        return float(res.fun), clipped(np.asarray(res.x, dtype=float))
+        """The wave refined over period (kept within ``lo`` to ``hi`` lines), phase and
+        window (its duty kept): a grid of 5 periods x 9 phases x 5 windows about the best so
+        far, its steps shrunk at each of :data:`REFINE_ROUNDS` rounds (each round one batched
+        :meth:`costs`); (cost, the wave).  The phase is stepped about the edge nearest the
+        profile's middle line, which a change of period then leaves in place: the two do
+        not trade off."""
+        best = np.array(wave, dtype=float)
+        best[0] = float(np.clip(best[0], lo, hi))
+        cost = float(self.costs(*self.wave(*best)))
+        middle = float(0.5 * (self.lines.min() + self.lines.max()))
+        step = np.array([0.01 * best[0], 0.05 * best[0], 0.1 * best[0]])
+        five, nine = np.linspace(-1.0, 1.0, 5), np.linspace(-1.0, 1.0, 9)
+        for _ in range(REFINE_ROUNDS):
+            # the rising edge nearest the middle, kept there as the period changes
+            edge = best[1] + best[0] * np.round((middle - best[1]) / best[0])
+            p = np.clip(best[0] + step[0] * five, lo, hi)[:, None, None]
+            ph = (edge + step[1] * nine)[None, :, None] + 0.0 * p
+            top = min(best[3], 1.0 - best[3]) * p
+            win = np.broadcast_to(
+                np.clip(best[2] + step[2] * five[None, None, :], MIN_WINDOW, top), (5, 9, 5)
+            )
+            grid = self.costs(*self.wave(p[..., None], ph[..., None], win[..., None], best[3]))
+            k = np.unravel_index(int(np.argmin(grid)), grid.shape)
+            if grid[k] < cost:
+                cost = float(grid[k])
+                best = np.array(
+                    [float(p[k[0], 0, 0]), float(ph[k[0], k[1], 0]), float(win[k]), best[3]]
+                )
+            step *= 0.4
+        return cost, best
 
     def envelopes(self, wave: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The floor ``a`` and on level ``b`` per line (the profile's scale, less its median)
@@ -363,6 +372,9 @@ class FrequencyTest:
         The share of clearly lit or dark lines the chosen wave agrees with.
     costs : ndarray, shape (K,)
         Each map frequency's least residual (the profile's scale), inf where not searched.
+    waves : tuple of (ndarray or None)
+        Each map frequency's best wave ``[period, phase, window, duty]`` (None where not
+        searched), for :meth:`BeaconProfile.envelopes` and the debug pictures.
     crowded : bool
         Refused because another map frequency lies within twice the tolerance of the one
         that fits: a tighter tolerance (the row time rescaled by the photo's other lights)
@@ -377,6 +389,7 @@ class FrequencyTest:
     margin: float
     agreement: float
     costs: np.ndarray
+    waves: tuple = ()
     crowded: bool = False
 
     def __bool__(self) -> bool:
@@ -415,32 +428,41 @@ def _window(periods: np.ndarray, k: int, tolerance: float) -> tuple[float, float
     return p * (1 - tolerance), p * (1 + tolerance)
 
 
-def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
-    """The square wave that best fits a light's stripes, any period: (its residual, its
-    ``[period, phase, window, duty]``, lines); (inf, NaNs) for a profile too short.
-
-    Every period the profile spans 0.75 of or more is tried (4 % apart, 12 phases, 3
-    windows); the best, and each of ``periods`` (lines: the map's, whose own search may find
-    a better phase), are searched finer, and the best of those refined (:meth:`refine`).
-    """
-    if not profile.usable:
-        return np.inf, np.full(4, np.nan)
+def _search(profile: BeaconProfile, periods) -> tuple[float, np.ndarray]:
+    """:func:`stripes_period`'s search with one model: every period the profile spans 0.75
+    of or more (4 % apart, 12 phases, 3 windows); the best, and each of ``periods`` (lines),
+    searched finer and refined (:meth:`BeaconProfile.refine`); the best of those."""
     longest = profile.span / MIN_PERIODS_SEEN
     coarse = np.exp(np.arange(np.log(MIN_PERIOD), np.log(longest), 0.04))
     grid = profile.grid(coarse, 12, (0.2, 0.6, 1.0)).reshape(coarse.size, -1).min(1)
     seeds = [float(coarse[int(np.argmin(grid))])]
     seeds += [float(p) for p in np.asarray(periods, dtype=float) if MIN_PERIOD <= p <= longest]
     best = (np.inf, np.full(4, np.nan))
-    for p in seeds:
-        got = profile.best(_search_periods(p, p * 0.97, p * 1.03))
+    for p in seeds:  # each refined: a grid's best phase may lie in another period's valley
+        got = profile.refine(
+            profile.best(_search_periods(p, p * 0.97, p * 1.03))[1], MIN_PERIOD, longest
+        )
         if got[0] < best[0]:
             best = got
-    cost, wave = profile.refine(best[1], MIN_PERIOD, longest)
-    # the period from flat envelopes where they explain the stripes as well (a light whose
-    # shape the waveform is free of): fewer unknowns, a sharper period
+    return best
+
+
+def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
+    """The square wave that best fits a light's stripes, any period: (its residual under the
+    profile's own envelopes, its ``[period, phase, window, duty]``, lines); (inf, NaNs) for
+    a profile too short.
+
+    Searched with the profile's envelopes and with flat ones (:func:`_search`, ``periods``
+    the map's, lines, searched too); the flat envelopes' wave is taken where they explain
+    the stripes about as well (an F ratio of :data:`FLAT_F` per extra envelope term): a light
+    whose waveform is free of its shape has fewer unknowns, a sharper period.
+    """
+    if not profile.usable:
+        return np.inf, np.full(4, np.nan)
+    cost, wave = _search(profile, periods)
     flat = profile.with_degrees(0, 0)
     if flat.usable and np.isfinite(cost):
-        flat_cost, flat_wave = flat.refine(wave, MIN_PERIOD, longest)
+        flat_cost, flat_wave = _search(flat, [*np.atleast_1d(periods), wave[0]])
         extra = sum(profile.degrees)  # the envelopes' terms beyond the flat ones
         dof = max(profile.lines.size - 6 - extra, 1)
         if (flat_cost - cost) * dof <= FLAT_F * extra * max(cost, 1e-12):
@@ -486,7 +508,7 @@ def hold_against(
     costs = np.full(target.size, np.inf)
     if not profile.usable:
         why = "too few lines with signal to measure stripes"
-        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs)
+        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs, (None,) * target.size)
     null = profile.null_cost
     free_cost, free_wave = free if free is not None else stripes_period(profile, target)
     period = float(free_wave[0])
@@ -521,7 +543,9 @@ def hold_against(
     own = f"{1.0 / (period * row_time_s):.0f} Hz" if row_time_s else f"a period of {period:.1f} px"
 
     def refused(why: str) -> FrequencyTest:
-        return FrequencyTest(None, why, period, seen, explained, margin, agreement, costs)
+        return FrequencyTest(
+            None, why, period, seen, explained, margin, agreement, costs, tuple(waves)
+        )
 
     if not np.isfinite(period) or seen < MIN_PERIODS_SEEN:
         return refused(f"the light shows {seen:.2f} stripe periods, too few (steady, or too small)")
@@ -550,6 +574,7 @@ def hold_against(
             margin,
             agreement,
             costs,
+            tuple(waves),
             crowded=True,
         )
     if evidence < MIN_EVIDENCE:
@@ -562,4 +587,4 @@ def hold_against(
             f"its stripes are not a regular square wave ({100 * agreement:.0f} % of its lines "
             "agree with the best map frequency's): data, flicker or not a beacon"
         )
-    return FrequencyTest(j, "", period, seen, explained, margin, agreement, costs)
+    return FrequencyTest(j, "", period, seen, explained, margin, agreement, costs, tuple(waves))

@@ -66,11 +66,8 @@ def period_uncertainty(periods_spanned) -> np.ndarray:
     """Relative uncertainty of a stripe period measured over ``periods_spanned`` periods.
 
     1 % over 3 periods, falling with the square of the count (4 % over 1.5, 0.25 % over 6,
-    0.09 % over 10).  It was set as the worst error of the periodic fit
-    (``estimate_stripe_period``); for the waveform fit now used (``light_wave``) it lies well
-    above the median errors of ``benchmarks/bench_frequency.py`` (0.1 to 0.7 % over 1.5
-    periods, 0.02 to 0.23 % over 4) but below the worst of saturated lights with edges
-    sharper than a row (7 % over 1.5 periods, 1.3 % over 4).
+    0.09 % over 10): what the ratios of a photo's periods are matched with when the row
+    time is not given (:func:`assign_frequencies`).
     """
     n = np.maximum(np.asarray(periods_spanned, dtype=float), 1.0)
     return 0.01 * (3.0 / n) ** 2
@@ -323,7 +320,7 @@ def _told_apart(tests, profiles, free, map_freqs, row_time: float, periods) -> l
 
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
+) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str, list]:
     """Identify frequency-coded fixtures: each light's stripes held against the forward model
     of a beacon at each map frequency (:mod:`camvlp.pipeline.beacon`).
 
@@ -361,6 +358,10 @@ def decode_frequencies(
         Each light's centre ``[u, v]``, full-resolution pixels (:func:`_centre`).
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
+    beacons : list of tuple
+        Per blob, its :class:`~camvlp.pipeline.beacon.BeaconProfile`, its
+        :class:`~camvlp.pipeline.beacon.FrequencyTest` (None where the row time is unknown)
+        and the map's periods it was held against (lines): what the debug pictures draw.
     """
     n = len(blobs)
     map_freqs = np.array([f.frequency_hz for f in fixture_map.fixtures], dtype=float)
@@ -393,7 +394,7 @@ def decode_frequencies(
     if not row_time:
         why = "the row time is unknown and the periods fit no set of the map's frequencies"
         decodes = [StripeDecode(None, why, -1, 0.0, 0.5 * p, np.nan, "", np.nan) for p in periods]
-        return decodes, np.full(n, np.nan), centres, note
+        return decodes, np.full(n, np.nan), centres, note, [(p, None, None) for p in profiles]
     tests = [
         hold_against(p, 1.0 / (map_freqs * row_time), f, row_time_s=row_time)
         for p, f in zip(profiles, free, strict=True)
@@ -414,4 +415,7 @@ def decode_frequencies(
         )
     with np.errstate(invalid="ignore", divide="ignore"):
         frequencies = 1.0 / (periods * row_time)
-    return decodes, np.where(np.isfinite(frequencies), frequencies, np.nan), centres, note
+    measured = np.where(np.isfinite(frequencies), frequencies, np.nan)
+    map_periods = 1.0 / (map_freqs * row_time)
+    beacons = [(p, t, map_periods) for p, t in zip(profiles, tests, strict=True)]
+    return decodes, measured, centres, note, beacons

@@ -1,6 +1,6 @@
 """The centre of a round light's radial shape, fitted where the shape tells it.
 
-:func:`camvlp.pipeline.light_wave.light_wave` fits a light's radial shape ``g(rho)`` and its
+:func:`camvlp.pipeline.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and its
 stripes ``s(line)`` together, and refines the shape's centre on the way (on every k-th pixel
 of a few thousand, with radial bins of 1/40 of the outline's radius, and a shape that starts
 from the outline's centre: enough to separate the stripes from the shape).  The centre

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from numpy.polynomial import legendre
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
 from camvlp.pipeline.later import Later, LaterField
@@ -186,24 +187,37 @@ def _axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
 
 def _axis_from_sums(row_sums, n_rows, col_sums, n_cols) -> tuple[str, float]:
     """The readout axis and contrast from a disc's gray sums and pixel counts per row and
-    per column (float32)."""
+    per column (float32): the mean level per row and per column, each less its smooth part
+    (:func:`_stripe_variance`); the stripes vary along one axis only."""
     keep_r, keep_c = n_rows >= 3, n_cols >= 3
-    rows = row_sums[keep_r] / n_rows[keep_r]
-    cols = col_sums[keep_c] / n_cols[keep_c]
-    vr = _diff_var(rows) if rows.size > 2 else 0.0
-    vc = _diff_var(cols) if cols.size > 2 else 0.0
+    vr = _stripe_variance(row_sums[keep_r] / n_rows[keep_r], n_rows[keep_r])
+    vc = _stripe_variance(col_sums[keep_c] / n_cols[keep_c], n_cols[keep_c])
     if vr >= vc:
         return "rows", vr / max(vc, 1e-9)
     return "columns", vc / max(vr, 1e-9)
 
 
-def _diff_var(v: np.ndarray) -> float:
-    """``np.var(np.diff(v))`` of a 1-D array (3 values or more) as the mean square of the
-    differences less their squared mean, which is ``(v[-1] - v[0]) / (n - 1)``: two NumPy
-    calls (the sum of squares in the array's dtype)."""
-    d = v[1:] - v[:-1]
-    mean = (float(v[-1]) - float(v[0])) / d.size
-    return max(float(d @ d) / d.size - mean * mean, 0.0)
+#: Degree of the smooth part of a light's mean profile: its shape (a chord's level, a hot
+#: core, a glow), which varies along both axes alike.
+_SHAPE_DEGREE = 2
+
+
+def _stripe_variance(level: np.ndarray, count: np.ndarray) -> float:
+    """The variance (weighted by the pixel counts) of a light's mean level per line about
+    its smooth part, a polynomial of :data:`_SHAPE_DEGREE` fitted to it: what stripes add.
+    Where a soft light's hot core made its level vary as much along the stripes as across
+    (first differences 1.1 times apart on a 106 px light with four periods), the stripes
+    stand out (23 to 35 times).  0 for fewer than four lines."""
+    if level.size <= _SHAPE_DEGREE + 1:
+        return 0.0
+    u = np.linspace(-1.0, 1.0, level.size)
+    basis = legendre.legvander(u, _SHAPE_DEGREE)
+    w = np.asarray(count, dtype=np.float64)
+    sw = np.sqrt(w)
+    v = np.asarray(level, dtype=np.float64)
+    beta = np.linalg.lstsq(basis * sw[:, None], v * sw, rcond=None)[0]
+    r = v - basis @ beta
+    return float((w * r * r).sum() / w.sum())
 
 
 @functools.lru_cache(maxsize=64)

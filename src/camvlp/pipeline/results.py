@@ -254,6 +254,9 @@ class LocateStages:
         Each profile's row weights, in the same order: the inverse of each row's variance
         under pixels of equal noise, up to a constant
         (:func:`~camvlp.pipeline.profile.shape_profiles`).
+    beacons : tuple of tuple
+        Frequency mode: each light's beacon profile, its test against the map's frequencies
+        and the map's periods (:func:`~camvlp.pipeline.frequency.decode_frequencies`).
     """
 
     detection: Detection
@@ -261,3 +264,4 @@ class LocateStages:
     profiles: tuple[np.ndarray, ...]
     decodes: tuple[ModelDecode | StripeDecode, ...]
     profile_weights: tuple[np.ndarray, ...] = ()
+    beacons: tuple = ()

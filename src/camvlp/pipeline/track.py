@@ -214,7 +214,7 @@ class Tracker:
             rpc = float(np.median(self._chip_rows[-50:]))
             done = decode_profiles(profiles, self.map.frame, rows_per_chip=rpc)
         else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
-            done, _, _, sub = _decode(
+            done, _, _, sub, _ = _decode(
                 sub, gray_rois, profiles, readout, self.camera, self.map, weights
             )
         for d in done:
