@@ -75,6 +75,7 @@ STAMP_HEIGHT = 0.03
 MAX_STAMP_CHARS = 100
 
 _STAMP_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_STAMP_DIGIT_PX = 21.0  # a digit's height in that font at scale 1, pixels (not getTextSize's 27)
 
 _ROW_CHUNK = 128  # image rows per chunk of the full-frame passes (even: see _raw)
 
@@ -240,8 +241,7 @@ def burn_stamp(image: np.ndarray, text: str) -> tuple[int, int, int, int]:
     h, w = image.shape[:2]
     tall = STAMP_HEIGHT * h
     margin = round(0.02 * h)
-    (_, digit), _ = cv2.getTextSize("0", _STAMP_FONT, 1.0, 1)
-    scale = tall / digit
+    scale = tall / _STAMP_DIGIT_PX
     thickness = max(1, round(tall / 8))
     (tw, _), base = cv2.getTextSize(text, _STAMP_FONT, scale, thickness)
     room = w - 2 * margin - thickness
