@@ -66,6 +66,7 @@ from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSett
 from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
 from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
 from camvlp.sim.oracle import id_separation
+from camvlp.sim.sensor import camera_date
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
 EXPOSURES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
@@ -158,11 +159,7 @@ def distractors_of(
     Returns the fixtures to render, the data light's ID and the stamp."""
     ids = {f.id for f in fixtures}
     free = [i for i in range(16) if i not in ids]
-    stamp = (
-        f"{int(rng.integers(2010, 2026))}-{int(rng.integers(1, 13)):02d}-"
-        f"{int(rng.integers(1, 29)):02d} {int(rng.integers(0, 24)):02d}:"
-        f"{int(rng.integers(0, 60)):02d}:{int(rng.integers(0, 60)):02d}"
-    )
+    stamp = camera_date(rng)
     more = place_discs(rng, camera, rows_per_chip, len(placed) + 1, placed)[len(placed) :]
     if not free or not more:
         return fixtures, fixtures[-1].id, stamp
@@ -260,23 +257,29 @@ def draw_photo(
 
 def one_photo(rng, exposure: float, rows_per_chip: float, **look):
     """A photo drawn (:func:`draw_photo`, with its keyword arguments ``look``) and taken
-    (:func:`shoot`); returns the render, ``locate``'s result, the conditions, the time of
-    ``locate`` (s), the map ``locate`` was given and the map rendered (with the data light)."""
+    (:func:`shoot`, an exception of ``locate`` caught); returns the render, ``locate``'s
+    result (or the exception it raised), the conditions, the time of ``locate`` (s), the map
+    ``locate`` was given and the map rendered (with the data light)."""
     d = draw_photo(rng, exposure, rows_per_chip, **look)
-    photo, res, cond, dt, _ = shoot(d)
+    photo, res, cond, dt, _ = shoot(d, catch=True)
     return photo, res, cond, dt, d.fmap, d.scene or d.fmap
 
 
-def shoot(d: Drawn):
+def shoot(d: Drawn, catch: bool = False):
     """A drawn photo rendered, stored as a JPEG and located (``keep_stages``); returns the
     render, ``locate``'s result, the conditions, the time of ``locate`` (s) and the JPEG's
-    bytes."""
+    bytes.  With ``catch``, an exception ``locate`` raises is returned as its result."""
     camera, fmap, settings = d.camera, d.fmap, d.settings
     photo = render(camera, d.scene or fmap, Pose(np.eye(3), np.zeros(3)), settings)
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, d.quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     t = time.perf_counter()
-    res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
+    try:
+        res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
+    except Exception as exc:  # a crash is a result to report, not the end of the sweep
+        if not catch:
+            raise
+        res = exc
     dt = time.perf_counter() - t
     cond = dict(
         big=d.big,
@@ -355,16 +358,6 @@ def _report(d: Drawn, save: Path | None) -> int:
         write_debug_pictures(save / "stages", image, res, res.stages)
         print(f"wrote {save / 'photo.jpg'}, {save / 'annotated.png'} and {save / 'stages'}/")
     return 0
-
-
-def on_stamp(pixel, box, margin: float = 3.0) -> bool:
-    """Whether a reported light's pixel [u, v] lies on the stamp's text (its box ``(u0, v0,
-    u1, v1)``, grown by ``margin`` pixels; False without a stamp)."""
-    if box is None:
-        return False
-    u0, v0, u1, v1 = box
-    u, v = float(pixel[0]), float(pixel[1])
-    return u0 - margin <= u <= u1 + margin and v0 - margin <= v <= v1 + margin
 
 
 def separation(
@@ -460,6 +453,7 @@ def main() -> int:
     records = []
     slow = []  # (seconds, cell, photo in the cell, lamps, conditions) of every photo
     oracles = []  # (decimal log likelihood ratio, closest ID) of the lamps read wrongly or not
+    crashes = []  # (exposure, rows per chip, photo in the cell, the exception) where locate raised
     t0 = time.perf_counter()
     n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
     for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
@@ -468,8 +462,6 @@ def main() -> int:
         for i_photo in range(args.per_cell):
             photo, res, cond, dt, fmap, scene = one_photo(rng, exposure, rpc, **look)
             times.append(dt)
-            slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
-            located += bool(res)
             truth = [t for t in photo.fixtures]
             eligible_k = {
                 k
@@ -477,6 +469,17 @@ def main() -> int:
                 if t.fully_inside and t.frames_spanned >= 1.2 and not t.sends_data
             }
             eligible += len(eligible_k)
+            if isinstance(res, Exception):  # every lamp missed; listed at the end
+                crashes.append((exposure, rpc, i_photo, f"{type(res).__name__}: {res}"))
+                slow.append((dt, exposure, rpc, i_photo, 0, cond))
+                missed = sorted(truth[k].id for k in eligible_k)
+                records.append(  # one record for the photo's lamps
+                    dict(exposure=exposure, rows_per_chip=rpc, ids=missed, got=None)
+                    | dict(reason=f"locate raised {type(res).__name__}", **cond)
+                )
+                continue
+            slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
+            located += bool(res)
             reported: set[int] = set()
             for k_fr, fr in enumerate(res.fixtures):
                 d = [np.hypot(*(t.pixel - fr.pixel)) for t in truth]
@@ -484,7 +487,7 @@ def main() -> int:
                 t = truth[k]
                 if d[k] > 0.25 * t.rows_spanned + 3 or t.sends_data:
                     what = "data light" if d[k] <= 0.25 * t.rows_spanned + 3 else None
-                    if what is None and on_stamp(fr.pixel, photo.stamp_box):
+                    if what is None and photo.on_stamp(fr.pixel):
                         what = "text"
                     if what is None or fr.id is None:
                         continue  # refused, or not one of the discs (should not happen)
@@ -629,6 +632,10 @@ def main() -> int:
             f"{MIN_MARGIN:g} or more (smallest margins: "
             f"{', '.join(f'{v:.3g} to ID {i}' for v, i in sorted(oracles)[:5])})"
         )
+    if crashes:
+        print(f"locate raised on {len(crashes)} photos (counted not located, every lamp missed):")
+        for e, r, i, what in crashes:
+            print(f"   exposure {e:g}, {r:g} rows per chip, photo {i}: {what}")
     for r in records[:40]:
         print("  ", r)
     print(_timing_lines(slow))
@@ -642,6 +649,16 @@ def main() -> int:
                         dict(seconds=round(dt, 3), exposure=e, rows_per_chip=r, photo=i, lights=n)
                         for dt, e, r, i, n, _ in slow
                     ],
+                )
+                | (
+                    dict(
+                        crashes=[
+                            dict(exposure=e, rows_per_chip=r, photo=i, error=what)
+                            for e, r, i, what in crashes
+                        ]
+                    )
+                    if crashes
+                    else {}
                 ),
                 indent=1,
             )

@@ -401,6 +401,15 @@ class Render:
     camera: Camera | None = None
     stamp_box: tuple[int, int, int, int] | None = None
 
+    def on_stamp(self, pixel, margin_px: float = 3.0) -> bool:
+        """Whether ``pixel`` [u, v] (the fixtures' pixels) lies on the burned-in text: in
+        ``stamp_box`` grown by ``margin_px`` pixels each way (False without a stamp)."""
+        if self.stamp_box is None:
+            return False
+        u0, v0, u1, v1 = self.stamp_box
+        u, v = float(pixel[0]), float(pixel[1])
+        return u0 - margin_px <= u <= u1 + margin_px and v0 - margin_px <= v <= v1 + margin_px
+
     def truth_dict(self) -> dict:
         """The ground truth as a JSON-ready dict.
 

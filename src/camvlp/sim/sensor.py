@@ -48,6 +48,7 @@ __all__ = [
     "RAW_WHITE",
     "STAMP_HEIGHT",
     "burn_stamp",
+    "camera_date",
     "check_stamp",
     "develops",
     "expose",
@@ -214,6 +215,14 @@ def check_stamp(text) -> None:
     bad = next((c for c in text if not " " <= c <= "~"), None)
     if bad is not None:
         raise ValueError(f"stamp must be printable ASCII text, got {bad!r} in {text!r}")
+
+
+def camera_date(rng: np.random.Generator) -> str:
+    """A random date and time as a camera stamps it, ``"2017-02-15 17:47:52"`` (years 2010 to
+    2025, days 1 to 28), drawn from ``rng``."""
+    y, mo, d = int(rng.integers(2010, 2026)), int(rng.integers(1, 13)), int(rng.integers(1, 29))
+    h, mi, sec = int(rng.integers(24)), int(rng.integers(60)), int(rng.integers(60))
+    return f"{y}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{sec:02d}"
 
 
 def burn_stamp(image: np.ndarray, text: str) -> tuple[int, int, int, int]:
