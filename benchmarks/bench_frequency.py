@@ -4,7 +4,7 @@ Renders frequency-coded lights (50 % square waves, 2000 to 4000 Hz, at a real ph
 47,540 rows/s, so 11.9 to 23.8 rows per period) over a seeded sweep: periods shown across the
 disc 1.5 to 8; plain hard stripes (saturated, and dim), soft stripes, a hot core with a
 halo, a hot core off the centre (``off-core``: 0.4 of the radius off, each light its own
-way, the rim at full scale and the core four times that); exposure 0.05 to 0.35 of the
+way, the rim at half of full scale and the core four times that); exposure 0.05 to 0.35 of the
 shortest (4000 Hz) period; clean, noisy, and noisy JPEG
 (quality 80); the readout down the rows and, reversed, along the columns.  Each photo shows
 four lights in a 2 x 2 grid seen from 2.7 m below; ``camvlp.locate`` measures them.  Prints,
@@ -71,7 +71,7 @@ STYLES = {
     "hard-dim": dict(brightness=0.8),  # sharp stripes, not saturated
     "soft": dict(brightness=2.0, soft=0.3),
     "core+halo": dict(brightness=4.0, core=4.0, halo=0.4, soft=0.45),
-    "off-core": dict(brightness=1.0, core=3.0, core_offset=0.4),  # the core clips, the rim not
+    "off-core": dict(brightness=0.5, core=3.0, core_offset=0.4),  # the core clips, the rim not
 }
 #: Styles added to the sweep after the first: their photos' seeds come after all the others'.
 LATER_STYLES = ("off-core",)
