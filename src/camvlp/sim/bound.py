@@ -65,7 +65,8 @@ def frequency_bounds(
     ndarray of float64, shape (N,)
         Per fixture in map order, the smallest standard deviation of ``measured / true - 1``
         an unbiased measurement could have (a fraction: 0.01 is 1 %); ``inf`` when its
-        pixels tell nothing of the frequency, NaN for a fixture not drawn.
+        pixels tell nothing of the frequency, NaN for a fixture not drawn or sending data
+        (``settings.data_lights``: it has no frequency).
     """
     if fixture_map.mode != "frequency":
         raise ValueError("frequency bounds need a frequency-coded map")
@@ -80,7 +81,7 @@ def frequency_bounds(
         for name in ("blur_px", "core", "halo")
         if getattr(s, name) > 0
     }
-    for light in lights:
+    for light in _beacons(lights, fixture_map, s):
         extra = _jpeg_variance(light, jpeg_error)
         d_shape = _geometry_derivatives(light.shape)
         for name, (lower, upper) in moved.items():
@@ -93,6 +94,11 @@ def frequency_bounds(
                 )
         out[light.index] = _bound(light, s, extra, d_shape)
     return out
+
+
+def _beacons(lights: list, fixture_map: FixtureMap, s: RenderSettings) -> list[LightPatch]:
+    """The lights of ``lights`` that blink their frequency (not those sending data)."""
+    return [p for p in lights if fixture_map.fixtures[p.index].id not in s.data_lights]
 
 
 def _jpeg_variance(light: LightPatch, jpeg_error: np.ndarray | None) -> float:
@@ -136,11 +142,11 @@ def frequency_intervals(
     ndarray of float64, shape (N, 2)
         Per fixture in map order, the least and largest ``frequency / true - 1`` consistent
         with its pixels (fractions; searched to +-5 %: a range reaching that far may reach
-        further); NaN for a fixture not drawn or without information.
+        further); NaN for a fixture not drawn, without information, or sending data.
     """
     s = settings.resolved(camera)
     out = np.full((len(fixture_map.fixtures), 2), np.nan)
-    for light in light_patches(camera, fixture_map, pose, s):
+    for light in _beacons(light_patches(camera, fixture_map, pose, s), fixture_map, s):
         on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level)
         info = np.zeros(on.size)
         for c in np.asarray(light.colour, dtype=np.float64):
