@@ -216,27 +216,33 @@ def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.
     return (cv2.flip(img, 1) if mirrored else img), mirrored
 
 
-#: A blob counts as striped, and votes for its readout axis, when the stripes' energy along
-#: one axis is at least this many times that along the other (:attr:`Blob.stripe_contrast`).
+#: A blob counts as striped, and votes for its readout axis, when the stripes' variation
+#: along one axis is at least this many times that along the other
+#: (:attr:`Blob.stripe_contrast`)...
 _STRIPED = 2.0
-#: The photo's readout axis is clear when the striped blobs' votes for it (each the log of its
-#: contrast) outweigh those for the other axis this many times over.
+#: ...and its lines along that axis explain at least this share of its pixels' variance
+#: (:attr:`Blob.stripe_share`: 0.6 to 0.98 for the real photos' lights and the renders'; a
+#: camera's burned-in text, under 0.5 for most characters).
+_STRIPE_SHARE = 0.5
+#: The photo's readout axis is clear when the striped blobs' votes for it (each its share)
+#: outweigh those for the other axis this many times over.
 _AXIS_MARGIN = 3.0
 
 
 def stripes_axis(blobs) -> tuple[str | None, float, float]:
     """The readout axis the photo's stripes show, voted by its striped blobs.
 
-    Each blob whose stripes run clearly one way (:data:`_STRIPED`) votes for its axis with
-    the log of its contrast; a text, a steady light or a blob of noise, whose energy is the
-    same both ways, has no say.  Returns the axis ("rows" or "columns"), or None when the
-    votes do not clear :data:`_AXIS_MARGIN` (no striped blob, or blobs striped both ways),
-    and the votes for rows and for columns.
+    Each blob whose stripes run clearly one way (:data:`_STRIPED`) and whose lines along
+    that way explain most of its pixels (:data:`_STRIPE_SHARE`) votes for its axis with that
+    share; a text, a steady light or a blob of noise has no say.  Returns the axis ("rows"
+    or "columns"), or None when the votes do not clear :data:`_AXIS_MARGIN` (no striped
+    blob, or blobs striped both ways), and the votes for rows and for columns.
     """
     votes = {"rows": 0.0, "columns": 0.0}
     for b in blobs:
-        if b.stripe_contrast > _STRIPED:
-            votes[b.axis] += float(np.log(b.stripe_contrast))
+        share = float(b.stripe_share)
+        if b.stripe_contrast > _STRIPED and share >= _STRIPE_SHARE:
+            votes[b.axis] += share
     rows, cols = votes["rows"], votes["columns"]
     if max(rows, cols) <= 0 or max(rows, cols) < _AXIS_MARGIN * min(rows, cols):
         return None, rows, cols
