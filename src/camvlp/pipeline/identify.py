@@ -57,12 +57,51 @@ def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
             reason = "cut by the image border (its centre would be biased)"
         ids.append(dec.id if fid is None and dec.id is not None else fid)
         reasons.append(reason)
-    # the same ID twice: neither can be trusted
+    # the same ID twice: neither can be trusted (unless a pose tells which it is:
+    # :func:`_duplicates_told`)
     decoded = [i for i, r in zip(ids, reasons, strict=True) if i is not None and not r]
     for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
         if i is not None and not r and decoded.count(i) > 1:
-            reasons[k] = f"ID {i} was decoded for two fixtures"
+            reasons[k] = _TWICE.format(i)
     return _identified(ids, reasons)
+
+
+#: Why a fixture whose ID another fixture of the photo was read as too is not used.
+_TWICE = "ID {} was decoded for two fixtures"
+
+
+def _duplicates_told(camera: Camera, fixture_map: FixtureMap, blobs, found, est, outlier_px, solve):
+    """An ID read for two fixtures (a light that sends data, a reflection), told by the pose
+    the others give: the one fixture the pose puts within ``outlier_px`` of the ID's map
+    position keeps it, the others are refused with where it lies; the pose solved again with
+    it.  ``found`` and ``est`` as given when there is no pose, or no such one fixture."""
+    if est is None or est.pose is None:
+        return found, est
+    twice = [k for k, r in enumerate(found.reasons) if r == _TWICE.format(found.ids[k])]
+    if not twice:
+        return found, est
+    ids, reasons = list(found.ids), list(found.reasons)
+    for fid in sorted({found.ids[k] for k in twice}):
+        claims = [k for k in twice if found.ids[k] == fid]
+        where = camera.project(est.pose, fixture_map.get(fid).position[None, :])[0]
+        off = [float(np.hypot(*(blobs[k].pixel - where))) for k in claims]
+        near = [k for k, d in zip(claims, off, strict=True) if d <= outlier_px]
+        if len(near) != 1:
+            continue
+        for k, d in zip(claims, off, strict=True):
+            if k == near[0]:
+                reasons[k] = ""
+            else:  # not the ID's fixture: no ID
+                ids[k] = None
+                reasons[k] = (
+                    f"read as ID {fid}, which the pose puts {d:.0f} px away: another fixture "
+                    "of the photo is it"
+                )
+    told = _identified(ids, reasons)
+    if told.usable == found.usable:
+        return found, est
+    est2, _ = solve(told)
+    return (told, est2) if est2 else (found, est)
 
 
 def with_told(
@@ -243,6 +282,7 @@ def identifier(camera: Camera, fixture_map: FixtureMap, blobs, outlier_px: float
     def identified(decodes: list) -> Decided:
         found = identify(blobs, decodes, fixture_map)
         est, reason = solve(found)
+        found, est = _duplicates_told(camera, fixture_map, blobs, found, est, outlier_px, solve)
         found, est, told = with_told(
             camera, fixture_map, blobs, decodes, found, est, outlier_px, solve, needed
         )

@@ -439,19 +439,29 @@ def _solve(
 
 def _sigma_inputs(camera, fixture_map, est, found: Identified, down):
     """What ``LocateResult.position_sigma`` needs (the camera, the pose, the used fixtures'
-    map positions and reprojection errors), or None: not located, or solved with gravity
-    (its covariance weighs the gravity too)."""
+    map positions and reprojection errors, and how far an alternative pose that fits about
+    as well lies along each axis: zeros when none does), or None: not located, or solved
+    with gravity (its covariance weighs the gravity too)."""
     pose = est.pose if est is not None else None
     if pose is None or down is not None or isinstance(est, GravityPose):
         return None
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
     points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
-    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
+    close = np.zeros(3)
+    if est.close and est.alternative is not None:
+        close = np.abs(est.alternative.position - pose.position)
+    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used], close
 
 
-def _finite_sigma(camera, pose, points, residuals_px) -> np.ndarray | None:
-    """:func:`~camvlp.pipeline.by_pose.position_sigma`, or None when it is not finite."""
-    sigma = position_sigma(camera, pose, points, residuals_px)
+def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
+    """:func:`~camvlp.pipeline.by_pose.position_sigma`, at least as large along each axis
+    as ``close`` (how far an alternative pose that fits about as well lies)."""
+    return np.maximum(position_sigma(camera, pose, points, residuals_px), close)
+
+
+def _finite_sigma(*inputs) -> np.ndarray | None:
+    """:func:`_position_sigma`, or None when it is not finite."""
+    sigma = _position_sigma(*inputs)
     return sigma if np.isfinite(sigma).all() else None
 
 
@@ -461,7 +471,7 @@ def _sure_enough(
     """The pose, or no pose and why when its position's standard deviation
     (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
     axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
-    sigma = position_sigma(*sigma_inputs)
+    sigma = _position_sigma(*sigma_inputs)
     finite = np.isfinite(sigma)
     axis = int(np.argmax(np.where(finite, sigma, np.inf)))
     if finite.all() and sigma[axis] <= limit:
@@ -496,21 +506,26 @@ def _fixture_results(
         used_by_pose, residuals = est.used.tolist(), est.residuals_px.tolist()
     for k, (b, dec) in enumerate(zip(blobs, decodes, strict=True)):
         reason = found.reasons[k]
+        fid = found.ids[k]
         used = False
         residual = float("nan")
         j = at.get(k)
         if j is not None:
             if posed:
                 used, residual = used_by_pose[j], residuals[j]
-                if not used:
-                    reason = f"does not fit the pose of the others ({residual:.1f} px off)"
+                if not used:  # the pose does not vouch for its ID: none reported
+                    reason = (
+                        f"read as ID {fid}, which does not fit the pose of the others "
+                        f"({residual:.1f} px off)"
+                    )
+                    fid = None
             elif est is not None:
                 reason = "no pose"
             else:
                 reason = f"fewer than {needed} usable fixtures"
         results.append(
             FixtureResult(
-                id=found.ids[k],
+                id=fid,
                 pixel=shown(b.pixel),
                 used=used,
                 margin=dec.margin,

@@ -68,6 +68,7 @@ class PoseEstimate:
     reason: str = ""
     mirrored: bool = field(default=False)
     margin: float = float("nan")
+    close: bool = False
 
     def __bool__(self) -> bool:
         return self.pose is not None
@@ -242,6 +243,20 @@ def _near(ssr: float, alt_ssr: float, n: int, centre_sigma_px) -> bool:
     return gap < AMBIGUITY_CHI2 * float(sigma) ** 2
 
 
+#: Two poses that fit about equally are two answers when the camera centres lie further
+#: apart than this share of the distance from the camera to the fixtures (a metre at 2.5 m
+#: for Luxapose's four lights, three on a diagonal); nearer, they are one answer, less sure
+#: (:attr:`PoseEstimate.close`: the position's sigma covers the other).
+APART = 0.02
+
+
+def _apart(pose: Pose, other: Pose, points: np.ndarray) -> bool:
+    """Whether two poses' camera centres are further apart than :data:`APART` of the
+    distance from the first to the fixtures (``points``, shape (N, 3))."""
+    reach = float(np.linalg.norm(points.mean(axis=0) - pose.position))
+    return float(np.linalg.norm(other.position - pose.position)) > APART * reach
+
+
 #: Two poses fit about equally when their sums of squared reprojection errors differ by
 #: less than this many times the centres' noise variance (three standard deviations).
 AMBIGUITY_CHI2 = 9.0
@@ -354,7 +369,8 @@ def estimate_pose(
     n_used = int(used.sum())
     ssr, alt_ssr = n_used * rms * rms, n_used * alt_rms * alt_rms
     margin = 1.0 - ssr / alt_ssr if alt is not None and alt_ssr > 0 else 1.0
-    if alt is not None and _near(ssr, alt_ssr, n_used, centre_sigma_px):
+    near = alt is not None and _near(ssr, alt_ssr, n_used, centre_sigma_px)
+    if near and _apart(pose, alt, obj[used]):
         where = ", ".join(f"{v:.4g}" for v in pose.position)
         other = ", ".join(f"{v:.4g}" for v in alt.position)
         return PoseEstimate(
@@ -369,4 +385,4 @@ def estimate_pose(
             "prior would tell",
             margin=margin,
         )
-    return PoseEstimate(pose, rms, used, residuals, alt, alt_rms, margin=margin)
+    return PoseEstimate(pose, rms, used, residuals, alt, alt_rms, margin=margin, close=near)
