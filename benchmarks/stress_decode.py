@@ -25,8 +25,8 @@ data (Manchester chips at the photo's chip rate; it is left out of the map ``loc
 and when the map already holds all 16 IDs, the last disc placed sends data instead).  Both
 are drawn apart from the rest, so the photos' other lamps and conditions are those of the run
 without it.  A fixture counts as eligible
-when its whole disc is in the photo and it spans 1.2 frames or more (whether ``locate``
-detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
+when its whole disc is in the photo, it spans 1.2 frames or more and its disc is clear of
+the burned-in text (whether ``locate`` detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
 other ID reported for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
 the pose telling which (``FixtureResult.look_alikes``), are counted apart too ("told by the
 pose").  With ``--distractors``, an ID reported for the data light or for a blob on the
@@ -75,6 +75,13 @@ PAIRS = (0, 14, 2, 6, 4, 10, 8, 12)
 ODD = (1, 3, 5, 7, 9, 11, 13, 15)
 CEILING_M = 2.0
 FRAME_CHIPS = 18
+
+
+def _eligible(t, photo) -> bool:
+    """A lamp counts: its whole disc in the photo, 1.2 frames or more of its code, sending
+    its ID (not data), and not under the burned-in text (its disc clear of the stamp)."""
+    under = photo.on_stamp(t.pixel, margin_px=0.5 * t.rows_spanned)
+    return t.fully_inside and t.frames_spanned >= 1.2 and not t.sends_data and not under
 
 
 def make_camera(rng: np.random.Generator, big: bool, portrait: bool) -> Camera:
@@ -327,7 +334,7 @@ def _report(d: Drawn, save: Path | None) -> int:
     print("render settings", d.settings)
     truth = list(photo.fixtures)
     for t in truth:
-        eligible = t.fully_inside and t.frames_spanned >= 1.2 and not t.sends_data
+        eligible = _eligible(t, photo)
         print(
             f"  lamp {t.id:2d} at ({t.pixel[0]:7.1f}, {t.pixel[1]:7.1f}), "
             f"{t.frames_spanned:.2f} frames{'' if eligible else ' (not eligible)'}"
@@ -463,11 +470,7 @@ def main() -> int:
             photo, res, cond, dt, fmap, scene = one_photo(rng, exposure, rpc, **look)
             times.append(dt)
             truth = [t for t in photo.fixtures]
-            eligible_k = {
-                k
-                for k, t in enumerate(truth)
-                if t.fully_inside and t.frames_spanned >= 1.2 and not t.sends_data
-            }
+            eligible_k = {k for k, t in enumerate(truth) if _eligible(t, photo)}
             eligible += len(eligible_k)
             if isinstance(res, Exception):  # every lamp missed; listed at the end
                 crashes.append((exposure, rpc, i_photo, f"{type(res).__name__}: {res}"))
