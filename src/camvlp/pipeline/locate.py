@@ -221,9 +221,10 @@ def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.
 #: (:attr:`Blob.stripe_contrast`)...
 _STRIPED = 2.0
 #: ...and its lines along that axis explain at least this share of its pixels' variance
-#: (:attr:`Blob.stripe_share`: 0.6 to 0.98 for the real photos' lights and the renders'; a
-#: camera's burned-in text, under 0.5 for most characters).
-_STRIPE_SHARE = 0.5
+#: (:attr:`Blob.stripe_share`: 0.6 to 0.98 for the real photos' lights and plain renders,
+#: 0.37 to 0.42 for lamps saturated 7 times over; a camera's burned-in text, under 0.25 for
+#: most of its characters).
+_STRIPE_SHARE = 0.3
 #: The photo's readout axis is clear when the striped blobs' votes for it (each its share)
 #: outweigh those for the other axis this many times over.
 _AXIS_MARGIN = 3.0
