@@ -49,10 +49,10 @@ def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
         outside = getattr(dec, "outside_id", None)
         if fid is None and outside is not None:  # a light that sends an ID the map lacks
             ids.append(outside)
-            reasons.append(f"ID {outside} is not in the map")
+            reasons.append(f"sends ID {outside}, which is not in the map")
             continue
         if fid is not None and fixture_map.get(fid) is None:
-            reason, fid = f"ID {dec.id} is not in the map", None
+            reason, fid = f"sends ID {dec.id}, which is not in the map", None
         elif fid is not None and b.touches_border:
             reason = "cut by the image border (its centre would be biased)"
         ids.append(dec.id if fid is None and dec.id is not None else fid)

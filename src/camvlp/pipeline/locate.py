@@ -225,6 +225,11 @@ _STRIPED = 2.0
 #: 0.37 to 0.42 for lamps saturated 7 times over; a camera's burned-in text, under 0.25 for
 #: most of its characters).
 _STRIPE_SHARE = 0.3
+#: Lights whose stripe contrast times share (:attr:`Blob.stripe_contrast`,
+#: :attr:`Blob.stripe_share`) reaches this are all alike clearly striped (the stress grid's
+#: lamps: 2.2 and up; a burned-in text's characters: 1.2 at most): the photo-wide parameters
+#: are fitted to the longest of them first.
+_CLEAR = 2.0
 #: The photo's readout axis is clear when the striped blobs' votes for it (each its share)
 #: outweigh those for the other axis this many times over.
 _AXIS_MARGIN = 3.0
@@ -339,6 +344,56 @@ def _decode(
         for b, c in zip(blobs, centres, strict=True)
     ]
     return decodes, frequencies, [note] if note else [], moved, beacons
+
+
+def striped(blob) -> bool:
+    """Whether a blob shows stripes to read: they vary clearly along one axis
+    (:data:`_STRIPED`) and its lines along it explain a share of its pixels' variance
+    (:data:`_STRIPE_SHARE`).  A camera's burned-in text, a steady light or a reflection does
+    not; it is neither centred, nor decoded, nor let to tell the photo's chip length."""
+    return blob.stripe_contrast > _STRIPED and float(blob.stripe_share) >= _STRIPE_SHARE
+
+
+def _no_stripes(blob) -> StripeDecode:
+    """The decode of a blob that shows no stripes to read (:func:`striped`), with why."""
+    share = float(blob.stripe_share)
+    why = (
+        f"no stripes to read: its lines explain {100 * share:.0f} % of its pixels (text, a "
+        "steady light, or not a coded light)"
+        if np.isfinite(share)
+        else "no stripes to read"
+    )
+    return StripeDecode(None, why, -1, 0.0, np.nan, np.nan, "", np.nan)
+
+
+def _spread_out(values, keep: list[int], default: list) -> list:
+    """``default`` with ``values`` (one per index of ``keep``) put at those indices."""
+    out = list(default)
+    for k, v in zip(keep, values, strict=True):
+        out[k] = v
+    return out
+
+
+def _read_manchester(
+    img, blobs, keep: list[int], profiles, weights, readout, direction_known, camera, fixture_map
+) -> Manchester:
+    """:func:`decode_manchester` and :func:`_from_glows` of the readable blobs (``keep``),
+    the others refused (:func:`_no_stripes`); the profiles and weights read again from the
+    glows put back in their places."""
+    sub_p, sub_w = [profiles[k] for k in keep], [weights[k] for k in keep]
+    # the photo-wide parameters from the clearly striped lights, the longest first
+    rank = [min(blobs[k].stripe_contrast * float(blobs[k].stripe_share), _CLEAR) for k in keep]
+    man = decode_manchester(sub_p, readout, direction_known, camera, fixture_map, sub_w, rank)
+    man = _from_glows(img, [blobs[k] for k in keep], man, fixture_map, sub_p, sub_w, readout)
+    for j, k in enumerate(keep):
+        profiles[k], weights[k] = sub_p[j], sub_w[j]
+    if len(keep) == len(blobs):
+        return man
+    none = [_no_stripes(b) for b in blobs]
+    other = None if man.other is None else tuple(_spread_out(man.other, keep, none))
+    return dataclasses.replace(
+        man, decodes=tuple(_spread_out(man.decodes, keep, none)), other=other
+    )
 
 
 #: Why no light of a photo is read when its stripes do not say the readout axis.
@@ -498,8 +553,11 @@ def _fixture_results(
     shown,
     needed: int = 4,
     told: dict[int, tuple[int, ...]] | None = None,
+    fixture_map: FixtureMap | None = None,
 ) -> tuple[FixtureResult, ...]:
-    """Stage 6: every fixture seen, identified or not, with why it was not used."""
+    """Stage 6: every fixture seen, identified or not, with why it was not used.  A
+    fixture's ``id`` is one of the map's or None: an ID read that the map lacks, or that the
+    pose does not vouch for, is told in its reason only."""
     results = []
     at = {k: j for j, k in enumerate(found.usable)}  # a usable fixture's place in the pose's
     posed = est is not None and est.pose is not None
@@ -508,6 +566,8 @@ def _fixture_results(
     for k, (b, dec) in enumerate(zip(blobs, decodes, strict=True)):
         reason = found.reasons[k]
         fid = found.ids[k]
+        if fid is not None and fixture_map is not None and fixture_map.get(fid) is None:
+            fid = None  # (its reason says what it sends)
         used = False
         residual = float("nan")
         j = at.get(k)
@@ -651,8 +711,11 @@ def locate(
     )
     readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is decoded below)
     blobs = detection.blobs
+    keep = [k for k, b in enumerate(blobs) if striped(b)]  # (text, steady lights: no)
     if fixture_map.mode != "frequency" and found_readout is not None:
-        blobs = centred_on_glow(img, blobs, readout.axis)  # (frequency: centred as measured)
+        # the readable lights, each centred on its glow (frequency: centred as measured)
+        sub = centred_on_glow(img, [blobs[k] for k in keep], readout.axis)
+        blobs = _spread_out(sub, keep, list(blobs))
     t1 = time.perf_counter()
     gray_rois, extents, profiles, weights = _profiles(img, blobs, readout)
     man: Manchester | None = None
@@ -661,13 +724,25 @@ def locate(
     if found_readout is None:
         decodes, frequencies = _unread(blobs), np.full(len(blobs), np.nan)
     elif fixture_map.mode == "frequency":
-        decodes, frequencies, more, blobs, beacons = _decode(
-            blobs, gray_rois, profiles, readout, camera, fixture_map
+        sub = [blobs[k] for k in keep]
+        got, freqs, more, moved, fits = _decode(
+            sub,
+            [gray_rois[k] for k in keep],
+            [profiles[k] for k in keep],
+            readout,
+            camera,
+            fixture_map,
         )
+        decodes = _spread_out(got, keep, [_no_stripes(b) for b in blobs])
+        frequencies = np.full(len(blobs), np.nan)
+        frequencies[keep] = freqs
+        blobs = _spread_out(moved, keep, list(blobs))
+        beacons = _spread_out(fits, keep, [(None, None, None)] * len(blobs))
         notes += more
     else:
-        man = decode_manchester(profiles, readout, direction_known, camera, fixture_map, weights)
-        man = _from_glows(img, blobs, man, fixture_map, profiles, weights, readout)
+        man = _read_manchester(
+            img, blobs, keep, profiles, weights, readout, direction_known, camera, fixture_map
+        )
         decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
         notes += [man.note] if man.note else []
     t2 = time.perf_counter()
@@ -703,7 +778,7 @@ def locate(
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
         fixtures=_fixture_results(
-            blobs, decodes, found, est, extents, frequencies, shown, needed, told
+            blobs, decodes, found, est, extents, frequencies, shown, needed, told, fixture_map
         ),
         timing_ms=_timings(t0, t1, t2, t3),
         reason=reason,

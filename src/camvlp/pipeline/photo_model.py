@@ -146,6 +146,7 @@ def estimate_photo_model(
     rows_per_chip_range: tuple[float, float] = (1.5, 48.0),
     gamma: float | None = 1.0,
     max_fixtures: int = 5,
+    rank=None,
     samples: int = SAMPLES_PER_CHIP,
 ) -> tuple[SensorModel, float]:
     """Fit the photo-wide parameters of the forward model to all fixtures' profiles.
@@ -165,7 +166,12 @@ def estimate_photo_model(
     gamma : float or None
         The sensor's gamma when known (1 for linear raw data); None fits it.
     max_fixtures : int
-        Profiles used for the fit (the longest ones; the cost drops the worst of them).
+        Profiles used for the fit (the longest ones, or the first by ``rank``; the cost drops
+        the worst of them).
+    rank : sequence of float, optional
+        Per profile, how clearly its light is striped (e.g. the blob's stripe contrast times
+        its stripe share): the profiles ranked first are fitted (a camera's burned-in text
+        or a light that sends data, longer than the lamps, would draw the fit off).
     samples : int
         Template grid points per chip while fitting.
 
@@ -182,7 +188,10 @@ def estimate_photo_model(
     """
     ps = [np.asarray(p, dtype=np.float64) for p in profiles]
     ws = [None] * len(ps) if weights is None else list(weights)
-    order = np.argsort([-p.size for p in ps], kind="stable")
+    if rank is None:
+        order = np.argsort([-p.size for p in ps], kind="stable")
+    else:  # the most striped first, then the longest
+        order = np.lexsort(([-p.size for p in ps], -np.asarray(rank, dtype=float)))
     use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
     if not use:
         raise ValueError("no profile long enough to fit the sensor model")
