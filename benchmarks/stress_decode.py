@@ -24,10 +24,10 @@ corner, and one more disc, placed like the others, that is no beacon but an LED 
 data (Manchester chips at the photo's chip rate; it is left out of the map ``locate`` gets,
 and when the map already holds all 16 IDs, the last disc placed sends data instead).  Both
 are drawn apart from the rest, so the photos' other lamps and conditions are those of the run
-without it.  A fixture counts as eligible
-when its whole disc is in the photo, it spans 1.2 frames or more and its disc is clear of
-the burned-in text (whether ``locate`` detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
-other ID reported for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
+without it.  A fixture counts as eligible when its whole disc is in the photo, it spans 1.2
+frames or more and its disc is clear of the burned-in text (whether ``locate`` detects it or
+not); it is decoded when ``locate`` reports its true ID; a wrong ID is any other ID reported
+for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
 the pose telling which (``FixtureResult.look_alikes``), are counted apart too ("told by the
 pose").  With ``--distractors``, an ID reported for the data light or for a blob on the
 stamp's text is a wrong ID too, and counted apart ("IDs given to data lights", "IDs given to

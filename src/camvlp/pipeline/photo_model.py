@@ -66,11 +66,17 @@ class _PhotoFitter:
         return self._folds[key]
 
     def costs(self, rows_per_chip: float, exposure, knee, gamma, blur) -> np.ndarray:
-        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,)."""
+        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,).
+
+        A profile that spans fewer than :data:`MIN_FRAMES` frames at this chip length cannot
+        be read: nothing of it counts as explained (a few chips fit any ID, so a chip length
+        too long for most of the lights would otherwise fit them best)."""
         t = _templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
         spectra = _template_spectra(t)  # each (V, I, F)
-        un = np.empty((t.shape[0], len(self.data)))
+        un = np.ones((t.shape[0], len(self.data)))
         for k, fo in enumerate(self.folds(rows_per_chip)):
+            if self.data[k][0].size < MIN_FRAMES * self.n_chips * rows_per_chip:
+                continue
             sel = self.own[k]
             rss = _fit_folded(fo, *(h[:, sel] for h in spectra))[0]
             un[:, k] = rss.reshape(rss.shape[0], -1).min(axis=1) / max(fo.spp, 1e-300)
