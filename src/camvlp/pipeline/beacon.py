@@ -146,6 +146,14 @@ class BeaconProfile:
         Degree of the on level's envelope ``b``.
     floor_degree : int
         Degree of the floor ``a``.
+
+    Attributes
+    ----------
+    null_cost : float
+        Residual of the floor alone on the unclipped lines (what :meth:`costs` starts from).
+    steady_cost : float
+        Residual of no stripes at all: :attr:`null_cost` and each clipped line's shortfall
+        under the floor, squared; the variation a wave's share is counted against.
     """
 
     def __init__(
@@ -220,6 +228,10 @@ class BeaconProfile:
         self._gram_inv = np.linalg.inv(gram + 1e-12 * np.eye(ma))
         self._a_r0 = self._gram_inv @ r0
         self.null_cost = max(float(s @ (w * s)) - float(r0 @ self._a_r0), 0.0)
+        # no stripes at all: the floor alone, the clipped lines' shortfall under it too (a
+        # light clipped in its bright stripes keeps only its dark lines unclipped)
+        short = np.maximum(self.bounds - self._fa_bound @ self._a_r0, 0.0)
+        self.steady_cost = self.null_cost + float((short * short) @ self.bound_weight)
 
     def with_degrees(self, degree: int, floor_degree: int) -> BeaconProfile:
         """The same profile with envelopes of other degrees."""
@@ -509,7 +521,7 @@ def hold_against(
     if not profile.usable:
         why = "too few lines with signal to measure stripes"
         return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs, (None,) * target.size)
-    null = profile.null_cost
+    null = profile.steady_cost
     free_cost, free_wave = free if free is not None else stripes_period(profile, target)
     period = float(free_wave[0])
     seen = profile.span / period

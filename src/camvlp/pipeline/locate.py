@@ -357,12 +357,19 @@ def striped(blob) -> bool:
 def _no_stripes(blob) -> StripeDecode:
     """The decode of a blob that shows no stripes to read (:func:`striped`), with why."""
     share = float(blob.stripe_share)
-    why = (
-        f"no stripes to read: its lines explain {100 * share:.0f} % of its pixels (text, a "
-        "steady light, or not a coded light)"
-        if np.isfinite(share)
-        else "no stripes to read"
-    )
+    if not np.isfinite(share):
+        why = "no stripes to read"
+    elif share < _STRIPE_SHARE:
+        why = (
+            f"no stripes to read: its lines explain {100 * share:.0f} % of its pixels (text, "
+            "a steady light, or not a coded light)"
+        )
+    else:
+        why = (
+            f"no stripes to read along the {blob.axis}: its level varies {blob.stripe_contrast:.1f}"
+            f" times as much from line to line along them as across (more than {_STRIPED:g} "
+            "needed)"
+        )
     return StripeDecode(None, why, -1, 0.0, np.nan, np.nan, "", np.nan)
 
 

@@ -63,7 +63,8 @@ class Blob:
         Readout axis seen in this blob: ``"rows"`` (horizontal stripes) or ``"columns"``.
     stripe_contrast : float
         Variance ratio of the profile along the readout axis to the profile across it; high
-        for a striped disc, near 1 for a steady light.
+        for a striped disc, near 1 for a steady light, below 1 when the readout was given and
+        the blob varies more across it.
     edge_points : int
         Edge points the ellipse was fitted to (0 when the centroid was used instead).
     centre_cov_px2 : ndarray, shape (2, 2)
@@ -576,11 +577,11 @@ def _region(
     # the readout axis on the lit pixels' box grown by the dilation's reach (nothing beyond)
     x, y, w, h = lit_box
     near = (slice(max(0, y - 1), y + h + 1), slice(max(0, x - 1), x + w + 1))
-    axis = readout
-    if axis is None:
-        axis, contrast = _axis_contrast(gray8[near], cv2.dilate(lit[near], _AXIS_KERNEL))
-    else:
-        contrast = _axis_contrast(gray8[near], lit[near])[1]
+    # (dilated: the dark stripes' pixels next to the lit ones count, or each line's mean
+    # would be only its lit pixels' and the stripes would not show)
+    axis, contrast = _axis_contrast(gray8[near], cv2.dilate(lit[near], _AXIS_KERNEL))
+    if readout is not None and readout != axis:  # along the given axis: less than across
+        axis, contrast = readout, 1.0 / contrast
     edges, edge_bg, on_face = gray8, background, False  # the image of the edge points
     found = None if seed is None or cell is None else own_face(gray8, lit, cell, axis, seed)
     if found is not None:  # its face, unclipped in its dark stripes

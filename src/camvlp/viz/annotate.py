@@ -209,7 +209,8 @@ def draw_beacons(beacons, result, path: str | Path) -> Path:
                 a, b = profile.envelopes(test.waves[j])
                 fitted = a + b * square_wave(profile.lines, *test.waves[j])
                 hz = fr.frequency_hz * test.period_px / periods[j]  # the map's frequency
-                share = 1.0 - test.costs[j] / profile.null_cost if profile.null_cost > 0 else 0.0
+                steady = profile.steady_cost
+                share = 1.0 - test.costs[j] / steady if steady > 0 else 0.0
                 ax.plot(
                     profile.lines,
                     fitted,
