@@ -3,7 +3,9 @@
 Renders frequency-coded lights (50 % square waves, 2000 to 4000 Hz, at a real phone's
 47,540 rows/s, so 11.9 to 23.8 rows per period) over a seeded sweep: periods shown across the
 disc 1.5 to 8; plain hard stripes (saturated, and dim), soft stripes, a hot core with a
-halo; exposure 0.05 to 0.35 of the shortest (4000 Hz) period; clean, noisy, and noisy JPEG
+halo, a hot core off the centre (``off-core``: 0.4 of the radius off, each light its own
+way, the rim at half of full scale and the core four times that); exposure 0.05 to 0.35 of the
+shortest (4000 Hz) period; clean, noisy, and noisy JPEG
 (quality 80); the readout down the rows and, reversed, along the columns.  Each photo shows
 four lights in a 2 x 2 grid seen from 2.7 m below; ``camvlp.locate`` measures them.  Prints,
 per light style and periods shown, the frequency error (median, worst, and the share of
@@ -25,11 +27,19 @@ of them, which the local bound, infinite there, does not tell apart).  Each such
 listed as a limit (its interval reaches 1 % off or more) or not, and the run ends with "N of
 M within 1 %, K of the misses are limits".
 
+With ``--distractors``, each photo also shows what must get no ID: a fifth light in the middle
+of the four, the same size, that is no beacon but an LED sending random data (Manchester
+chips of random bits at 10,000 chips/s, about 4.8 rows a chip, as wide as the beacons'
+stripes; left out of the map ``locate`` gets), and a camera's date and time burned into the
+bottom-right corner.  The run ends with how often ``locate`` detected them and the IDs it gave
+them: "IDs given to data lights" and "IDs given to text", which must be 0.
+
 Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
 (about ten minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
 ``--plot`` draws each light's error against the periods it shows; ``--styles``,
 ``--periods`` and ``--exposures`` measure a part of the sweep with the same seeds, ``--seed
-N`` the sweep with seeds from N, ``--worst N`` lists the N worst lights).
+N`` the sweep with seeds from N, ``--worst N`` lists the N worst lights).  A style added to the
+sweep later (:data:`LATER_STYLES`) takes the seeds after the others', so theirs stay.
 """
 
 from __future__ import annotations
@@ -48,6 +58,7 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.bound import frequency_bounds, frequency_intervals, share_within
 from camvlp.sim.render import RenderSettings, render
+from camvlp.sim.sensor import camera_date
 
 ROW_TIME_S = 1.0 / 47_540.0
 FOCAL_PX = 1000.0
@@ -60,7 +71,14 @@ STYLES = {
     "hard-dim": dict(brightness=0.8),  # sharp stripes, not saturated
     "soft": dict(brightness=2.0, soft=0.3),
     "core+halo": dict(brightness=4.0, core=4.0, halo=0.4, soft=0.45),
+    "off-core": dict(brightness=0.5, core=3.0, core_offset=0.4),  # the core clips, the rim not
 }
+#: Styles added to the sweep after the first: their photos' seeds come after all the others'.
+LATER_STYLES = ("off-core",)
+#: The light sending data (--distractors): its frequency in the map (unused: it sends data),
+#: and the stamps' date and time.
+DATA_HZ = 3000.0
+DATA_CHIP_RATE_HZ = 10_000.0
 EXPOSURES = (0.05, 0.2, 0.35)  # fractions of the shortest period (4000 Hz)
 NOISES = {  # read noise (fraction of full scale), JPEG quality (None: no JPEG)
     "clean": (0.002, None),
@@ -71,10 +89,13 @@ READOUTS = ("rows", "columns-reversed")
 _LOCATE_S: list[float] = []  # each photo's locate time, s
 #: (seed, light) -> the frequencies its pixels cannot tell from its own (--limits), fractions
 _LIMITS: dict[tuple[int, int], np.ndarray] = {}
+#: --distractors: data lights and stamps shown, detected, and given an ID
+_DISTRACTED = {"data lights": [0, 0, 0], "text": [0, 0, 0]}
 
 
-def _room(periods: float, style: str) -> tuple[FixtureMap, Camera]:
-    """Four lights each ``periods`` stripe periods across, and a camera that holds them."""
+def _room(periods: float, style: str, data: bool = False) -> tuple[FixtureMap, Camera]:
+    """Four lights each ``periods`` stripe periods across, and a camera that holds them; with
+    ``data``, a fifth light in their middle, the size of a 3000 Hz light's, ID 5."""
     diam_px = [periods / (f * ROW_TIME_S) for f in FREQS_HZ]
     reach = 2.6 if STYLES[style].get("halo", 0) > 0 else 1.2  # the glow reaches further
     spacing_px = reach * max(diam_px) + 40.0
@@ -92,17 +113,27 @@ def _room(periods: float, style: str) -> tuple[FixtureMap, Camera]:
         )
         for i, ((x, z), d, f) in enumerate(zip(xz, diam_px, FREQS_HZ, strict=True))
     )
+    if data:
+        d = periods / (DATA_HZ * ROW_TIME_S) * DISTANCE_M / FOCAL_PX
+        middle = np.array([0.0, -DISTANCE_M, 0.0])
+        fixtures += (Fixture(5, middle, d, np.array([0.0, 1.0, 0.0]), frequency_hz=DATA_HZ),)
     return FixtureMap(fixtures, mode="frequency"), camera
 
 
 def _measure(
-    periods, style, exposure, noise, readout, seed, limits=False
+    periods, style, exposure, noise, readout, seed, limits=False, distractors=False
 ) -> list[tuple[float, ...]]:
     """(periods shown, frequency error %, centre error px, the bound %) per light: NaN errors
     if missed; the bound is the Cramer-Rao bound of the frequency error's standard deviation
-    (:func:`camvlp.sim.bound.frequency_bounds`)."""
-    fmap, camera = _room(periods, style)
+    (:func:`camvlp.sim.bound.frequency_bounds`).  With ``distractors``, the photo also shows a
+    light sending data and a stamp (not among the rows; counted in ``_DISTRACTED``)."""
+    scene, camera = _room(periods, style, data=distractors)
+    fmap = FixtureMap(tuple(f for f in scene.fixtures if f.id != 5), mode="frequency")
     read_noise, quality = NOISES[noise]
+    extra = {}
+    if distractors:
+        stamp = camera_date(np.random.default_rng([seed, 8]))
+        extra = dict(data_lights=(5,), chip_rate_hz=DATA_CHIP_RATE_HZ, stamp=stamp)
     settings = RenderSettings(
         row_time_s=ROW_TIME_S,
         exposure_s=exposure / max(FREQS_HZ),
@@ -110,20 +141,25 @@ def _measure(
         readout=readout,
         seed=seed,
         **STYLES[style],
+        **extra,
     )
     pose = Pose.from_euler([0.01, 0.0, -0.02], [90.0, 0.0, 0.0])
-    photo = render(camera, fmap, pose, settings)
+    photo = render(camera, scene, pose, settings)
     image, jpeg_error = photo.image, None
     if quality is not None:
         _, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
         image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
         jpeg_error = image.astype(np.float32) - photo.image
-    bounds = 100.0 * frequency_bounds(camera, fmap, pose, settings, jpeg_error)
+    bounds = 100.0 * frequency_bounds(camera, scene, pose, settings, jpeg_error)
     t0 = time.perf_counter()
     res = locate(image, camera, fmap)
     _LOCATE_S.append(time.perf_counter() - t0)
+    if distractors:
+        _count_distractors(photo, res)
     rows = []
     for t, bound in zip(photo.fixtures, bounds, strict=True):
+        if t.sends_data:
+            continue
         near = [f for f in res.fixtures if np.hypot(*(f.pixel - t.pixel)) < 0.5 * t.rows_spanned]
         if not near or not np.isfinite(near[0].frequency_hz):
             rows.append((t.frames_spanned, float("nan"), float("nan"), bound))
@@ -133,9 +169,25 @@ def _measure(
         err = 100.0 * abs(f.frequency_hz / true_hz - 1.0)
         rows.append((t.frames_spanned, err, float(np.hypot(*(f.pixel - t.pixel))), bound))
     if limits and not all(r[1] < 1.0 for r in rows):  # a light off by 1 % or more, or missed
-        for i, lo_hi in enumerate(frequency_intervals(camera, fmap, pose, settings, jpeg_error)):
+        for i, lo_hi in enumerate(frequency_intervals(camera, scene, pose, settings, jpeg_error)):
             _LIMITS[seed, i] = lo_hi
     return rows
+
+
+def _count_distractors(photo, res) -> None:
+    """Add a photo's data light and stamp to ``_DISTRACTED``: shown, detected (a light
+    ``locate`` reports on it), given an ID."""
+    data = [t for t in photo.fixtures if t.sends_data]
+    for t in data:
+        near = [f for f in res.fixtures if np.hypot(*(f.pixel - t.pixel)) < 0.5 * t.rows_spanned]
+        _DISTRACTED["data lights"][0] += 1
+        _DISTRACTED["data lights"][1] += bool(near)
+        _DISTRACTED["data lights"][2] += sum(f.id is not None for f in near)
+    if photo.stamp_box is not None:
+        on = [f for f in res.fixtures if photo.on_stamp(f.pixel)]
+        _DISTRACTED["text"][0] += 1
+        _DISTRACTED["text"][1] += bool(on)
+        _DISTRACTED["text"][2] += sum(f.id is not None for f in on)
 
 
 def _line(label: str, rows: list) -> str:
@@ -170,13 +222,23 @@ def main(argv=None) -> None:
         action="store_true",
         help="for each light off by 1 %% or more, the frequencies its pixels cannot tell apart",
     )
+    parser.add_argument(
+        "--distractors",
+        action="store_true",
+        help="each photo also shows a light sending data and a burned-in date and time",
+    )
     args = parser.parse_args(argv)
     exposures = (0.2,) if args.quick else EXPOSURES
     readouts = READOUTS[:1] if args.quick else READOUTS
     t0 = time.perf_counter()
     by: dict[str, dict] = defaultdict(lambda: defaultdict(list))
     everything = []
-    grid = itertools.product(PERIODS, STYLES, exposures, NOISES, readouts)
+    grid = itertools.chain(
+        itertools.product(
+            PERIODS, [s for s in STYLES if s not in LATER_STYLES], exposures, NOISES, readouts
+        ),
+        *(itertools.product(PERIODS, [s], exposures, NOISES, readouts) for s in LATER_STYLES),
+    )
     worst = []
     for seed, (periods, style, exposure, noise, readout) in enumerate(grid, args.seed):
         if (
@@ -185,7 +247,9 @@ def main(argv=None) -> None:
             or (args.exposures and not any(abs(exposure - e) < 1e-9 for e in args.exposures))
         ):
             continue  # the same seeds as in the whole sweep
-        rows = _measure(periods, style, exposure, noise, readout, seed, args.limits)
+        rows = _measure(
+            periods, style, exposure, noise, readout, seed, args.limits, args.distractors
+        )
         worst += [
             (r[1], i, (periods, style, exposure, noise, readout, seed), r[3])
             for i, r in enumerate(rows)
@@ -222,6 +286,13 @@ def main(argv=None) -> None:
         f"locate per photo of four lights: median {1e3 * np.median(_LOCATE_S):.0f} ms, "
         f"90th percentile {1e3 * np.percentile(_LOCATE_S, 90):.0f} ms"
     )
+    if args.distractors:
+        (shown, seen, named), (stamps, read, texts) = _DISTRACTED.values()
+        print(
+            f"distractors: {seen} of {shown} data lights detected, IDs given to data lights "
+            f"{named}; stamps with a light detected on them {read} of {stamps}, IDs given to "
+            f"text {texts} (both must be 0)"
+        )
     for err, i, where, bound in sorted(worst, key=lambda w: -np.nan_to_num(w[0], nan=1e9))[
         : args.worst
     ]:

@@ -5,8 +5,9 @@ random conditions drawn from: LED off level 0 to 10 % of on, brightness 0.5 to 8
 sensor's full scale, blur sigma 0.5 to 2 px, JPEG quality 70 to 95, lens distortion (none or
 barrel/pincushion), 4 to 16 fixtures, landscape or portrait turned either way (readout rows,
 rows-reversed, columns, columns-reversed), 1080p or 20 MP, and lamps plain (half the photos),
-with a hot core, with a halo, or both (drawn apart from the rest: ``--plain`` renders the same
-photos with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
+with a hot core (in half the photos with a core, off the disc's centre by 0.2 to 0.5 of its
+radius), with a halo, or both (drawn apart from the rest: ``--plain`` renders the same photos
+with plain discs).  ``--phone`` adds a phone camera's processing, drawn apart as well:
 an RGGB mosaic demosaiced, a tone curve (gamma 1.6 to 2.6), sharpening (0 to 1.5),
 vignetting (0 to 50 %) and a black point (0 to 0.06 of full scale); ``--tone-given`` gives
 ``locate`` the camera's tone curve in its camera file (``tone_gamma``), as a calibrated
@@ -17,12 +18,20 @@ map (0/14, 2/6, 4/10, 8/12), and the camera file does not say which way the sens
 (``chip_rate_hz``), half do not.
 
 Fixtures are discs on a ceiling 2 m above the camera, placed at random without overlap;
-each spans 1.0 to 2.6 frames of the code along the readout.  A fixture counts as eligible
-when its whole disc is in the photo and it spans 1.2 frames or more (whether ``locate``
-detects it or not); it is decoded when ``locate`` reports its true ID; a wrong ID is any
-other ID reported for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
+each spans 1.0 to 2.6 frames of the code along the readout.  ``--distractors`` adds to every
+photo what a decoder must not name: a camera's date and time burned into its bottom-right
+corner, and one more disc, placed like the others, that is no beacon but an LED sending random
+data (Manchester chips at the photo's chip rate; it is left out of the map ``locate`` gets,
+and when the map already holds all 16 IDs, the last disc placed sends data instead).  Both
+are drawn apart from the rest, so the photos' other lamps and conditions are those of the run
+without it.  A fixture counts as eligible when its whole disc is in the photo, it spans 1.2
+frames or more and its disc is clear of the burned-in text (whether ``locate`` detects it or
+not); it is decoded when ``locate`` reports its true ID; a wrong ID is any other ID reported
+for it.  Decoded fixtures whose stripes fit look-alike IDs almost equally,
 the pose telling which (``FixtureResult.look_alikes``), are counted apart too ("told by the
-pose").
+pose").  With ``--distractors``, an ID reported for the data light or for a blob on the
+stamp's text is a wrong ID too, and counted apart ("IDs given to data lights", "IDs given to
+text").
 
 Prints decode rate and wrong IDs per cell and overall, and saves a plot of the decode rate
 over exposure x rows per chip.  Of each lamp detected but not read, it says whether an ideal
@@ -57,6 +66,7 @@ from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSett
 from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
 from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
 from camvlp.sim.oracle import id_separation
+from camvlp.sim.sensor import camera_date
 from camvlp.viz.annotate import annotate, write_debug_pictures
 
 EXPOSURES = (0.1, 0.3, 0.5, 0.7, 0.85, 1.0)
@@ -65,6 +75,13 @@ PAIRS = (0, 14, 2, 6, 4, 10, 8, 12)
 ODD = (1, 3, 5, 7, 9, 11, 13, 15)
 CEILING_M = 2.0
 FRAME_CHIPS = 18
+
+
+def _eligible(t, photo) -> bool:
+    """A lamp counts: its whole disc in the photo, 1.2 frames or more of its code, sending
+    its ID (not data), and not under the burned-in text (its disc clear of the stamp)."""
+    under = photo.on_stamp(t.pixel, margin_px=0.5 * t.rows_spanned)
+    return t.fully_inside and t.frames_spanned >= 1.2 and not t.sends_data and not under
 
 
 def make_camera(rng: np.random.Generator, big: bool, portrait: bool) -> Camera:
@@ -82,11 +99,21 @@ def make_scene(rng, camera: Camera, axis: int, rows_per_chip: float, n_wanted: i
     """Fixtures placed at random, without overlap, on a ceiling the camera faces.
 
     ``axis`` is the readout's pixel coordinate (1: rows, 0: columns).  Returns the map's
-    fixtures (IDs still to assign) as (centre xyz, diameter).
+    fixtures (IDs still to assign) as (centre xyz, diameter), and their images as (u, v,
+    radius), pixels.
     """
-    f = camera.matrix[0, 0]
+    placed = place_discs(rng, camera, rows_per_chip, n_wanted)
+    return [on_ceiling(camera, u, v, r) for u, v, r in placed], placed
+
+
+def place_discs(
+    rng, camera: Camera, rows_per_chip: float, n_wanted: int, placed: list | None = None
+) -> list[tuple[float, float, float]]:
+    """Discs' images (u, v, radius), pixels, placed at random without overlapping each other
+    or those ``placed`` already (kept first in the list), until there are ``n_wanted`` (or 400
+    tries); each spans 1.0 to 2.6 frames of the code along the readout."""
     w, h = camera.width, camera.height
-    placed: list[tuple[float, float, float]] = []
+    placed = list(placed or [])
     for _ in range(400):
         if len(placed) >= n_wanted:
             break
@@ -100,21 +127,53 @@ def make_scene(rng, camera: Camera, axis: int, rows_per_chip: float, n_wanted: i
         if any(np.hypot(u - a, v - b) < r + c + max(40.0, 0.3 * (r + c)) for a, b, c in placed):
             continue
         placed.append((u, v, r))
-    out = []
-    for u, v, r in placed:
-        ray = camera.undistort_pixels(np.array([[u, v]]))[0]
-        centre = np.array([ray[0], ray[1], 1.0]) * CEILING_M
-        out.append((centre, 2 * r * CEILING_M / f))
-    return out
+    return placed
+
+
+def on_ceiling(camera: Camera, u: float, v: float, r: float) -> tuple[np.ndarray, float]:
+    """The disc on the ceiling whose image is centred at (u, v), ``r`` pixels in radius: its
+    centre (x, y, z) and diameter, metres."""
+    ray = camera.undistort_pixels(np.array([[u, v]]))[0]
+    centre = np.array([ray[0], ray[1], 1.0]) * CEILING_M
+    return centre, 2 * r * CEILING_M / camera.matrix[0, 0]
 
 
 def lamp_look(rng: np.random.Generator) -> dict[str, float]:
     """A lamp's look: plain (half the photos), a hot core (1 to 3 times brighter at the
-    centre), a halo (0.05 to 0.4 of the lamp's level), or both."""
+    core's centre; in half the photos with a core, that centre lies 0.2 to 0.5 of the radius
+    off the disc's, each lamp its own way), a halo (0.05 to 0.4 of the lamp's level), or
+    both.  The core's offset is drawn after the rest, so a photo without it is as before."""
     kind = int(rng.integers(6))
     core = float(rng.uniform(1.0, 3.0)) if kind in (3, 5) else 0.0
     halo = float(rng.uniform(0.05, 0.4)) if kind in (4, 5) else 0.0
-    return dict(core=core, halo=halo)
+    core_offset = 0.0
+    if core > 0 and rng.uniform() < 0.5:
+        core_offset = float(rng.uniform(0.2, 0.5))
+    return dict(core=core, halo=halo, core_offset=core_offset)
+
+
+def distractors_of(
+    rng: np.random.Generator,
+    camera: Camera,
+    rows_per_chip: float,
+    placed: list,
+    fixtures: tuple,
+) -> tuple[tuple, int, str]:
+    """What a decoder must not name, drawn from ``rng``: one more disc placed like the
+    others (around the discs' images ``placed``), sending data, with an ID of the frame no
+    fixture of ``fixtures`` has (when all 16 are taken, the last disc placed sends data
+    instead, as when no room is left for one more), and a camera's date and time to burn in.
+    Returns the fixtures to render, the data light's ID and the stamp."""
+    ids = {f.id for f in fixtures}
+    free = [i for i in range(16) if i not in ids]
+    stamp = camera_date(rng)
+    more = place_discs(rng, camera, rows_per_chip, len(placed) + 1, placed)[len(placed) :]
+    if not free or not more:
+        return fixtures, fixtures[-1].id, stamp
+    centre, diameter = on_ceiling(camera, *more[0])
+    data_id = int(rng.choice(free))
+    extra = Fixture(data_id, centre, diameter=diameter, normal=np.array([0.0, 0.0, -1.0]))
+    return (*fixtures, extra), data_id, stamp
 
 
 def phone_look(rng: np.random.Generator) -> dict:
@@ -141,6 +200,7 @@ class Drawn:
     quality: int
     big: bool
     given_rate: bool
+    scene: FixtureMap | None = None  # what is rendered, when not ``fmap`` (--distractors)
 
 
 def draw_photo(
@@ -151,16 +211,19 @@ def draw_photo(
     phone: bool = False,
     tone_given: bool = False,
     tone_gamma: float | None = None,
+    distractors: bool = False,
 ) -> Drawn:
     """A photo's random conditions, drawn from ``rng`` (nothing rendered: the render draws
-    nothing from ``rng``, so photos can be skipped and the next ones stay the same)."""
+    nothing from ``rng``, so photos can be skipped and the next ones stay the same); the
+    lamps' looks, the phone's processing and the distractors are drawn from generators of
+    their own, seeded by the photo's render seed."""
     big = rng.uniform() < 0.25
     readout = str(rng.choice(["rows", "rows-reversed", "columns", "columns-reversed"]))
     portrait = readout.startswith("columns")
     camera = make_camera(rng, big, portrait)
     axis = 1 if readout.startswith("rows") else 0
     n_wanted = int(rng.integers(4, 17))
-    scene = make_scene(rng, camera, axis, rows_per_chip, n_wanted)
+    scene, placed = make_scene(rng, camera, axis, rows_per_chip, n_wanted)
     n = len(scene)
     ids = list(PAIRS[: 2 * min(4, max(2, n // 2))]) + list(rng.permutation(ODD))
     ids = [int(i) for i in rng.permutation(ids[:n])] if n <= len(ids) else ids
@@ -189,28 +252,41 @@ def draw_photo(
     quality = int(rng.integers(70, 96))
     if tone_given or tone_gamma:  # the camera file says its tone curve, or a guess at it
         camera = dataclasses.replace(camera, tone_gamma=tone_gamma or settings.gamma)
-    return Drawn(camera, fmap, settings, quality, big, given_rate)
+    scene_map = None
+    if distractors:  # drawn apart too
+        drng = np.random.default_rng([settings.seed, 8])
+        shown, data_id, stamp = distractors_of(drng, camera, rows_per_chip, placed, fixtures)
+        scene_map = dataclasses.replace(fmap, fixtures=shown)
+        fmap = dataclasses.replace(fmap, fixtures=tuple(f for f in shown if f.id != data_id))
+        settings = dataclasses.replace(settings, data_lights=(data_id,), stamp=stamp)
+    return Drawn(camera, fmap, settings, quality, big, given_rate, scene_map)
 
 
 def one_photo(rng, exposure: float, rows_per_chip: float, **look):
     """A photo drawn (:func:`draw_photo`, with its keyword arguments ``look``) and taken
-    (:func:`shoot`); returns the render, ``locate``'s result, the conditions, the time of
-    ``locate`` (s) and the map."""
+    (:func:`shoot`, an exception of ``locate`` caught); returns the render, ``locate``'s
+    result (or the exception it raised), the conditions, the time of ``locate`` (s), the map
+    ``locate`` was given and the map rendered (with the data light)."""
     d = draw_photo(rng, exposure, rows_per_chip, **look)
-    photo, res, cond, dt, _ = shoot(d)
-    return photo, res, cond, dt, d.fmap
+    photo, res, cond, dt, _ = shoot(d, catch=True)
+    return photo, res, cond, dt, d.fmap, d.scene or d.fmap
 
 
-def shoot(d: Drawn):
+def shoot(d: Drawn, catch: bool = False):
     """A drawn photo rendered, stored as a JPEG and located (``keep_stages``); returns the
     render, ``locate``'s result, the conditions, the time of ``locate`` (s) and the JPEG's
-    bytes."""
+    bytes.  With ``catch``, an exception ``locate`` raises is returned as its result."""
     camera, fmap, settings = d.camera, d.fmap, d.settings
-    photo = render(camera, fmap, Pose(np.eye(3), np.zeros(3)), settings)
+    photo = render(camera, d.scene or fmap, Pose(np.eye(3), np.zeros(3)), settings)
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, d.quality])
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
     t = time.perf_counter()
-    res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
+    try:
+        res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
+    except Exception as exc:  # a crash is a result to report, not the end of the sweep
+        if not catch:
+            raise
+        res = exc
     dt = time.perf_counter() - t
     cond = dict(
         big=d.big,
@@ -222,6 +298,7 @@ def shoot(d: Drawn):
         off=round(settings.off_level, 3),
         blur=round(settings.blur_px, 2),
         core=round(settings.core, 2),
+        core_offset=round(settings.core_offset, 2),
         halo=round(settings.halo, 2),
         chip_rate_given=d.given_rate,
         gamma=round(settings.gamma, 2),
@@ -257,11 +334,14 @@ def _report(d: Drawn, save: Path | None) -> int:
     print("render settings", d.settings)
     truth = list(photo.fixtures)
     for t in truth:
-        eligible = t.fully_inside and t.frames_spanned >= 1.2
+        eligible = _eligible(t, photo)
         print(
             f"  lamp {t.id:2d} at ({t.pixel[0]:7.1f}, {t.pixel[1]:7.1f}), "
             f"{t.frames_spanned:.2f} frames{'' if eligible else ' (not eligible)'}"
+            f"{' (sends data)' if t.sends_data else ''}"
         )
+    if photo.stamp_box is not None:
+        print(f"  stamp {d.settings.stamp!r} at pixels {photo.stamp_box} (u0, v0, u1, v1)")
     for f in res.fixtures:
         t = min(truth, key=lambda t: float(np.hypot(*(t.pixel - f.pixel))))
         off = float(np.hypot(*(t.pixel - f.pixel)))
@@ -360,12 +440,18 @@ def main() -> int:
         help="only photo K of the cell of E chips and R rows per chip (see --save)",
     )
     ap.add_argument("--save", type=Path, help="with --photo: save its pictures in this folder")
+    ap.add_argument(
+        "--distractors",
+        action="store_true",
+        help="every photo also shows a light sending data and a burned-in date and time",
+    )
     args = ap.parse_args()
     look = dict(
         looks=not args.plain,
         phone=args.phone,
         tone_given=args.tone_given,
         tone_gamma=args.tone_gamma,
+        distractors=args.distractors,
     )
     if args.photo:
         return replay(args, look)
@@ -374,28 +460,48 @@ def main() -> int:
     records = []
     slow = []  # (seconds, cell, photo in the cell, lamps, conditions) of every photo
     oracles = []  # (decimal log likelihood ratio, closest ID) of the lamps read wrongly or not
+    crashes = []  # (exposure, rows per chip, photo in the cell, the exception) where locate raised
     t0 = time.perf_counter()
     n_cells = len(EXPOSURES) * len(ROWS_PER_CHIP)
     for ci, (exposure, rpc) in enumerate((e, r) for e in EXPOSURES for r in ROWS_PER_CHIP):
-        eligible = decoded = told = wrong = located = ambiguous = 0
+        eligible = decoded = told = wrong = located = ambiguous = to_data = to_text = 0
         times = []
         for i_photo in range(args.per_cell):
-            photo, res, cond, dt, fmap = one_photo(rng, exposure, rpc, **look)
+            photo, res, cond, dt, fmap, scene = one_photo(rng, exposure, rpc, **look)
             times.append(dt)
+            truth = [t for t in photo.fixtures]
+            eligible_k = {k for k, t in enumerate(truth) if _eligible(t, photo)}
+            eligible += len(eligible_k)
+            if isinstance(res, Exception):  # every lamp missed; listed at the end
+                crashes.append((exposure, rpc, i_photo, f"{type(res).__name__}: {res}"))
+                slow.append((dt, exposure, rpc, i_photo, 0, cond))
+                missed = sorted(truth[k].id for k in eligible_k)
+                records.append(  # one record for the photo's lamps
+                    dict(exposure=exposure, rows_per_chip=rpc, ids=missed, got=None)
+                    | dict(reason=f"locate raised {type(res).__name__}", **cond)
+                )
+                continue
             slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
             located += bool(res)
-            truth = [t for t in photo.fixtures]
-            eligible_k = {
-                k for k, t in enumerate(truth) if t.fully_inside and t.frames_spanned >= 1.2
-            }
-            eligible += len(eligible_k)
             reported: set[int] = set()
             for k_fr, fr in enumerate(res.fixtures):
                 d = [np.hypot(*(t.pixel - fr.pixel)) for t in truth]
                 k = int(np.argmin(d))
                 t = truth[k]
-                if d[k] > 0.25 * t.rows_spanned + 3:
-                    continue  # not one of the discs (should not happen)
+                if d[k] > 0.25 * t.rows_spanned + 3 or t.sends_data:
+                    what = "data light" if d[k] <= 0.25 * t.rows_spanned + 3 else None
+                    if what is None and photo.on_stamp(fr.pixel):
+                        what = "text"
+                    if what is None or fr.id is None:
+                        continue  # refused, or not one of the discs (should not happen)
+                    wrong += 1
+                    to_data += what == "data light"
+                    to_text += what == "text"
+                    records.append(
+                        dict(exposure=exposure, rows_per_chip=rpc, id=None, got=fr.id, on=what)
+                        | dict(pixel=[round(float(x), 1) for x in fr.pixel], **cond)
+                    )
+                    continue
                 elig = k in eligible_k and k not in reported  # (a disc reported twice: once)
                 reported.add(k)
                 ok = fr.id == t.id
@@ -413,7 +519,7 @@ def main() -> int:
                         prof, wts = prof[::-1], wts[::-1]  # the true sensor order
                     sep = separation(prof, wts, t.id, fmap, rpc, exposure, cond["blur"])
                     ambiguous += int(sep[0] < MIN_MARGIN)
-                    oracle = id_separation(photo, fmap, k)
+                    oracle = id_separation(photo, scene, k)
                     if oracle is not None:
                         oracles.append((float(oracle[0]), int(oracle[1])))
                 if (elig and not ok) or bad:
@@ -459,6 +565,8 @@ def main() -> int:
             photos=args.per_cell,
             locate_ms=1e3 * float(np.median(times)),
         )
+        if args.distractors:
+            cells[(exposure, rpc)] |= dict(ids_to_data=to_data, ids_to_text=to_text)
         print(
             f"\r{ci + 1}/{n_cells} cells  {time.perf_counter() - t0:.0f} s",
             end="",
@@ -466,11 +574,12 @@ def main() -> int:
             flush=True,
         )
     print(file=sys.stderr)
+    apart = " IDs given to data lights | IDs given to text |" if args.distractors else ""
     print(
         "| exposure (chips) | rows per chip | fixtures >= 1.2 frames | decoded | told by the pose "
-        "| wrong IDs | photos located | not identifiable | decoded of the identifiable |"
+        "| wrong IDs | photos located | not identifiable | decoded of the identifiable |" + apart
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|" + "---|---|" * bool(apart))
     for (e, r), c in cells.items():
         rate = 100 * c["decoded"] / max(c["eligible"], 1)
         ident = c["eligible"] - c["ambiguous"]
@@ -479,10 +588,11 @@ def main() -> int:
             f"{c['wrong']} | "
             f"{c['located']} / {c['photos']} | {c['ambiguous']} | "
             f"{c['decoded']} / {ident} ({100 * c['decoded'] / max(ident, 1):.1f} %) |"
+            + (f" {c['ids_to_data']} | {c['ids_to_text']} |" if apart else "")
         )
     tot = {
-        k: sum(c[k] for c in cells.values())
-        for k in ("eligible", "decoded", "told", "wrong", "ambiguous")
+        k: sum(c.get(k, 0) for c in cells.values())
+        for k in ("eligible", "decoded", "told", "wrong", "ambiguous", "ids_to_data", "ids_to_text")
     }
     photos = sum(c["photos"] for c in cells.values())
     located = sum(c["located"] for c in cells.values())
@@ -496,8 +606,13 @@ def main() -> int:
         f"\noverall: {tot['decoded']} / {tot['eligible']} fixtures spanning >= 1.2 frames decoded "
         f"({100 * tot['decoded'] / max(tot['eligible'], 1):.2f} %; {tot['told']} of them "
         f"look-alikes told by the pose, so {tot['decoded'] - tot['told']} from the stripes alone), "
-        f"wrong IDs {tot['wrong']}, "
-        f"photos located {located} / {photos}; worst cell exposure {worst[0][0]:g} chip, "
+        f"wrong IDs {tot['wrong']}"
+        + (
+            f" ({tot['ids_to_data']} given to data lights, {tot['ids_to_text']} to text)"
+            if args.distractors
+            else ""
+        )
+        + f", photos located {located} / {photos}; worst cell exposure {worst[0][0]:g} chip, "
         f"{worst[0][1]:g} rows per chip: {worst[1]['decoded']} / {worst[1]['eligible']}; "
         f"{time.perf_counter() - t0:.0f} s"
     )
@@ -520,6 +635,10 @@ def main() -> int:
             f"{MIN_MARGIN:g} or more (smallest margins: "
             f"{', '.join(f'{v:.3g} to ID {i}' for v, i in sorted(oracles)[:5])})"
         )
+    if crashes:
+        print(f"locate raised on {len(crashes)} photos (counted not located, every lamp missed):")
+        for e, r, i, what in crashes:
+            print(f"   exposure {e:g}, {r:g} rows per chip, photo {i}: {what}")
     for r in records[:40]:
         print("  ", r)
     print(_timing_lines(slow))
@@ -533,6 +652,16 @@ def main() -> int:
                         dict(seconds=round(dt, 3), exposure=e, rows_per_chip=r, photo=i, lights=n)
                         for dt, e, r, i, n, _ in slow
                     ],
+                )
+                | (
+                    dict(
+                        crashes=[
+                            dict(exposure=e, rows_per_chip=r, photo=i, error=what)
+                            for e, r, i, what in crashes
+                        ]
+                    )
+                    if crashes
+                    else {}
                 ),
                 indent=1,
             )

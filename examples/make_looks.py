@@ -1,6 +1,7 @@
 """Draw docs/stress/looks.png: one lamp as a linear sensor stores it and as a phone does.
 
-Rows: a plain lamp, one with a hot core, one with a halo; columns: the plain sensor, and the
+Rows: a plain lamp, one with a hot core, one whose core lies 0.4 of the radius off its
+centre, one with a halo; columns: the plain sensor, and the
 same light through a phone's processing (``camvlp.sim.sensor.PHONE``: a colour mosaic
 demosaiced, a black point of 0.04, gamma 2.2, sharpening 1, vignetting 0.3).  A 1280 x 960
 camera under the thesis' lamps at 2.5 rows per chip, exposure half a chip, LEDs 5 % on when
@@ -26,7 +27,12 @@ from camvlp.sim.sensor import PHONE
 
 ROOT = Path(__file__).resolve().parents[1]
 HALF = 64  # px: half the side of a crop
-LOOKS = [("plain", {}), ("hot core", {"core": 1.5}), ("halo", {"halo": 0.3})]
+LOOKS = [
+    ("plain", {}),
+    ("hot core", {"core": 1.5}),
+    ("core off centre", {"core": 1.5, "core_offset": 0.4}),
+    ("halo", {"halo": 0.3}),
+]
 SENSORS = [("linear sensor", {}), ("phone", PHONE)]
 
 

@@ -1,11 +1,15 @@
-"""Real photographs (iPhone 7 front camera, frequency-coded LEDs), read from ../shared/real/.
+"""Real photographs, read from ../shared/real/ (skipped when absent): each photo held to what
+its folder's README says it gives, located as a user would locate it (the camera and map
+files of ``examples/real/``, the photo's EXIF, no readout given), and the iPhone photos'
+particulars.
 
-The photos are not part of this repository: these tests skip when the folder is absent.
-The room and camera below are as the folder's README records them.
+The photos are not part of this repository.  What each README says is written once, in
+``examples/real/photos.yaml``, for these tests and ``benchmarks/real_photos.py``.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import subprocess
 import sys
@@ -18,44 +22,100 @@ from camvlp.locate import LocateSettings, locate
 
 from camvlp.io import load_camera, load_image, load_map
 
-REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real" / "iphone7-demo-floor"
+REPO = Path(__file__).resolve().parents[1]
+SHARED = REPO.parent / "shared" / "real"
+REAL = SHARED / "iphone7-demo-floor"
 PHOTOS = ("2017-02-15-17-47-52-84.jpg", "test.jpg", "test2.jpg")
 DEMO = "2017-02-15-17-47-52-84.jpg"
+EXAMPLES = REPO / "examples" / "real"
 
 pytestmark = [
     pytest.mark.real,
-    pytest.mark.skipif(not REAL.is_dir(), reason=f"real photographs not found at {REAL}"),
+    pytest.mark.skipif(not SHARED.is_dir(), reason=f"real photographs not found at {SHARED}"),
 ]
 
-CAMERA_YAML = """\
-image_width: 1080
-image_height: 1920
-focal_length_px: 1460
-principal_point: centre
-row_time_s: 2.6455e-05   # 37 800 rows per second
-readout: columns         # stored in portrait: stripes are vertical
-"""
-MAP_YAML = """\
-units: cm
-frame: {mode: frequency}
-fixtures:
-  - {id: 1, frequency_hz: 2500, position: [50, 60, 0], normal: [0, 0, -1]}
-  - {id: 2, frequency_hz: 3000, position: [-50, 60, 0], normal: [0, 0, -1]}
-  - {id: 3, frequency_hz: 3500, position: [-50, -60, 0], normal: [0, 0, -1]}
-  - {id: 4, frequency_hz: 4000, position: [50, -60, 0], normal: [0, 0, -1]}
-  - {id: 5, frequency_hz: 4500, position: [0, 0, 0], normal: [0, 0, -1]}
-"""
+
+def _harness():
+    """``benchmarks/real_photos.py``, the one home of locating a photo as a user would."""
+    spec = importlib.util.spec_from_file_location(
+        "real_photos", REPO / "benchmarks" / "real_photos.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # (its dataclasses look their module up)
+    spec.loader.exec_module(module)
+    return module
+
+
+HARNESS = _harness()
+ENTRIES = {f"{e['folder']}/{e['photo']}": e for e in HARNESS.load_manifest()}
+
+
+@pytest.mark.parametrize("name", sorted(ENTRIES))
+def test_each_photo_gives_what_its_readme_says(name):
+    """Every light in view detected, identified right where the README or truth file says
+    which it is, none wrong; located where it should be, refused where it cannot be."""
+    entry = ENTRIES[name]
+    if not entry["path"].is_file():
+        pytest.skip(f"{entry['path']} not found")
+    result, _, fixture_map = HARNESS.locate_as_user(entry)
+    row = HARNESS.judge(entry, result, fixture_map)
+    assert row.wrong == 0
+    assert not row.failures, (row.failures, [f.reason for f in result.fixtures])
+
+
+def test_a_portrait_photo_stored_upright_is_read_along_its_columns_on_the_command_line(tmp_path):
+    """The Lumia stores its portrait photos upright with EXIF orientation 1: the command line
+    took that to mean a readout along rows, and identified none of the five lights (786 Hz,
+    0.87 stripe periods...).  The stripes say columns."""
+    photo = SHARED / "jasonqsong-lumia1020" / "01.jpg"
+    out = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "camvlp",
+            "locate",
+            str(photo),
+            "--camera",
+            str(EXAMPLES / "lumia1020_small_camera.yaml"),
+            "--map",
+            str(EXAMPLES / "five_frequencies_room.yaml"),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+    )
+    assert "Traceback" not in out.stderr
+    res = json.loads(out.stdout)
+    assert res["readout"].startswith("columns")
+    assert sorted(f["id"] for f in res["fixtures"] if f["id"] is not None) == [1, 2, 3, 4, 5]
+
+
+def test_the_luxapose_photo_with_all_five_lights_is_located_near_luxapose_own_estimate():
+    """The 2000 Hz light (2 to 3 periods, a bright core) was read as 564 Hz, and the four
+    lights left (three on a diagonal) fitted a pose a metre off; every light is identified
+    now and the camera comes within 5 cm of Luxapose's (-1.61, 4.38, 1.24) cm."""
+    entry = ENTRIES["luxapose-lumia1020/x_0_y_1.27.jpg"]
+    result, _, _ = HARNESS.locate_as_user(entry)
+    assert sorted(f.id for f in result.fixtures) == [1, 2, 3, 4, 5]
+    assert result, result.reason
+    assert np.linalg.norm(result.position - [-1.61, 4.38, 1.24]) < 5.0
+    assert result.pose_margin > 0.5
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory) -> dict:
+    """The iPhone folder's camera and map (``examples/real``), and the camera without its row
+    time."""
     d = tmp_path_factory.mktemp("real")
-    (d / "camera.yaml").write_text(CAMERA_YAML)
+    text = (EXAMPLES / "iphone7_camera.yaml").read_text()
     (d / "camera_no_row_time.yaml").write_text(
-        "\n".join(line for line in CAMERA_YAML.splitlines() if "row_time" not in line)
+        "\n".join(line for line in text.splitlines() if "row_time" not in line)
     )
-    (d / "room.yaml").write_text(MAP_YAML)
-    return {"dir": d, "camera": d / "camera.yaml", "map": d / "room.yaml"}
+    return {
+        "dir": d,
+        "camera": EXAMPLES / "iphone7_camera.yaml",
+        "map": EXAMPLES / "demo_floor_room.yaml",
+    }
 
 
 @pytest.mark.parametrize("name", PHOTOS)

@@ -233,7 +233,10 @@ def test_not_located_json_lists_the_fixtures(capsys, small_files, stranger_photo
     d = json.loads(out)
     assert d["position"] is None
     assert d["error"]
-    assert sorted(f["id"] for f in d["fixtures"]) == [1, 2, 3, 4, 7]
+    # an ID the map lacks is no fixture's identity: told in the reason only
+    assert [f["id"] for f in d["fixtures"]] == [None] * 5
+    sent = sorted(int(re.search(r"sends ID (\d+)", f["reason"]).group(1)) for f in d["fixtures"])
+    assert sent == [1, 2, 3, 4, 7]
     for f in d["fixtures"]:
         assert not f["used"]
         assert "not in the map" in f["reason"]

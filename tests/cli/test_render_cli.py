@@ -175,3 +175,58 @@ def test_bad_input_givesone_error_line(tmp_path, small_camera_path, thesis_room_
         assert result.exit_code == 2, (needle, result.output)
         assert needle in one_error_line(result)
     assert not list(tmp_path.glob("p.*"))
+
+
+def test_real_photo_looks_reach_the_photo_and_the_truth(
+    tmp_path, small_camera_path, thesis_room_path
+):
+    """An off-centre core, two lights sending data, a stamp, a portrait photo turned the
+    other way: the settings, the truth and the printed lines say so."""
+    out = tmp_path / "looks.png"
+    stamp = "2017-02-15 17:47:52"
+    result = run(
+        small_camera_path,
+        thesis_room_path,
+        out,
+        *("--core", "2", "--core-offset", "0.4", "--data-lights", "6,9", "--stamp", stamp),
+        *("--readout", "columns-reversed", "--seed", "2"),
+    )
+    assert result.exit_code == 0, result.output
+    truth = json.loads((tmp_path / "looks.json").read_text())
+    s = truth["settings"]
+    assert (s["core"], s["core_offset"], s["data_lights"]) == (2, 0.4, [6, 9])
+    assert (s["stamp"], s["readout"]) == (stamp, "columns-reversed")
+    assert [f["sends_data"] for f in truth["fixtures"]] == [False, True, True, False]
+    for f in truth["fixtures"]:  # each core 0.4 radius off its centre
+        off = np.hypot(*np.subtract(f["core_pixel"], f["pixel"]))
+        assert off == pytest.approx(0.4 * f["rows_spanned"] / 2, rel=0.02)
+    u0, v0, u1, v1 = truth["stamp_box"]
+    assert u1 <= 640 and v1 <= 480 and u0 > 320 and v0 > 400  # bottom right
+    image = cv2.imread(str(out))
+    assert np.mean(image[v0:v1, u0:u1].min(axis=2) > 200) > 0.15  # white text there
+    assert result.stdout.count("sends data") == 2
+    assert "readout columns-reversed" in result.stdout and f"stamp '{stamp}'" in result.stdout
+    plain = tmp_path / "plain.png"
+    assert run(small_camera_path, thesis_room_path, plain).exit_code == 0
+    plain_truth = json.loads((tmp_path / "plain.json").read_text())
+    assert plain_truth["stamp_box"] is None
+    assert all(f["core_pixel"] is None and not f["sends_data"] for f in plain_truth["fixtures"])
+
+
+def test_bad_looks_give_one_error_line(tmp_path, small_camera_path, thesis_room_path):
+    cases = [
+        (["--core-offset", "1.5"], "--core-offset must be a number from 0 to 1"),
+        (["--core-offset", "abc"], "--core-offset must be a number"),
+        (["--data-lights", "6,x"], "--data-lights must be fixture IDs separated by commas"),
+        (["--data-lights", ""], "--data-lights must be fixture IDs"),
+        (["--data-lights", "-1"], "--data-lights must be distinct fixture IDs"),
+        (["--data-lights", "6,6"], "--data-lights must be distinct"),
+        (["--data-lights", "6,7"], "--data-lights names ID 7, not a fixture of the map"),
+        (["--stamp", ""], "--stamp must be 1 to 100 characters"),
+        (["--stamp", "17:47 \u00b0C"], "--stamp must be printable ASCII"),
+    ]
+    for extra, needle in cases:
+        result = run(small_camera_path, thesis_room_path, tmp_path / "p.png", *extra)
+        assert result.exit_code == 2, (extra, result.output)
+        assert needle in one_error_line(result), (extra, result.output)
+    assert not list(tmp_path.glob("p.*"))

@@ -13,8 +13,10 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
+from camvlp.locate import locate
 
-from camvlp.model.camera import Pose
+from camvlp.model.camera import Camera, Pose
+from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import (
     _blurred_peak,
     _close_lit,
@@ -26,7 +28,7 @@ from camvlp.pipeline.detect import (
 )
 from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
 from camvlp.pipeline.refine import _bridged, _drop_duplicates
-from camvlp.sim.render import render
+from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
 # (position, thesis angles, readout, exposure s or None for half a chip, seed)
@@ -421,3 +423,26 @@ def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
     sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
     kept = _drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
     assert len(kept) == 1 and kept[0][0] is lamp[0]
+
+
+@pytest.mark.parametrize(("diameter_px", "seed"), [(200, 3), (250, 3), (300, 4)])
+def test_a_light_of_wide_bands_is_one_light(diameter_px, seed):
+    """A 1000 Hz light read every 15 us shows bands 33 rows wide: its bright bands were
+    taken for lights of their own (three or four lights, none identified, where there was
+    one).  One region shaped as one disc (its convex hull: the dark bands notch its rim) is
+    one light, and two cells whose outlines are one ellipse are one light: found once, at
+    its centre, and its frequency read."""
+    row_time = 15e-6
+    cam = Camera.from_focal(1920, 1080, 1400.0, row_time_s=row_time)
+    d = diameter_px * 2.0 / 1400.0
+    down = np.array([0.0, 0.0, -1.0])
+    light = Fixture(1, np.array([0.0, 0.0, 2.0]), d, down, frequency_hz=1000.0)
+    room = FixtureMap((light,), mode="frequency")
+    pose = Pose.from_euler([0.1, 0.05, 0.0], [0.0, 0.0, 0.0])
+    settings = RenderSettings(row_time_s=row_time, exposure_s=2e-4, seed=seed, brightness=1.0)
+    photo = render(cam, room, pose, settings)
+    (blob,) = detect_fixtures(photo.image).blobs
+    assert np.hypot(*(blob.pixel - photo.fixtures[0].pixel)) < 2.0
+    (light,) = locate(photo.image, cam, room).fixtures
+    assert light.id == 1, light.reason
+    assert light.frequency_hz == pytest.approx(1000.0, rel=0.01)

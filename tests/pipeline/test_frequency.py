@@ -103,22 +103,31 @@ def test_frequencies_too_close_to_tell_apart_are_not_guessed():
     res = locate(photo.image, camera, room)
     found = _match_truth(photo, res)
     assert found[4].id is None and found[5].id is None
-    assert "accepted here" in found[5].reason or "lights measure" in found[5].reason
+    assert "too near it to tell apart" in found[5].reason
     for i in (1, 2, 3):
         assert found[i].id == i
     assert not res  # three identified fixtures are not enough
     assert res.position is None
 
 
-def test_frequencies_one_percent_apart_are_told_apart_over_many_periods():
-    # 1 % apart, each light spanning about 12 periods (measured to better than 0.1 %)
-    freqs = (2500.0, 3000.0, 3500.0, 4000.0, 4040.0)
+@pytest.mark.parametrize(("apart", "told"), [(0.01, False), (0.03, True)])
+def test_close_frequencies_are_told_apart_once_the_other_lights_rescale_the_row_time(apart, told):
+    """Two map frequencies closer than twice the row time's tolerance (3 %) overlap: a light
+    between them is not identified by its period alone.  The photo's other lights, far apart
+    in frequency, rescale the row time; what is left is the drivers' own spread (1 %), so
+    frequencies 3 % apart are told apart over about 12 periods, 1 % apart never guessed."""
+    freqs = (2500.0, 3000.0, 3500.0, 4000.0, 4000.0 * (1 + apart))
     camera, room = _camera(), _room(freqs)
     photo = render(camera, room, POSES[0], _settings(seed=5))
     res = locate(photo.image, camera, room)
     found = _match_truth(photo, res)
-    assert {i: f.id for i, f in found.items()} == {1: 1, 2: 2, 3: 3, 4: 4, 5: 5}
-    assert res, res.error
+    assert {i: found[i].id for i in (1, 2, 3)} == {1: 1, 2: 2, 3: 3}
+    if told:
+        assert (found[4].id, found[5].id) == (4, 5)
+        assert res, res.error
+    else:
+        assert found[4].id is None and found[5].id is None
+        assert "too near it to tell apart" in found[4].reason
 
 
 def test_assign_frequencies_rules():
@@ -208,7 +217,7 @@ def test_decode_frequencies_returns_centres_and_leaves_the_blobs_alone():
     blobs = detect_fixtures(photo.image, readout="rows").blobs
     rois = [to_gray(photo.image[b.box[1] : b.box[3], b.box[0] : b.box[2]]) for b in blobs]
     before = [b.pixel.copy() for b in blobs]
-    decodes, freqs, centres, _ = decode_frequencies(blobs, rois, "rows", camera, room)
+    decodes, freqs, centres, _, _ = decode_frequencies(blobs, rois, "rows", camera, room)
     assert centres.shape == (len(blobs), 2) and len(decodes) == freqs.size == len(blobs)
     for b, p in zip(blobs, before, strict=True):
         assert np.array_equal(b.pixel, p)
@@ -247,6 +256,39 @@ def test_a_disc_whose_end_lies_in_a_dark_stripe_keeps_its_period():
         det = detect_fixtures(photo.image)
         gray = to_gray(photo.image)
         rois = [gray[b.box[1] : b.box[3], b.box[0] : b.box[2]] for b in det.blobs]
-        _, hz, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
+        _, hz, _, _, _ = decode_frequencies(det.blobs, rois, "rows", camera, fmap)
         errors.append(abs(hz[0] / 2000.0 - 1))
     assert np.median(errors) < 0.012 and max(errors) < 0.05, np.round(errors, 4)
+
+
+@pytest.mark.parametrize(
+    "look",
+    [
+        dict(off_level=0.1, brightness=1.0, vignetting=0.5, gamma=2.2, bayer=True),
+        dict(off_level=0.05, brightness=1.5, vignetting=0.6, soft=0.3),
+    ],
+)
+def test_a_frame_full_of_bands_measures_what_calibrate_rows_measures(look):
+    """A light filling the frame at 1000 Hz, 40 rows a period (24 periods in view): every
+    frequency ``locate`` reports of it agrees with the row time ``calibrate-rows`` measures
+    on the same frame, within 1 % (on a real camera's frame the two were 4 to 5 % apart)."""
+    from camvlp.analysis.calibrate import estimate_row_time
+
+    rt = 25e-6
+    cam = Camera.from_focal(1280, 960, 1000.0, row_time_s=rt)
+    down = np.array([0.0, 0.0, -1.0])
+    fm = FixtureMap(
+        (
+            Fixture(1, np.array([0.0, 0.0, 2.0]), 6.0, down, frequency_hz=1000.0),
+            Fixture(2, np.array([9.0, 9.0, 2.0]), 0.3, down, frequency_hz=2000.0),
+        ),
+        mode="frequency",
+    )
+    settings = RenderSettings(row_time_s=rt, exposure_s=2e-4, seed=2, **look)
+    photo = render(cam, fm, Pose.from_euler([0, 0, 0], [0, 0, 0]), settings)
+    est = estimate_row_time(photo.image, frequency_hz=1000.0)
+    assert est and est.row_time_s == pytest.approx(rt, rel=0.01)
+    measured = [f.frequency_hz for f in locate(photo.image, cam, fm).fixtures]
+    assert measured
+    for hz in measured:
+        assert hz * est.row_time_s / rt == pytest.approx(1000.0, rel=0.01)

@@ -341,3 +341,23 @@ def test_centring_glowing_lights_leaves_the_centres_covariances_unread(monkeypat
     assert calls == [1]
     expected = sorted(b.centre_sigma_px for b in blobs)
     assert sorted(sigmas) == expected and all(np.isfinite(expected))
+
+
+def test_a_shape_that_falls_nowhere_has_no_rim():
+    """A radial shape that grows outward (a light dark at its centre, or a glow fitted where
+    its rim lies outside the region), or holds a NaN, has no steep fall: no rim, where the
+    search for the outermost steep fall indexed an empty array (IndexError) before."""
+    from camvlp.pipeline.radial import rim_extents
+
+    knots = np.arange(80) * 0.5
+    counts = np.full(knots.size, 50)
+    rising = np.clip(knots / 20.0, 0.0, 1.0)
+    assert np.isnan(rim_extents(rising, counts, 0.0)).all()
+    assert np.isnan(rim_extents(np.ones(knots.size), counts, 0.0)).all()
+    with_nan = np.where(knots < 15.0, 1.0, 0.0)
+    with_nan[3] = np.nan
+    assert np.isnan(rim_extents(with_nan, counts, 0.0)).all()
+    # a disc of radius 15 px (its fall over a pixel): a rim, the same both ways, within the
+    # knots' smoothing (a pixel and a half) of it
+    rim = rim_extents(np.clip(15.0 - knots, 0.0, 1.0), counts, 0.0)
+    assert rim[0] == rim[1] and abs(rim[0] - 15.0) <= 1.5

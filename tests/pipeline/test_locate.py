@@ -252,8 +252,30 @@ def test_black_photo_is_not_located(small_camera, small_room):
 def test_wrong_size_photo_raises_input_error(small_camera, small_room):
     with pytest.raises(InputError, match="1280 x 960"):
         locate(np.zeros((480, 640, 3), np.uint8), small_camera, small_room)
-    with pytest.raises(InputError, match="rotated"):
-        locate(np.zeros((1280, 960, 3), np.uint8), small_camera, small_room)
+    # turned a quarter turn where the way it was turned matters (the principal point off
+    # the centre): refused, with a hint
+    k = small_camera.matrix.copy()
+    k[0, 2] += 40.0
+    off = Camera(1280, 960, k, row_time_s=small_camera.row_time_s)
+    with pytest.raises(InputError, match="turned"):
+        locate(np.zeros((1280, 960, 3), np.uint8), off, small_room)
+
+
+def test_a_photo_turned_a_quarter_turn_is_read_with_the_camera_turned(
+    small_render, small_camera, small_room
+):
+    """A phone may store a portrait photo turned, with no EXIF to say which way; with the
+    principal point at the centre and radial distortion only, either way gives the same
+    camera: the photo is located with the camera turned (a note says so), as it is upright.
+    (The Lumia's portrait photos of ../shared/real; the camera file describes landscape.)"""
+    upright = locate(small_render.image, small_camera, small_room)
+    turned = np.ascontiguousarray(np.rot90(small_render.image))
+    res = locate(turned, small_camera, small_room)
+    assert res, res.reason
+    assert any("turned a quarter turn" in n for n in res.notes)
+    assert res.readout.axis == "columns"
+    np.testing.assert_allclose(res.position, upright.position, atol=1e-3)
+    assert small_camera.turned().size == (960, 1280)
 
 
 @pytest.mark.parametrize("size", [(4, 4), (1, 1), (7, 640)])

@@ -387,9 +387,15 @@ def test_truth_dict_fields():
         "rows_spanned",
         "frames_spanned",
         "phase_s",
+        "sends_data",
+        "core_pixel",
     }
     assert f["pixel"] == pytest.approx([319.5, 239.5])
     assert 0 <= f["phase_s"] < 18 / CHIP_RATE
+    assert f["sends_data"] is False and f["core_pixel"] is None  # no core
+    assert d["stamp_box"] is None
+    assert d["settings"]["data_lights"] == [] and d["settings"]["stamp"] is None
+    assert d["settings"]["core_offset"] == 0
 
 
 @pytest.mark.parametrize(

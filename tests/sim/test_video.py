@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 
 import numpy as np
 import pytest
@@ -67,13 +68,14 @@ def test_each_row_sees_the_pose_at_its_own_time():
         {},
         {"off_level": 0.3},
         {"core": 3.0, "halo": 0.4},
+        {"core": 3.0, "core_offset": 0.5},
         {"soft": 0.3, "exposure_s": 17.7e-4, "blur_px": 1.2},  # soft: a window of 18 chips
+        {"stamp": "2017-02-15 17:47:52"},
     ],
 )
 def test_still_camera_matches_the_photo_renderer(look):
-    # every look of a light (off level, hot core, halo, soft driver, blur) in videos too
-    import dataclasses
-
+    # every look of a light (off level, hot core on its centre or off it, halo, soft driver,
+    # blur) and the stamp in videos too
     from camvlp.sim.render import render
 
     pose = Pose.from_euler([0.1, 0.0, -0.05], [90.0, 1.0, 20.0])
@@ -86,6 +88,22 @@ def test_still_camera_matches_the_photo_renderer(look):
     assert np.abs(moving - still).max() <= 1
     plain = render(CAM, ROOM, pose, dataclasses.replace(STEADY, brightness=0.6)).image
     assert (np.abs(still - plain.astype(int)).max() > 10) == bool(look)  # the look shows
+
+
+def test_a_light_sending_data_in_a_video():
+    pose = Pose.from_euler([0.0, 0.0, 0.0], [90.0, 0.0, 0.0])
+    traj = Trajectory(
+        np.array([0.0, 1.0]), np.tile(pose.position, (2, 1)), np.tile(pose.euler_deg, (2, 1))
+    )
+    sharp = RenderSettings(exposure_s=2e-6, read_noise=0.0, full_well_e=0.0, seed=2)
+    plain = render_frame(CAM, ROOM, traj, 0.5, sharp)
+    mixed = render_frame(CAM, ROOM, traj, 0.5, dataclasses.replace(sharp, data_lights=(6,)))
+    assert [t.sends_data for t in mixed.fixtures] == [False, True, False, False]
+    changed = np.any(mixed.image != plain.image, axis=2)
+    vv, uu = np.nonzero(changed)
+    t6 = mixed.fixtures[1]
+    assert uu.size > 50  # the data light's stripes are others
+    assert np.all(np.hypot(uu - t6.pixel[0], vv - t6.pixel[1]) < t6.rows_spanned)  # only it
 
 
 def test_trajectory_file_errors(tmp_path):

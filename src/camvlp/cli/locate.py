@@ -60,8 +60,9 @@ def locate_command(
         str | None,
         typer.Option(
             help="Sensor readout: rows (top down), columns (left to right), rows-reversed or "
-            "columns-reversed (default: the camera file's, else the photo's EXIF orientation, "
-            "else the axis and direction found from the stripes)."
+            "columns-reversed (default: the camera file's, else the axis the stripes show, its "
+            "direction the photo's EXIF orientation's where it agrees, else found from the "
+            "IDs)."
         ),
     ] = None,
     mirrored: Annotated[
@@ -120,12 +121,11 @@ def locate_command(
         g = sidecar.gravity
         if gravity_sigma_deg is None:
             gravity_sigma_deg = sidecar.gravity_sigma_deg
-    if given_readout is None and camera.readout is None:
-        # a phone's orientation tag says how its sensor's rows lie in the upright photo
-        given_readout = exif_readout(raw)
     settings = LocateSettings(
         solver=solver,
         readout=given_readout,
+        # a phone's orientation tag: a hint the stripes must bear out
+        readout_hint=exif_readout(raw),
         mirrored=mirrored,
         outlier_px=outlier_px,
         max_position_sigma=max_sigma,

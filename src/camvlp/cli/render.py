@@ -75,6 +75,15 @@ def render_command(
             "--core", metavar="X", help="Hot core: centre 1 + X times as bright as the rim."
         ),
     ] = "0",
+    core_offset: Annotated[
+        str,
+        typer.Option(
+            "--core-offset",
+            metavar="F",
+            help="Hot core's centre F radii off the disc's centre (0 to 1), "
+            "each lamp its own direction.",
+        ),
+    ] = "0",
     halo: Annotated[
         str,
         typer.Option("--halo", metavar="X", help="Glow around each lamp, fraction of its level."),
@@ -117,13 +126,30 @@ def render_command(
         str | None,
         typer.Option(
             "--readout",
-            help="rows (stripes horizontal) or columns (portrait, stripes "
-            "vertical) (default: camera file, else rows).",
+            help="rows (stripes horizontal), columns (portrait, stripes vertical), "
+            "rows-reversed or columns-reversed (default: camera file, else rows).",
         ),
     ] = None,
     colour: Annotated[
         bool, typer.Option("--colour", help="Give each fixture its own colour.")
     ] = False,
+    data_lights: Annotated[
+        str | None,
+        typer.Option(
+            "--data-lights",
+            metavar="ID,ID",
+            help="These map fixtures send random data (Manchester chips at --chip-rate), "
+            "not their ID.",
+        ),
+    ] = None,
+    stamp: Annotated[
+        str | None,
+        typer.Option(
+            "--stamp",
+            metavar="TEXT",
+            help="Text burned into the photo's bottom-right corner (e.g. a date and time).",
+        ),
+    ] = None,
     seed: Annotated[
         str, typer.Option("--seed", metavar="N", help="Seed of phases and noise.")
     ] = "0",
@@ -157,6 +183,7 @@ def render_command(
             ambient=_number(ambient, "--ambient"),
             off_level=_number(off_level, "--off-level"),
             core=_number(core, "--core"),
+            core_offset=_number(core_offset, "--core-offset"),
             halo=_number(halo, "--halo"),
             soft=_number(soft, "--soft"),
             blur_px=_number(blur, "--blur"),
@@ -168,6 +195,8 @@ def render_command(
             black_point=_number(black_point, "--black-point"),
             readout=given_readout or camera.readout or Readout.ROWS,
             colours=distinct_colours(len(fixture_map.fixtures)) if colour else None,
+            data_lights=_ids(data_lights, "--data-lights"),
+            stamp=stamp,
             seed=_integer(seed, "--seed"),
         )
         pose = Pose.from_euler(xyz, angles)
@@ -207,7 +236,11 @@ def _print_render(result, camera, out: Path, json_path: Path) -> None:
         print(
             f"fixture {t.id:>3}: {where}, fully inside {'yes' if t.fully_inside else 'no'}, "
             f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames"
+            + (", sends data" if t.sends_data else "")
         )
+    if result.stamp_box is not None:
+        u0, v0, u1, v1 = result.stamp_box
+        print(f"stamp {s.stamp!r}: pixels {u0} to {u1 - 1} across, {v0} to {v1 - 1} down")
 
 
 def _number(text: str, option: str) -> float:
@@ -229,12 +262,23 @@ def _integer(text: str, option: str) -> int:
         fail(f"{option} must be an integer, got {text!r}")
 
 
+def _ids(text: str | None, option: str) -> tuple[int, ...]:
+    """Fixture IDs from an option's comma-separated text (none for None), or fail naming the
+    option."""
+    if text is None:
+        return ()
+    try:
+        return tuple(int(part) for part in text.split(","))
+    except ValueError:
+        fail(f"{option} must be fixture IDs separated by commas, got {text!r}")
+
+
 def _render_or_fail(camera, fixture_map, pose, settings, map_path):
     """Render, or fail with one line when the pose or the map cannot be rendered."""
     try:
         result = render(camera, fixture_map, pose, settings)
     except ValueError as exc:
-        fail(f"{exc} ({map_path})")
+        fail(f"{option_names(str(exc))} ({map_path})")
     if not any(t.in_front for t in result.fixtures):
         fail(f"every fixture is behind the camera; check --position and --euler ({map_path})")
     return result
@@ -248,6 +292,7 @@ _OPTIONS = {
     "ambient": "--ambient",
     "off_level": "--off-level",
     "core": "--core",
+    "core_offset": "--core-offset",
     "halo": "--halo",
     "soft": "--soft",
     "blur_px": "--blur",
@@ -257,6 +302,8 @@ _OPTIONS = {
     "gamma": "--gamma",
     "sharpen": "--sharpen",
     "black_point": "--black-point",
+    "data_lights": "--data-lights",
+    "stamp": "--stamp",
     "tone_gamma": "--tone-gamma",
     "seed": "--seed",
     "position": "--position",

@@ -25,6 +25,7 @@ Solvers (:data:`SOLVERS`):
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import cv2
@@ -39,6 +40,7 @@ __all__ = [
     "PriorSolve",
     "candidate_methods",
     "check_solver",
+    "other_minima",
     "pnp_candidates",
     "project_batch",
     "refine_pose",
@@ -202,6 +204,66 @@ def pnp_candidates(
                 continue
             if refine:
                 rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec, tvec)
+            try:
+                poses.append(Pose.from_rvec_tvec(rvec, tvec))
+            except ValueError:
+                continue
+    return poses
+
+
+#: Fewest and most points for which :func:`other_minima` seeds from every triple.
+_TRIPLE_POINTS = (4, 6)
+#: A P3P seed whose RMS over all points exceeds this many pixels is not refined: it lies in
+#: no minimum worth comparing.
+_SEED_RMS_PX = 50.0
+
+
+def other_minima(object_points, image_points, camera: Camera) -> list[Pose]:
+    """Poses from P3P on every triple of a few points, each refined on all of them: the
+    local minima of the reprojection error that IPPE's two poses and the solvers' seeds may
+    all miss.
+
+    Four points with three (nearly) on a line have two minima a few pixels apart that are
+    not the planar ambiguity's pair; P3P's up to four solutions per triple find both.  Only
+    seeds that reproject within :data:`_SEED_RMS_PX` over every point are refined
+    (Levenberg-Marquardt).  Empty for fewer than four or more than six points.
+
+    Parameters
+    ----------
+    object_points : array_like, shape (N, 3)
+        World coordinates, map units.
+    image_points : array_like, shape (N, 2)
+        Pixels in the (distorted) image.
+    camera : Camera
+        Intrinsics and distortion.
+
+    Returns
+    -------
+    list of Pose
+        Possibly empty; not checked for which side of the points the camera is.
+    """
+    o = np.ascontiguousarray(object_points, dtype=np.float64).reshape(-1, 1, 3)
+    i = np.ascontiguousarray(image_points, dtype=np.float64).reshape(-1, 1, 2)
+    n = o.shape[0]
+    if not _TRIPLE_POINTS[0] <= n <= _TRIPLE_POINTS[1]:
+        return []
+    k, d = camera.matrix, camera.dist_or_none
+    poses = []
+    for tri in itertools.combinations(range(n), 3):
+        t = list(tri)
+        try:
+            _, rvecs, tvecs = cv2.solveP3P(o[t], i[t], k, d, flags=cv2.SOLVEPNP_AP3P)
+        except cv2.error:
+            continue
+        for rvec, tvec in zip(rvecs, tvecs, strict=True):
+            if not all_finite(rvec, tvec):
+                continue
+            uv, _ = cv2.projectPoints(o, rvec, tvec, k, d)
+            err = uv.reshape(-1, 2) - i.reshape(-1, 2)
+            rms = float(np.sqrt(np.mean(np.sum(err * err, axis=1))))
+            if not rms <= _SEED_RMS_PX:
+                continue
+            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec.copy(), tvec.copy())
             try:
                 poses.append(Pose.from_rvec_tvec(rvec, tvec))
             except ValueError:

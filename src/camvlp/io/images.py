@@ -44,8 +44,10 @@ _STDERR_LOCK = threading.Lock()
 
 #: EXIF orientation -> readout of the upright photo, for a sensor that reads its own rows
 #: from the top down: the tag says how the stored (sensor) pixels are turned for display.
+#: Orientation 1 (upright as stored) is not here: it says nothing of the sensor, for a phone
+#: may turn the pixels itself before storing them (a Lumia 1020's portrait photos are stored
+#: upright, their sensor rows along the image's columns).
 _EXIF_READOUTS = {
-    1: Readout.ROWS,
     3: Readout.ROWS_REVERSED,  # turned half a turn: time runs bottom up
     6: Readout.COLUMNS_REVERSED,  # a quarter turn clockwise: the first row is the last column
     8: Readout.COLUMNS,  # a quarter turn counter-clockwise: the first row is the first column
@@ -53,11 +55,15 @@ _EXIF_READOUTS = {
 
 
 def exif_readout(photo: str | Path | bytes) -> Readout | None:
-    """The readout of a photo loaded upright by :func:`load_image`, from its EXIF orientation.
+    """The readout a photo's EXIF orientation suggests for it once loaded upright by
+    :func:`load_image`: a hint (:attr:`camvlp.pipeline.locate.LocateSettings.readout_hint`)
+    that the stripes must bear out, never taken on its own word.
 
     ``photo`` is the file's path or its bytes as :func:`read_photo` gave them (so that a photo
     is read once).  Assumes a sensor that reads its native rows from the top down (the usual
-    one); None when the file has no orientation tag, a mirrored one, or cannot be read.
+    one).  None when the file has no orientation tag, orientation 1 (stored upright: the
+    phone may have turned the pixels itself, so the tag says nothing of the sensor), a
+    mirrored one, or cannot be read.
     """
     if isinstance(photo, bytes):
         data = photo

@@ -361,6 +361,29 @@ class Camera:
             out = cv2.undistortPoints(p, self.matrix, self.distortion, criteria=crit)
         return out.reshape(-1, 2)
 
+    def turned(self) -> Camera | None:
+        """This camera for photos stored turned a quarter turn (portrait for a landscape
+        camera file, or the other way), or None when which way they were turned would matter.
+
+        A phone may turn a portrait photo's pixels itself before storing it, with no EXIF
+        orientation to say which way.  Either way round, the turned camera has the width and
+        height swapped, ``fx`` and ``fy`` swapped and the principal point moved with the
+        pixels; the two ways agree when the principal point is the image's centre (within
+        half a pixel) and the lens distortion is radial only (``k1 k2 k3 k4 k5 k6``; no
+        tangential, thin-prism or tilt terms), which a camera file made from the focal length
+        alone always is.  The readout is not kept: its direction depends on the way turned,
+        so the stripes tell it.
+        """
+        k = self.matrix
+        w, h = self.width, self.height
+        centred = abs(k[0, 2] - (w - 1) / 2) <= 0.5 and abs(k[1, 2] - (h - 1) / 2) <= 0.5
+        d = self.distortion
+        radial = not any(d[i] for i in range(d.size) if i in (2, 3) or i >= 8)
+        if not (centred and radial and k[0, 1] == 0):
+            return None
+        matrix = np.array([[k[1, 1], 0.0, (h - 1) / 2], [0.0, k[0, 0], (w - 1) / 2], [0, 0, 1.0]])
+        return Camera(h, w, matrix, d, self.row_time_s, self.mirrored, None, self.tone_gamma)
+
     def with_size(self, width: int, height: int) -> Camera:
         """This camera with a new image size (the intrinsics are kept)."""
         return Camera(

@@ -13,6 +13,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from camvlp.pipeline.levels import CLIP_LEVEL
+
 __all__ = ["CHORD_END_PX", "CHORD_LINES", "CHORD_SHARE", "chord_seeds"]
 
 #: Fewest clipped chords (lines) that make a light of :func:`chord_seeds`.
@@ -32,11 +34,8 @@ def _clipped_chords(gray: np.ndarray, axis: str, min_len: float):
     as their lines, middles and half-lengths (pixels, 1-D arrays): the runs of pixels at
     the clipping level or above, those shorter than ``min_len`` or cut by the box's ends
     left out."""
-    # (imported here: light_wave imports detect, which imports this module)
-    from camvlp.pipeline.light_wave import _CLIP
-
     lines = gray if axis == "rows" else gray.T  # a line per row
-    clip = (lines >= _CLIP).astype(np.uint8)
+    clip = (lines >= CLIP_LEVEL).astype(np.uint8)
     # a clipped disc's line is clipped from rim to rim; a pixel or two under the level inside
     # it is noise, JPEG or a colour mosaic's, not its end: such holes are closed along the line
     clip = cv2.morphologyEx(clip, cv2.MORPH_CLOSE, _GAP_KERNEL).astype(np.int8)

@@ -41,7 +41,7 @@ import numpy as np
 
 from camvlp.geometry.disc import _sampson
 from camvlp.pipeline.later import replaced
-from camvlp.pipeline.light_wave import _CLIP
+from camvlp.pipeline.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
 from camvlp.pipeline.refine import Blob, light_support, to_gray
 

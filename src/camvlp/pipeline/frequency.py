@@ -1,33 +1,33 @@
 """Frequency-coded fixtures: each light blinks a 50 % square wave at its own frequency.
 
 A rolling shutter turns a light blinking at ``f`` Hz into stripes with a period of
-``1 / (f * row_time)`` sensor rows.  With the camera's row time known, each measured period
-gives a frequency, and the map's nearest frequency identifies the fixture, but only when it
-is unambiguous: near enough, clearly nearer than any other map frequency, and claimed by no
-other fixture in the photo.  Without the row time, the set of periods is matched to the set
-of map frequencies by their ratios: the row time is the one that makes the most periods
-land on distinct map frequencies.
+``1 / (f * row_time)`` sensor rows.  Each light's stripes are held against the forward model
+of a beacon at each of the map's frequencies (:mod:`camvlp.pipeline.beacon`: a 50 % square
+wave integrated over the exposure, times and above smooth envelopes that take the light's
+shape, a hot core or a glow); the light gets the frequency that explains them, by a margin
+over every other, or none, with the reason.  Without the row time, the set of the stripes'
+periods is matched to the set of map frequencies by their ratios first: the row time is the
+one that makes the most periods land on distinct map frequencies.
 
 A light's stripes are measured over its whole striped area, down to the background
 (:func:`camvlp.pipeline.detect.light_support`), not only over the bright disc detection
 outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
-period more makes the frequency markedly more precise.  The light's waveform is separated
-from its shape (a hot core, a halo) and fitted as what it is, a square wave integrated over
-the exposure (:mod:`camvlp.pipeline.light_wave`).
+period more tells the frequency better.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.beacon import BeaconProfile, hold_against, light_profile, stripes_period
 from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import light_support
-from camvlp.pipeline.light_wave import light_wave
-from camvlp.pipeline.stripes import estimate_stripe_period
+from camvlp.pipeline.light_wave import LightWave, separated_wave
 
 __all__ = [
     "FrequencyAssignment",
@@ -66,11 +66,8 @@ def period_uncertainty(periods_spanned) -> np.ndarray:
     """Relative uncertainty of a stripe period measured over ``periods_spanned`` periods.
 
     1 % over 3 periods, falling with the square of the count (4 % over 1.5, 0.25 % over 6,
-    0.09 % over 10).  It was set as the worst error of the periodic fit
-    (``estimate_stripe_period``); for the waveform fit now used (``light_wave``) it lies well
-    above the median errors of ``benchmarks/bench_frequency.py`` (0.1 to 0.7 % over 1.5
-    periods, 0.02 to 0.23 % over 4) but below the worst of saturated lights with edges
-    sharper than a row (7 % over 1.5 periods, 1.3 % over 4).
+    0.09 % over 10): what the ratios of a photo's periods are matched with when the row
+    time is not given (:func:`assign_frequencies`).
     """
     n = np.maximum(np.asarray(periods_spanned, dtype=float), 1.0)
     return 0.01 * (3.0 / n) ** 2
@@ -240,56 +237,101 @@ def _disc_support(blob) -> np.ndarray:
     return blob.mask | circle
 
 
-def _measure_light(blob, gray: np.ndarray, axis: str) -> tuple[float, float, np.ndarray, str]:
-    """One light's stripe period (pixels), the periods its support spans, its centre, and why
-    the period is unknown ("" when known).
-
-    The light's waveform is separated from its shape and fitted with a square wave
-    (:func:`camvlp.pipeline.light_wave.light_wave`) over its whole striped area: down to the
-    background for a light that glows (its support covers :data:`_GLOW_RATIO` times the
-    disc or more), the disc's own outline otherwise.  A glowing light is centred on its
-    radial shape (the detected disc is only the part of it bright enough to clip); a plain
-    disc keeps the centre detection fitted to its edges.  When the wave fit fails without
-    concluding that the light has no period to measure (clipped all over, steady, under one
-    period: the periodic fit would find a wrong one), the periodic fit over the disc
-    (:func:`~camvlp.pipeline.stripes.estimate_stripe_period`) is used instead.
-    """
-    centre = np.asarray(blob.pixel, dtype=float)
+def _support(blob, gray: np.ndarray, axis: str) -> tuple[np.ndarray, bool]:
+    """A light's striped area, and whether it glows: down to the background for a light that
+    glows (its support covers :data:`_GLOW_RATIO` times the disc or more,
+    :func:`~camvlp.pipeline.detect.light_support`), the disc's own outline otherwise."""
     support = light_support(gray, blob.mask, axis, cell=blob.cell)
-    glow = bool(support.sum() >= _GLOW_RATIO * blob.mask.sum())
-    if not glow:  # a plain disc: its own outline is its striped area, dark ends included
-        support = _disc_support(blob)
-    along = np.flatnonzero(support.any(axis=1 if axis == "rows" else 0))
-    span = float(along[-1] - along[0] + 1) if along.size else 0.0
+    if support.sum() >= _GLOW_RATIO * blob.mask.sum():
+        return support, True
+    return _disc_support(blob), False
+
+
+def _profile(blob, gray: np.ndarray, support: np.ndarray, axis: str) -> BeaconProfile:
+    """A light's waveform per line, separated from its radial shape
+    (:func:`~camvlp.pipeline.light_wave.separated_wave`: on the real photos' lights the true
+    frequency's fit then leaves every other map frequency 2.6 times its residual or more,
+    against 1.6 on the mean level per line), else (the separation fails, or leaves too few
+    lines unclipped: a light saturated all over) its mean level per line
+    (:func:`~camvlp.pipeline.beacon.light_profile`)."""
     x0, y0 = blob.box[0], blob.box[1]
-    ellipse = ((centre[0] - x0, centre[1] - y0), tuple(blob.axes_px), blob.angle_deg)
-    wave = light_wave(gray, support, ellipse, axis)
-    if wave:
-        h, w = support.shape
-        inside = 0 <= wave.centre[0] < w and 0 <= wave.centre[1] < h
-        if glow and inside and not blob.touches_border:
-            centre = wave.centre + np.array([x0, y0], dtype=float)
-        return wave.period_px, span, centre, ""
-    if wave.conclusive:
-        return float("nan"), span, centre, wave.message
-    est = estimate_stripe_period(gray, support, axis)
-    if est:
-        return est.period_px, span, centre, ""
-    return float("nan"), span, centre, est.message or "no stripe period could be measured"
+    ellipse = ((blob.pixel[0] - x0, blob.pixel[1] - y0), tuple(blob.axes_px), blob.angle_deg)
+    got = separated_wave(gray, support, ellipse, axis)
+    if not isinstance(got, LightWave):
+        profile = BeaconProfile(*got[:6])
+        if profile.usable:
+            return profile
+    return BeaconProfile(*light_profile(gray, support, axis))
+
+
+def _centre(blob, support: np.ndarray) -> np.ndarray:
+    """A glowing light's centre ``[u, v]`` (photo pixels): the centre of an ellipse fitted to
+    the outline of its whole striped area, down to the background.  A real light's stripes,
+    its hot core and its glow are all about its centre, where its bright part (what
+    detection outlines) is not: on Luxapose's photo of five lights, 2 to 10 px from the
+    lights' own pixels where the bright parts' are 5 to 52 px, and 1.0 cm from Luxapose's
+    position where the centres of their radial shapes give 8.7 cm.  The blob's own centre
+    when the outline is too short to fit or its centre falls outside the support.  (A plain
+    disc keeps the centre detection fitted to its edges.)"""
+    contours, _ = cv2.findContours(
+        support.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+    )
+    if not contours:
+        return np.asarray(blob.pixel, dtype=float)
+    outline = max(contours, key=cv2.contourArea)
+    if outline.shape[0] < 12 or blob.touches_border:
+        return np.asarray(blob.pixel, dtype=float)
+    (cx, cy), _, _ = cv2.fitEllipse(outline)
+    h, w = support.shape
+    if not (0 <= cx < w and 0 <= cy < h and support[int(cy), int(cx)]):
+        return np.asarray(blob.pixel, dtype=float)
+    return np.array([cx + blob.box[0], cy + blob.box[1]], dtype=float)
+
+
+#: Fewest lights identified at the camera file's row time that rescale it for the others.
+_SCALE_LIGHTS = 2
+#: The least relative uncertainty left once the row time is rescaled by the photo's lights:
+#: drivers blink off their nominal frequencies (the real photos' LEDs by up to 1.5 %), so map
+#: frequencies closer than about twice this are not told apart.
+_SCALE_FLOOR = 0.01
+
+
+def _told_apart(tests, profiles, free, map_freqs, row_time: float, periods) -> list:
+    """The tests again, of lights whose map frequencies lie too close together to tell apart
+    at the row time's tolerance, with the row time rescaled by the lights identified (their
+    stripes' periods against their map frequencies; :data:`_SCALE_LIGHTS` or more) and a
+    tolerance of what that scale's spread leaves (three times its standard error, at least
+    :data:`_SCALE_FLOOR`).  A photo's lights share one row time, so the lights of far-apart
+    frequencies tell it to all."""
+    sure = [k for k, t in enumerate(tests) if t.index is not None]
+    close = [k for k, t in enumerate(tests) if t.crowded]
+    if len(sure) < _SCALE_LIGHTS or not close:
+        return tests
+    ratios = np.array([periods[k] * map_freqs[tests[k].index] * row_time for k in sure])
+    scale = float(np.median(ratios))
+    spread = 1.4826 * float(np.median(np.abs(ratios - scale))) / np.sqrt(len(sure))
+    tolerance = max(3.0 * spread, _SCALE_FLOOR)
+    rt = row_time * scale
+    out = list(tests)
+    for k in close:
+        out[k] = hold_against(profiles[k], 1.0 / (map_freqs * rt), free[k], tolerance, rt)
+    return out
 
 
 def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
-) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str]:
-    """Identify frequency-coded fixtures from their stripe periods.
+) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str, list]:
+    """Identify frequency-coded fixtures: each light's stripes held against the forward model
+    of a beacon at each map frequency (:mod:`camvlp.pipeline.beacon`).
 
-    Each light's period comes from its waveform, separated from its shape and fitted with a
-    square wave over its whole striped area (:func:`_measure_light`,
-    :func:`camvlp.pipeline.light_wave.light_wave`).  A light whose striped area reaches well
-    beyond the disc (a glow: its support down to the background,
-    :func:`camvlp.pipeline.detect.light_support`, covers 1.5 times the disc's area or more) is
-    centred on its radial shape (returned in ``centres``; the blobs are not changed).  The
-    periods are then matched to the map's frequencies (:func:`assign_frequencies`).
+    Each light's mean level per line over its striped area (:func:`_support`) is fitted with
+    a 50 % square wave integrated over a window, times and above smooth envelopes (the
+    light's shape).  A light gets the map frequency whose wave explains its stripes best, by
+    a margin over every other map frequency, nearly as well as any frequency at all and line
+    by line (:func:`~camvlp.pipeline.beacon.hold_against`); a light that sends data, text, or
+    a light at no map frequency is refused with the reason.  Two lights that choose the same
+    frequency are both refused.  Without the camera's row time, the stripes' own periods are
+    matched to the map's frequencies by their ratios first (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -307,51 +349,73 @@ def decode_frequencies(
     Returns
     -------
     decodes : list of StripeDecode
-        Per blob: the map ID or None with the reason; ``rows_per_chip`` is half the period
-        (rows), ``frames`` the periods the support spans.
+        Per blob: the map ID or None with the reason; ``margin`` how much better its
+        frequency explains the stripes than the next map frequency (0 to 1),
+        ``rows_per_chip`` half the stripes' period (rows), ``frames`` the periods shown.
     frequencies_hz : ndarray, shape (N,)
-        Measured frequency per blob, Hz (NaN where unknown).
+        Measured frequency per blob (the stripes' own period), Hz; NaN where unknown.
     centres : ndarray, shape (N, 2)
-        Each light's centre ``[u, v]``, full-resolution pixels: the blob's own, or for a
-        glowing light, the centre of its radial shape.
+        Each light's centre ``[u, v]``, full-resolution pixels (:func:`_centre`).
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
+    beacons : list of tuple
+        Per blob, its :class:`~camvlp.pipeline.beacon.BeaconProfile`, its
+        :class:`~camvlp.pipeline.beacon.FrequencyTest` (None where the row time is unknown)
+        and the map's periods it was held against (lines): what the debug pictures draw.
     """
     n = len(blobs)
-    periods = np.full(n, np.nan)
-    spans = np.zeros(n)
-    centres = np.array([np.asarray(b.pixel, dtype=float) for b in blobs]).reshape(n, 2)
-    failures = [""] * n
-    for k, (b, g) in enumerate(zip(blobs, gray_rois, strict=True)):
-        periods[k], spans[k], centres[k], failures[k] = _measure_light(b, g, axis)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        seen = np.where(np.isfinite(periods), spans / periods, 0.0)
-    fa = assign_frequencies(periods, fixture_map, camera.row_time_s, periods_spanned=seen)
+    map_freqs = np.array([f.frequency_hz for f in fixture_map.fixtures], dtype=float)
+    ids_of = [f.id for f in fixture_map.fixtures]
+    found = [_support(b, g, axis) for b, g in zip(blobs, gray_rois, strict=True)]
+    supports = [m for m, _ in found]
+    centres = np.array(
+        [
+            _centre(b, m) if glows else np.asarray(b.pixel, dtype=float)
+            for b, (m, glows) in zip(blobs, found, strict=True)
+        ]
+    )
+    centres = centres.reshape(n, 2)
+    profiles = [_profile(b, g, m, axis) for b, g, m in zip(blobs, gray_rois, supports, strict=True)]
+    row_time = camera.row_time_s
+    seeds = 1.0 / (map_freqs * row_time) if row_time else ()
+    free = [stripes_period(p, seeds) for p in profiles]
+    periods = np.array([w[0] for _, w in free], dtype=float)
     note = ""
-    if fa.row_time_fitted:
+    if not row_time:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            spans = np.array([p.span for p in profiles]) / periods
+        fa = assign_frequencies(periods, fixture_map, None, periods_spanned=spans)
+        row_time = fa.row_time_s if np.isfinite(fa.row_time_s) else None
         note = "the camera file has no row_time_s: stripe periods were matched to the map's " + (
-            f"frequencies by their ratios (fitted row time {1e6 * fa.row_time_s:.2f} us)"
-            if np.isfinite(fa.row_time_s)
+            f"frequencies by their ratios (fitted row time {1e6 * row_time:.2f} us)"
+            if row_time
             else "frequencies by their ratios, and no consistent match was found"
         )
+    if not row_time:
+        why = "the row time is unknown and the periods fit no set of the map's frequencies"
+        decodes = [StripeDecode(None, why, -1, 0.0, 0.5 * p, np.nan, "", np.nan) for p in periods]
+        return decodes, np.full(n, np.nan), centres, note, [(p, None, None) for p in profiles]
+    tests = [
+        hold_against(p, 1.0 / (map_freqs * row_time), f, row_time_s=row_time)
+        for p, f in zip(profiles, free, strict=True)
+    ]
+    tests = _told_apart(tests, profiles, free, map_freqs, row_time, periods)
+    chosen = [t.index for t in tests]
     decodes = []
-    for k in range(n):
-        reason = failures[k] or fa.reasons[k]
-        fid = fa.ids[k] if not failures[k] else None
-        margin = 0.0
-        if fid is not None:
-            target = fixture_map.get(fid).frequency_hz
-            margin = float(np.clip(1 - 20 * abs(np.log(fa.frequencies_hz[k] / target)), 0, 1))
+    for t in tests:
+        fid, reason = (None, t.reason) if t.index is None else (ids_of[t.index], "")
+        claims = chosen.count(t.index) if t.index is not None else 0
+        if claims > 1:
+            fid, reason = None, f"{claims} lights measure {map_freqs[t.index]:.0f} Hz"
+        margin = t.margin if fid is not None else 0.0
         decodes.append(
             StripeDecode(
-                fid,
-                "" if fid is not None else reason,
-                -1,
-                margin,
-                0.5 * periods[k],
-                float("nan"),
-                "",
-                float(seen[k]),
+                fid, reason, -1, margin, 0.5 * t.period_px, np.nan, "", float(t.periods_seen)
             )
         )
-    return decodes, fa.frequencies_hz, centres, note
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frequencies = 1.0 / (periods * row_time)
+    measured = np.where(np.isfinite(frequencies), frequencies, np.nan)
+    map_periods = 1.0 / (map_freqs * row_time)
+    beacons = [(p, t, map_periods) for p, t in zip(profiles, tests, strict=True)]
+    return decodes, measured, centres, note, beacons

@@ -49,20 +49,79 @@ def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
         outside = getattr(dec, "outside_id", None)
         if fid is None and outside is not None:  # a light that sends an ID the map lacks
             ids.append(outside)
-            reasons.append(f"ID {outside} is not in the map")
+            reasons.append(f"sends ID {outside}, which is not in the map")
             continue
         if fid is not None and fixture_map.get(fid) is None:
-            reason, fid = f"ID {dec.id} is not in the map", None
+            reason, fid = f"sends ID {dec.id}, which is not in the map", None
         elif fid is not None and b.touches_border:
             reason = "cut by the image border (its centre would be biased)"
         ids.append(dec.id if fid is None and dec.id is not None else fid)
         reasons.append(reason)
-    # the same ID twice: neither can be trusted
+    # the same ID twice: neither can be trusted (unless a pose tells which it is:
+    # :func:`_duplicates_told`)
     decoded = [i for i, r in zip(ids, reasons, strict=True) if i is not None and not r]
     for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
         if i is not None and not r and decoded.count(i) > 1:
-            reasons[k] = f"ID {i} was decoded for two fixtures"
+            reasons[k] = _TWICE.format(i)
     return _identified(ids, reasons)
+
+
+#: Why a fixture whose ID another fixture of the photo was read as too is not used.
+_TWICE = "ID {} was decoded for two fixtures"
+
+
+def _duplicates_told(camera: Camera, fixture_map: FixtureMap, blobs, found, est, outlier_px, solve):
+    """An ID read for two fixtures (a light that sends data, a reflection), told by the pose:
+    the pose the others give, where they give one, else each claimant's own pose with them
+    (too few without it); the one fixture that fits (within ``outlier_px`` of the ID's map
+    position) keeps the ID, the others are refused with no ID, and the pose is solved again.
+    ``found`` and ``est`` as given when no one fixture fits."""
+    twice = [k for k, r in enumerate(found.reasons) if r == _TWICE.format(found.ids[k])]
+    if not twice:
+        return found, est
+    posed = est is not None and est.pose is not None
+    ids, reasons = list(found.ids), list(found.reasons)
+    for fid in sorted({found.ids[k] for k in twice}):
+        claims = [k for k in twice if found.ids[k] == fid]
+        if posed:
+            where = camera.project(est.pose, fixture_map.get(fid).position[None, :])[0]
+            off = {k: float(np.hypot(*(blobs[k].pixel - where))) for k in claims}
+        else:  # each claimant with the others: does its pose take it?
+            off = {k: _claimant_fit(found, k, claims, solve) for k in claims}
+        near = [k for k in claims if off[k] <= outlier_px]
+        if len(near) != 1:
+            continue
+        for k in claims:
+            if k == near[0]:
+                reasons[k] = ""
+            else:  # not the ID's fixture: no ID
+                ids[k] = None
+                reasons[k] = (
+                    f"read as ID {fid}, which the pose puts {off[k]:.0f} px away: another "
+                    "fixture of the photo is it"
+                    if np.isfinite(off[k])
+                    else f"read as ID {fid}, which another fixture of the photo is (by the pose)"
+                )
+    told = _identified(ids, reasons)
+    if told.usable == found.usable:
+        return found, est
+    est2, _ = solve(told)
+    return (told, est2) if est2 else (found, est)
+
+
+def _claimant_fit(found: Identified, k: int, claims: list[int], solve) -> float:
+    """How far (pixels) the pose of the usable fixtures and fixture ``k``, given the ID the
+    ``claims`` share, puts ``k`` from it (its reprojection error); inf without such a pose
+    or where the pose drops a fixture."""
+    reasons = [
+        "" if j == k else ("another fixture claims this ID" if j in claims else r)
+        for j, r in enumerate(found.reasons)
+    ]
+    trial = _identified(list(found.ids), reasons)
+    e, _ = solve(trial)
+    if not e or not all(e.used):
+        return float("inf")
+    return float(e.residuals_px[trial.usable.index(k)])
 
 
 def with_told(
@@ -243,6 +302,7 @@ def identifier(camera: Camera, fixture_map: FixtureMap, blobs, outlier_px: float
     def identified(decodes: list) -> Decided:
         found = identify(blobs, decodes, fixture_map)
         est, reason = solve(found)
+        found, est = _duplicates_told(camera, fixture_map, blobs, found, est, outlier_px, solve)
         found, est, told = with_told(
             camera, fixture_map, blobs, decodes, found, est, outlier_px, solve, needed
         )

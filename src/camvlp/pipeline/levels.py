@@ -11,6 +11,13 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+__all__ = ["CLIP_LEVEL", "FULL_SCALE"]
+
+#: Gray level at or above which a pixel counts as clipped (8-bit photos; JPEG rings below 255).
+CLIP_LEVEL = 235.0
+#: The sensor's full scale (8-bit photos).
+FULL_SCALE = 255.0
+
 
 def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
     """Percentiles (0-100) of a uint8 image from its histogram (much faster than sorting)."""

@@ -1,4 +1,4 @@
-"""A blinking light's stripes as a square wave in time, separated from the light's shape.
+"""A round light's waveform, separated from its shape.
 
 A round light whose LED blinks shines ``L(x, y) * w(t)``: its shape times its waveform.  A
 rolling shutter exposes sensor line ``y`` over its own window of time, so the photo holds
@@ -8,17 +8,13 @@ rolling shutter exposes sensor line ``y`` over its own window of time, so the ph
 with ``A`` the background and ``s(y)`` the waveform integrated over line ``y``'s exposure
 window.  A disc, a hot core and a halo around it are all radially symmetric about the light's
 centre, so ``L = g(rho)``, with ``rho`` the elliptical radius of the light's outline as the
-camera sees it.  :func:`light_wave` fits ``g`` and ``s`` together (alternating least squares
-over the unclipped pixels, the ellipse's centre and axis ratio refined to the best fit), so
-that ``s`` comes out free of the light's shape: a hot core or a glow no longer masquerades as
-a stripe, and a stripe seen only in the glow still counts.  A clipped pixel is not dropped: it
-says that ``s`` reached at least the level that clips it there.
-
-:func:`~camvlp.pipeline.square_wave.fit_square_wave` then fits the physics of ``s``: a 50 %
-square wave integrated over a window (:mod:`camvlp.pipeline.square_wave`).  A clipped light
-showing few periods whose waveform shows in its bright stripes only at its rim (a small one,
-or one whose bright stripes clip over most of its area) has its shape then fitted on the
-pixel grid with its square wave (:mod:`camvlp.pipeline.rim`).
+camera sees it.  :func:`separated_wave` fits ``g`` and ``s`` together (alternating least
+squares over the unclipped pixels, the ellipse's centre and axis ratio refined to the best
+fit), so that ``s`` comes out free of the light's shape: a hot core or a glow no longer
+masquerades as a stripe, and a stripe seen only in the glow still counts.  A clipped pixel is
+not dropped: it says that ``s`` reached at least the level that clips it there.  What the
+radial shape leaves (a core off the light's centre) the beacon model's envelopes take
+(:mod:`camvlp.pipeline.beacon`), which fits ``s``.
 """
 
 from __future__ import annotations
@@ -30,45 +26,21 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from camvlp.pipeline.rim import GridShape, refine_wave
-from camvlp.pipeline.square_wave import _integrated, fit_square_wave, sharp_period
+from camvlp.pipeline.levels import CLIP_LEVEL, FULL_SCALE
 from camvlp.pipeline.threads import one_blas_thread
 
-__all__ = ["LightWave", "light_wave", "outline_ellipse"]
+__all__ = ["LightWave", "outline_ellipse", "separated_wave"]
 
 #: Width of the bins of the light's radial shape ``g``: at least half a pixel, at most
 #: 1/40 of its radius (a big light needs no finer shape).
 _BIN_PX = 0.5
 _BINS_PER_RADIUS = 40
-#: Gray level at or above which a pixel counts as clipped (8-bit photos; JPEG rings below 255).
-_CLIP = 235.0
-#: The sensor's full scale (8-bit photos).
-_FULL = 255.0
+_CLIP, _FULL = CLIP_LEVEL, FULL_SCALE
 #: Pixels (at most, every k-th) whose fit refines the light's outline.
 _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
 #: of 0) would otherwise stretch the radial bins without end.
 _MAX_LOG_RATIO = float(np.log(20.0))
-#: A clipped light showing fewer stripe periods than this, and no larger than
-#: :data:`_GRID_BIN_PX` allows, has its shape fitted on the pixel grid with its square wave
-#: (:func:`camvlp.pipeline.rim.refine_wave`).
-_FEW_PERIODS = 4.5
-#: Widest bins of the radial shape (pixels) of a light whose shape is fitted on the pixel
-#: grid (whose knots are :data:`_BIN_PX` apart whatever the radial bins): a radius of 20 px.
-#: The grid fit's time grows with the light's area: up to 60 px it measured clipped lights
-#: of 25 to 48 px ten times closer at the median, but took up to 29 s a photo on the real
-#: photos' lights.
-_GRID_BIN_PX = _BIN_PX
-#: A larger clipped light has its shape fitted on the pixel grid too when its bright stripes
-#: clip over at least this share of its area (:func:`_rim_only`): their waveform then shows
-#: only at its rim, as for a small one.  A light brighter only in its core (the real photos'
-#: LEDs: 0 to 28 % of their area) keeps the radial shape.
-_RIM_ONLY = 0.5
-#: Widest bins of the radial shape (pixels) of such a light: a radius of 60 px.
-_RIM_ONLY_BIN_PX = 1.5
-#: Fewest stripe periods the lines with signal must span: a steady light (or one too small
-#: for a whole period) fits some long period, never the right one.
-_MIN_PERIODS = 1.0
 
 
 @dataclass(frozen=True)
@@ -413,116 +385,29 @@ def _search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
 
 
 @one_blas_thread
-def light_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> LightWave:
-    """A round light's waveform, free of its shape, and the square wave that fits it.
-
-    Parameters
-    ----------
-    gray : ndarray, shape (h, w)
-        The light's region of interest, gray levels 0-255 (any real dtype).
-    support : ndarray of bool, shape (h, w)
-        The light's whole striped area (:func:`camvlp.pipeline.detect.light_support`); the
-        pixels within 2 px of it are used.
-    ellipse : tuple
-        A first outline of the light in the region, as :func:`cv2.fitEllipse` gives it:
-        ``((cx, cy), (width, height), angle_deg)``; its centre and axis ratio are refined.
-    axis : {"rows", "columns"}
-        The readout axis.
-
-    Returns
-    -------
-    LightWave
-        Falsy, with a message, when the region has too few lines with signal.
-    """
+def separated_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str):
+    """A round light's waveform per line, separated from its radial shape: the lines with
+    signal, the waveform and its weight, the clipped lines' lower bounds and their weights,
+    and the shape's centre ``[x, y]`` in the region; or a failed :class:`LightWave` with
+    why.  The arguments are as :func:`light_wave`'s, whose first step this is."""
     fitted = _radial(gray, support, ellipse, axis)
     if isinstance(fitted, LightWave):
         return fitted
-    nan = float("nan")
-    best, cs, bin_px, n_lines = fitted.best, fitted.cs, fitted.bin_px, fitted.n_lines
     cy_, cx_ = fitted.clipped
-    _, s, weight, shape = fitted.fit(best, fitted.warm, 12)
-    bounds = _clip_bounds(
-        _radius(_axes(cx_, cy_, cs), best, cs) / bin_px,
+    _, s, weight, shape = fitted.fit(fitted.best, fitted.warm, 12)
+    bound_lines, bounds, bound_weight = _clip_bounds(
+        _radius(_axes(cx_, cy_, fitted.cs), fitted.best, fitted.cs) / fitted.bin_px,
         cy_,
         shape,
         _CLIP - fitted.background,
-        n_lines,
+        fitted.n_lines,
     )
-    weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)  # lines with next to nothing
-    lines = np.arange(n_lines, dtype=float)
-    profile = (lines, s, weight, *bounds)
-    period, phase, window, low, high = fit_square_wave(*profile, sharp=False)
-    centre = np.array(best[:2], dtype=float)
+    weight = np.where(weight >= 1e-3 * weight.max(), weight, 0.0)
+    centre = np.array(fitted.best[:2], dtype=float)
     if axis == "columns":
         centre = centre[::-1]
-    used = np.flatnonzero(weight > 0)
-    seen = (used[-1] - used[0] + 1) / period if used.size and np.isfinite(period) else nan
-    if not np.isfinite(period):
-        return _failed(centre, "too few lines with signal")
-    if seen < _MIN_PERIODS:
-        why = f"the light shows {seen:.2f} stripe periods, under one (steady, or too small)"
-        return _failed(centre, why, conclusive=True)
-    wave = (period, phase, window, low, high)
-    grid = None
-    if (
-        cy_.size
-        and seen < _FEW_PERIODS
-        and (
-            bin_px <= _GRID_BIN_PX
-            or (bin_px <= _RIM_ONLY_BIN_PX and _rim_only(fitted, shape, high) >= _RIM_ONLY)
-        )
-    ):
-        grid = _on_grid(fitted, ellipse, axis, shape, wave)
-    if grid is None:
-        period, phase, window, low, high = (float(v) for v in sharp_period(*profile, wave))
-    else:
-        period, phase, window, low, high = (
-            float(v) for v in sharp_period(*grid.profile, grid.wave)
-        )
-        centre = np.array(grid.geometry[:2], dtype=float)
-        if axis == "columns":
-            centre = centre[::-1]
-        seen = (used[-1] - used[0] + 1) / period
-    return LightWave(period, window, phase, (low, high), centre, float(seen))
-
-
-def _rim_only(fitted: _Radial, shape: np.ndarray, high: float) -> float:
-    """The share of a light's area (where its radial ``shape``, per knot, is 5 % of its peak
-    or more) at which its ``high`` level (gray levels above the background where the shape
-    peaks) clips: near 1 for a light whose bright stripes clip all across but at the rim,
-    small for one that clips only in its core."""
-    ly, lx, _ = fitted.pixels
-    cy, cx = fitted.clipped
-    uv = _axes(np.concatenate([lx, cx]), np.concatenate([ly, cy]), fitted.cs)
-    rho = _radius(uv, fitted.best, fitted.cs) / fitted.bin_px
-    g = np.interp(rho, np.arange(shape.size), shape, right=0.0)
-    lit = g >= 0.05
-    hot = lit & (g * high >= _CLIP - fitted.background)
-    return float(hot.sum()) / max(float(lit.sum()), 1.0)
-
-
-def _on_grid(fitted: _Radial, ellipse, axis: str, shape: np.ndarray, wave) -> GridShape | None:
-    """The light's shape on the pixel grid fitted with its square wave
-    (:func:`camvlp.pipeline.rim.refine_wave`) from the radial fit (its radial ``shape`` per
-    knot, its ``wave``: period, phase, window, low, high), or None when that fit fails."""
-    (ex, ey), _, _ = ellipse
-    outline = (ey, ex) if axis == "columns" else (ex, ey)
-    bin_px = fitted.bin_px
-    fit = refine_wave(
-        fitted.pixels,
-        fitted.clipped,
-        _CLIP - fitted.background,
-        fitted.n_lines,
-        [fitted.best, np.array([*outline, 0.0])],
-        np.array(wave, dtype=float),
-        lambda rho: np.interp(rho / bin_px, np.arange(shape.size), shape, right=0.0),
-        fitted.cs,
-        _BIN_PX,
-        _integrated,
-        _FULL - fitted.background,
-    )
-    p, _, _, lo, hi = (float(v) for v in fit.wave)
-    return fit if np.isfinite(fit.cost) and p > 2.0 and hi > lo else None
+    lines = np.arange(fitted.n_lines, dtype=float)
+    return lines, s, weight, bound_lines, bounds, bound_weight, centre
 
 
 def _failed(centre: np.ndarray, message: str, conclusive: bool = False) -> LightWave:

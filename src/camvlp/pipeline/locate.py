@@ -29,6 +29,7 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.by_pose import position_sigma
+from camvlp.pipeline.decode import StripeDecode
 from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
 from camvlp.pipeline.frequency import decode_frequencies
 from camvlp.pipeline.glow import centred_on_glow
@@ -65,6 +66,11 @@ class LocateSettings:
         Readout ("rows", "columns", "rows-reversed", "columns-reversed"; see
         :class:`camvlp.model.readout.Readout`); None takes the camera's, else finds the axis
         from the stripes (forward).
+    readout_hint : Readout, str or None
+        A readout the photo's metadata suggests (:func:`camvlp.io.exif_readout`, from its
+        EXIF orientation), when neither ``readout`` nor the camera gives one: the stripes
+        still decide the axis; where the hint's axis is theirs, its direction is taken, and
+        where the stripes do not show the axis, the hint's is read.
     mirrored : bool or None
         Flip the image left-right first; None takes the camera file's ``mirrored``.
     correct_perspective : bool
@@ -94,6 +100,7 @@ class LocateSettings:
     kernel_px: int = 16
     min_diameter_px: float = 8.0
     readout: Readout | None = None
+    readout_hint: Readout | None = None
     mirrored: bool | None = None
     correct_perspective: bool = True
     keep_stages: bool = False
@@ -112,6 +119,8 @@ class LocateSettings:
             ):
                 raise InputError(f"{name} must be a positive number, got {sigma!r}")
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
+        hint = Readout.parse_optional(self.readout_hint, "readout_hint")
+        object.__setattr__(self, "readout_hint", hint)
 
 
 _DEFAULT_SETTINGS = LocateSettings()  # frozen: one instance serves every call without settings
@@ -128,23 +137,50 @@ def _check_arguments(camera: object, fixture_map: object, settings: object) -> N
             raise InputError(f"{name} must be a {wanted}, got {type(value).__name__}")
 
 
-def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
+def fitted_camera(camera: Camera, width: int, height: int) -> tuple[Camera, str]:
+    """The camera for a photo of ``width`` x ``height`` pixels, and a note ("" or why it was
+    turned): the camera itself, or turned a quarter turn (:meth:`Camera.turned`) for a photo
+    stored the other way round when the way it was turned does not matter.
+
+    Raises
+    ------
+    InputError
+        The photo is of another size, or turned where the way it was turned would matter.
+    """
+    if (width, height) == (camera.width, camera.height):
+        return camera, ""
+    turned = camera.turned() if (height, width) == (camera.width, camera.height) else None
+    if turned is not None:
+        return turned, (
+            f"the photo is {width} x {height}, the camera file's {camera.width} x "
+            f"{camera.height} turned a quarter turn: the camera is turned with it"
+        )
+    hint = (
+        " (turned? the camera file describes the other orientation, and its principal point "
+        "or distortion depend on which way: write a camera file for this orientation)"
+        if (height, width) == (camera.width, camera.height)
+        else ""
+    )
+    raise InputError(
+        f"image is {width} x {height} but the camera file says {camera.width} x "
+        f"{camera.height}{hint}"
+    )
+
+
+def _check_dims(image) -> np.ndarray:
+    """The image as an array (:func:`~camvlp.io.images.as_image`) of a photo's dimensions."""
     img = as_image(image)
     if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
         raise InputError(f"image must be (H, W) gray or (H, W, 3) BGR, got shape {img.shape}")
+    return img
+
+
+def _check_image(image: np.ndarray, camera: Camera) -> np.ndarray:
+    img = _check_dims(image)
     h, w = img.shape[:2]
     if (w, h) != (camera.width, camera.height):
-        hint = (
-            " (rotated? the camera file describes the other orientation)"
-            if (h, w)
-            == (
-                camera.width,
-                camera.height,
-            )
-            else ""
-        )
         raise InputError(
-            f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}{hint}"
+            f"image is {w} x {h} but the camera file says {camera.width} x {camera.height}"
         )
     if min(h, w) < MIN_SIDE_PX:
         raise InputError(
@@ -175,26 +211,88 @@ def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.
     if camera.tone_gamma is not None:
         img = linear_light(img, camera.tone_gamma)
     mirrored = camera.mirrored if st.mirrored is None else bool(st.mirrored)
-    return (img[:, ::-1] if mirrored else img), mirrored
+    # flipped into a new array: a view of negative stride costs every later OpenCV call a
+    # copy (the decimation of a 34 MP photo: 0.7 s against 10 ms)
+    return (cv2.flip(img, 1) if mirrored else img), mirrored
+
+
+#: A blob counts as striped, and votes for its readout axis, when the stripes' variation
+#: along one axis is at least this many times that along the other
+#: (:attr:`Blob.stripe_contrast`)...
+_STRIPED = 2.0
+#: ...and its lines along that axis explain at least this share of its pixels' variance
+#: (:attr:`Blob.stripe_share`: 0.6 to 0.98 for the real photos' lights and plain renders,
+#: 0.37 to 0.42 for their lamps saturated 7 times over, 0.15 to 0.44 for renders of lamps
+#: whose hot core is 5 times their rim's level, with soft stripes; a camera's burned-in text
+#: spreads from 0.02 to 0.6: the share weighs a blob's vote, and the decoders refuse text).
+_STRIPE_SHARE = 0.1
+#: Lights whose stripe contrast times share (:attr:`Blob.stripe_contrast`,
+#: :attr:`Blob.stripe_share`) reaches this are all alike clearly striped (the stress grid's
+#: lamps: 2.2 and up; a burned-in text's characters: 1.2 at most): the photo-wide parameters
+#: are fitted to the longest of them first.
+_CLEAR = 2.0
+#: The photo's readout axis is clear when the striped blobs' votes for it (each its share)
+#: outweigh those for the other axis this many times over.
+_AXIS_MARGIN = 3.0
+
+
+def stripes_axis(blobs) -> tuple[str | None, float, float]:
+    """The readout axis the photo's stripes show, voted by its striped blobs.
+
+    Each blob whose stripes run clearly one way (:data:`_STRIPED`) and whose lines along
+    that way explain most of its pixels (:data:`_STRIPE_SHARE`) votes for its axis with that
+    share; a text, a steady light or a blob of noise has no say.  Returns the axis ("rows"
+    or "columns"), or None when the votes do not clear :data:`_AXIS_MARGIN` (no striped
+    blob, or blobs striped both ways), and the votes for rows and for columns.
+    """
+    votes = {"rows": 0.0, "columns": 0.0}
+    for b in blobs:
+        share = float(b.stripe_share)
+        if b.stripe_contrast > _STRIPED and share >= _STRIPE_SHARE:
+            votes[b.axis] += share
+    rows, cols = votes["rows"], votes["columns"]
+    if max(rows, cols) <= 0 or max(rows, cols) < _AXIS_MARGIN * min(rows, cols):
+        return None, rows, cols
+    return ("rows" if rows > cols else "columns"), rows, cols
 
 
 def _detect(
     img: np.ndarray, given: Readout | None, st: LocateSettings
-) -> tuple[Detection, Readout]:
-    """Stage 1: the fixtures, and the readout (given, else the axis most striped blobs show)."""
-    detection = detect_fixtures(
-        img,
-        readout=None if given is None else given.axis,
-        kernel_px=st.kernel_px,
-        min_diameter_px=st.min_diameter_px,
-    )
+) -> tuple[Detection, Readout | None, bool, str]:
+    """Stage 1: the fixtures, and the readout: ``given`` (the call's or the camera file's),
+    else the axis the stripes show (:func:`stripes_axis`), its direction the photo's EXIF
+    hint's (``st.readout_hint``) where that hint's axis is the same, else forward and found
+    later.  Returns the detection, the readout (None: the axis is unclear), whether its
+    direction is known, and a note ("" or where the hint was overruled or needed)."""
+
+    def detect(axis: str | None) -> Detection:
+        return detect_fixtures(
+            img, readout=axis, kernel_px=st.kernel_px, min_diameter_px=st.min_diameter_px
+        )
+
     if given is not None:
-        return detection, given
-    blobs = detection.blobs
-    striped = [b for b in blobs if b.stripe_contrast > 2.0] or list(blobs)
-    votes = [b.axis for b in striped]
-    axis = max(set(votes), key=votes.count) if votes else "rows"
-    return detection, Readout.of(axis)
+        return detect(given.axis), given, True, ""
+    detection = detect(None)
+    axis, rows, cols = stripes_axis(detection.blobs)
+    hint, note = st.readout_hint, ""
+    if axis is None and hint is not None:
+        axis = hint.axis
+        note = (
+            f"the stripes do not show the readout axis (votes rows {rows:.1f}, columns "
+            f"{cols:.1f}): the photo's EXIF orientation gives {hint}"
+        )
+    elif axis is not None and hint is not None and hint.axis != axis:
+        note = (
+            f"the photo's EXIF orientation suggests a {hint} readout; its stripes run along {axis}"
+        )
+        hint = None
+    if axis is None:
+        return detection, None, False, ""
+    if any(b.axis != axis for b in detection.blobs):  # each disc bridged along the photo's axis
+        detection = detect(axis)
+    if hint is not None:
+        return detection, hint, True, note
+    return detection, Readout.of(axis), False, note
 
 
 def _profiles(
@@ -229,22 +327,93 @@ def _decode(
     camera: Camera,
     fixture_map: FixtureMap,
     weights=None,
-) -> tuple[list, np.ndarray, list[str], list[Blob]]:
+) -> tuple[list, np.ndarray, list[str], list[Blob], list]:
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
-    NaN in Manchester mode), notes, and the blobs (new ones, where a frequency-coded light's
-    centre moved to its whole striped area); ``weights``, the profiles' row weights for the
-    model fit (:func:`_profiles`).  (:func:`locate` itself decides an unknown direction.)"""
+    NaN in Manchester mode), notes, the blobs (new ones, where a frequency-coded light's
+    centre moved to its whole striped area), and each frequency-coded light's beacon fit
+    (:func:`~camvlp.pipeline.frequency.decode_frequencies`; empty in Manchester mode);
+    ``weights``, the profiles' row weights for the model fit (:func:`_profiles`).
+    (:func:`locate` itself decides an unknown direction.)"""
     if fixture_map.mode != "frequency":
         man = decode_manchester(profiles, readout, True, camera, fixture_map, weights)
-        return list(man.decodes), np.full(len(blobs), np.nan), [], list(blobs)
-    decodes, frequencies, centres, note = decode_frequencies(
+        return list(man.decodes), np.full(len(blobs), np.nan), [], list(blobs), []
+    decodes, frequencies, centres, note, beacons = decode_frequencies(
         blobs, gray_rois, readout.axis, camera, fixture_map
     )
     moved = [
         b if np.array_equal(c, b.pixel) else replaced(b, pixel=c)
         for b, c in zip(blobs, centres, strict=True)
     ]
-    return decodes, frequencies, [note] if note else [], moved
+    return decodes, frequencies, [note] if note else [], moved, beacons
+
+
+def striped(blob) -> bool:
+    """Whether a blob shows stripes to read: they vary clearly along one axis
+    (:data:`_STRIPED`) and its lines along it explain a share of its pixels' variance
+    (:data:`_STRIPE_SHARE`).  A camera's burned-in text, a steady light or a reflection does
+    not; it is neither centred, nor decoded, nor let to tell the photo's chip length."""
+    return blob.stripe_contrast > _STRIPED and float(blob.stripe_share) >= _STRIPE_SHARE
+
+
+def _no_stripes(blob) -> StripeDecode:
+    """The decode of a blob that shows no stripes to read (:func:`striped`), with why."""
+    share = float(blob.stripe_share)
+    if not np.isfinite(share):
+        why = "no stripes to read"
+    elif share < _STRIPE_SHARE:
+        why = (
+            f"no stripes to read: its lines explain {100 * share:.0f} % of its pixels (text, "
+            "a steady light, or not a coded light)"
+        )
+    else:
+        why = (
+            f"no stripes to read along the {blob.axis}: its level varies {blob.stripe_contrast:.1f}"
+            f" times as much from line to line along them as across (more than {_STRIPED:g} "
+            "needed)"
+        )
+    return StripeDecode(None, why, -1, 0.0, np.nan, np.nan, "", np.nan)
+
+
+def _spread_out(values, keep: list[int], default: list) -> list:
+    """``default`` with ``values`` (one per index of ``keep``) put at those indices."""
+    out = list(default)
+    for k, v in zip(keep, values, strict=True):
+        out[k] = v
+    return out
+
+
+def _read_manchester(
+    img, blobs, keep: list[int], profiles, weights, readout, direction_known, camera, fixture_map
+) -> Manchester:
+    """:func:`decode_manchester` and :func:`_from_glows` of the readable blobs (``keep``),
+    the others refused (:func:`_no_stripes`); the profiles and weights read again from the
+    glows put back in their places."""
+    sub_p, sub_w = [profiles[k] for k in keep], [weights[k] for k in keep]
+    # the photo-wide parameters from the clearly striped lights, the longest first
+    rank = [min(blobs[k].stripe_contrast * float(blobs[k].stripe_share), _CLEAR) for k in keep]
+    man = decode_manchester(sub_p, readout, direction_known, camera, fixture_map, sub_w, rank)
+    man = _from_glows(img, [blobs[k] for k in keep], man, fixture_map, sub_p, sub_w, readout)
+    for j, k in enumerate(keep):
+        profiles[k], weights[k] = sub_p[j], sub_w[j]
+    if len(keep) == len(blobs):
+        return man
+    none = [_no_stripes(b) for b in blobs]
+    other = None if man.other is None else tuple(_spread_out(man.other, keep, none))
+    return dataclasses.replace(
+        man, decodes=tuple(_spread_out(man.decodes, keep, none)), other=other
+    )
+
+
+#: Why no light of a photo is read when its stripes do not say the readout axis.
+UNCLEAR_AXIS = (
+    "the stripes do not show which way the sensor read (rows or columns): give the readout "
+    "(--readout, or readout in the camera file)"
+)
+
+
+def _unread(blobs) -> list[StripeDecode]:
+    """Every blob left unread, as when the photo's readout axis is unclear."""
+    return [StripeDecode(None, UNCLEAR_AXIS, -1, 0.0, np.nan, np.nan, "", np.nan) for _ in blobs]
 
 
 def _from_glows(img, blobs, man: Manchester, fixture_map, profiles, weights, readout) -> Manchester:
@@ -311,7 +480,13 @@ def _solve(
                 outlier_px=outlier_px,
             )
         return estimate_pose(
-            points, obj, camera, normals=normals, solver=st.solver, outlier_px=outlier_px
+            points,
+            obj,
+            camera,
+            normals=normals,
+            solver=st.solver,
+            outlier_px=outlier_px,
+            centre_sigma_px=lambda: float(np.median(_centre_sigmas(blobs, usable, st))),
         )
 
     est = solve(pixels)
@@ -328,19 +503,29 @@ def _solve(
 
 def _sigma_inputs(camera, fixture_map, est, found: Identified, down):
     """What ``LocateResult.position_sigma`` needs (the camera, the pose, the used fixtures'
-    map positions and reprojection errors), or None: not located, or solved with gravity
-    (its covariance weighs the gravity too)."""
+    map positions and reprojection errors, and how far an alternative pose that fits about
+    as well lies along each axis: zeros when none does), or None: not located, or solved
+    with gravity (its covariance weighs the gravity too)."""
     pose = est.pose if est is not None else None
     if pose is None or down is not None or isinstance(est, GravityPose):
         return None
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
     points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
-    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used]
+    close = np.zeros(3)
+    if est.close and est.alternative is not None:
+        close = np.abs(est.alternative.position - pose.position)
+    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used], close
 
 
-def _finite_sigma(camera, pose, points, residuals_px) -> np.ndarray | None:
-    """:func:`~camvlp.pipeline.by_pose.position_sigma`, or None when it is not finite."""
-    sigma = position_sigma(camera, pose, points, residuals_px)
+def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
+    """:func:`~camvlp.pipeline.by_pose.position_sigma`, at least as large along each axis
+    as ``close`` (how far an alternative pose that fits about as well lies)."""
+    return np.maximum(position_sigma(camera, pose, points, residuals_px), close)
+
+
+def _finite_sigma(*inputs) -> np.ndarray | None:
+    """:func:`_position_sigma`, or None when it is not finite."""
+    sigma = _position_sigma(*inputs)
     return sigma if np.isfinite(sigma).all() else None
 
 
@@ -350,7 +535,7 @@ def _sure_enough(
     """The pose, or no pose and why when its position's standard deviation
     (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
     axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
-    sigma = position_sigma(*sigma_inputs)
+    sigma = _position_sigma(*sigma_inputs)
     finite = np.isfinite(sigma)
     axis = int(np.argmax(np.where(finite, sigma, np.inf)))
     if finite.all() and sigma[axis] <= limit:
@@ -376,8 +561,11 @@ def _fixture_results(
     shown,
     needed: int = 4,
     told: dict[int, tuple[int, ...]] | None = None,
+    fixture_map: FixtureMap | None = None,
 ) -> tuple[FixtureResult, ...]:
-    """Stage 6: every fixture seen, identified or not, with why it was not used."""
+    """Stage 6: every fixture seen, identified or not, with why it was not used.  A
+    fixture's ``id`` is one of the map's or None: an ID read that the map lacks, or that the
+    pose does not vouch for, is told in its reason only."""
     results = []
     at = {k: j for j, k in enumerate(found.usable)}  # a usable fixture's place in the pose's
     posed = est is not None and est.pose is not None
@@ -385,21 +573,28 @@ def _fixture_results(
         used_by_pose, residuals = est.used.tolist(), est.residuals_px.tolist()
     for k, (b, dec) in enumerate(zip(blobs, decodes, strict=True)):
         reason = found.reasons[k]
+        fid = found.ids[k]
+        if fid is not None and fixture_map is not None and fixture_map.get(fid) is None:
+            fid = None  # (its reason says what it sends)
         used = False
         residual = float("nan")
         j = at.get(k)
         if j is not None:
             if posed:
                 used, residual = used_by_pose[j], residuals[j]
-                if not used:
-                    reason = f"does not fit the pose of the others ({residual:.1f} px off)"
+                if not used:  # the pose does not vouch for its ID: none reported
+                    reason = (
+                        f"read as ID {fid}, which does not fit the pose of the others "
+                        f"({residual:.1f} px off)"
+                    )
+                    fid = None
             elif est is not None:
                 reason = "no pose"
             else:
                 reason = f"fewer than {needed} usable fixtures"
         results.append(
             FixtureResult(
-                id=found.ids[k],
+                id=fid,
                 pixel=shown(b.pixel),
                 used=used,
                 margin=dec.margin,
@@ -515,25 +710,49 @@ def locate(
     st = settings or _DEFAULT_SETTINGS
     outlier_px = st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
     t0 = time.perf_counter()
+    image = _check_dims(image)
+    camera, turned_note = fitted_camera(camera, image.shape[1], image.shape[0])
     img, mirrored = _prepare(image, camera, st)
     down = None if gravity is None else _gravity(gravity, camera, fixture_map)
-    given = st.readout or camera.readout
-    detection, readout = _detect(img, given, st)
+    detection, found_readout, direction_known, axis_note = _detect(
+        img, st.readout or camera.readout, st
+    )
+    readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is decoded below)
     blobs = detection.blobs
-    if fixture_map.mode != "frequency":  # (a frequency-coded light is centred as it is measured)
-        blobs = centred_on_glow(img, blobs, readout.axis)
+    keep = [k for k, b in enumerate(blobs) if striped(b)]  # (text, steady lights: no)
+    if fixture_map.mode != "frequency" and found_readout is not None:
+        # the readable lights, each centred on its glow (frequency: centred as measured)
+        sub = centred_on_glow(img, [blobs[k] for k in keep], readout.axis)
+        blobs = _spread_out(sub, keep, list(blobs))
     t1 = time.perf_counter()
     gray_rois, extents, profiles, weights = _profiles(img, blobs, readout)
     man: Manchester | None = None
-    if fixture_map.mode == "frequency":
-        decodes, frequencies, notes, blobs = _decode(
-            blobs, gray_rois, profiles, readout, camera, fixture_map
+    beacons: list = []
+    notes = [n for n in (turned_note, axis_note) if n]
+    if found_readout is None:
+        decodes, frequencies = _unread(blobs), np.full(len(blobs), np.nan)
+    elif fixture_map.mode == "frequency":
+        sub = [blobs[k] for k in keep]
+        got, freqs, more, moved, fits = _decode(
+            sub,
+            [gray_rois[k] for k in keep],
+            [profiles[k] for k in keep],
+            readout,
+            camera,
+            fixture_map,
         )
+        decodes = _spread_out(got, keep, [_no_stripes(b) for b in blobs])
+        frequencies = np.full(len(blobs), np.nan)
+        frequencies[keep] = freqs
+        blobs = _spread_out(moved, keep, list(blobs))
+        beacons = _spread_out(fits, keep, [(None, None, None)] * len(blobs))
+        notes += more
     else:
-        man = decode_manchester(profiles, readout, given is not None, camera, fixture_map, weights)
-        man = _from_glows(img, blobs, man, fixture_map, profiles, weights, readout)
+        man = _read_manchester(
+            img, blobs, keep, profiles, weights, readout, direction_known, camera, fixture_map
+        )
         decodes, frequencies = list(man.decodes), np.full(len(blobs), np.nan)
-        notes = [man.note] if man.note else []
+        notes += [man.note] if man.note else []
     t2 = time.perf_counter()
 
     def solve(f: Identified):
@@ -543,6 +762,8 @@ def locate(
     identified = identifier(camera, fixture_map, blobs, outlier_px, solve, needed)
     man, kept = decided(blobs, fixture_map, man, decodes, identified, solve, needed)
     decodes, found, est, reason, told = kept.decodes, kept.found, kept.est, kept.reason, kept.told
+    if found_readout is None:
+        reason = UNCLEAR_AXIS
     if man is not None:
         if man.readout != readout:  # read the other way: keep the profiles in sensor order
             profiles = [p[::-1] for p in profiles]
@@ -565,7 +786,7 @@ def locate(
         euler_deg=None if pose is None else pose.euler_deg,
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else float("nan"),
         fixtures=_fixture_results(
-            blobs, decodes, found, est, extents, frequencies, shown, needed, told
+            blobs, decodes, found, est, extents, frequencies, shown, needed, told, fixture_map
         ),
         timing_ms=_timings(t0, t1, t2, t3),
         reason=reason,
@@ -577,9 +798,15 @@ def locate(
         if est is None or est.alternative is None
         else est.alternative.position,
         alternative_rms_px=float("nan") if est is None else est.alternative_rms_px,
+        pose_margin=float(getattr(est, "margin", float("nan"))) if est is not None else np.nan,
         notes=tuple(notes),
         stages=LocateStages(
-            detection, tuple(gray_rois), tuple(profiles), tuple(decodes), tuple(weights)
+            detection,
+            tuple(gray_rois),
+            tuple(profiles),
+            tuple(decodes),
+            tuple(weights),
+            tuple(beacons),
         )
         if st.keep_stages
         else None,

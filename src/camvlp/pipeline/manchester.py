@@ -151,7 +151,7 @@ def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     return (ref if finite else None), kept
 
 
-def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weights=None):
+def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weights=None, rank=None):
     """The fast decodes, completed by the model fit for the fixtures they lack."""
     refused = [k for k, d in enumerate(fast) if d is None]
     if not refused:
@@ -159,7 +159,9 @@ def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weight
     sub = [profiles[k] for k in refused]
     sub_w = None if weights is None else [weights[k] for k in refused]
     try:  # the photo-wide parameters from every fixture, seeded by the chip length
-        model, _ = estimate_photo_model(profiles, frame, ids, weights=weights, rows_per_chip=t)
+        model, _ = estimate_photo_model(
+            profiles, frame, ids, weights=weights, rows_per_chip=t, rank=rank
+        )
         photo = decode_photo(sub, frame, ids, weights=sub_w, model=model)
     except ValueError:
         photo = decode_photo(sub, frame, ids, weights=sub_w, rows_per_chip=t)
@@ -178,13 +180,14 @@ def _one_way(
     fallback,
     readout: Readout,
     weights=None,
+    rank=None,
 ) -> Manchester:
     """The decode of one readout direction taken as known: its run-length decodes ``fast``
     whose chip lengths agree (with ``seed`` or each other), the model fit for the rest, seeded
     by that chip length, else ``seed``, else ``fallback`` (rows)."""
     t, (kept,) = _agreeing([fast], seed)
     t = t or seed or fallback
-    decodes, model = _with_model(profiles, kept, frame, ids, t, weights)
+    decodes, model = _with_model(profiles, kept, frame, ids, t, weights, rank)
     return _manchester(decodes, readout, model, t)
 
 
@@ -220,7 +223,7 @@ def _direction_votes(a: PhotoDecode, b: PhotoDecode, rev: np.ndarray) -> tuple[i
 
 
 def _model_directions(
-    profiles, readout: Readout, frame: FrameFormat, ids, seed, weights=None
+    profiles, readout: Readout, frame: FrameFormat, ids, seed, weights=None, rank=None
 ) -> Manchester:
     """Model-based decode of every profile both ways (see the module's docstring).
 
@@ -229,7 +232,7 @@ def _model_directions(
     when two or more fixtures fit a frame clearly better read that way and none the other
     way (:func:`_direction_votes`); otherwise both are kept for the pose to decide.
     """
-    fwd = decode_photo(profiles, frame, ids, weights=weights, rows_per_chip=seed)
+    fwd = decode_photo(profiles, frame, ids, weights=weights, rows_per_chip=seed, rank=rank)
     backwards = [p[::-1] for p in profiles]
     bw = None if weights is None else [w[::-1] for w in weights]
     rev = _reversed_ids(frame)
@@ -254,7 +257,7 @@ def _model_directions(
     # the two directions are then compared under the same parameters, those that fit best
     # either way (fits under two different estimates would compare the estimates)
     t_fwd = fwd.model.rows_per_chip if np.isfinite(fwd.cost) else seed
-    back2 = decode_photo(backwards, frame, ids, weights=bw, rows_per_chip=t_fwd)
+    back2 = decode_photo(backwards, frame, ids, weights=bw, rows_per_chip=t_fwd, rank=rank)
     if back2.fit_cost < min(fwd.fit_cost, back.fit_cost):
         fwd, back = decode_photo(profiles, frame, ids, weights=weights, model=back2.model), back2
     if better(fwd, back):
@@ -274,6 +277,7 @@ def decode_manchester(
     camera: Camera,
     fixture_map: FixtureMap,
     weights=None,
+    rank=None,
 ) -> Manchester:
     """Decode every profile: the run-length decoder's sure IDs, the model fit for the rest.
 
@@ -292,6 +296,9 @@ def decode_manchester(
     weights : list of ndarray, each shape (n_k,), optional
         Each profile's row weights for the model fit (the inverse of each row's variance,
         up to a constant per profile); None weighs every row alike.
+    rank : sequence of float, optional
+        Per profile, how clearly its light is striped: the photo-wide parameters are fitted
+        to the first ones (:func:`~camvlp.pipeline.photo_model.estimate_photo_model`).
 
     Returns
     -------
@@ -301,7 +308,7 @@ def decode_manchester(
     seed = None
     if camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
-    man = _decode_manchester(profiles, readout, direction_known, fixture_map, seed, weights)
+    man = _decode_manchester(profiles, readout, direction_known, fixture_map, seed, weights, rank)
     if seed is None or any(d.id is not None for d in man.decodes):
         return man
     # nothing identified with the chip length the files give: do the stripes' runs say
@@ -317,7 +324,13 @@ def decode_manchester(
 
 
 def _decode_manchester(
-    profiles, readout: Readout, direction_known: bool, fixture_map: FixtureMap, seed, weights
+    profiles,
+    readout: Readout,
+    direction_known: bool,
+    fixture_map: FixtureMap,
+    seed,
+    weights,
+    rank=None,
 ) -> Manchester:
     """:func:`decode_manchester` with the chip length the files give (``seed``, rows, or
     None)."""
@@ -325,7 +338,7 @@ def _decode_manchester(
     map_ids = {int(i) for i in ids}
     fwd, lengths = _fast(profiles, frame, map_ids)
     if direction_known:
-        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout, weights)
+        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout, weights, rank)
     fast_f = fwd  # (fwd is narrowed below to the chip lengths both ways agree on)
     backwards = [p[::-1] for p in profiles]
     bw = None if weights is None else [w[::-1] for w in weights]
@@ -338,21 +351,21 @@ def _decode_manchester(
     firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
     firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
     if firm_f >= 2 and firm_b == 0:
-        decodes, model = _with_model(profiles, fwd, frame, ids, t, weights)
+        decodes, model = _with_model(profiles, fwd, frame, ids, t, weights, rank)
         return _manchester(decodes, readout, model, t)
     flipped = Readout.of(readout.axis, not readout.reversed)
     if firm_b >= 2 and firm_f == 0:
-        decodes, model = _with_model(backwards, bwd, frame, ids, t, bw)
+        decodes, model = _with_model(backwards, bwd, frame, ids, t, bw, rank)
         return _manchester(decodes, flipped, model, t)
-    man = _model_directions(profiles, readout, frame, ids, t, weights)
+    man = _model_directions(profiles, readout, frame, ids, t, weights, rank)
     if man.other is None:
         return man
     # the stripes do not say the direction: each is read as if it were known (its sure
     # run-length IDs, the model fitted to it for the rest), and the pose decides.  Parameters
     # fitted one way can blur the other way's IDs into look-alikes
-    one = _one_way(profiles, fast_f, frame, ids, seed, man.rows_per_chip, readout, weights)
+    one = _one_way(profiles, fast_f, frame, ids, seed, man.rows_per_chip, readout, weights, rank)
     bwd_all = _fast(backwards, frame, map_ids)[0]
-    other = _one_way(backwards, bwd_all, frame, ids, seed, man.rows_per_chip, flipped, bw)
+    other = _one_way(backwards, bwd_all, frame, ids, seed, man.rows_per_chip, flipped, bw, rank)
     return Manchester(
         one.decodes, readout, one.rows_per_chip, one.model, other.decodes, other.model
     )

@@ -503,6 +503,7 @@ def decode_photo(
     gamma: float | None = 1.0,
     min_margin: float = MIN_MARGIN,
     samples: int = SAMPLES_PER_CHIP,
+    rank=None,
 ) -> PhotoDecode:
     """Decode every fixture of a photo with photo-wide parameters fitted to all of them.
 
@@ -525,6 +526,9 @@ def decode_photo(
         See :func:`decode_profile_model`.
     samples : int
         Template grid points per chip.
+    rank : sequence of float, optional
+        Which profiles the parameters are fitted to first
+        (:func:`~camvlp.pipeline.photo_model.estimate_photo_model`).
 
     Returns
     -------
@@ -537,7 +541,7 @@ def decode_photo(
     if model is None:
         try:
             model, cost = estimate_photo_model(
-                ps, frame, ids, weights=ws, rows_per_chip=rows_per_chip, gamma=gamma
+                ps, frame, ids, weights=ws, rows_per_chip=rows_per_chip, gamma=gamma, rank=rank
             )
         except ValueError as exc:
             t = float(rows_per_chip) if rows_per_chip else float("nan")

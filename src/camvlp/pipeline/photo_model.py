@@ -66,11 +66,17 @@ class _PhotoFitter:
         return self._folds[key]
 
     def costs(self, rows_per_chip: float, exposure, knee, gamma, blur) -> np.ndarray:
-        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,)."""
+        """Photo cost of each parameter set (arrays of shape (V,)) at one chip length: (V,).
+
+        A profile that spans fewer than :data:`MIN_FRAMES` frames at this chip length cannot
+        be read: nothing of it counts as explained (a few chips fit any ID, so a chip length
+        too long for most of the lights would otherwise fit them best)."""
         t = _templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
         spectra = _template_spectra(t)  # each (V, I, F)
-        un = np.empty((t.shape[0], len(self.data)))
+        un = np.ones((t.shape[0], len(self.data)))
         for k, fo in enumerate(self.folds(rows_per_chip)):
+            if self.data[k][0].size < MIN_FRAMES * self.n_chips * rows_per_chip:
+                continue
             sel = self.own[k]
             rss = _fit_folded(fo, *(h[:, sel] for h in spectra))[0]
             un[:, k] = rss.reshape(rss.shape[0], -1).min(axis=1) / max(fo.spp, 1e-300)
@@ -146,6 +152,7 @@ def estimate_photo_model(
     rows_per_chip_range: tuple[float, float] = (1.5, 48.0),
     gamma: float | None = 1.0,
     max_fixtures: int = 5,
+    rank=None,
     samples: int = SAMPLES_PER_CHIP,
 ) -> tuple[SensorModel, float]:
     """Fit the photo-wide parameters of the forward model to all fixtures' profiles.
@@ -165,7 +172,12 @@ def estimate_photo_model(
     gamma : float or None
         The sensor's gamma when known (1 for linear raw data); None fits it.
     max_fixtures : int
-        Profiles used for the fit (the longest ones; the cost drops the worst of them).
+        Profiles used for the fit (the longest ones, or the first by ``rank``; the cost drops
+        the worst of them).
+    rank : sequence of float, optional
+        Per profile, how clearly its light is striped (e.g. the blob's stripe contrast times
+        its stripe share): the profiles ranked first are fitted (a camera's burned-in text
+        or a light that sends data, longer than the lamps, would draw the fit off).
     samples : int
         Template grid points per chip while fitting.
 
@@ -182,7 +194,10 @@ def estimate_photo_model(
     """
     ps = [np.asarray(p, dtype=np.float64) for p in profiles]
     ws = [None] * len(ps) if weights is None else list(weights)
-    order = np.argsort([-p.size for p in ps], kind="stable")
+    if rank is None:
+        order = np.argsort([-p.size for p in ps], kind="stable")
+    else:  # the most striped first, then the longest
+        order = np.lexsort(([-p.size for p in ps], -np.asarray(rank, dtype=float)))
     use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
     if not use:
         raise ValueError("no profile long enough to fit the sensor model")

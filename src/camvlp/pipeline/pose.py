@@ -23,7 +23,7 @@ from itertools import combinations
 import cv2
 import numpy as np
 
-from camvlp.geometry.pnp import candidate_methods, check_solver, pnp_candidates
+from camvlp.geometry.pnp import candidate_methods, check_solver, other_minima, pnp_candidates
 from camvlp.model.camera import Camera, Pose, all_finite, finite_rows, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
@@ -50,6 +50,13 @@ class PoseEstimate:
         Its reprojection RMS, pixels.
     reason : str
         Why it failed ("" on success).
+    mirrored : bool
+        The only poses that fit put the camera behind the lights.
+    margin : float
+        How much better the pose fits than the alternative: ``1 - SSR / SSR_alternative``
+        (sums of squared reprojection errors over the fixtures used; 1 without an
+        alternative, NaN on failure).  A pose whose alternative fits about as well, within
+        what the centres' noise allows, is refused (:data:`AMBIGUITY_CHI2`).
     """
 
     pose: Pose | None
@@ -60,6 +67,8 @@ class PoseEstimate:
     alternative_rms_px: float = float("nan")
     reason: str = ""
     mirrored: bool = field(default=False)
+    margin: float = float("nan")
+    close: bool = False
 
     def __bool__(self) -> bool:
         return self.pose is not None
@@ -187,6 +196,11 @@ def _choose(
                 + scored
                 + _scored(camera, obj, img, normals, solver, planar, methods[k + 1 :])
             )
+    # a few points: every local minimum, from each triple's P3P (two minima a few pixels
+    # apart that IPPE's pair does not hold, when three points are nearly on a line)
+    minima = other_minima(obj, img, camera)
+    if minima:
+        scored += _scores(camera, minima, obj, img, normals)
     valid = sorted((s for s in scored if s[1] and s[2]), key=lambda s: s[0])
     behind = sorted((s for s in scored if s[1] and not s[2]), key=lambda s: s[0])
     mirrored = bool(behind) and (not valid or behind[0][0] < 0.25 * valid[0][0])
@@ -213,6 +227,43 @@ def _choose(
     return best, valid[0][0], alt[3], float(alt[0]), mirrored, _distances(valid[0][4])
 
 
+def _near(ssr: float, alt_ssr: float, n: int, centre_sigma_px) -> bool:
+    """Whether a second pose fits ``n`` fixtures about as well as the best: their sums of
+    squared reprojection errors (pixels^2) within :data:`AMBIGUITY_CHI2` times the centres'
+    noise variance, the noise being the largest of the fit's own residual per degree of
+    freedom, :data:`MIN_NOISE_PX` and ``centre_sigma_px`` (a number, or a function that gives
+    it, called only when the answer depends on it)."""
+    gap = alt_ssr - ssr
+    noise2 = max(ssr / max(2 * n - 6, 1), MIN_NOISE_PX**2)
+    if gap < AMBIGUITY_CHI2 * noise2:
+        return True
+    if centre_sigma_px is None:
+        return False
+    sigma = centre_sigma_px() if callable(centre_sigma_px) else centre_sigma_px
+    return gap < AMBIGUITY_CHI2 * float(sigma) ** 2
+
+
+#: Two poses that fit about equally are two answers when the camera centres lie further
+#: apart than this share of the distance from the camera to the fixtures (a metre at 2.5 m
+#: for Luxapose's four lights, three on a diagonal); nearer, they are one answer, less sure
+#: (:attr:`PoseEstimate.close`: the position's sigma covers the other).
+APART = 0.02
+
+
+def _apart(pose: Pose, other: Pose, points: np.ndarray) -> bool:
+    """Whether two poses' camera centres are further apart than :data:`APART` of the
+    distance from the first to the fixtures (``points``, shape (N, 3))."""
+    reach = float(np.linalg.norm(points.mean(axis=0) - pose.position))
+    return float(np.linalg.norm(other.position - pose.position)) > APART * reach
+
+
+#: Two poses fit about equally when their sums of squared reprojection errors differ by
+#: less than this many times the centres' noise variance (three standard deviations).
+AMBIGUITY_CHI2 = 9.0
+#: The least noise (pixels) a centre is taken to have when telling two poses apart.
+MIN_NOISE_PX = 0.1
+
+
 def estimate_pose(
     image_points,
     object_points,
@@ -221,6 +272,7 @@ def estimate_pose(
     normals=None,
     solver: str = "iterative",
     outlier_px: float = 4.0,
+    centre_sigma_px=None,
 ) -> PoseEstimate:
     """Solve Perspective-n-Point for identified fixtures.
 
@@ -239,6 +291,11 @@ def estimate_pose(
     outlier_px : float
         With five or more fixtures, a fixture whose reprojection error exceeds this (pixels)
         after the others are fitted is dropped.
+    centre_sigma_px : float or callable, optional
+        The centres' noise, pixels, or a function that gives it (called only when needed):
+        a second pose that fits within :data:`AMBIGUITY_CHI2` times its variance (at least
+        the fit's own residual per degree of freedom, and :data:`MIN_NOISE_PX`) makes the
+        pose ambiguous, refused with both positions.
 
     Returns
     -------
@@ -309,4 +366,23 @@ def estimate_pose(
             reason=f"the fixtures do not fit one pose (reprojection error up to "
             f"{worst:.1f} px): a wrong ID, map or camera file",
         )
-    return PoseEstimate(pose, rms, used, residuals, alt, alt_rms)
+    n_used = int(used.sum())
+    ssr, alt_ssr = n_used * rms * rms, n_used * alt_rms * alt_rms
+    margin = 1.0 - ssr / alt_ssr if alt is not None and alt_ssr > 0 else 1.0
+    near = alt is not None and _near(ssr, alt_ssr, n_used, centre_sigma_px)
+    if near and _apart(pose, alt, obj[used]):
+        where = ", ".join(f"{v:.4g}" for v in pose.position)
+        other = ", ".join(f"{v:.4g}" for v in alt.position)
+        return PoseEstimate(
+            None,
+            float("nan"),
+            np.zeros(n, bool),
+            residuals,
+            alt,
+            alt_rms,
+            reason=f"two poses fit the fixtures about equally ({rms:.2f} and {alt_rms:.2f} px "
+            f"RMS): the camera at ({where}) or at ({other}); a fixture more, gravity or a "
+            "prior would tell",
+            margin=margin,
+        )
+    return PoseEstimate(pose, rms, used, residuals, alt, alt_rms, margin=margin, close=near)

@@ -1,6 +1,6 @@
 """The centre of a round light's radial shape, fitted where the shape tells it.
 
-:func:`camvlp.pipeline.light_wave.light_wave` fits a light's radial shape ``g(rho)`` and its
+:func:`camvlp.pipeline.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and its
 stripes ``s(line)`` together, and refines the shape's centre on the way (on every k-th pixel
 of a few thousand, with radial bins of 1/40 of the outline's radius, and a shape that starts
 from the outline's centre: enough to separate the stripes from the shape).  The centre
@@ -43,7 +43,7 @@ from camvlp.pipeline.light_wave import (
 )
 from camvlp.pipeline.threads import one_blas_thread
 
-__all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model"]
+__all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model", "rim_extents"]
 
 #: Width of the radial shape's bins, pixels: finer than a rim blurred over a pixel.
 _BIN_PX = 0.5
@@ -217,7 +217,7 @@ def radial_fit(
     best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
     _, s, _, g = fit(best, None, _WARM_ITERS)
     per_bin = np.bincount((_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size)
-    rim = _rim_extents(g, per_bin[: g.size], best[2])
+    rim = rim_extents(g, per_bin[: g.size], best[2])
     r = float(np.clip(abs(best[2]), 0.0, _MAX_LOG_RATIO))
     model = RadialModel(best.copy(), cs, g, s, float(rim[0]) * np.exp(-0.5 * r))
     if axis == "columns":
@@ -260,13 +260,15 @@ def _wide_search(fitted, start: np.ndarray, radius: float) -> np.ndarray:
     return found if settled(found) < settled(start) else start
 
 
-def _rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndarray:
+def rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndarray:
     """Half-extents (along the lines, across them) of the rim of a light of radial shape
     ``g`` (knots :data:`_BIN_PX` apart from its centre) and axis ratio ``exp(log_ratio)``,
     pixels: the larger semi-axis both ways.  The rim is the outermost place where the
     shape's mean over a pixel falls over :data:`_RIM_SPAN` knots by half the most it falls
     anywhere, among the bins holding :data:`_RIM_PIXELS` pixels or more (a knot without
-    pixels is 0); ``per_bin`` counts the pixels of each bin (as many as ``g``'s knots)."""
+    pixels is 0); ``per_bin`` counts the pixels of each bin (as many as ``g``'s knots).
+    NaN both ways when the shape falls nowhere (it grows outward, or is flat or not
+    finite): such a light shows no rim."""
     n = _RIM_SMOOTH
     if g.size < 2 * n + _RIM_SPAN:
         return np.full(2, np.nan)
@@ -276,11 +278,12 @@ def _rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.nda
     fall = np.where(
         full[:-_RIM_SPAN] & full[_RIM_SPAN:], mean[:-_RIM_SPAN] - mean[_RIM_SPAN:], -np.inf
     )
-    if not np.isfinite(fall).any():
+    steepest = float(np.max(fall)) if np.isfinite(fall).any() else float("nan")
+    if not steepest > 0.0:  # no fall anywhere: no rim (a NaN in the shape counts as none)
         return np.full(2, np.nan)
     # the outermost steep fall: where the light clips, the few pixels left near the centre
     # draw the shape less surely than the many at the rim
-    last = int(np.flatnonzero(fall >= 0.5 * fall.max())[-1])
+    last = int(np.flatnonzero(fall >= 0.5 * steepest)[-1])
     first = max(last - 2 * _RIM_SPAN, 0)  # the peak of that fall
     k = first + int(np.argmax(fall[first : last + 1]))
     radius = _BIN_PX * (float(k) + 0.5 * (n - 1 + _RIM_SPAN))

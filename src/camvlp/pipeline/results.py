@@ -118,9 +118,15 @@ class LocateResult:
     mirrored : bool
         The image was flipped left-right before locating.
     alternative_position : ndarray, shape (3,), or None
-        The other pose of a planar target's two-fold ambiguity, when it exists.
+        The next best pose (another local minimum of the reprojection error: the planar
+        ambiguity's other pose, or another), when there is one; of a photo refused because
+        two poses fit about equally, the second of the two.
     alternative_rms_px : float
         Its reprojection RMS, pixels.
+    pose_margin : float
+        How much better the pose fits than the alternative, ``1 - SSR / SSR_alternative``
+        (sums of squared reprojection errors): near 0 when both fit alike; 1 without an
+        alternative; NaN when no pose was solved.
     notes : tuple of str
         Remarks on how the photo was read (e.g. a row time fitted from frequency ratios).
     rows_per_chip : float
@@ -160,6 +166,7 @@ class LocateResult:
     mirrored: bool = False
     alternative_position: np.ndarray | None = None
     alternative_rms_px: float = float("nan")
+    pose_margin: float = float("nan")
     notes: tuple[str, ...] = field(default_factory=tuple)
     rows_per_chip: float = float("nan")
     exposure_chips: float = float("nan")
@@ -210,7 +217,7 @@ class LocateResult:
             "solver": self.solver,
             "fixtures_used": self.fixtures_used,
         }
-        for key in ("tilt_disagreement_deg", "gravity_residual_deg"):
+        for key in ("tilt_disagreement_deg", "gravity_residual_deg", "pose_margin"):
             v = getattr(self, key)
             if np.isfinite(v):
                 d[key] = round(float(v), 4)
@@ -247,6 +254,9 @@ class LocateStages:
         Each profile's row weights, in the same order: the inverse of each row's variance
         under pixels of equal noise, up to a constant
         (:func:`~camvlp.pipeline.profile.shape_profiles`).
+    beacons : tuple of tuple
+        Frequency mode: each light's beacon profile, its test against the map's frequencies
+        and the map's periods (:func:`~camvlp.pipeline.frequency.decode_frequencies`).
     """
 
     detection: Detection
@@ -254,3 +264,4 @@ class LocateStages:
     profiles: tuple[np.ndarray, ...]
     decodes: tuple[ModelDecode | StripeDecode, ...]
     profile_weights: tuple[np.ndarray, ...] = ()
+    beacons: tuple = ()

@@ -3,8 +3,7 @@
 A rolling shutter draws a light blinking at ``f`` Hz as stripes with a period of
 ``1 / (f * row_time)`` sensor rows.  :func:`estimate_stripe_period` measures that period
 inside any masked region, to a fraction of a percent; the row-time calibration
-(``calibrate.py``) uses it, and the frequency decoder (``frequency.py``) falls back on it
-when a light's waveform fit (``light_wave.py``) fails.
+(``calibrate.py``) uses it.
 """
 
 from __future__ import annotations

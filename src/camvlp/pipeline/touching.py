@@ -75,6 +75,16 @@ def one_disc(region: np.ndarray) -> bool:
     return r > 0 and np.count_nonzero(region) <= ONE_DISC * np.pi * r * r
 
 
+def _hull(region: np.ndarray) -> np.ndarray:
+    """A region (uint8, nonzero inside) filled out to its convex hull: a light whose wide
+    dark bands cut notches in its rim is a disc again, two lights side by side are not."""
+    points = cv2.findNonZero(region)
+    out = np.zeros_like(region)
+    if points is not None:
+        cv2.fillConvexPoly(out, cv2.convexHull(points), 1)
+    return out
+
+
 def _distances(mask: np.ndarray) -> np.ndarray:
     """Each pixel's distance (pixels) to the nearest pixel outside ``mask`` (uint8, nonzero
     inside), the box around it counted as outside: OpenCV's distance transform sees nothing
@@ -385,6 +395,9 @@ def one_per_light(
             continue
         main = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
         inside = (labels == main).astype(np.uint8)
+        if one_disc(_hull(inside)):  # one light, whatever its bands or dark stripes say
+            yield (x, y, w, h), None
+            continue
         axis = functools.partial(axis_of, inside, (x, y, w, h))  # when needed
         lit = None if raw is None else raw[y : y + h, x : x + w]
         differ = None if differ_of is None else differ_of((x, y, w, h), inside, axis)
@@ -399,7 +412,7 @@ def one_per_light(
             if dark is not None and len(dark) > len(_lamp_sized(seeds)):
                 seeds = dark
         seeds = np.column_stack([seeds, np.full(len(seeds), np.inf)])  # (no bound)
-        if chords_of is not None and not one_disc(inside):  # more lights in the chords?
+        if chords_of is not None:  # more lights in the chords?
             seeds = _with_chords(seeds, chords_of((x, y, w, h), inside, axis()))
         if len(seeds) < 2:
             yield (x, y, w, h), None

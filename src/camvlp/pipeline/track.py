@@ -214,7 +214,7 @@ class Tracker:
             rpc = float(np.median(self._chip_rows[-50:]))
             done = decode_profiles(profiles, self.map.frame, rows_per_chip=rpc)
         else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
-            done, _, _, sub = _decode(
+            done, _, _, sub, _ = _decode(
                 sub, gray_rois, profiles, readout, self.camera, self.map, weights
             )
         for d in done:
@@ -288,13 +288,16 @@ class Tracker:
         index = self._index  # the frame is taken: its time and index count from here
         self._index += 1
         self._t_given = t
-        detection, readout = _detect(img, self.readout, st)
+        detection, found_readout, _, _ = _detect(img, self.readout, st)
+        readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is read below)
         blobs = list(detection.blobs)
-        if self.readout is None:  # the first frame that decides the direction, from now on
+        if self.readout is None and found_readout is not None:
+            # the first frame that decides the direction, from now on
             args = (self.camera, self.map, st, self._outlier_px)
             self.readout = readout_direction(img, blobs, readout, *args)
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
-        undecided = self.readout is None and self.map.mode != "frequency"  # no ID read reversed
+        # no ID read reversed, nor along an axis the stripes do not show
+        undecided = found_readout is None or (self.readout is None and self.map.mode != "frequency")
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
         decodes = self._decode(img, blobs, self.readout or readout, skip)
         found = identify(blobs, decodes, self.map)

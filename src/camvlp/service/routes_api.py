@@ -5,6 +5,7 @@ event loop; the pool, the store and the settings come from :mod:`camvlp.service.
 """
 
 import asyncio
+import dataclasses
 import math
 import time
 from collections.abc import AsyncIterator
@@ -24,7 +25,7 @@ from starlette.formparsers import MultiPartException
 
 from camvlp import __version__
 from camvlp.errors import InputError
-from camvlp.io import camera_from_dict, decode_image, map_from_dict
+from camvlp.io import camera_from_dict, decode_image, exif_readout, map_from_dict
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
@@ -149,6 +150,8 @@ def _locate_job(
         image = decode_image(raw, "photo")
     except InputError as exc:
         raise _LocateRefused(400, str(exc)) from None
+    if settings.readout_hint is None:  # the photo's orientation tag: a hint, as on the command line
+        settings = dataclasses.replace(settings, readout_hint=exif_readout(raw))
     try:
         result = locate(image, camera, fixture_map, settings, gravity=gravity)
     except (InputError, ValueError) as exc:  # wrong size, bad readout, gravity facing the floor

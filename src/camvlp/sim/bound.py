@@ -26,11 +26,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.beacon import square_wave
 from camvlp.sim.render import LightPatch, RenderSettings, light_patches
 
 __all__ = ["frequency_bounds", "frequency_intervals", "share_within"]
@@ -63,7 +65,8 @@ def frequency_bounds(
     ndarray of float64, shape (N,)
         Per fixture in map order, the smallest standard deviation of ``measured / true - 1``
         an unbiased measurement could have (a fraction: 0.01 is 1 %); ``inf`` when its
-        pixels tell nothing of the frequency, NaN for a fixture not drawn.
+        pixels tell nothing of the frequency, NaN for a fixture not drawn or sending data
+        (``settings.data_lights``: it has no frequency).
     """
     if fixture_map.mode != "frequency":
         raise ValueError("frequency bounds need a frequency-coded map")
@@ -78,7 +81,7 @@ def frequency_bounds(
         for name in ("blur_px", "core", "halo")
         if getattr(s, name) > 0
     }
-    for light in lights:
+    for light in _beacons(lights, fixture_map, s):
         extra = _jpeg_variance(light, jpeg_error)
         d_shape = _geometry_derivatives(light.shape)
         for name, (lower, upper) in moved.items():
@@ -91,6 +94,11 @@ def frequency_bounds(
                 )
         out[light.index] = _bound(light, s, extra, d_shape)
     return out
+
+
+def _beacons(lights: list, fixture_map: FixtureMap, s: RenderSettings) -> list[LightPatch]:
+    """The lights of ``lights`` that blink their frequency (not those sending data)."""
+    return [p for p in lights if fixture_map.fixtures[p.index].id not in s.data_lights]
 
 
 def _jpeg_variance(light: LightPatch, jpeg_error: np.ndarray | None) -> float:
@@ -122,7 +130,7 @@ def frequency_intervals(
     by its information (the sum over its unclipped pixels of their level squared over their
     variance), is fitted with a 50 % square wave integrated over a window at frequencies
     stepping away from the true one, phase, window and levels free
-    (:func:`camvlp.pipeline.square_wave.consistent_periods`); those whose best fit costs at
+    (:func:`consistent_periods`); those whose best fit costs at
     most one (one standard deviation of the noise) more than the truth are consistent with
     it.  Stripes sharper than a line make a whole range consistent, however little the noise.
     The shape is taken as known and the clipped pixels as telling nothing.
@@ -134,13 +142,11 @@ def frequency_intervals(
     ndarray of float64, shape (N, 2)
         Per fixture in map order, the least and largest ``frequency / true - 1`` consistent
         with its pixels (fractions; searched to +-5 %: a range reaching that far may reach
-        further); NaN for a fixture not drawn or without information.
+        further); NaN for a fixture not drawn, without information, or sending data.
     """
-    from camvlp.pipeline.square_wave import consistent_periods  # SciPy's optimiser
-
     s = settings.resolved(camera)
     out = np.full((len(fixture_map.fixtures), 2), np.nan)
-    for light in light_patches(camera, fixture_map, pose, s):
+    for light in _beacons(light_patches(camera, fixture_map, pose, s), fixture_map, s):
         on = light.on_fraction(s.row_time_s, s.exposure_s, s.off_level)
         info = np.zeros(on.size)
         for c in np.asarray(light.colour, dtype=np.float64):
@@ -270,3 +276,177 @@ def _central(light: LightPatch, s: RenderSettings, what: str, h: float) -> np.nd
         return moved.on_fraction(s.row_time_s, exposure, s.off_level)
 
     return (at(1.0) - at(-1.0)) / (2.0 * h)
+
+
+# The periods a noise-free line profile fits about as well as its own: a 50 % square wave
+# integrated over a window, its phase, window and levels free, at periods stepping away.
+
+#: Phases (lines, about the one that keeps the middle edge in place) and windows (lines) of
+#: the grid from which :func:`_least_at` also descends.
+_PROFILE_PHASES = np.linspace(-1.5, 1.5, 31)
+_PROFILE_WINDOWS = np.arange(0.05, 2.0, 0.1)
+#: Shortest window the fits of :func:`_least_at` take, lines.
+_SHARPEST = 0.02
+
+
+class _Profile(NamedTuple):
+    """A light's line profile for :func:`_cost`.
+
+    ``y``, ``s``, ``w``: the lines (shape (N,)), their signal and weights; ``bc``, ``wc``: the
+    bounds and weights of the clipped lines (shape (M,)); ``lines``: both sets of lines,
+    shape (N + M,), with ``wz`` the weights there and ``weights`` (shape (N + M, 2)) the
+    weights and the weights times the signal (0 on the clipped lines); ``s0``, ``b0``,
+    ``ss``: the sums of ``w``, ``w * s`` and ``w * s * s``.
+    """
+
+    y: np.ndarray
+    s: np.ndarray
+    w: np.ndarray
+    bc: np.ndarray
+    wc: np.ndarray
+    lines: np.ndarray
+    wz: np.ndarray
+    weights: np.ndarray
+    s0: float
+    b0: float
+    ss: float
+
+    @classmethod
+    def of(cls, y, s, w, yc, bc, wc) -> _Profile:
+        """The profile of these lines (shape (N,)) and clipped lines (shape (M,))."""
+        ws = w * s
+        zeros = np.zeros(yc.size)
+        lines, wz, wsz = (
+            np.concatenate([y, yc]),
+            np.concatenate([w, zeros]),
+            np.concatenate([ws, zeros]),
+        )
+        weights = np.stack([wz, wsz], axis=1)
+        return cls(
+            y, s, w, bc, wc, lines, wz, weights, float(w.sum()), float(ws.sum()), float(ws @ s)
+        )
+
+
+def _cost(data: _Profile, period, phase, window) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Weighted residual of the best low/high levels for each wave; (cost, low, high).
+
+    The levels are the weighted least squares over the unclipped lines; each clipped line
+    whose bound the wave does not reach adds its shortfall squared, weighted.  Shapes
+    broadcast over the leading axes of ``period``, ``phase``, ``window`` (lines on the last
+    axis); scalars give scalars.
+    """
+    t = square_wave(data.lines, period, phase, window)
+    s0, b0 = data.s0, data.b0
+    s1, b1 = np.moveaxis(t @ data.weights, -1, 0)
+    if data.bc.size:
+        tc = t[..., data.y.size :].copy()
+    np.square(t, out=t)
+    s2 = t @ data.wz
+    det = s0 * s2 - s1 * s1
+    with np.errstate(divide="ignore", invalid="ignore"):  # a singular fit: masked below
+        low = (s2 * b0 - s1 * b1) / det
+        amp = (s0 * b1 - s1 * b0) / det
+        # the residual of the least squares, from the sums
+        cost = np.maximum(data.ss - low * b0 - amp * b1, 0.0)
+        if data.bc.size:
+            short = data.bc - low[..., None] - amp[..., None] * tc
+            np.maximum(short, 0.0, out=short)
+            cost = cost + (data.wc * short * short).sum(-1)
+        high = low + amp
+    # a singular fit (one level fits all) or a light darker when on fits nothing
+    bad = (np.abs(det) < 1e-12 * s0 * s0) | ~(amp > 0)
+    if np.ndim(cost):
+        cost[bad] = np.inf
+    elif bad:
+        return np.inf, 0.0, 0.0
+    return cost, low, high
+
+
+def _profile(data: _Profile, x, var: float, stop: float, step: float, reach: float):
+    """The least cost over phase and window (:func:`_least_at`, to a hundredth of ``var``) at
+    periods ``x[0] * (1 + k * step)``, ``k`` outwards from 0 (the wave ``x``: period, phase,
+    window) both ways until ``|k| step`` passes ``reach`` or the cost exceeds the least so
+    far by ``stop`` times ``var`` twice in a row.  Returns ``k`` (shape (K,), increasing),
+    the costs (K,) and per ``k`` the ``(cost, phase, window)`` of the least."""
+    p0 = float(x[0])
+    # phases that keep in place the edge nearest the middle of the lines
+    m = np.round((0.5 * float(data.lines.min() + data.lines.max()) - x[1]) / (0.5 * p0))
+    profile = {0: (float(_cost(data, *x)[0]), float(x[1]), float(x[2]))}
+    for sign in (1, -1):
+        k, prev, above = sign, profile[0], 0
+        while abs(k) * step <= reach + 1e-12 and above < 2:
+            period = p0 * (1.0 + k * step)
+            anchor = float(x[1]) + 0.5 * m * (p0 - period)
+            prev = _least_at(data, period, anchor, prev[1:], 0.01 * var)
+            profile[k] = prev
+            least = min(v[0] for v in profile.values())
+            above = above + 1 if prev[0] - least > stop * var else 0
+            k += sign
+    ks = np.array(sorted(profile))
+    return ks, np.array([profile[k][0] for k in ks]), [profile[k] for k in ks]
+
+
+def consistent_periods(
+    lines, signal, weight, wave, within: float = 1.0, step: float = 5e-4, reach: float = 0.05
+) -> tuple[float, float]:
+    """The periods that fit a line profile about as well as ``wave`` does.
+
+    Parameters
+    ----------
+    lines, signal, weight : array_like, shape (N,)
+        The profile, as a line profile, the weights each line's inverse
+        variance (no clipped lines).
+    wave : array_like, shape (3,)
+        Period, phase and window (lines) of a wave that fits it (the true one, say).
+    within : float
+        Largest excess of the least cost (over phase, window and levels; weighted squares)
+        over the least at any period: 1 is one standard deviation.
+    step, reach : float
+        Step and reach of the relative periods tried, outwards from ``wave``'s.
+
+    Returns
+    -------
+    lo, hi : float
+        The least and largest period fitting within ``within``, relative to ``wave``'s
+        (``-reach`` or ``reach`` where the fits reach that far).
+    """
+    y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, signal, weight))
+    keep = (w > 0) & np.isfinite(s)
+    empty = np.zeros(0)
+    data = _Profile.of(y[keep], s[keep], w[keep], empty, empty, empty)
+    ks, cost, _ = _profile(data, np.asarray(wave, dtype=float)[:3], 1.0, within, step, reach)
+    ok = ks[cost - cost.min() <= within] * step
+    return float(ok.min()), float(ok.max())
+
+
+def _least_at(data: _Profile, period: float, anchor: float, start, fatol: float):
+    """The least cost at ``period`` over phase and window, ``(cost, phase, window)``, by
+    Nelder-Mead (to ``fatol`` in the cost) from ``start`` (phase, window), and from the best
+    of a grid of phases about ``anchor`` and of windows (:data:`_PROFILE_PHASES`,
+    :data:`_PROFILE_WINDOWS`) where that is better."""
+    from scipy.optimize import minimize  # here: SciPy's import costs 0.3 s
+
+    def objective(z: np.ndarray) -> float:
+        if not _SHARPEST <= z[1] <= 0.5 * period:
+            return 1e300
+        return min(float(_cost(data, period, z[0], z[1])[0]), 1e300)  # inf: a singular fit
+
+    def descend(z0: np.ndarray) -> tuple[float, float, float]:
+        z0[1] = min(max(z0[1], _SHARPEST), 0.5 * period)
+        simplex = z0 + np.array([[0.0, 0.0], [0.05, 0.0], [0.0, 0.05]])
+        res = minimize(
+            objective,
+            z0,
+            method="Nelder-Mead",
+            options={"xatol": 1e-4, "fatol": fatol, "maxiter": 200, "initial_simplex": simplex},
+        )
+        return float(res.fun), float(res.x[0]), float(res.x[1])
+
+    best = descend(np.array(start, dtype=float))
+    windows = _PROFILE_WINDOWS[_PROFILE_WINDOWS <= 0.5 * period]
+    phases = anchor + _PROFILE_PHASES
+    grid = _cost(data, period, phases[:, None, None], windows[None, :, None])[0]
+    i, j = np.unravel_index(int(np.argmin(grid)), grid.shape)
+    if grid[i, j] < best[0]:
+        best = min(best, descend(np.array([phases[i], windows[j]])))
+    return best

@@ -2,8 +2,10 @@
 
 The physics shared by :mod:`camvlp.sim.render` (photographs), :mod:`camvlp.sim.video`
 (frames of a moving camera) and :mod:`camvlp.sim.bound` (the precision any measurement of
-a light could reach): the anti-aliased coverage of a disc's image, and the fraction of each
-sensor line's exposure window its LED is on.
+a light could reach): the anti-aliased coverage of a disc's image and where each pixel lies
+on the disc's plane, the lamp's look (a hot core, centred or not, and a halo), the random
+data an LED that is no beacon sends, and the fraction of each sensor line's exposure window
+its LED is on.
 """
 
 from __future__ import annotations
@@ -13,8 +15,25 @@ import math
 import numpy as np
 
 from camvlp.model.camera import Camera
+from camvlp.model.linecode import manchester_encode
 
-__all__ = ["coverage", "glow_margin", "on_fraction", "pixel_box", "shine"]
+__all__ = [
+    "CORE_SIGMA",
+    "DATA_BITS",
+    "coverage",
+    "data_chips",
+    "glow_margin",
+    "on_fraction",
+    "pixel_box",
+    "shine",
+]
+
+#: Sigma of a hot core's Gaussian bump, radii.
+CORE_SIGMA = 0.4
+
+#: Random bits an LED sending data repeats: 2 ** 17 Manchester chips, 13 s at 10,000 chips/s,
+#: longer than the readout of any photo at 0.1 sensor row a chip or more.
+DATA_BITS = 1 << 16
 
 
 def on_fraction(
@@ -84,11 +103,14 @@ def coverage(
     radius: float,
     box,
     sensor_row: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Anti-aliased disc coverage over a pixel box, and each pixel's distance from the centre.
+    axes: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Anti-aliased disc coverage over a pixel box, each pixel's distance from the centre
+    and, when asked, its place on the disc's plane.
 
     Each pixel's ray meets the disc's plane; its distance ``rho`` from the centre gives the
-    coverage ``clip(0.5 - (rho - radius) / |grad rho|, 0, 1)``.
+    coverage ``clip(0.5 - (rho - radius) / |grad rho|, 0, 1)``, and its offset from the
+    centre along two axes in the plane its in-plane coordinates.
 
     Parameters
     ----------
@@ -104,11 +126,19 @@ def coverage(
         Pixel box ``(u0, u1, v0, v1)``, end-exclusive.
     sensor_row : ndarray of int, shape (v1 - v0, u1 - u0), optional
         Each pixel's index into ``rotation`` and ``position`` (a moving camera).
+    axes : ndarray, shape (2, 3), optional
+        Two orthonormal vectors in the disc's plane (e.g.
+        :func:`camvlp.geometry.disc.plane_basis` of ``normal``): with them, each pixel's
+        in-plane coordinates are returned too.
 
     Returns
     -------
     coverage, rho : ndarray of float32, shape (v1 - v0, u1 - u0)
         The coverage in 0..1 and the distance from the centre in radii.
+    xy : ndarray of float32, shape (v1 - v0, u1 - u0, 2), or None
+        With ``axes``: where each pixel's ray meets the plane, from the centre along the two
+        axes, in radii (far away, ``1e3`` radii and more, for a ray that misses the plane);
+        else None.
     """
     u0, u1, v0, v1 = box
     uu, vv = np.meshgrid(np.arange(u0, u1, dtype=np.float64), np.arange(v0, v1, dtype=np.float64))
@@ -129,6 +159,10 @@ def coverage(
     hit = origin + np.where(valid, t, 0.0)[:, None] * rays
     rho = np.linalg.norm(hit - centre, axis=1)
     far = 1e3 * radius + 1e3 * float(np.abs(position - centre).max())
+    xy = None
+    if axes is not None:
+        xy = ((hit - centre) @ np.asarray(axes, dtype=np.float64).T) / radius
+        xy = np.where(valid[:, None], xy, far / radius).reshape(*uu.shape, 2).astype(np.float32)
     rho = np.where(valid, rho, far).reshape(uu.shape)
     if rho.shape[0] > 1 and rho.shape[1] > 1:
         gv, gu = np.gradient(rho)
@@ -140,21 +174,62 @@ def coverage(
     scale = np.maximum(scale, 1e-12 * radius)
     cov = np.clip(0.5 - (rho - radius) / scale, 0.0, 1.0)
     cov[~valid.reshape(uu.shape)] = 0.0
-    return cov.astype(np.float32), (rho / radius).astype(np.float32)
+    return cov.astype(np.float32), (rho / radius).astype(np.float32), xy
 
 
-def shine(cov: np.ndarray, rho: np.ndarray, core: float, halo: float) -> np.ndarray:
-    """A light's look from its disc coverage and distance from the centre (radii), both
-    float32 of one shape: a hot core ``1 + core`` times as bright at the centre as at the rim
-    (a Gaussian bump of sigma 0.4 radius), and a glow outside the rim, ``halo`` times the
-    disc's level just outside it, decaying over half a radius (see
-    :class:`camvlp.sim.render.RenderSettings`).  Returns float32 of the same shape."""
+def shine(
+    cov: np.ndarray,
+    rho: np.ndarray,
+    core: float,
+    halo: float,
+    xy: np.ndarray | None = None,
+    core_at: tuple[float, float] = (0.0, 0.0),
+) -> np.ndarray:
+    """A light's look from its disc coverage and its pixels' places on the disc's plane.
+
+    A hot core: a Gaussian bump of sigma :data:`CORE_SIGMA` (0.4 radius) centred on the
+    disc, or at ``core_at``, making its centre ``1 + core`` times as bright as the disc
+    without it; a glow outside the rim, ``halo`` times the disc's level just outside it,
+    decaying over half a radius (see :class:`camvlp.sim.render.RenderSettings`).
+
+    Parameters
+    ----------
+    cov, rho : ndarray of float32, shape (h, w)
+        The disc's coverage (0..1) and each pixel's distance from its centre, radii
+        (:func:`coverage`).
+    core, halo : float
+        The core's and the glow's strength (0 for none).
+    xy : ndarray of float32, shape (h, w, 2), optional
+        Each pixel's in-plane coordinates, radii (:func:`coverage` with ``axes``); needed
+        for a core off the centre.
+    core_at : (float, float)
+        The core's centre along the same axes, radii; (0, 0) centres it on the disc.
+
+    Returns
+    -------
+    ndarray of float32, shape (h, w)
+    """
     if core > 0:
-        cov = cov * (1.0 + np.float32(core) * np.exp(-((rho / np.float32(0.4)) ** 2)))
+        if xy is None or not any(core_at):
+            d2 = (rho / np.float32(CORE_SIGMA)) ** 2
+        else:
+            dx = xy[..., 0] - np.float32(core_at[0])
+            dy = xy[..., 1] - np.float32(core_at[1])
+            d2 = (dx * dx + dy * dy) / np.float32(CORE_SIGMA**2)
+        cov = cov * (1.0 + np.float32(core) * np.exp(-d2))
     if halo > 0:
         glow = np.float32(halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
         cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
     return cov
+
+
+def data_chips(seed: int, index: int, n_bits: int = DATA_BITS) -> np.ndarray:
+    """The chips an LED sending data (no beacon: no ID, no square wave) repeats: Manchester
+    chips of ``n_bits`` random bits, drawn from ``default_rng([seed, 4, index])`` (the
+    render's seed and the fixture's index in the map).  Returns uint8 of {0, 1}, shape
+    (2 n_bits,)."""
+    bits = np.random.default_rng([int(seed), 4, int(index)]).integers(0, 2, n_bits, np.uint8)
+    return manchester_encode(bits)
 
 
 def glow_margin(rim_px: np.ndarray, halo: float, brightness: float = 1.0) -> int:

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import LightPatch, Render, _waveform, light_patches
+from camvlp.sim.render import LightPatch, Render, id_waveform, light_patches
 from camvlp.sim.sensor import develops
 
 __all__ = ["id_separation"]
@@ -35,7 +35,8 @@ def id_separation(
     the ambient, clipped at full scale) is compared with each, pixel by pixel and channel by
     channel, over the lamp's box (its disc and glow), in units of the noise: the sensor's
     shot and read noise and the 8-bit steps.  JPEG's error is left out, so the figure is that
-    of the stored levels before compression.
+    of the stored levels before compression.  The lights of the render's ``data_lights``
+    send no ID, so their IDs are no candidates.
 
     Parameters
     ----------
@@ -54,15 +55,18 @@ def id_separation(
     (float, int) or None
         The smallest ratio (decimal log) and its ID; None when the render used a camera's
         processing beyond the plain sensor (mosaic, tone curve, sharpening, vignetting, black
-        point: not redrawn here), when the lamp was not drawn, or when the map has no other ID.
+        point: not redrawn here), when the lamp was not drawn or sends data, or when the map
+        has no other ID.
     """
     s = photo.settings
     if develops(s) or photo.camera is None:
         return None
     lights = light_patches(photo.camera, fixture_map, photo.pose, s)
     lamp = next((light for light in lights if light.index == index), None)
-    others = [f for k, f in enumerate(fixture_map.fixtures) if k != index]
-    if lamp is None or not others:
+    others = [
+        f for k, f in enumerate(fixture_map.fixtures) if k != index and f.id not in s.data_lights
+    ]
+    if lamp is None or not others or fixture_map.fixtures[index].id in s.data_lights:
         return None
     take, stride = _across(lamp, s, max_columns)
     rest = _the_rest(lights, lamp, s, take)
@@ -72,7 +76,7 @@ def id_separation(
 
     seps = []
     for other in others:  # its waveform (chips, or a frequency's period) at each phase
-        chips, chip_s = _waveform(fixture_map, other, s.chip_rate_hz)
+        chips, chip_s = id_waveform(fixture_map, other, s.chip_rate_hz)
         period = chips.size * chip_s
         wave = dict(chips=chips, chip_s=chip_s)
         wave["smooth_s"] = s.soft * (period if fixture_map.mode == "frequency" else chip_s)

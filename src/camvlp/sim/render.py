@@ -9,18 +9,26 @@ and lays a crude stripe mask over it.  This module renders the same scenes physi
   the ray meets the fixture's plane, and the distance ``rho`` of that point from the centre
   gives an anti-aliased coverage ``clip(0.5 - (rho - r) / |grad rho|, 0, 1)``, where
   ``|grad rho|`` is the local size of a pixel on the fixture, map units.
+* **The lamp's look.**  Optionally a hot core (a Gaussian bump, centred on the disc or
+  ``core_offset`` radii off it in a direction drawn per fixture, in the disc's own plane) and
+  a glow around the rim (:func:`camvlp.sim.light.shine`).
 * **Optics.**  A Gaussian blur of the coverage (sigma ``blur_px``).
 * **Rolling shutter.**  Sensor row ``k`` (image row ``v``, or column ``u`` for a photo
   stored in portrait) integrates light over ``[k * row_time, k * row_time + exposure]``.
   Each LED repeats its frame's Manchester chips (or a 50 % square wave in frequency mode)
-  with its own random phase; the fraction of each row's exposure the LED is on is computed
-  exactly from the waveform's cumulative on-time.
+  with its own random phase; an LED named in ``data_lights`` sends Manchester chips of random
+  bits at ``chip_rate_hz`` instead (:func:`camvlp.sim.light.data_chips`).  The fraction of
+  each row's exposure the LED is on is computed exactly from the waveform's cumulative
+  on-time.
 * **Sensor.**  Irradiance ``ambient + sum(brightness * colour * coverage * on_fraction)`` in
   units of full scale, shot noise (Gaussian approximation of Poisson with ``full_well_e``
   electrons at full scale), read noise, clipping to [0, 1] (saturation: bright stripes come
   out wider than dark ones, the thesis' bleeding, section 5.3) and 8-bit quantisation;
   optionally a phone's processing: vignetting, a Bayer mosaic and its demosaicing, white
   balance, a tone curve and sharpening (:mod:`camvlp.sim.sensor`).
+* **Stamp.**  Optionally text burned into the stored photo's bottom-right corner, as a
+  camera prints its date and time (:func:`camvlp.sim.sensor.burn_stamp`), after everything
+  else (and after a ``mirrored`` camera's flip, so that it reads the right way).
 
 Time origin: sensor row 0 starts its exposure at ``t = 0``.  A fixture with phase ``phase_s``
 shows, at time ``t``, chip ``floor((t + phase_s) / chip_s) mod n_chips`` of its frame.
@@ -45,14 +53,21 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.geometry.disc import disc_normals, rim_points
+from camvlp.geometry.disc import disc_normals, plane_basis, rim_points
 from camvlp.io.limits import limit
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera, Pose, in_front
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
-from camvlp.sim.sensor import expose
+from camvlp.sim.light import (
+    coverage,
+    data_chips,
+    glow_margin,
+    on_fraction,
+    pixel_box,
+    shine,
+)
+from camvlp.sim.sensor import burn_stamp, check_stamp, expose
 
 __all__ = [
     "IMAGE_SUFFIXES",
@@ -61,11 +76,16 @@ __all__ = [
     "Render",
     "RenderSettings",
     "all_fully_inside",
+    "check_data_lights",
     "check_render_size",
+    "core_places",
     "distinct_colours",
     "fixture_truths",
+    "id_waveform",
     "render",
     "save_render",
+    "sent_waveform",
+    "stamp_photo",
     "tilt_limit",
 ]
 
@@ -97,9 +117,18 @@ class RenderSettings:
     off_level : float
         Light an LED still gives when "off", fraction of its on level (0 to 1; real drivers
         often leave a few per cent).
+    data_lights : tuple of int
+        IDs of map fixtures that are no beacon but LEDs sending data: Manchester chips of
+        random bits (a sequence of 2 ** 17 chips drawn from ``seed``) at ``chip_rate_hz``,
+        in either map mode, instead of their own waveform.  A decoder must give them no ID.
     core : float
-        A hot core: the disc's centre is ``1 + core`` times as bright as its rim (a Gaussian
-        bump of sigma 0.4 radius; 0 for a uniform disc).
+        A hot core: the core's centre is ``1 + core`` times as bright as the disc without it
+        (a Gaussian bump of sigma 0.4 radius; 0 for a uniform disc).
+    core_offset : float
+        Where the hot core lies: its centre is this fraction of the disc's radius from the
+        disc's centre (0 to 1; 0, the default, centres it), in the disc's own plane, in a
+        direction drawn per fixture from ``seed`` (:func:`core_places`); as a real LED's
+        brightest spot behind a diffuser, off the middle.
     halo : float
         A glow around the disc (light scattered near the lamp), blinking with it: its level
         just outside the rim, as a fraction of the disc's, decaying over half a radius.
@@ -126,6 +155,10 @@ class RenderSettings:
         The level of light (fraction of full scale, 0 to below 1) that the camera's
         processing stores as black: levels at or under it store 0, the rest are stretched to
         full scale before the tone curve, as a phone's processing crushes a dim background.
+    stamp : str or None
+        Text the camera burns into the stored photo's bottom-right corner, white, about 3 %
+        of the photo's height tall (e.g. a date and time, ``"2017-02-15 17:47:52"``); printable
+        ASCII, at most 100 characters; None for none.
     readout : {"rows", "columns", "rows-reversed", "columns-reversed"}
         ``"rows"``: exposure start grows with image row ``v`` (stripes horizontal);
         ``"columns"``: with image column ``u`` (a photo stored in portrait, stripes vertical);
@@ -143,6 +176,7 @@ class RenderSettings:
     ambient: float = 0.03
     off_level: float = 0.0
     core: float = 0.0
+    core_offset: float = 0.0
     halo: float = 0.0
     soft: float = 0.0
     blur_px: float = 0.8
@@ -153,8 +187,10 @@ class RenderSettings:
     gamma: float = 1.0
     sharpen: float = 0.0
     black_point: float = 0.0
+    stamp: str | None = None
     readout: Readout = Readout.ROWS
     colours: tuple | None = None
+    data_lights: tuple[int, ...] = ()
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -194,6 +230,15 @@ class RenderSettings:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1):
                 raise ValueError(f"{name} must be a number from 0 to below 1, got {value!r}")
+        if isinstance(self.core_offset, bool) or not (
+            isinstance(self.core_offset, (int, float)) and 0 <= self.core_offset <= 1
+        ):
+            raise ValueError(
+                f"core_offset must be a number from 0 to 1 (radii), got {self.core_offset!r}"
+            )
+        if self.stamp is not None:
+            check_stamp(self.stamp)
+        object.__setattr__(self, "data_lights", _fixture_ids(self.data_lights))
         _positive(self.gamma, "gamma")
         if not isinstance(self.bayer, bool):
             raise ValueError(f"bayer must be true or false, got {self.bayer!r}")
@@ -240,6 +285,23 @@ def check_render_size(camera: Camera, source: str | Path | None = None) -> None:
         )
 
 
+def _fixture_ids(value) -> tuple[int, ...]:
+    """``data_lights`` as a tuple of distinct non-negative integers, or a ValueError."""
+    what = "data_lights must be distinct fixture IDs (non-negative integers)"
+    if isinstance(value, (str, bytes)):
+        raise ValueError(f"{what}, got {value!r}")
+    try:
+        ids = tuple(value)
+    except TypeError:
+        raise ValueError(f"{what}, got {value!r}") from None
+    for i in ids:
+        if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or i < 0:
+            raise ValueError(f"{what}, got {i!r}")
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"{what}, got {list(ids)} (an ID twice)")
+    return tuple(int(i) for i in ids)
+
+
 def _positive(value, name: str) -> None:
     if (
         isinstance(value, bool)
@@ -271,6 +333,14 @@ class FixtureTruth:
         square-wave periods) the disc's image spans.
     phase_s : float
         The LED's time offset, s (see the module docstring).
+    sends_data : bool
+        The LED sends random data (``RenderSettings.data_lights``) instead of its ID's
+        waveform: any ID a decoder gives it is wrong.  Its ``frames_spanned`` are those of
+        the waveform its ID would send.
+    core_pixel : ndarray, shape (2,)
+        Projection ``[u, v]`` of the hot core's centre, pixels (camera model, with
+        distortion; ``pixel`` for a centred core); NaN without a core (``core`` 0), without
+        a diameter, or behind the camera.
     """
 
     id: int
@@ -280,6 +350,8 @@ class FixtureTruth:
     rows_spanned: float
     frames_spanned: float
     phase_s: float
+    sends_data: bool = False
+    core_pixel: np.ndarray = dataclasses.field(default_factory=lambda: np.full(2, np.nan))
 
     def to_dict(self) -> dict:
         """JSON-ready dict (NaN pixels become None)."""
@@ -291,6 +363,12 @@ class FixtureTruth:
             "rows_spanned": float(self.rows_spanned),
             "frames_spanned": float(self.frames_spanned),
             "phase_s": float(self.phase_s),
+            "sends_data": bool(self.sends_data),
+            "core_pixel": (
+                [float(x) for x in self.core_pixel]
+                if np.all(np.isfinite(self.core_pixel))
+                else None
+            ),
         }
 
 
@@ -310,6 +388,10 @@ class Render:
         The settings used, with ``row_time_s`` and ``exposure_s`` resolved.
     camera : Camera or None
         The camera rendered with.
+    stamp_box : tuple of int or None
+        The pixels the burned-in text (``settings.stamp``) lights, ``(u0, v0, u1, v1)``,
+        end-exclusive, in the fixtures' pixels (the camera model's: for a ``mirrored``
+        camera, flipped from the stored photo's); None without a stamp.
     """
 
     image: np.ndarray
@@ -317,24 +399,37 @@ class Render:
     fixtures: tuple[FixtureTruth, ...]
     settings: RenderSettings
     camera: Camera | None = None
+    stamp_box: tuple[int, int, int, int] | None = None
+
+    def on_stamp(self, pixel, margin_px: float = 3.0) -> bool:
+        """Whether ``pixel`` [u, v] (the fixtures' pixels) lies on the burned-in text: in
+        ``stamp_box`` grown by ``margin_px`` pixels each way (False without a stamp)."""
+        if self.stamp_box is None:
+            return False
+        u0, v0, u1, v1 = self.stamp_box
+        u, v = float(pixel[0]), float(pixel[1])
+        return u0 - margin_px <= u <= u1 + margin_px and v0 - margin_px <= v <= v1 + margin_px
 
     def truth_dict(self) -> dict:
         """The ground truth as a JSON-ready dict.
 
         Keys: ``camera_position`` [x, y, z] (map units), ``rotation`` (3 x 3 camera-to-world),
         ``euler_deg`` (the thesis' angles), ``image_size`` [w, h], ``settings``, ``fixtures``
-        (list of :meth:`FixtureTruth.to_dict`), plus ``mirrored``.
+        (list of :meth:`FixtureTruth.to_dict`), plus ``mirrored`` and ``stamp_box``
+        ([u0, v0, u1, v1] or None, see the attribute).
         """
         h, w = self.image.shape[:2]
         settings = dataclasses.asdict(self.settings)
         if settings["colours"] is not None:
             settings["colours"] = [list(c) for c in settings["colours"]]
+        settings["data_lights"] = list(settings["data_lights"])
         return {
             "camera_position": [float(x) for x in self.pose.position],
             "rotation": self.pose.world_from_camera.tolist(),
             "euler_deg": [float(x) for x in self.pose.euler_deg],
             "image_size": [int(w), int(h)],
             "mirrored": bool(self.camera.mirrored) if self.camera is not None else False,
+            "stamp_box": None if self.stamp_box is None else [int(x) for x in self.stamp_box],
             "settings": settings,
             "fixtures": [f.to_dict() for f in self.fixtures],
         }
@@ -364,20 +459,76 @@ def _rim_points(fixture: Fixture, normal: np.ndarray, n: int = N_RIM) -> np.ndar
     return rim_points(fixture.position[None, :], [fixture.diameter], normal[None, :], n)[0]
 
 
-def _waveform(fixture_map: FixtureMap, fixture: Fixture, chip_rate_hz: float):
-    """The LED's periodic waveform: (chips of one period, chip duration s)."""
+def id_waveform(
+    fixture_map: FixtureMap, fixture: Fixture, chip_rate_hz: float
+) -> tuple[np.ndarray, float]:
+    """The periodic waveform a beacon sends for its ID: (chips of one period, uint8 of
+    {0, 1}, and a chip's duration, s): its frame's Manchester chips at ``chip_rate_hz``, or in
+    frequency mode a 50 % square wave at its ``frequency_hz``."""
     if fixture_map.mode == "frequency":
         return np.array([1, 0], dtype=np.uint8), 0.5 / float(fixture.frequency_hz)
     return fixture_map.frame.chips(fixture.id), 1.0 / chip_rate_hz
 
 
+def sent_waveform(
+    fixture_map: FixtureMap, index: int, settings: RenderSettings
+) -> tuple[np.ndarray, float, float]:
+    """What fixture ``index`` (in map order) sends in a render with ``settings``.
+
+    Returns
+    -------
+    chips : ndarray of uint8 of {0, 1}
+        One period of its waveform: its ID's (:func:`id_waveform`) or, for a light of
+        ``settings.data_lights``, its random data (:func:`camvlp.sim.light.data_chips`).
+    chip_s : float
+        A chip's duration, s (``1 / chip_rate_hz`` for data, in either map mode).
+    smooth_s : float
+        The slow driver's smoothing time, s: ``soft`` of a chip, or of the period for a
+        frequency-coded beacon.
+    """
+    f = fixture_map.fixtures[index]
+    if f.id in settings.data_lights:
+        chip_s = 1.0 / settings.chip_rate_hz
+        return data_chips(settings.seed, index), chip_s, settings.soft * chip_s
+    chips, chip_s = id_waveform(fixture_map, f, settings.chip_rate_hz)
+    unit = chips.size * chip_s if fixture_map.mode == "frequency" else chip_s
+    return chips, chip_s, settings.soft * unit
+
+
+def core_places(fixture_map: FixtureMap, settings: RenderSettings) -> np.ndarray:
+    """Where each fixture's hot core is centred, float64 shape (N, 2), in map order: radii
+    along the two axes of its disc's plane (:func:`camvlp.geometry.disc.plane_basis` of its
+    normal), ``core_offset`` from the centre in a direction drawn from
+    ``default_rng([seed, 3])``, one per fixture in map order; zeros for a centred core."""
+    n = len(fixture_map.fixtures)
+    if settings.core_offset <= 0:
+        return np.zeros((n, 2))
+    angle = np.random.default_rng([int(settings.seed), 3]).uniform(0.0, 2.0 * np.pi, n)
+    return settings.core_offset * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+
+
+def check_data_lights(fixture_map: FixtureMap, settings: RenderSettings) -> None:
+    """Refuse ``settings.data_lights`` naming an ID that is not one of the map's fixtures.
+
+    Raises
+    ------
+    ValueError
+        Naming the first such ID.
+    """
+    ids = {f.id for f in fixture_map.fixtures}
+    unknown = [i for i in settings.data_lights if i not in ids]
+    if unknown:
+        raise ValueError(f"data_lights names ID {unknown[0]}, not a fixture of the map")
+
+
 def _phases(fixture_map: FixtureMap, s: RenderSettings) -> list[tuple[float, float]]:
-    """Each fixture's ``(period, phase)``, s: its waveform's period and its LED's random time
-    offset (drawn in map order from the settings' seed)."""
+    """Each fixture's ``(period, phase)``, s: its ID's waveform's period and its LED's random
+    time offset (drawn in map order from the settings' seed; a light sending data keeps the
+    same draw, its offset into its data)."""
     rng = np.random.default_rng([int(s.seed), 1])
     out = []
     for f in fixture_map.fixtures:
-        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        chips, chip_s = id_waveform(fixture_map, f, s.chip_rate_hz)
         period = chips.size * chip_s
         out.append((period, float(rng.uniform(0.0, period))))
     return out
@@ -394,8 +545,10 @@ def _truths(
     """Truth per fixture, plus the normals and projected rim points used to render (of the
     fixtures ``only``, by index in map order, when given; ``phases`` from :func:`_phases`)."""
     s = settings.resolved(camera)
+    check_data_lights(fixture_map, s)
     normals = _fixture_normals(fixture_map, pose)
     phases = phases or _phases(fixture_map, s)
+    cores = core_places(fixture_map, s)
     axis = s.readout.pixel_index
     truths, rims = [], []
     w, h = camera.width, camera.height
@@ -418,6 +571,11 @@ def _truths(
             and np.all((rim_px[:, 1] >= -0.5) & (rim_px[:, 1] <= h - 0.5))
         )
         span = float(np.ptp(rim_px[:, axis])) if ok else float("nan")
+        core_px = np.full(2, np.nan)
+        if s.core > 0 and f.diameter is not None and ahead:
+            a, b = plane_basis(n)
+            hot = f.position + 0.5 * f.diameter * (cores[j, 0] * a + cores[j, 1] * b)
+            core_px = camera.project(pose, hot[None, :])[0]
         truths.append(
             FixtureTruth(
                 id=f.id,
@@ -427,6 +585,8 @@ def _truths(
                 rows_spanned=span,
                 frames_spanned=span * s.row_time_s / period,
                 phase_s=phase,
+                sends_data=f.id in s.data_lights,
+                core_pixel=core_px,
             )
         )
     return tuple(truths), normals[list(chosen)], rims
@@ -663,6 +823,8 @@ def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettin
     """The fixtures' truths and their lights (:func:`light_patches`), ``s`` resolved."""
     colours = _colours(s, len(fixture_map.fixtures))
     truths, normals, rims = _truths(camera, fixture_map, pose, s)
+    cores = core_places(fixture_map, s)
+    off_centre = s.core > 0 and s.core_offset > 0
     w, h = camera.width, camera.height
     margin = math.ceil(4.0 * s.blur_px) + 2
     out = []
@@ -674,18 +836,25 @@ def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettin
         box = pixel_box(rim_px, w, h, margin + glow_margin(rim_px, s.halo, s.brightness))
         if box is None:
             continue
-        cov, rho = coverage(
-            camera, pose.world_from_camera, pose.position, f.position, n, 0.5 * f.diameter, box
+        axes = np.stack(plane_basis(n)) if off_centre else None
+        cov, rho, xy = coverage(
+            camera,
+            pose.world_from_camera,
+            pose.position,
+            f.position,
+            n,
+            0.5 * f.diameter,
+            box,
+            axes=axes,
         )
-        cov = shine(cov, rho, s.core, s.halo)
+        cov = shine(cov, rho, s.core, s.halo, xy, tuple(cores[i]))
         if s.blur_px > 0:
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
         u0, u1, v0, v1 = box
-        chips, chip_s = _waveform(fixture_map, f, s.chip_rate_hz)
+        chips, chip_s, smooth = sent_waveform(fixture_map, i, s)
         k = np.arange(v0, v1) if s.readout.by_rows else np.arange(u0, u1)
         if s.readout.reversed:  # sensor row 0 is the last image row (column)
             k = (h if s.readout.by_rows else w) - 1 - k
-        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
         out.append(
             LightPatch(i, box, cov, k, chips, chip_s, truth.phase_s, smooth, colours[i], rho)
         )
@@ -721,7 +890,8 @@ def render(
     InputError
         The camera's picture is over ``CAMVLP_MAX_RENDER_PIXELS``.
     ValueError
-        A fixture without a diameter, or colours not matching the fixtures.
+        A fixture without a diameter, colours not matching the fixtures, or ``data_lights``
+        naming an ID the map does not hold.
     """
     check_render_size(camera)
     s = (settings or RenderSettings()).resolved(camera)
@@ -737,4 +907,19 @@ def render(
     image = expose(patches, w, h, s)
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])
-    return Render(image=image, pose=pose, fixtures=truths, settings=s, camera=camera)
+    box = stamp_photo(image, s, camera.mirrored)
+    return Render(image=image, pose=pose, fixtures=truths, settings=s, camera=camera, stamp_box=box)
+
+
+def stamp_photo(
+    image: np.ndarray, settings: RenderSettings, mirrored: bool = False
+) -> tuple[int, int, int, int] | None:
+    """Burn ``settings.stamp`` into a stored photo (in place), if any; returns the pixels it
+    lit, ``(u0, v0, u1, v1)`` end-exclusive, in the camera model's pixels (flipped left-right
+    from the stored photo's when ``mirrored``), or None."""
+    if settings.stamp is None:
+        return None
+    u0, v0, u1, v1 = burn_stamp(image, settings.stamp)
+    if mirrored:
+        u0, u1 = image.shape[1] - u1, image.shape[1] - u0
+    return u0, v0, u1, v1

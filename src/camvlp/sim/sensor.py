@@ -28,6 +28,11 @@ units of the sensor's full scale) into the uint8 BGR photo a camera stores.
      stripes' edges and clips the overshoot.
   8. 8-bit output.
 
+Then, on the stored 8-bit photo (after a ``mirrored`` camera's flip, so that it reads the
+right way), a camera may burn in text such as its date and time (:func:`burn_stamp`): white,
+anti-aliased, in the bottom-right corner, about :data:`STAMP_HEIGHT` of the photo's height
+tall, on top of whatever the photo shows there.
+
 Randomness comes from ``default_rng([seed, 2])`` only, so a photo is reproducible from its
 settings.
 """
@@ -37,7 +42,17 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-__all__ = ["PHONE", "RAW_WHITE", "develops", "expose"]
+__all__ = [
+    "MAX_STAMP_CHARS",
+    "PHONE",
+    "RAW_WHITE",
+    "STAMP_HEIGHT",
+    "burn_stamp",
+    "camera_date",
+    "check_stamp",
+    "develops",
+    "expose",
+]
 
 #: How a white lamp's light reaches the blue, green and red raw pixels, relative to green
 #: (a daylight-white LED through a phone's colour filters); white balance divides it out.
@@ -53,6 +68,15 @@ RAW_MAX = 4095
 
 #: Sigma of the sharpening's unsharp mask, pixels.
 SHARPEN_SIGMA_PX = 1.0
+
+#: Height of a burned-in stamp's characters (a digit's), fraction of the photo's height.
+STAMP_HEIGHT = 0.03
+
+#: Most characters a stamp may have.
+MAX_STAMP_CHARS = 100
+
+_STAMP_FONT = cv2.FONT_HERSHEY_SIMPLEX
+_STAMP_DIGIT_PX = 21.0  # a digit's height in that font at scale 1, pixels (not getTextSize's 27)
 
 _ROW_CHUNK = 128  # image rows per chunk of the full-frame passes (even: see _raw)
 
@@ -171,3 +195,80 @@ def _develop(raw: np.ndarray, s) -> np.ndarray:
         blurred = cv2.GaussianBlur(toned, (0, 0), SHARPEN_SIGMA_PX)
         toned = cv2.addWeighted(toned, 1.0 + float(s.sharpen), blurred, -float(s.sharpen), 0.0)
     return cv2.convertScaleAbs(toned, alpha=255.0 / 65535.0)
+
+
+def check_stamp(text) -> None:
+    """Refuse a stamp that is not 1 to :data:`MAX_STAMP_CHARS` printable ASCII characters
+    (the camera's font has no others).
+
+    Raises
+    ------
+    ValueError
+        Naming ``stamp``.
+    """
+    if not isinstance(text, str):
+        raise ValueError(f"stamp must be text, got {text!r}")
+    if not 1 <= len(text) <= MAX_STAMP_CHARS or not text.strip():
+        raise ValueError(
+            f"stamp must be 1 to {MAX_STAMP_CHARS} characters, not all spaces, got {len(text)}"
+        )
+    bad = next((c for c in text if not " " <= c <= "~"), None)
+    if bad is not None:
+        raise ValueError(f"stamp must be printable ASCII text, got {bad!r} in {text!r}")
+
+
+def camera_date(rng: np.random.Generator) -> str:
+    """A random date and time as a camera stamps it, ``"2017-02-15 17:47:52"`` (years 2010 to
+    2025, days 1 to 28), drawn from ``rng``."""
+    y, mo, d = int(rng.integers(2010, 2026)), int(rng.integers(1, 13)), int(rng.integers(1, 29))
+    h, mi, sec = int(rng.integers(24)), int(rng.integers(60)), int(rng.integers(60))
+    return f"{y}-{mo:02d}-{d:02d} {h:02d}:{mi:02d}:{sec:02d}"
+
+
+def burn_stamp(image: np.ndarray, text: str) -> tuple[int, int, int, int]:
+    """Burn ``text`` into a stored photo, in place, as a camera prints its date and time.
+
+    White, anti-aliased (OpenCV's Hershey simplex font), in the bottom-right corner with a
+    margin of 2 % of the photo's height; a digit :data:`STAMP_HEIGHT` of the photo's height
+    tall, strokes an eighth of that wide; smaller if it would not fit the photo's width.
+    Each pixel is blended towards white by the text's coverage of it; no other pixel changes.
+
+    Parameters
+    ----------
+    image : ndarray of uint8, shape (H, W, 3) or (H, W)
+        The stored photo.
+    text : str
+        Printable ASCII (:func:`check_stamp`).
+
+    Returns
+    -------
+    tuple of int
+        The pixels lit, ``(u0, v0, u1, v1)``, end-exclusive (empty, ``(0, 0, 0, 0)``, if the
+        photo is too small to show any).
+    """
+    check_stamp(text)
+    h, w = image.shape[:2]
+    tall = STAMP_HEIGHT * h
+    margin = round(0.02 * h)
+    scale = tall / _STAMP_DIGIT_PX
+    thickness = max(1, round(tall / 8))
+    (tw, _), base = cv2.getTextSize(text, _STAMP_FONT, scale, thickness)
+    room = w - 2 * margin - thickness
+    if tw > room > 0:  # too wide: smaller, strokes as well
+        scale *= room / tw
+        thickness = max(1, round(thickness * room / tw))
+        (tw, _), base = cv2.getTextSize(text, _STAMP_FONT, scale, thickness)
+    origin = (w - margin - tw - thickness // 2, h - margin - base)
+    mask = np.zeros((h, w), dtype=np.uint8)
+    cv2.putText(mask, text, origin, _STAMP_FONT, scale, 255, thickness, cv2.LINE_AA)
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return 0, 0, 0, 0
+    v0, v1, u0, u1 = int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1
+    alpha = mask[v0:v1, u0:u1].astype(np.uint16)
+    if image.ndim == 3:
+        alpha = alpha[:, :, None]
+    part = image[v0:v1, u0:u1].astype(np.uint16)
+    part += ((255 - part) * alpha + 127) // 255
+    image[v0:v1, u0:u1] = part.astype(np.uint8)
+    return u0, v0, u1, v1

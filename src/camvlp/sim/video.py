@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.geometry.disc import plane_basis
 from camvlp.io.atomic import StagedOutputs
 from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.io.limits import limit
@@ -41,7 +42,14 @@ from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim import render as _render
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
-from camvlp.sim.render import FixtureTruth, RenderSettings, check_render_size
+from camvlp.sim.render import (
+    FixtureTruth,
+    RenderSettings,
+    check_render_size,
+    core_places,
+    sent_waveform,
+    stamp_photo,
+)
 from camvlp.sim.sensor import expose
 
 __all__ = [
@@ -260,11 +268,15 @@ def render_frame(
     mid = trajectory.pose(t)
     truths, normals, _ = _render._truths(camera, fixture_map, mid, s)
     colours = _render._colours(s, len(fixture_map.fixtures))
+    cores = core_places(fixture_map, s)
+    off_centre = s.core > 0 and s.core_offset > 0
     field = _render._field_radius(camera)
     ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
     margin = math.ceil(4.0 * s.blur_px) + 2
     patches = []
-    for f, n, truth, colour in zip(fixture_map.fixtures, normals, truths, colours, strict=True):
+    for i, (f, n, truth, colour) in enumerate(
+        zip(fixture_map.fixtures, normals, truths, colours, strict=True)
+    ):
         if not truth.in_front or n @ (mid.position - f.position) <= 0:
             continue
         rim = _render._rim_points(f, n)
@@ -284,12 +296,14 @@ def render_frame(
             (np.arange(k.size)[:, None] if s.readout.by_rows else np.arange(k.size)[None, :]),
             (v1 - v0, u1 - u0),
         )
-        cov, rho = coverage(camera, rot, pos, f.position, n, 0.5 * f.diameter, box, grid)
-        cov = shine(cov, rho, s.core, s.halo)
+        axes = np.stack(plane_basis(n)) if off_centre else None
+        cov, rho, xy = coverage(
+            camera, rot, pos, f.position, n, 0.5 * f.diameter, box, grid, axes=axes
+        )
+        cov = shine(cov, rho, s.core, s.halo, xy, tuple(cores[i]))
         if s.blur_px > 0:
             cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
-        chips, chip_s = _render._waveform(fixture_map, f, s.chip_rate_hz)
-        smooth = s.soft * (chips.size * chip_s if fixture_map.mode == "frequency" else chip_s)
+        chips, chip_s, smooth = sent_waveform(fixture_map, i, s)
         start = row_t - 0.5 * s.exposure_s + truth.phase_s - 0.5 * smooth
         on = on_fraction(chips, chip_s, start, s.exposure_s + smooth, s.off_level)
         on = on.astype(np.float32)
@@ -298,6 +312,7 @@ def render_frame(
     image = expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
     if camera.mirrored:
         image = np.ascontiguousarray(image[:, ::-1])
+    stamp_photo(image, s, camera.mirrored)
     return VideoFrame(
         image=image,
         t=float(t),

@@ -9,6 +9,7 @@ import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.beacon import square_wave
 from camvlp.pipeline.decode import find_runs, stripe_threshold
 from camvlp.viz.figure import new_figure
 
@@ -115,7 +116,10 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
 
     * ``1_candidates.png``: the reduced image's closed candidate mask;
     * ``2_fixture_<k>.png``: each fixture's region of interest beside its disc mask;
-    * ``3_profiles.png``: each fixture's row profile, threshold and chips read.
+    * ``3_profiles.png``: each fixture's row profile, threshold and chips read;
+    * ``4_beacons.png`` (frequency-coded maps): each light's waveform per line, the square
+      wave of the map frequency that fits it best and of the next one, with how much of the
+      stripes each explains, and why a light was refused.
 
     Returns the paths written.
     """
@@ -171,4 +175,59 @@ def write_debug_pictures(out_dir: str | Path, image: np.ndarray, result, stages)
         p = out / "3_profiles.png"
         fig.savefig(p, dpi=110)
         written.append(p)
+    if getattr(stages, "beacons", ()):
+        p = out / "4_beacons.png"
+        draw_beacons(stages.beacons, result, p)
+        written.append(p)
     return written
+
+
+def draw_beacons(beacons, result, path: str | Path) -> Path:
+    """The frequency-coded lights' fits (:attr:`LocateStages.beacons`), one panel a light:
+    its waveform per line (black; clipped lines as red ticks, where it reached at least that
+    level), the square wave of the map frequency that explains it best (orange) and of the
+    next one (blue, dashed), each over the envelopes fitted with it, and in the title what
+    was decided: the ID, or why none."""
+    n = len(beacons)
+    fig = new_figure(10, 2.3 * n, dpi=100, layout=None)
+    axes = fig.subplots(n, 1, squeeze=False)
+    for k, ((profile, test, periods), fr) in enumerate(zip(beacons, result.fixtures, strict=True)):
+        ax = axes[k, 0]
+        title = f"light {k} at ({fr.pixel[0]:.0f}, {fr.pixel[1]:.0f}): "
+        title += f"ID {fr.id}" if fr.id is not None else f"no ID ({fr.reason})"
+        if not profile.usable:
+            ax.set_title(title, fontsize=8, loc="left")
+            continue
+        ax.plot(profile.lines, profile.level, ".", ms=2.5, color="0.15", label="waveform")
+        if profile.bound_lines.size:
+            ax.plot(
+                profile.bound_lines, profile.bounds, "|", color="tab:red", ms=6, label="clipped"
+            )
+        if test is not None:
+            ranked = [j for j in np.argsort(test.costs) if test.waves[j] is not None][:2]
+            for j, style in zip(ranked, (("tab:orange", "-"), ("tab:blue", "--")), strict=False):
+                a, b = profile.envelopes(test.waves[j])
+                fitted = a + b * square_wave(profile.lines, *test.waves[j])
+                hz = fr.frequency_hz * test.period_px / periods[j]  # the map's frequency
+                steady = profile.steady_cost
+                share = 1.0 - test.costs[j] / steady if steady > 0 else 0.0
+                ax.plot(
+                    profile.lines,
+                    fitted,
+                    style[1],
+                    color=style[0],
+                    lw=1.0,
+                    label=f"{hz:.0f} Hz (the map's): explains {100 * share:.0f} %",
+                )
+            title += (
+                f"; margin {test.margin:.2f}, {test.periods_seen:.1f} periods, "
+                f"{100 * test.agreement:.0f} % of lines agree"
+            )
+        ax.set_title(title, fontsize=8, loc="left")
+        ax.legend(fontsize=6, loc="upper right")
+        ax.set_ylabel("level (scaled)")
+    axes[-1, 0].set_xlabel(f"sensor line across the light ({result.readout} readout)")
+    fig.tight_layout()
+    p = Path(path)
+    fig.savefig(p, dpi=110)
+    return p
