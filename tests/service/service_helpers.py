@@ -74,12 +74,26 @@ def photo_png() -> bytes:
 TEST_DB_URL = os.environ.get("CAMVLP_TEST_DB_URL")
 
 
+def drop_all(url: str) -> None:
+    """Drop the service's tables and Alembic's version table from the database at ``url``."""
+    import sqlalchemy as sa
+
+    from camvlp.service.db import make_engine, metadata
+
+    engine = make_engine(url)
+    try:
+        metadata.drop_all(engine)
+        with engine.begin() as conn:
+            conn.execute(sa.text("DROP TABLE IF EXISTS alembic_version"))
+    finally:
+        engine.dispose()
+
+
 def make_client(tmp_path: Path, **settings):
     """A TestClient of a fresh service on a SQLite file in ``tmp_path`` (or ``TEST_DB_URL``)."""
     from fastapi.testclient import TestClient
 
     from camvlp.service import ServiceSettings, create_app
-    from camvlp.service.db import make_engine, metadata
 
     settings.setdefault("stream_max_s", 0.5)
     settings.setdefault("admin_key", ADMIN_KEY)
@@ -87,9 +101,7 @@ def make_client(tmp_path: Path, **settings):
     url = f"sqlite:///{tmp_path / 'service.db'}"
     if TEST_DB_URL:
         url = TEST_DB_URL
-        engine = make_engine(url)
-        metadata.drop_all(engine)
-        engine.dispose()
+        drop_all(url)
     return TestClient(create_app(ServiceSettings(db=url, **settings)))
 
 

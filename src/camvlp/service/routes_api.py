@@ -5,7 +5,6 @@ event loop; the pool, the store and the settings come from :mod:`camvlp.service.
 """
 
 import asyncio
-import math
 import time
 from collections.abc import AsyncIterator
 from datetime import UTC, datetime
@@ -39,8 +38,10 @@ from camvlp.service.deps import (
     SettingsDep,
     Site,
     StoreDep,
+    choose_camera,
     json_body_gate,
     parse_count,
+    parse_gravity,
 )
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
@@ -105,18 +106,6 @@ def _parse_camera(data: dict[str, Any]) -> Camera:
         return camera_from_dict(data, "camera")
     except InputError as exc:
         raise HTTPException(422, str(exc)) from None
-
-
-def _parse_gravity(text: str | None) -> list[float] | None:
-    if text is None or not text.strip():
-        return None
-    try:
-        values = [float(v) for v in text.replace(" ", "").split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
-        raise HTTPException(422, f"gravity must be three numbers gx,gy,gz, not all 0, got {text!r}")
-    return values
 
 
 def _locate_job(
@@ -297,12 +286,7 @@ async def locate_photo(
     )
     if site_row is None:
         raise HTTPException(404, f"no site {site_id}")
-    if camera is None:
-        if len(cameras) != 1 and "default" not in cameras:
-            raise HTTPException(422, f"say which camera: ?camera=NAME, one of {', '.join(cameras)}")
-        camera = next(iter(cameras)) if len(cameras) == 1 else "default"
-    if camera not in cameras:
-        raise HTTPException(404, f"no camera {camera!r} in site {site_id}")
+    camera = choose_camera(cameras, camera, site_id)
     if gate.busy >= gate.limit:
         raise HTTPException(
             503, f"busy: {gate.busy} photos being located; retry", headers={"Retry-After": "1"}
@@ -352,7 +336,7 @@ def _locate_form(form: FormData) -> tuple[LocateForm, list[float] | None]:
         raise RequestValidationError(errors) from None
     if errors:
         raise RequestValidationError(errors)
-    return fields, _parse_gravity(fields.gravity)
+    return fields, parse_gravity(fields.gravity)
 
 
 @router.get("/sites/{site_id}/fixes", response_model=FixPage, tags=["fixes"])
