@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import cv2
@@ -183,3 +184,24 @@ def stop_server(proc) -> tuple[str, str]:
         proc.kill()
         out, err = proc.communicate()
     return out.decode(errors="replace"), err.decode(errors="replace")
+
+
+# --- a real browser --------------------------------------------------------------------------
+
+#: Debian's Chromium, driven by playwright (its own browser downloads are not used).
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+#: Headless, and quiet: no connection of its own to anywhere.
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+#: Skips a test when there is no Chromium to drive.
+needs_chromium = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="no chromium installed")
+#: When set, the browser tests also save their screenshots into this folder (docs/serve).
+SCREENSHOTS = os.environ.get("CAMVLP_SCREENSHOTS")

@@ -6,7 +6,6 @@ Skipped when no Chromium (Debian's package) or no playwright is installed.
 from __future__ import annotations
 
 import re
-import shutil
 from pathlib import Path
 
 import httpx
@@ -14,26 +13,17 @@ import pytest
 from service_helpers import (
     ADMIN,
     CAMERA_JSON,
+    CHROMIUM,
+    CHROMIUM_ARGS,
     MAP_JSON,
     free_port,
+    needs_chromium,
     photo_png,  # noqa: F401  (fixture)
     start_server,
     stop_server,
 )
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-
-pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="no chromium installed")
+pytestmark = needs_chromium
 
 
 def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):

@@ -31,6 +31,7 @@ from camvlp.errors import InputError
 from camvlp.io import decode_image
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.by_pose import position_sigma
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.track import Tracker, TrackFrame
 from camvlp.service.imagesize import read_image_header
@@ -291,7 +292,7 @@ def locate_frame(
     except InputError as exc:
         raise FrameRefused(422, f"{exc.what} (frame)") from None
     track.frames += 1
-    answer = _from_track(frame, track.tracker)
+    answer = _from_track(frame, track)
     if answer["status"] not in _LOCATED and gravity is not None:
         alone = _with_gravity(image, track, gravity)
         if alone is not None:
@@ -303,23 +304,34 @@ def locate_frame(
     return answer
 
 
-def _from_track(frame: TrackFrame, tracker: Tracker) -> dict[str, Any]:
-    """A tracker's frame as the answer's fields (the filtered pose, as ``camvlp track``)."""
-    located = frame.status in _LOCATED
-    pos = frame.position if located else None
-    sigma = None
-    if located and tracker.filter is not None:
-        sigma = tracker.filter.sigma[:3]
-    pose = None if pos is None else Pose.from_euler(pos, frame.euler_deg)
+def _from_track(frame: TrackFrame, track: DeviceTrack) -> dict[str, Any]:
+    """A tracker's frame as the answer's fields.
+
+    A ``fix`` (four fixtures or more) is the frame's own solve, with its position's sigma
+    worked out as :func:`camvlp.locate` does (the fixtures' reprojection error and what their
+    layout makes of a pixel); the track's filtered position is in ``filtered_position``.  A
+    ``tracked`` pose (two or three fixtures) is the track's filtered one, with the filter's
+    sigma: the frame alone does not fix the pose.
+    """
+    sigma = pos = euler = None
+    if frame.status == "fix" and frame.raw_position is not None:
+        pos, euler = frame.raw_position, frame.raw_euler_deg
+        points = np.array([track.fixture_map.get(i).position for i in frame.fixtures_used])
+        rms = np.full(len(points), frame.reprojection_rms_px)  # the sigma needs r @ r alone
+        sigma = position_sigma(track.camera, Pose.from_euler(pos, euler), points, rms)
+    elif frame.status == "tracked" and track.tracker.filter is not None:
+        pos, euler = frame.position, frame.euler_deg
+        sigma = track.tracker.filter.sigma[:3]
+    pose = None if pos is None else Pose.from_euler(pos, euler)
     return {
         "status": frame.status,
-        "located": located,
+        "located": pose is not None,
         "position": _round(pos),
         "position_sigma": _round(sigma, 7),
         "rotation": None if pose is None else _round(pose.world_from_camera, 8),
-        "euler_deg": None if pose is None else _round(frame.euler_deg, 4),
+        "euler_deg": None if pose is None else _round(euler, 4),
         "raw_position": _round(frame.raw_position),
-        "predicted_position": _round(frame.position) if frame.status == "predicted" else None,
+        "filtered_position": _round(frame.position),
         "reprojection_rms_px": None
         if not math.isfinite(frame.reprojection_rms_px)
         else round(frame.reprojection_rms_px, 4),
@@ -369,7 +381,7 @@ def _with_gravity(
         "rotation": _round(res.rotation, 8),
         "euler_deg": _round(res.euler_deg, 4),
         "raw_position": _round(res.position),
-        "predicted_position": None,
+        "filtered_position": None,
         "reprojection_rms_px": round(res.reprojection_rms_px, 4),
         "fixtures": fixtures,
         "fixtures_used": [f["id"] for f in fixtures if f["used"]],
