@@ -33,6 +33,7 @@ from camvlp.service.deps import (
     MAX_ROW_ID,
     Admin,
     GateDep,
+    MetricsDep,
     PoolDep,
     RowId,
     SettingsDep,
@@ -270,6 +271,7 @@ async def locate_photo(
     cfg: SettingsDep,
     pool: PoolDep,
     gate: GateDep,
+    metrics: MetricsDep,
     camera: Annotated[str | None, Query(description="Which of the site's cameras took it.")] = None,
 ) -> dict[str, Any]:
     """Locate a photo: the JSON of ``camvlp locate --json`` plus ``fix_id``.
@@ -308,10 +310,15 @@ async def locate_photo(
                 )
             except ValueError as exc:
                 raise HTTPException(422, str(exc)) from None
+            request.state.device = fields.device
             job = (photo.file, cam, fmap, settings, fields.annotate, cfg, grav)
-            result, picture = await asyncio.get_running_loop().run_in_executor(
-                pool, _locate_job, *job
-            )
+            started = time.perf_counter()
+            try:
+                result, picture = await asyncio.get_running_loop().run_in_executor(
+                    pool, _locate_job, *job
+                )
+            finally:
+                metrics.locate_seconds.labels("photo").observe(time.perf_counter() - started)
     except _LocateRefused as exc:
         raise HTTPException(exc.status, exc.detail) from None
     except MultiPartException as exc:
@@ -321,6 +328,7 @@ async def locate_photo(
     fix_id = await run_in_threadpool(
         store.add_fix, site_id, fields.device, camera, result, picture, grav
     )
+    metrics.fixes.labels("photo", str(result["position"] is not None).lower()).inc()
     return {**result, "fix_id": fix_id}
 
 
