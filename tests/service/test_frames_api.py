@@ -37,7 +37,7 @@ def _render(k: int, keep: tuple[int, ...] | None = None):
     if keep is not None:
         for f in out.fixtures:
             if f.id not in keep:
-                centre = tuple(int(round(v)) for v in f.pixel)
+                centre = tuple(int(v) for v in np.rint(f.pixel))
                 cv2.circle(image, centre, int(f.rows_spanned / 2 + 12), (0, 0, 0), -1)
     return encode(image, ".jpg"), out
 
