@@ -88,7 +88,7 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
                 )
                 page.click("#start")
                 page.wait_for_function(
-                    f"window.camvlpCapture.results.length >= {FRAMES}", timeout=90_000
+                    f"() => window.camvlpCapture.results.length >= {FRAMES}", timeout=90_000
                 )
                 shot = tmp_path / "capture.png"
                 page.screenshot(path=str(shot), full_page=True)  # running: the video shows

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import httpx
 import numpy as np
+import pytest
 from service_helpers import (
     ADMIN,
     CAMERA_JSON,
@@ -13,10 +14,13 @@ from service_helpers import (
     PHOTO_POSITION,
     free_port,
     photo_png,  # noqa: F401  (fixture)
+    self_signed,
     start_server,
     stop_server,
+    tls_context,
 )
 
+from camvlp.cli import main
 from conftest import one_error_line
 
 
@@ -144,3 +148,34 @@ def test_the_stream_carries_fixes_of_every_worker(tmp_path: Path, photo_png):
         assert seen == made
     finally:
         stop_server(proc)
+
+
+def test_serve_https_with_a_self_signed_certificate(tmp_path: Path, capsys):
+    tls = self_signed(tmp_path)
+    if tls is None:
+        pytest.skip("no openssl to make a certificate")
+    port = free_port()
+    proc = start_server(tmp_path / "tls.db", port, tls=tls)
+    try:
+        base = f"https://127.0.0.1:{port}"
+        trust = tls_context(tls[0])
+        r = httpx.get(f"{base}/sites/1/capture", verify=trust)
+        assert r.status_code == 200 and "capture.js" in r.text
+        with pytest.raises(httpx.ConnectError):  # a client that does not trust it stops
+            httpx.get(f"{base}/api/v1/health")
+        with pytest.raises(httpx.HTTPError):  # and plain HTTP gets no answer
+            httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=3)
+    finally:
+        stop_server(proc)
+    # a key without its certificate, a file that is not a key, a key of another certificate
+    (tmp_path / "other").mkdir()
+    other = self_signed(tmp_path / "other")
+    cases = [
+        (["--tls-cert", str(tls[0])], "--tls-cert and --tls-key go together"),
+        (["--tls-cert", str(tls[0]), "--tls-key", str(tmp_path / "tls.db")], "cannot use"),
+        (["--tls-cert", str(tls[0]), "--tls-key", str(other[1])], "cannot use"),
+        (["--tls-cert", str(tmp_path / "none.pem"), "--tls-key", str(tls[1])], "is not a file"),
+    ]
+    for args, words in cases:
+        assert main(["serve", "--db", f"sqlite:///{tmp_path / 'x.db'}", *args]) == 2
+        assert words in one_error_line(capsys.readouterr().err), args

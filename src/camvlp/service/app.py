@@ -137,7 +137,8 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
         title="camvlp",
         version=__version__,
         summary="Camera positioning from photos of coded ceiling lights.",
-        description="Create a site with its map and camera, send photos, get fixes. Every "
+        description="Create a site with its map and camera, send photos or video frames, get "
+        "fixes. Every "
         "request about a site needs its key: `Authorization: Bearer KEY`.",
         lifespan=_lifespan,
         docs_url=None,  # served by routes_page from the package's files

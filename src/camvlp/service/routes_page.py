@@ -27,7 +27,19 @@ DOCS_ASSETS_URL = "/static-docs"
 
 router = APIRouter(include_in_schema=False)
 
-_NO_CACHE = {"Cache-Control": "no-cache"}
+#: What the pages may load: their own files and the API, nothing from another host (the
+#: browser refuses the rest, e.g. the logo ReDoc's script would fetch from its maker's site).
+_PAGE_POLICY = (
+    "default-src 'self'; img-src 'self' blob: data:; connect-src 'self'; "
+    "frame-ancestors 'none'; base-uri 'none'; form-action 'self'"
+)
+#: The same for Swagger UI and ReDoc, whose pages start them with inline scripts and styles
+#: (ReDoc's search runs in a worker made from a blob).
+_DOCS_POLICY = (
+    "default-src 'self'; script-src 'self' 'unsafe-inline'; style-src 'self' 'unsafe-inline'; "
+    "img-src 'self' data:; worker-src 'self' blob:; connect-src 'self'; frame-ancestors 'none'"
+)
+_NO_CACHE = {"Cache-Control": "no-cache", "Content-Security-Policy": _PAGE_POLICY}
 
 
 @router.get("/sites/{site_id}")
@@ -51,25 +63,29 @@ def root() -> RedirectResponse:
 @router.get("/docs")
 def swagger_ui(request: Request) -> HTMLResponse:
     """Swagger UI, from the package's files."""
-    return get_swagger_ui_html(
+    page = get_swagger_ui_html(
         openapi_url=request.app.openapi_url,
         title=f"{request.app.title} - Swagger UI",
         swagger_js_url=f"{DOCS_ASSETS_URL}/swagger-ui-bundle.js",
         swagger_css_url=f"{DOCS_ASSETS_URL}/swagger-ui.css",
         swagger_favicon_url=f"{DOCS_ASSETS_URL}/favicon.png",
     )
+    page.headers["Content-Security-Policy"] = _DOCS_POLICY
+    return page
 
 
 @router.get("/redoc")
 def redoc(request: Request) -> HTMLResponse:
     """ReDoc, from the package's files (no web fonts)."""
-    return get_redoc_html(
+    page = get_redoc_html(
         openapi_url=request.app.openapi_url,
         title=f"{request.app.title} - ReDoc",
         redoc_js_url=f"{DOCS_ASSETS_URL}/redoc.standalone.js",
         redoc_favicon_url=f"{DOCS_ASSETS_URL}/favicon.png",
         with_google_fonts=False,
     )
+    page.headers["Content-Security-Policy"] = _DOCS_POLICY
+    return page
 
 
 @router.get("/metrics")
