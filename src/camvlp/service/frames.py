@@ -307,18 +307,20 @@ def locate_frame(
 def _from_track(frame: TrackFrame, track: DeviceTrack) -> dict[str, Any]:
     """A tracker's frame as the answer's fields.
 
-    A ``fix`` (four fixtures or more) is the frame's own solve, with its position's sigma
-    worked out as :func:`camvlp.locate` does (the fixtures' reprojection error and what their
-    layout makes of a pixel); the track's filtered position is in ``filtered_position``.  A
-    ``tracked`` pose (two or three fixtures) is the track's filtered one, with the filter's
-    sigma: the frame alone does not fix the pose.
+    ``position`` is the track's filtered position, as ``camvlp track`` reports it; the
+    frame's own solve is ``raw_position``.  ``position_sigma`` is, for a ``fix`` (four
+    fixtures or more), the sigma of the frame's own solve as :func:`camvlp.locate` works it
+    out (the fixtures' reprojection error and what their layout makes of a pixel): the
+    filtered position adds the track's earlier frames to it.  For a ``tracked`` pose (two or
+    three fixtures, which do not fix a pose alone) it is the filter's own sigma.
     """
     sigma = pos = euler = None
     if frame.status == "fix" and frame.raw_position is not None:
-        pos, euler = frame.raw_position, frame.raw_euler_deg
+        pos, euler = frame.position, frame.euler_deg
         points = np.array([track.fixture_map.get(i).position for i in frame.fixtures_used])
         rms = np.full(len(points), frame.reprojection_rms_px)  # the sigma needs r @ r alone
-        sigma = position_sigma(track.camera, Pose.from_euler(pos, euler), points, rms)
+        raw = Pose.from_euler(frame.raw_position, frame.raw_euler_deg)
+        sigma = position_sigma(track.camera, raw, points, rms)
     elif frame.status == "tracked" and track.tracker.filter is not None:
         pos, euler = frame.position, frame.euler_deg
         sigma = track.tracker.filter.sigma[:3]
@@ -331,7 +333,6 @@ def _from_track(frame: TrackFrame, track: DeviceTrack) -> dict[str, Any]:
         "rotation": None if pose is None else _round(pose.world_from_camera, 8),
         "euler_deg": None if pose is None else _round(euler, 4),
         "raw_position": _round(frame.raw_position),
-        "filtered_position": _round(frame.position),
         "reprojection_rms_px": None
         if not math.isfinite(frame.reprojection_rms_px)
         else round(frame.reprojection_rms_px, 4),
@@ -381,7 +382,6 @@ def _with_gravity(
         "rotation": _round(res.rotation, 8),
         "euler_deg": _round(res.euler_deg, 4),
         "raw_position": _round(res.position),
-        "filtered_position": None,
         "reprojection_rms_px": round(res.reprojection_rms_px, 4),
         "fixtures": fixtures,
         "fixtures_used": [f["id"] for f in fixtures if f["used"]],
