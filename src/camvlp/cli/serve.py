@@ -61,9 +61,9 @@ def serve_command(
         ),
     ] = False,
 ) -> None:
-    """Serve the HTTP API (/api/v1, docs at /docs) and each site's pages (/sites/ID, and
-    /sites/ID/capture for a phone's camera).
+    """Serve the HTTP API (/api/v1, docs at /docs) and each site's pages (/sites/ID).
 
+    /sites/ID/capture is the page that locates a phone from its camera's frames.
     Sites, cameras, maps and fixes are kept in the database; several processes share it
     (--workers, or several machines with one PostgreSQL database). Sites are created with
     the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
