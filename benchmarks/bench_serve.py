@@ -279,6 +279,32 @@ def make_frames(n: int = 30, fps: float = 10.0) -> Frames:
     return Frames(jpegs, np.array(positions), np.array(gravity), _camera_json(cam))
 
 
+async def _watch_metrics(
+    http: httpx.AsyncClient,
+    base: str,
+    t_start: float,
+    deadline: float,
+    depth: list[tuple[float, float, float]],
+) -> None:
+    """Read ``/metrics`` twice a second until ``deadline``: ``(s since the start, frames
+    waiting, photos and frames in hand)`` appended to ``depth``."""
+    names = ("camvlp_frame_queue_depth ", "camvlp_locate_in_hand ")
+    while time.monotonic() < deadline:
+        try:
+            text = (await http.get(f"{base}/metrics")).text
+        except httpx.HTTPError:
+            text = ""
+        values = dict(line.split(" ", 1) for line in text.splitlines() if line.startswith(names))
+        depth.append(
+            (
+                time.monotonic() - t_start,
+                float(values.get("camvlp_frame_queue_depth", "nan")),
+                float(values.get("camvlp_locate_in_hand", "nan")),
+            )
+        )
+        await asyncio.sleep(0.5)
+
+
 async def _stream(base: str, site: int, headers: dict, frames: Frames, args) -> dict:
     """``args.devices`` devices streaming for ``args.duration`` s (at most
     ``args.max_requests`` requests in all), ``/metrics`` read meanwhile."""
@@ -338,29 +364,12 @@ async def _stream(base: str, site: int, headers: dict, frames: Frames, args) -> 
             k += 1
         await asyncio.gather(*tasks)
 
-    async def watch(http) -> None:
-        while time.monotonic() < deadline:
-            try:
-                text = (await http.get(f"{base}/metrics")).text
-            except httpx.HTTPError:
-                text = ""
-            values = dict(
-                line.split(" ", 1)
-                for line in text.splitlines()
-                if line.startswith(("camvlp_frame_queue_depth ", "camvlp_locate_in_hand "))
-            )
-            depth.append(
-                (
-                    time.monotonic() - t_start,
-                    float(values.get("camvlp_frame_queue_depth", "nan")),
-                    float(values.get("camvlp_locate_in_hand", "nan")),
-                )
-            )
-            await asyncio.sleep(0.5)
-
     limits = httpx.Limits(max_connections=3 * args.devices)
     async with httpx.AsyncClient(timeout=60, limits=limits) as http:
-        await asyncio.gather(watch(http), *(device(http, i) for i in range(args.devices)))
+        await asyncio.gather(
+            _watch_metrics(http, base, t_start, deadline, depth),
+            *(device(http, i) for i in range(args.devices)),
+        )
     elapsed = time.monotonic() - t_start
     half = args.duration / 2
     first = [d for t, d, _ in depth if t < half]

@@ -41,13 +41,15 @@ ID_PIXEL_TOLERANCE = 8.0
 G = 9.81
 
 
-def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
+def _run_page(video, tmp_path: Path) -> dict:
+    """Open the camera page on a real ``camvlp serve`` with the video as Chromium's camera
+    and the video's gravity as motion events; after ``FRAMES`` answers, what it showed."""
     sync_api = pytest.importorskip("playwright.sync_api")
-    video = make_capture_video(tmp_path / "video")
     port = free_port()
     base = f"http://127.0.0.1:{port}"
     proc = start_server(tmp_path / "capture.db", port)
     sent: dict[int, tuple[int, float]] = {}  # page's seq -> (video frame, match ratio)
+    errors: list[str] = []
     try:
         site = httpx.post(
             f"{base}/api/v1/sites",
@@ -76,7 +78,6 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=args)
             try:
                 page = browser.new_page(viewport={"width": 1200, "height": 860})
-                errors: list[str] = []
                 page.on("pageerror", lambda exc: errors.append(str(exc)))
                 page.route("**/api/v1/sites/*/frames?*", catch)
                 page.goto(f"{base}/sites/{site['id']}/capture#key={site['api_key']}")
@@ -95,15 +96,25 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
                 if SCREENSHOTS:
                     shutil.copy(shot, Path(SCREENSHOTS) / "capture.png")
                 page.click("#stop")
-                results = page.evaluate("window.camvlpCapture.results")
-                shown = page.inner_text("#st-position")
-                exposure = page.inner_text("#exposure-note")
-                gravity_note = page.inner_text("#gravity-note")
+                return {
+                    "results": page.evaluate("window.camvlpCapture.results"),
+                    "sent": sent,
+                    "errors": errors,
+                    "position": page.inner_text("#st-position"),
+                    "exposure": page.inner_text("#exposure-note"),
+                    "gravity": page.inner_text("#gravity-note"),
+                }
             finally:
                 browser.close()
     finally:
         stop_server(proc)
 
+
+def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
+    pytest.importorskip("playwright.sync_api")
+    video = make_capture_video(tmp_path / "video")
+    shown = _run_page(video, tmp_path)
+    results, sent, errors = shown["results"], shown["sent"], shown["errors"]
     assert errors == []
     assert len(results) >= FRAMES
     assert all(r["seq"] in sent for r in results), "a frame the page sent was not caught"
@@ -118,8 +129,8 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
         for f in r["fixtures"]:
             if f["used"]:
                 truth = video.fixtures[k].get(f["id"])
-                far = truth is None or np.linalg.norm(np.array(f["pixel"]) - truth)
-                wrong += bool(truth is None or far > ID_PIXEL_TOLERANCE)
+                off = np.inf if truth is None else np.linalg.norm(np.array(f["pixel"]) - truth)
+                wrong += bool(off > ID_PIXEL_TOLERANCE)
     median_mm = float(np.median(errors_mm))
     frames_seen = len({sent[r["seq"]][0] for r in results})
     print(
@@ -135,6 +146,6 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
     assert frames_seen >= 10  # the page followed the video, not one frame over and over
     # what the page shows: the last located position, the fake camera's exposure, the gravity
     last = located[-1]["position"]
-    assert shown == f"({', '.join(f'{v:.3f}' for v in last)}) m"
-    assert "cannot set the exposure time" in exposure
-    assert "Gravity (camera frame)" in gravity_note
+    assert shown["position"] == f"({', '.join(f'{v:.3f}' for v in last)}) m"
+    assert "cannot set the exposure time" in shown["exposure"]
+    assert "Gravity (camera frame)" in shown["gravity"]
