@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import httpx
@@ -155,18 +156,25 @@ def test_serve_https_with_a_self_signed_certificate(tmp_path: Path, capsys):
     if tls is None:
         pytest.skip("no openssl to make a certificate")
     port = free_port()
-    proc = start_server(tmp_path / "tls.db", port, tls=tls)
+    proc = start_server(tmp_path / "tls.db", port, "--log-level", "info", tls=tls)
     try:
         base = f"https://127.0.0.1:{port}"
         trust = tls_context(tls[0])
-        r = httpx.get(f"{base}/sites/1/capture", verify=trust)
+        r = httpx.get(f"{base}/sites/1/capture?device=phone-3", verify=trust)
         assert r.status_code == 200 and "capture.js" in r.text
         with pytest.raises(httpx.ConnectError):  # a client that does not trust it stops
             httpx.get(f"{base}/api/v1/health")
         with pytest.raises(httpx.HTTPError):  # and plain HTTP gets no answer
             httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=3)
     finally:
-        stop_server(proc)
+        _, err = stop_server(proc)
+    # every line of the log is one JSON object; each request one line, without its query
+    lines = [json.loads(line) for line in err.splitlines() if line.strip()]
+    requests = [line for line in lines if line["logger"] == "camvlp.access"]
+    page = [line for line in requests if line["path"] == "/sites/1/capture"]
+    assert len(page) == 1 and page[0]["status"] == 200 and page[0]["device"] == "phone-3"
+    assert page[0]["route"] == "/sites/{site_id}/capture" and page[0]["site"] == 1
+    assert any(line["logger"].startswith("uvicorn") for line in lines)
     # a key without its certificate, a file that is not a key, a key of another certificate
     (tmp_path / "other").mkdir()
     other = self_signed(tmp_path / "other")
