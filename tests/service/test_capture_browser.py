@@ -33,8 +33,8 @@ from service_helpers import (
 
 pytestmark = needs_chromium
 
-#: Frames the page must answer before the test looks.
-FRAMES = 45
+#: Frames the page must answer before the test looks, then photos (takePhoto) after them.
+FRAMES, PHOTOS = 45, 5
 #: The most a used fixture's pixel may be from the truth's pixel of that ID, pixels.
 ID_PIXEL_TOLERANCE = 8.0
 #: Gravity's size, m/s^2 (the accelerometer reads its reaction).
@@ -96,11 +96,25 @@ def _run_page(video, tmp_path: Path) -> dict:
                 if SCREENSHOTS:
                     shutil.copy(shot, Path(SCREENSHOTS) / "capture.png")
                 page.click("#stop")
+                page.wait_for_function("() => window.camvlpCapture.idle", timeout=30_000)
+                frames = len(page.evaluate("window.camvlpCapture.results"))
+                position = page.inner_text("#st-position")
+                # full-resolution photos instead (Chromium's fake camera takes PNG photos)
+                page.select_option("#mode", "photos")
+                page.click("#start")
+                page.wait_for_function(
+                    f"() => window.camvlpCapture.results.length >= {frames + PHOTOS}",
+                    timeout=60_000,
+                )
+                page.click("#stop")
+                page.wait_for_function("() => window.camvlpCapture.idle", timeout=30_000)
+                results = page.evaluate("window.camvlpCapture.results")
                 return {
-                    "results": page.evaluate("window.camvlpCapture.results"),
+                    "results": results[:frames],
+                    "photos": results[frames:],
                     "sent": sent,
                     "errors": errors,
-                    "position": page.inner_text("#st-position"),
+                    "position": position,
                     "exposure": page.inner_text("#exposure-note"),
                     "gravity": page.inner_text("#gravity-note"),
                 }
@@ -136,9 +150,11 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
     print(
         f"capture page: {len(located)} of {len(results)} frames located ({100 * share:.1f} %), "
         f"{frames_seen} different video frames, median position error {median_mm:.2f} mm, "
-        f"max {max(errors_mm):.2f} mm, {wrong} wrong IDs; statuses "
+        f"max {max(errors_mm):.2f} mm (video frame "
+        f"{sent[located[int(np.argmax(errors_mm))]['seq']][0]}), {wrong} wrong IDs; statuses "
         f"{sorted({r['status'] for r in results})}; median latency "
-        f"{np.median([r['latency_ms'] for r in results]):.0f} ms"
+        f"{np.median([r['latency_ms'] for r in results]):.0f} ms; photos: "
+        f"{sum(p['located'] for p in shown['photos'])} of {len(shown['photos'])} located"
     )
     assert share >= 0.9
     assert median_mm <= 5.0
@@ -147,5 +163,13 @@ def test_the_camera_page_locates_a_rendered_video(tmp_path: Path):
     # what the page shows: the last located position, the fake camera's exposure, the gravity
     last = located[-1]["position"]
     assert shown["position"] == f"({', '.join(f'{v:.3f}' for v in last)}) m"
+    # the photos, each located alone (a new track for each)
+    photos = shown["photos"]
+    assert len(photos) >= PHOTOS and all(p["located"] for p in photos), photos
+    photo_mm = [
+        1e3 * np.linalg.norm(np.array(p["position"]) - video.positions[sent[p["seq"]][0]])
+        for p in photos
+    ]
+    assert max(photo_mm) <= 10.0, photo_mm
     assert "cannot set the exposure time" in shown["exposure"]
     assert "Gravity (camera frame)" in shown["gravity"]

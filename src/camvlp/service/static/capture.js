@@ -8,7 +8,8 @@
 // exposureMode "manual" and exposureTime, in 100 us units) and says so when it cannot.
 //
 // Every frame's answer is kept in window.camvlpCapture.results (newest last), so that a test
-// (or a curious user's console) can read what the page showed.
+// (or a curious user's console) can read what the page showed; window.camvlpCapture.idle
+// says that no frame is in flight.
 import {
   $, api, drawBasePlan, drawDot, fmtPosition, fmtSigma, forgetKey, saveKey, siteId, svg,
   takeKeyFromFragment,
@@ -26,7 +27,8 @@ const state = {
   seq: 0, newTrack: true, motion: null, trail: [], lastLocated: null, results: [],
   camera: null,
 };
-window.camvlpCapture = { results: state.results };
+// idle: no frame of the page's in flight (after Stop, once the last answer is in)
+window.camvlpCapture = { results: state.results, idle: true };
 
 function setStatus(cls, text) {
   const el = $("status");
@@ -233,6 +235,15 @@ async function nextPicture() {
 }
 
 async function sendLoop() {
+  window.camvlpCapture.idle = false;
+  try {
+    await sendFrames();
+  } finally {
+    window.camvlpCapture.idle = true;
+  }
+}
+
+async function sendFrames() {
   while (state.running) {
     let picture;
     try {
@@ -254,7 +265,9 @@ async function sendFrame({ body, type, t }) {
   });
   const g = cameraGravity();
   if (g) params.set("gravity", g.map((v) => v.toFixed(5)).join(","));
-  if (state.newTrack) params.set("reset", "true");
+  // a photo is located alone (a new track each time): when takePhoto's picture was taken is
+  // not known well enough for the track's motion model
+  if (state.newTrack || state.imageCapture) params.set("reset", "true");
   const entry = { seq, t: t / 1000, sent: performance.now() };
   try {
     const response = await api(state.key, `/frames?${params}`, {
