@@ -16,7 +16,7 @@ from sqlalchemy.engine import Engine
 
 from camvlp.service.schemas import FixFields
 
-__all__ = ["FixRow", "SiteRow", "Store", "make_engine"]
+__all__ = ["FixRow", "SiteRow", "Store", "make_engine", "metadata"]
 
 metadata = sa.MetaData()
 
@@ -60,7 +60,12 @@ fixes = sa.Table(
     sa.Column("result", sa.JSON, nullable=False),  # the locate JSON, whole
     sa.Column("has_picture", sa.Boolean, nullable=False),
     sa.Column("gravity", sa.JSON),  # [gx, gy, gz] as the client sent it, or null
+    # since migration 0002: where the fix came from, the frame's status, the position's sigma
+    sa.Column("source", sa.String(10), nullable=False, server_default="photo"),  # or "frame"
+    sa.Column("status", sa.String(16)),  # a frame's: fix, tracked, gravity, predicted, lost
+    sa.Column("position_sigma", sa.JSON),  # [sx, sy, sz] in map units, or null
     sa.Index("ix_fixes_site_id_id", "site_id", "id"),
+    sa.Index("ix_fixes_site_id_device_id", "site_id", "device", "id"),
 )
 
 pictures = sa.Table(
@@ -127,10 +132,6 @@ class Store:
 
     def __init__(self, engine: Engine):
         self.engine = engine
-
-    def create_tables(self) -> None:
-        """Create the tables that do not exist yet."""
-        metadata.create_all(self.engine, checkfirst=True)
 
     # --- sites -----------------------------------------------------------------------------
 
@@ -216,8 +217,12 @@ class Store:
         result: dict[str, Any],
         picture_jpeg: bytes | None = None,
         gravity: list[float] | None = None,
+        *,
+        source: str = "photo",
+        status: str | None = None,
     ) -> int:
-        """Record a locate result (the ``locate --json`` object); returns the fix's id."""
+        """Record a locate result (the ``locate --json`` object, or a frame's answer with
+        ``source="frame"`` and its tracker ``status``); returns the fix's id."""
         used = [f["id"] for f in result.get("fixtures", ()) if f.get("used")]
         with self.engine.begin() as conn:
             fix_id = conn.execute(
@@ -236,6 +241,9 @@ class Store:
                     result=result,
                     has_picture=picture_jpeg is not None,
                     gravity=gravity,
+                    source=source,
+                    status=status,
+                    position_sigma=result.get("position_sigma"),
                 )
             ).inserted_primary_key[0]
             if picture_jpeg is not None:
@@ -331,5 +339,8 @@ def _fix_row(r) -> FixRow:
         fixtures_used=list(r["fixtures_used"] or []),
         error=r["error"],
         has_picture=bool(r["has_picture"]),
+        source=r["source"],
+        status=r["status"],
+        position_sigma=r["position_sigma"],
         result=r.get("result") or {},
     )

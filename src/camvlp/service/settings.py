@@ -5,11 +5,13 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field, fields
 
-__all__ = ["MIN_ADMIN_KEY_CHARS", "ServiceSettings"]
+__all__ = ["LOG_LEVELS", "MIN_ADMIN_KEY_CHARS", "ServiceSettings"]
 
 _ENV_PREFIX = "CAMVLP_"
 #: Shortest admin key accepted (``secrets.token_urlsafe(32)`` gives 43 characters).
 MIN_ADMIN_KEY_CHARS = 16
+#: The levels of the service's log lines (``CAMVLP_LOG_LEVEL``), as Python's logging names them.
+LOG_LEVELS = ("critical", "error", "warning", "info", "debug")
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,20 @@ class ServiceSettings:
         Most seconds a request's body may pause between two pieces.
     max_connections : int
         Connections (and requests in progress) per process before new requests get 503.
+    rate_per_s : float
+        Requests per second allowed to one API key (a site's, or the admin key), on average,
+        per process: a token bucket refilled at this rate; beyond it, 429 with Retry-After.
+    rate_burst : int
+        The bucket's size: requests one key may make at once before the rate applies.
+    frame_devices : int
+        Devices whose frames one process tracks at once (each keeps a tracker); a new device
+        beyond them takes the place of the one idle longest.
+    frame_idle_s : float
+        Seconds after a device's last frame before its track is forgotten (its next frame
+        starts a new one).
+    log_level : str
+        Level of the service's JSON log lines (one per request): debug, info, warning, error
+        or critical.
     """
 
     db: str = "sqlite:///camvlp.db"
@@ -59,12 +75,21 @@ class ServiceSettings:
     header_timeout_s: float = 10.0
     body_timeout_s: float = 10.0
     max_connections: int = 500
+    rate_per_s: float = 100.0
+    rate_burst: int = 200
+    frame_devices: int = 256
+    frame_idle_s: float = 300.0
+    log_level: str = "info"
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
             if f.type in ("int", "float") and not value > 0:
                 raise ValueError(f"{f.name} must be positive, got {value!r}")
+        if self.log_level not in LOG_LEVELS:
+            raise ValueError(
+                f"log_level must be one of {', '.join(LOG_LEVELS)}, got {self.log_level!r}"
+            )
         if self.admin_key and len(self.admin_key) < MIN_ADMIN_KEY_CHARS:
             raise ValueError(
                 f"CAMVLP_ADMIN_KEY must be at least {MIN_ADMIN_KEY_CHARS} characters, got "
