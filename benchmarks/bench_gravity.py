@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 import camvlp
 from camvlp.geometry.gravity import map_up, solve_pose_gravity
-from camvlp.pipeline.pose import estimate_pose
+from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import fixture_truths
 
 ROOT = Path(__file__).resolve().parents[1]

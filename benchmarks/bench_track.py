@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 import camvlp  # noqa: E402
 from camvlp.analysis.track import read_truths, run_track, summarize  # noqa: E402
 from camvlp.io.video import open_frames, read_truth  # noqa: E402
-from camvlp.pipeline.track import Tracker, TrackSettings  # noqa: E402
+from camvlp.pipeline.track.tracker import Tracker, TrackSettings  # noqa: E402
 from camvlp.sim.render import RenderSettings  # noqa: E402
 from camvlp.sim.video import load_trajectory, render_video  # noqa: E402
 

@@ -63,8 +63,8 @@ import cv2
 import numpy as np
 
 from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
-from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
-from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
+from camvlp.pipeline.decode.model import FIXTURE_KNEES, MIN_MARGIN
+from camvlp.pipeline.decode.stripe_model import _direct_fit, _prepare, _templates_batch
 from camvlp.sim.oracle import id_separation
 from camvlp.sim.sensor import camera_date
 from camvlp.viz.annotate import annotate, write_debug_pictures

@@ -1,4 +1,4 @@
-"""Look-alike IDs told apart by the pose (camvlp.pipeline.by_pose and its use in locate)."""
+"""Look-alike IDs told apart by the pose (camvlp.pipeline.identify.by_pose and its use in locate)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from tests.conftest import (
 
 import camvlp.pipeline.locate as locate_module
 from camvlp.model.camera import Pose, project_points
-from camvlp.pipeline.by_pose import (
+from camvlp.pipeline.identify.by_pose import (
     TOLD_APART,
     Spread,
     assigned_by_pose,
@@ -26,8 +26,8 @@ from camvlp.pipeline.by_pose import (
     position_sigma,
     told_by_pose,
 )
-from camvlp.pipeline.model_decode import ModelDecode
-from camvlp.pipeline.pose import estimate_pose
+from camvlp.pipeline.decode.model import ModelDecode
+from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import render
 
 POSE = Pose.from_euler([0, 0, 0], LOOK_UP)
@@ -122,7 +122,7 @@ def test_the_pose_covariance_predicts_how_far_off_a_projection_comes(small_camer
     res = np.zeros_like(exact)
     res[:2] = [[2.0, 2.0], [-2.0, -2.0]]
     cov = pose_covariance(small_camera, POSE, obj, exact + res)
-    from camvlp.pipeline.by_pose import _jacobian
+    from camvlp.pipeline.identify.by_pose import _jacobian
 
     jac = _jacobian(small_camera, POSE, far)[0]
     said = float(np.sqrt(np.trace(jac @ cov @ jac.T) / 2))
@@ -134,7 +134,7 @@ def test_the_jacobian_is_that_of_the_moved_poses_one_by_one(small_camera, small_
     # the twelve moved poses projected at once: each column, bit for bit, as the pose
     # turned about the camera's own axis (radians), or its centre moved (map units),
     # projected alone
-    from camvlp.pipeline.by_pose import _STEP, _jacobian
+    from camvlp.pipeline.identify.by_pose import _STEP, _jacobian
 
     obj = np.array([f.position for f in small_room.fixtures])
     got = _jacobian(small_camera, POSE, obj)
@@ -216,7 +216,7 @@ def test_look_alikes_are_assigned_only_from_every_way_for_the_fixtures_tried(
     # the first four fixtures (IDs 5, 6, 9, 10, each beside the next ID round the room) have
     # 5 ways with no ID twice; a cap below that tries none of them (a part of the ways could
     # miss the one that contradicts an assignment)
-    import camvlp.pipeline.by_pose as by_pose
+    import camvlp.pipeline.identify.by_pose as by_pose
 
     monkeypatch.setattr(by_pose, "HYPOTHESES", 4)
     assert _assigned(small_camera, small_room, NEXT, 0) == {}

@@ -17,7 +17,7 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.detect import (
+from camvlp.pipeline.detect.candidates import (
     _blurred_peak,
     _close_lit,
     _decimated_gray,
@@ -26,8 +26,8 @@ from camvlp.pipeline.detect import (
     detect_fixtures,
     to_gray,
 )
-from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
-from camvlp.pipeline.refine import _bridged, _drop_duplicates
+from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
+from camvlp.pipeline.detect.refine import _bridged, _drop_duplicates
 from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 

@@ -12,8 +12,8 @@ from camvlp.locate import locate
 from camvlp.geometry.disc import perspective_offsets
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import GLOW_LEVEL, centred_on_glow, glow_level, glow_levels
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.lamp.glow import GLOW_LEVEL, centred_on_glow, glow_level, glow_levels
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene
 
@@ -96,7 +96,7 @@ def test_a_glowing_light_is_centred_on_its_shape():
 
 def test_a_radial_fit_that_leaves_its_disc_is_not_taken(monkeypatch):
     # a fit drawn to a neighbour's glow ends off the light's disc: the outline's centre stays
-    import camvlp.pipeline.glow as glow
+    import camvlp.pipeline.lamp.glow as glow
 
     photo, _ = _photo(1, halo=0.4, brightness=1.0)
     blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
@@ -326,7 +326,7 @@ def test_centring_glowing_lights_leaves_the_centres_covariances_unread(monkeypat
     """The glowing lights moved to their shapes' centres keep their ellipse fits'
     covariances still to be worked out (``later.replaced``): ``locate`` works none out, and
     the first read gives the detector's values, for all the lights at once."""
-    import camvlp.pipeline.refine as refine
+    import camvlp.pipeline.detect.refine as refine
 
     photo, _ = _photo(1, halo=0.4, brightness=1.0)
     calls = []
@@ -347,7 +347,7 @@ def test_a_shape_that_falls_nowhere_has_no_rim():
     """A radial shape that grows outward (a light dark at its centre, or a glow fitted where
     its rim lies outside the region), or holds a NaN, has no steep fall: no rim, where the
     search for the outermost steep fall indexed an empty array (IndexError) before."""
-    from camvlp.pipeline.radial import rim_extents
+    from camvlp.pipeline.lamp.radial import rim_extents
 
     knots = np.arange(80) * 0.5
     counts = np.full(knots.size, 50)

@@ -7,7 +7,12 @@ import types
 import numpy as np
 
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.identify import DIRECTION_HYPOTHESES, Decided, _identified, _unread_hypotheses
+from camvlp.pipeline.identify.lookup import (
+    DIRECTION_HYPOTHESES,
+    Decided,
+    _identified,
+    _unread_hypotheses,
+)
 
 
 def test_many_unread_fixtures_give_the_cap_and_one_not_every_way():

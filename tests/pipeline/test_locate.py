@@ -19,7 +19,7 @@ from camvlp.io import InputError
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
-from camvlp.pipeline.pose import estimate_pose
+from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
 
@@ -346,8 +346,8 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     detector's blobs give, and the result pickles unread."""
     import pickle
 
-    import camvlp.pipeline.refine as refine
-    from camvlp.pipeline.detect import detect_fixtures
+    import camvlp.pipeline.detect.refine as refine
+    from camvlp.pipeline.detect.candidates import detect_fixtures
 
     calls = []
     real = refine.ellipse_centre_covariances
@@ -392,7 +392,7 @@ def test_a_position_less_sure_than_asked_is_not_reported(small_render, small_cam
 def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
     small_render, small_camera, small_room, monkeypatch
 ):
-    import camvlp.pipeline.by_pose as by_pose
+    import camvlp.pipeline.identify.by_pose as by_pose
     import camvlp.pipeline.locate as locate_module
 
     calls = []

@@ -1,4 +1,4 @@
-"""The run-length fast path before the model fit (camvlp.pipeline.manchester)."""
+"""The run-length fast path before the model fit (camvlp.pipeline.decode.manchester)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ from tests.pipeline.test_model_decode import FRAME, synth
 
 from camvlp import Camera, Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.manchester import _reversed_ids, decode_manchester
-from camvlp.pipeline.model_decode import ModelDecode
+from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.decode.manchester import _reversed_ids, decode_manchester
+from camvlp.pipeline.decode.model import ModelDecode
 
 CAMERA = Camera.from_focal(1920, 1080, 1400.0)  # no row time: the chip length is measured
 RPC = 5.0

@@ -122,7 +122,7 @@ def _unread(true_pixel: np.ndarray):
     """locate's Manchester decode with the fixture at ``true_pixel`` unread both ways (as
     one whose stripes span too little of the code)."""
     import camvlp.pipeline.locate as locate_module
-    from camvlp.pipeline.model_decode import ModelDecode
+    from camvlp.pipeline.decode.model import ModelDecode
 
     real = locate_module.decode_manchester
 

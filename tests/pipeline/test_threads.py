@@ -7,11 +7,11 @@ import pytest
 from tests.pipeline.test_glow import _photo
 from threadpoolctl import threadpool_info, threadpool_limits
 
-import camvlp.pipeline.light_wave as light_wave
-import camvlp.pipeline.radial as radial
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.threads import one_blas_thread
+import camvlp.pipeline.lamp.light_wave as light_wave
+import camvlp.pipeline.lamp.radial as radial
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.lamp.glow import centred_on_glow
+from camvlp.imaging.threads import one_blas_thread
 
 
 def _blas_threads() -> set[int]:

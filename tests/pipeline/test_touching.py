@@ -11,10 +11,10 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.chords import chord_seeds
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.touching import (
+from camvlp.pipeline.detect.chords import chord_seeds
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.lamp.glow import centred_on_glow
+from camvlp.pipeline.detect.touching import (
     _run_modes,
     codes_differ,
     light_seeds,

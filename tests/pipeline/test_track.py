@@ -9,12 +9,12 @@ import cv2
 import numpy as np
 import pytest
 
-import camvlp.pipeline.glow
-import camvlp.pipeline.track
+import camvlp.pipeline.lamp.glow
+import camvlp.pipeline.track.tracker
 from camvlp.errors import InputError
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.track import ConstantVelocityFilter, Tracker, TrackSettings
+from camvlp.pipeline.track.tracker import ConstantVelocityFilter, Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
 from camvlp.sim.video import Trajectory, iter_frames
 
@@ -114,9 +114,9 @@ def test_plain_lamps_cost_one_glow_check(video, monkeypatch):
     def no_fit(*args):
         raise AssertionError("a plain lamp was centred on its radial shape")
 
-    real = camvlp.pipeline.track.glowing
-    monkeypatch.setattr(camvlp.pipeline.track, "glowing", glowing)
-    monkeypatch.setattr(camvlp.pipeline.glow, "radial_fit", no_fit)
+    real = camvlp.pipeline.track.tracker.glowing
+    monkeypatch.setattr(camvlp.pipeline.track.tracker, "glowing", glowing)
+    monkeypatch.setattr(camvlp.pipeline.lamp.glow, "radial_fit", no_fit)
     tracker = Tracker(cam, room)
     results = [tracker.update(f.image, f.t) for f in frames]
     used = {i for r in results for i in r.fixtures_used}

@@ -26,8 +26,8 @@ import numpy as np
 
 from camvlp.io import InputError, load_image
 from camvlp.model.camera import Camera
-from camvlp.pipeline.detect import gray_float, to_gray
-from camvlp.pipeline.stripes import StripePeriod, estimate_stripe_period
+from camvlp.pipeline.detect.candidates import gray_float, to_gray
+from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
 from camvlp.sim.chessboard import board_object_points, parse_board, render_chessboard
 
 __all__ = [

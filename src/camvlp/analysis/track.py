@@ -1,7 +1,7 @@
 """Running the tracker over a video: the files it writes, and its figures against the truth.
 
 :func:`run_track` feeds the frames of a :class:`camvlp.io.video.FrameSource` to a
-:class:`camvlp.pipeline.track.Tracker` and writes, as it goes, into a folder (``camvlp track``
+:class:`camvlp.pipeline.track.tracker.Tracker` and writes, as it goes, into a folder (``camvlp track``
 gives it a temporary one and moves the files into place once every output is written, so a
 failure leaves nothing; a run that the input's end or an interruption stops early is whole):
 
@@ -30,7 +30,7 @@ import numpy as np
 from camvlp.errors import InputError
 from camvlp.io.files import read_text_file
 from camvlp.io.video import FrameSource, read_truth
-from camvlp.pipeline.track import STATUSES, Tracker, TrackFrame
+from camvlp.pipeline.track.tracker import STATUSES, Tracker, TrackFrame
 
 __all__ = ["TRAJECTORY_CSV_COLUMNS", "TrackRun", "Truths", "read_truths", "run_track", "summarize"]
 

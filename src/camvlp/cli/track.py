@@ -15,7 +15,7 @@ from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
 from camvlp.io.video import open_frames
 from camvlp.pipeline.locate import LocateSettings
-from camvlp.pipeline.track import Tracker, TrackSettings
+from camvlp.pipeline.track.tracker import Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings, check_render_size
 from camvlp.sim.video import (
     VIDEO_SUFFIXES,

@@ -64,7 +64,7 @@ IPPE_JITTER_PX = 1e-6
 _JITTER = IPPE_JITTER_PX * np.array([[1.0, 0.3], [-0.7, 0.9], [0.2, -1.0], [-0.4, -0.6]])
 
 
-#: The locator's own pose path (:func:`camvlp.pipeline.pose.estimate_pose`), which the error
+#: The locator's own pose path (:func:`camvlp.geometry.pose.estimate_pose`), which the error
 #: study can run beside OpenCV's methods to measure what ``locate`` gives.
 LOCATE_SOLVER = "locate"
 

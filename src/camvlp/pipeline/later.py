@@ -1,7 +1,7 @@
 """Values of a frozen dataclass worked out when first read.
 
 Some of what a photo's results carry costs more to work out than most callers ever read: the
-centres' covariances (:attr:`camvlp.pipeline.refine.Blob.centre_cov_px2`) take a tenth of a
+centres' covariances (:attr:`camvlp.pipeline.detect.refine.Blob.centre_cov_px2`) take a tenth of a
 1080p photo's :func:`~camvlp.pipeline.locate.locate` and are read only to tell look-alikes
 apart, with gravity, or when the result is shown.  Such a field is a :class:`LaterField`:
 it is given either its value or a :class:`Later` (a function and its arguments), which is

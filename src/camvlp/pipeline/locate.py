@@ -28,19 +28,19 @@ from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.by_pose import position_sigma
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
-from camvlp.pipeline.frequency import decode_frequencies
-from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.glow_split import decode_from_glows
-from camvlp.pipeline.identify import Identified, decided, identifier, identify
+from camvlp.pipeline.identify.by_pose import position_sigma
+from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.detect.candidates import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
+from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.lamp.glow import centred_on_glow
+from camvlp.pipeline.lamp.glow_split import decode_from_glows
+from camvlp.pipeline.identify.lookup import Identified, decided, identifier, identify
 from camvlp.pipeline.later import Later, later_of, replaced
-from camvlp.pipeline.manchester import Manchester, decode_manchester
-from camvlp.pipeline.pose import PoseEstimate, estimate_pose
-from camvlp.pipeline.profile import shape_profiles
+from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
+from camvlp.geometry.pose import PoseEstimate, estimate_pose
+from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
-from camvlp.pipeline.tone import linear_light
+from camvlp.imaging.tone import linear_light
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
 
@@ -330,7 +330,7 @@ def _decode(
     """Stage 3 with the readout taken as known: each blob's decode, measured frequencies (Hz,
     NaN in Manchester mode), notes, the blobs (new ones, where a frequency-coded light's
     centre moved to its whole striped area), and each frequency-coded light's beacon fit
-    (:func:`~camvlp.pipeline.frequency.decode_frequencies`; empty in Manchester mode);
+    (:func:`~camvlp.pipeline.decode.frequency.decode_frequencies`; empty in Manchester mode);
     ``weights``, the profiles' row weights for the model fit (:func:`_profiles`).
     (:func:`locate` itself decides an unknown direction.)"""
     if fixture_map.mode != "frequency":
@@ -416,7 +416,7 @@ def _unread(blobs) -> list[StripeDecode]:
 
 
 def _from_glows(img, blobs, man: Manchester, fixture_map, profiles, weights, readout) -> Manchester:
-    """:func:`~camvlp.pipeline.glow_split.decode_from_glows`; the lights read again get their
+    """:func:`~camvlp.pipeline.lamp.glow_split.decode_from_glows`; the lights read again get their
     waveforms as their profiles and weights (in place, in ``readout``'s order, as the others)."""
     man, waves = decode_from_glows(img, blobs, man, fixture_map)
     step = -1 if readout.reversed else 1
@@ -517,7 +517,7 @@ def _sigma_inputs(camera, fixture_map, est, found: Identified, down):
 
 
 def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
-    """:func:`~camvlp.pipeline.by_pose.position_sigma`, at least as large along each axis
+    """:func:`~camvlp.pipeline.identify.by_pose.position_sigma`, at least as large along each axis
     as ``close`` (how far an alternative pose that fits about as well lies)."""
     return np.maximum(position_sigma(camera, pose, points, residuals_px), close)
 
@@ -532,7 +532,7 @@ def _sure_enough(
     est: PoseEstimate, sigma_inputs, limit: float
 ) -> tuple[PoseEstimate, str, np.ndarray | None]:
     """The pose, or no pose and why when its position's standard deviation
-    (:func:`~camvlp.pipeline.by_pose.position_sigma`, map units) exceeds ``limit`` along an
+    (:func:`~camvlp.pipeline.identify.by_pose.position_sigma`, map units) exceeds ``limit`` along an
     axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
     sigma = _position_sigma(*sigma_inputs)
     finite = np.isfinite(sigma)

@@ -9,10 +9,10 @@ import numpy as np
 
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import Detection
+from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.detect.candidates import Detection
 from camvlp.pipeline.later import LaterField
-from camvlp.pipeline.model_decode import ModelDecode
+from camvlp.pipeline.decode.model import ModelDecode
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 
@@ -32,9 +32,9 @@ class FixtureResult:
     margin : float
         Decoding confidence.  Manchester IDs the model fit read (``hamming`` -1): the decimal
         log of the likelihood ratio of the ID over the best other ID of the map (see
-        :class:`camvlp.pipeline.model_decode.ModelDecode`; IDs need 4 or more).  Manchester
+        :class:`camvlp.pipeline.decode.model.ModelDecode`; IDs need 4 or more).  Manchester
         IDs the run-length decoder read (``hamming`` 0): its run margin in [0, 1] (see
-        :class:`camvlp.pipeline.decode.StripeDecode`; IDs need 0.3 or more).  Frequencies:
+        :class:`camvlp.pipeline.decode.runs.StripeDecode`; IDs need 0.3 or more).  Frequencies:
         in [0, 1], how close the measured frequency is to the map's.
     reason : str
         Why it is not used ("" when used).
@@ -55,7 +55,7 @@ class FixtureResult:
         (:class:`~camvlp.pipeline.later.LaterField`).
     look_alikes : tuple of int
         When the stripes fit two or more IDs of the map almost equally and the pose told
-        them apart (:mod:`camvlp.pipeline.by_pose`): those IDs, ``id`` among them (the one
+        them apart (:mod:`camvlp.pipeline.identify.by_pose`): those IDs, ``id`` among them (the one
         whose map position projects onto the fixture).  Empty when the stripes alone said
         the ID (``margin`` is then the stripes' own).
     """
@@ -150,7 +150,7 @@ class LocateResult:
     position_sigma : ndarray, shape (3,), or None
         How sure the position is: its standard deviation along the map's x, y and z, map
         units, from the fixtures' reprojection errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.by_pose.position_sigma`), for the pose located; worked out
+        (:func:`camvlp.pipeline.identify.by_pose.position_sigma`), for the pose located; worked out
         when first read (:class:`~camvlp.pipeline.later.LaterField`).  None when not
         located, when the pose was solved with gravity, or when it is not finite.
     """
@@ -253,10 +253,10 @@ class LocateStages:
     profile_weights : tuple of ndarray, each (n,)
         Each profile's row weights, in the same order: the inverse of each row's variance
         under pixels of equal noise, up to a constant
-        (:func:`~camvlp.pipeline.profile.shape_profiles`).
+        (:func:`~camvlp.pipeline.decode.profile.shape_profiles`).
     beacons : tuple of tuple
         Frequency mode: each light's beacon profile, its test against the map's frequencies
-        and the map's periods (:func:`~camvlp.pipeline.frequency.decode_frequencies`).
+        and the map's periods (:func:`~camvlp.pipeline.decode.frequency.decode_frequencies`).
     """
 
     detection: Detection

@@ -32,7 +32,7 @@ import numpy as np
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.beacon import square_wave
+from camvlp.pipeline.decode.beacon import square_wave
 from camvlp.sim.render import LightPatch, RenderSettings, light_patches
 
 __all__ = ["frequency_bounds", "frequency_intervals", "share_within"]

@@ -1,7 +1,7 @@
 """One BLAS thread for the fits whose matrix products are small and many.
 
-The radial shape of a glowing light (:func:`camvlp.pipeline.radial.radial_fit`) and a light's
-waveform (:func:`camvlp.pipeline.light_wave.separated_wave`) are fitted by alternating least
+The radial shape of a glowing light (:func:`camvlp.pipeline.lamp.radial.radial_fit`) and a light's
+waveform (:func:`camvlp.pipeline.lamp.light_wave.separated_wave`) are fitted by alternating least
 squares, thousands of products of matrices of a few hundred rows and columns a photo.
 OpenBLAS splits each product over every core, and its threads wait between products by
 spinning: on a 2-core machine a photo of glowing lights then costs about twice the CPU time

@@ -11,7 +11,7 @@ previous frames established and uses it in the next one:
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
   no other prediction is nearly as close; a decoded ID that lands far from where the track
   predicts that fixture is refused (IDs are never swapped between fixtures);
-* **each fixture's glow**: told once (:func:`camvlp.pipeline.glow.glowing`); a glowing lamp is
+* **each fixture's glow**: told once (:func:`camvlp.pipeline.lamp.glow.glowing`); a glowing lamp is
   centred on its radial shape in every frame that uses it, as :func:`camvlp.locate` centres
   it, and a plain one is left as detected;
 * **the pose**: with a pose prior, two or three identified fixtures give a ``tracked`` pose
@@ -44,9 +44,9 @@ from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, decode_profiles
-from camvlp.pipeline.glow import centred_on_glow, glowing
-from camvlp.pipeline.identify import Identified, identify
+from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
+from camvlp.pipeline.lamp.glow import centred_on_glow, glowing
+from camvlp.pipeline.identify.lookup import Identified, identify
 from camvlp.pipeline.later import replaced
 from camvlp.pipeline.locate import (
     _decode,
@@ -56,9 +56,9 @@ from camvlp.pipeline.locate import (
     _solve,
     readout_direction,
 )
-from camvlp.pipeline.track_assoc import associate, known_blobs
-from camvlp.pipeline.track_filter import ConstantVelocityFilter
-from camvlp.pipeline.track_types import STATUSES, TrackedFixture, TrackFrame, TrackSettings
+from camvlp.pipeline.track.assoc import associate, known_blobs
+from camvlp.pipeline.track.kalman import ConstantVelocityFilter
+from camvlp.pipeline.track.records import STATUSES, TrackedFixture, TrackFrame, TrackSettings
 
 __all__ = [
     "STATUSES",
@@ -179,7 +179,7 @@ class Tracker:
         return out, False
 
     # ---------------------------------------------------------------------------------------
-    # Association (see :mod:`camvlp.pipeline.track_assoc`)
+    # Association (see :mod:`camvlp.pipeline.track.assoc`)
 
     def _associate(
         self, blobs, found: Identified, predicted: dict[int, np.ndarray], from_pose: bool

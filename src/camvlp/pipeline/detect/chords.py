@@ -13,7 +13,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from camvlp.pipeline.levels import CLIP_LEVEL
+from camvlp.imaging.levels import CLIP_LEVEL
 
 __all__ = ["CHORD_END_PX", "CHORD_LINES", "CHORD_SHARE", "chord_seeds"]
 

@@ -13,9 +13,9 @@ import math
 import cv2
 import numpy as np
 
-from camvlp.pipeline.levels import CLIP_LEVEL as _CLIP
-from camvlp.pipeline.levels import FULL_SCALE as _FULL
-from camvlp.pipeline.ragged import pieces, starts
+from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
+from camvlp.imaging.levels import FULL_SCALE as _FULL
+from camvlp.imaging.ragged import pieces, starts
 
 __all__ = ["row_profile", "shape_profile", "shape_profiles"]
 
@@ -338,13 +338,13 @@ def _clipped_face(
     (:func:`_own_response`), the profile is taken over the clipped pixels alone, all read
     through the disc's own knee; else over all of them, as a light that clips at its core
     only, or barely, is read as one.  A light whose brightest ring does not reach the
-    sensor's full scale (:data:`~camvlp.pipeline.levels.FULL_SCALE`) does not clip at all.
+    sensor's full scale (:data:`~camvlp.imaging.levels.FULL_SCALE`) does not clip at all.
 
     Parameters
     ----------
     level : ndarray, shape (n,)
         Each pixel's on-level (its ring's), gray levels; a pixel at
-        :data:`~camvlp.pipeline.levels.CLIP_LEVEL` or more counts as clipped.
+        :data:`~camvlp.imaging.levels.CLIP_LEVEL` or more counts as clipped.
     line : ndarray of int, shape (n,)
         Each pixel's line along the readout.
     values : ndarray, shape (n,)

@@ -6,7 +6,7 @@ clip there too), in the dark ones not at all, so an ellipse fitted to the outlin
 about: 0.2 to 1.2 px from the disc's centre (median; up to 1.9 px) on 1080p renders, where a
 plain disc's is 0.02 px.  The light's shape, glow included, is radially symmetric about its
 centre, so a glowing light is centred on its radial shape instead
-(:func:`camvlp.pipeline.radial.radial_centre`, which separates the shape from the stripes
+(:func:`camvlp.pipeline.lamp.radial.radial_centre`, which separates the shape from the stripes
 over the light's whole striped area, on the pixels that tell the centre; the square wave is
 not fitted).  That costs 85 to 125 ms per glowing light on 1080p renders (one core; discs
 of 105 px, halo 0.4); a light
@@ -14,8 +14,8 @@ without a glow (its ring beyond the outline at the background) is left as detect
 cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` tells and
 centres every light of a photo (a light whose glow the photo's border cuts too, fitted to
 the pixels in the photo, and used when its disc's rim lies within the photo; lights whose
-glows joined fitted together, :mod:`camvlp.pipeline.crowded`);
-:class:`camvlp.pipeline.track.Tracker` tells each fixture's glow once and centres the
+glows joined fitted together, :mod:`camvlp.pipeline.lamp.crowded`);
+:class:`camvlp.pipeline.track.tracker.Tracker` tells each fixture's glow once and centres the
 glowing ones it uses, frame after frame.
 """
 
@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from camvlp.pipeline.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
-from camvlp.pipeline.detect import Blob, light_support, to_gray
+from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
+from camvlp.pipeline.detect.candidates import Blob, light_support, to_gray
 from camvlp.pipeline.later import replaced
-from camvlp.pipeline.radial import radial_fit
-from camvlp.pipeline.touching import power_cell
+from camvlp.pipeline.lamp.radial import radial_fit
+from camvlp.pipeline.detect.touching import power_cell
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
@@ -184,10 +184,10 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 
     Each glowing light is centred alone within its own cell first (its radial shape), or on
     its disc's rim where that shows clean and the shape's centre lies off it
-    (:func:`~camvlp.pipeline.crowded.rim_from_chords`); those whose glows joined
+    (:func:`~camvlp.pipeline.lamp.crowded.rim_from_chords`); those whose glows joined
     (and, where some light glows, any light whose region joined others': its outline, its
     cell's, may hide its glow from :func:`glow_levels`) are then fitted together
-    (:func:`~camvlp.pipeline.crowded.centred_jointly`).  Where some light glows, each
+    (:func:`~camvlp.pipeline.lamp.crowded.centred_jointly`).  Where some light glows, each
     light not centred on its own glow is first checked against its disc's rim
     (:func:`_to_clean_rim`).
     """
@@ -224,8 +224,8 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 
 def _to_clean_rim(b: Blob, rim, shape: tuple[int, ...]) -> Blob:
     """Light ``b`` (not centred on its glow, not touching the border), moved to its disc's
-    ``rim`` (:func:`~camvlp.pipeline.crowded.rim_from_chords`, in a photo of ``shape``) when
-    that shows clean and its centre is off it (:func:`~camvlp.pipeline.crowded.on_rim`); as
+    ``rim`` (:func:`~camvlp.pipeline.lamp.crowded.rim_from_chords`, in a photo of ``shape``) when
+    that shows clean and its centre is off it (:func:`~camvlp.pipeline.lamp.crowded.on_rim`); as
     it was when its region reaches the photo's border and the rim does not lie
     :data:`RIM_MARGIN_PX` within the photo.
 
@@ -274,7 +274,7 @@ def _rim_inside(centre: np.ndarray, radius, shape) -> bool:
 def _own_cell(blobs, k: int) -> np.ndarray | None:
     """The part of light ``k``'s region of interest that is its own among the photo's other
     lights whose regions overlap it: its cell of their power diagram (each light its outline's
-    centre and half its smaller axis, :func:`~camvlp.pipeline.touching.power_cell`) and its
+    centre and half its smaller axis, :func:`~camvlp.pipeline.detect.touching.power_cell`) and its
     own disc (:attr:`Blob.mask`: lit in a region of its own, whatever an outline that is off
     puts in another's cell); None when no other light's region overlaps its own, or when it
     has a cell from detection (:attr:`Blob.cell`, drawn from its joined region's shape, which
@@ -300,7 +300,7 @@ def _round(b: Blob) -> Blob:
 
 
 #: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
-#: found to a pixel or two (:func:`~camvlp.pipeline.radial.radial_fit`).
+#: found to a pixel or two (:func:`~camvlp.pipeline.lamp.radial.radial_fit`).
 _OUTLINE_SLACK_PX = 3.0
 
 

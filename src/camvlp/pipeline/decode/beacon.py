@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import legendre
 
-from camvlp.pipeline.levels import CLIP_LEVEL
+from camvlp.imaging.levels import CLIP_LEVEL
 
 __all__ = [
     "DEGREE",
@@ -113,7 +113,7 @@ def light_profile(gray: np.ndarray, support: np.ndarray, axis: str) -> tuple[np.
     -------
     lines, level, weight : ndarray, shape (n,)
         The lines (index along the readout) holding support pixels, of which less than
-        :data:`CLIPPED_LINE` clip (:data:`~camvlp.pipeline.levels.CLIP_LEVEL` or more): their
+        :data:`CLIPPED_LINE` clip (:data:`~camvlp.imaging.levels.CLIP_LEVEL` or more): their
         mean gray level over the support and their pixel counts.
     bound_lines, bounds, bound_weight : ndarray, shape (m,)
         The same of the lines mostly clipped: the light reached their level at least.

@@ -3,7 +3,7 @@
 Per fixture:
 
 1. reduce each sensor row inside the disc to one value (the row profile,
-   :mod:`camvlp.pipeline.profile`);
+   :mod:`camvlp.pipeline.decode.profile`);
 2. binarise it with a threshold of the fixture's own (Otsu's two-class split of the profile,
    the principled form of the thesis' "two peaks of the histogram");
 3. find the stripe edges to a fraction of a row, and the run lengths between them;
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.profile import row_profile, shape_profile
+from camvlp.pipeline.decode.profile import row_profile, shape_profile
 
 __all__ = [
     "Runs",

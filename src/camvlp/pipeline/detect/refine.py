@@ -1,6 +1,6 @@
 """Stage 1 at full resolution: each candidate region's disc, readout axis and centre.
 
-A candidate of :func:`camvlp.pipeline.detect.detect_fixtures` is worked inside its region of
+A candidate of :func:`camvlp.pipeline.detect.candidates.detect_fixtures` is worked inside its region of
 interest only: a threshold of its own, a closing along the sensor's readout axis that fills the
 dark stripes, and the disc's outline.  The centre is the centre of an ellipse fitted to
 sub-pixel edge points of the lit rows, so it comes from the disc and not from the stripes; its
@@ -24,9 +24,9 @@ from numpy.polynomial import legendre
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
 from camvlp.pipeline.later import Later, LaterField
-from camvlp.pipeline.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
-from camvlp.pipeline.ragged import pieces, starts
-from camvlp.pipeline.touching import own_face
+from camvlp.imaging.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
+from camvlp.imaging.ragged import pieces, starts
+from camvlp.pipeline.detect.touching import own_face
 
 __all__ = [
     "Blob",
@@ -78,10 +78,10 @@ class Blob:
         need not convert it again.
     cell : ndarray of bool, shape (y1 - y0, x1 - x0), or None
         The part of the region that is this light's when its glow joins other lights'
-        (:mod:`camvlp.pipeline.touching`); None when the region is all its own.
+        (:mod:`camvlp.pipeline.detect.touching`); None when the region is all its own.
     face : bool
         ``mask`` is the light's face as its dark stripes show it
-        (:func:`~camvlp.pipeline.touching.own_face`: a light whose glow joins others'),
+        (:func:`~camvlp.pipeline.detect.touching.own_face`: a light whose glow joins others'),
         not its lit pixels.
     stripe_share : float
         The share (0 to 1) of the variance of the light's pixels that its mean level per line
@@ -500,7 +500,7 @@ def refine_regions(
         Smallest disc kept, pixels.
     cells : list of (ndarray of bool or None), optional
         Per region, the part of it that is its light's when lights' glows join
-        (:func:`~camvlp.pipeline.touching.power_cell`; None: all of it): the disc is found
+        (:func:`~camvlp.pipeline.detect.touching.power_cell`; None: all of it): the disc is found
         within it, and no edge point is taken where it cuts the light off from another.
     guesses : tuple of float, optional
         Gray levels near the regions' background and peak (the photo's): the two levels are
@@ -508,9 +508,9 @@ def refine_regions(
         from each region's histogram (the same levels).
     seeds : list of (ndarray or None), optional
         Per region with a cell, its light's ``[x, y, r]`` in the region's pixels
-        (:func:`~camvlp.pipeline.touching.light_seeds`, at full resolution): the disc is
+        (:func:`~camvlp.pipeline.detect.touching.light_seeds`, at full resolution): the disc is
         then its face in the dark stripes, when they show one that holds the seed's centre
-        (:func:`~camvlp.pipeline.touching.own_face`; its edge points on the dark-stripe
+        (:func:`~camvlp.pipeline.detect.touching.own_face`; its edge points on the dark-stripe
         levels), else its lit pixels as above.
 
     Returns

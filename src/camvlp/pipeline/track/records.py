@@ -1,5 +1,5 @@
 """The tracker's settings and its answers: :class:`TrackSettings`, :class:`TrackFrame` per
-frame, :class:`TrackedFixture` per blob (re-exported by :mod:`camvlp.pipeline.track`)."""
+frame, :class:`TrackedFixture` per blob (re-exported by :mod:`camvlp.pipeline.track.tracker`)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ STATUSES = ("fix", "tracked", "predicted", "lost")
 
 @dataclass(frozen=True, kw_only=True)
 class TrackSettings:
-    """Tuning of :class:`camvlp.pipeline.track.Tracker`.
+    """Tuning of :class:`camvlp.pipeline.track.tracker.Tracker`.
 
     Attributes
     ----------

@@ -2,7 +2,7 @@
 
 The forward model of a fixture's row profile (the LED's chips integrated over each row's
 exposure window, through the sensor's saturation knee and gamma, blurred, with gain and offset)
-and its FFT fit at every phase are in :mod:`camvlp.pipeline.stripe_model`.
+and its FFT fit at every phase are in :mod:`camvlp.pipeline.decode.stripe_model`.
 
 Decoding fits this model for every candidate ID and every phase.  The ID is the best fit
 when its likelihood ratio over the best other ID of the map (``margin``, decimal log, from the
@@ -12,7 +12,7 @@ clearly better than every ID of the map, the fixture is refused rather than give
 map ID.
 
 All fixtures of a photo share ``rows_per_chip``, the exposure, the sensor response and the
-blur: :func:`camvlp.pipeline.photo_model.estimate_photo_model` fits them jointly to all
+blur: :func:`camvlp.pipeline.decode.photo_model.estimate_photo_model` fits them jointly to all
 profiles, and :func:`decode_photo` decodes every profile with them, each fixture at its own
 saturation knee (fixtures differ in brightness).
 """
@@ -25,8 +25,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.photo_model import _trimmed, estimate_photo_model
-from camvlp.pipeline.stripe_model import (
+from camvlp.pipeline.decode.photo_model import _trimmed, estimate_photo_model
+from camvlp.pipeline.decode.stripe_model import (
     MIN_FRAMES,
     SAMPLES_PER_CHIP,
     SensorModel,
@@ -528,7 +528,7 @@ def decode_photo(
         Template grid points per chip.
     rank : sequence of float, optional
         Which profiles the parameters are fitted to first
-        (:func:`~camvlp.pipeline.photo_model.estimate_photo_model`).
+        (:func:`~camvlp.pipeline.decode.photo_model.estimate_photo_model`).
 
     Returns
     -------

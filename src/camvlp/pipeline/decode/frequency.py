@@ -2,7 +2,7 @@
 
 A rolling shutter turns a light blinking at ``f`` Hz into stripes with a period of
 ``1 / (f * row_time)`` sensor rows.  Each light's stripes are held against the forward model
-of a beacon at each of the map's frequencies (:mod:`camvlp.pipeline.beacon`: a 50 % square
+of a beacon at each of the map's frequencies (:mod:`camvlp.pipeline.decode.beacon`: a 50 % square
 wave integrated over the exposure, times and above smooth envelopes that take the light's
 shape, a hot core or a glow); the light gets the frequency that explains them, by a margin
 over every other, or none, with the reason.  Without the row time, the set of the stripes'
@@ -10,7 +10,7 @@ periods is matched to the set of map frequencies by their ratios first: the row 
 one that makes the most periods land on distinct map frequencies.
 
 A light's stripes are measured over its whole striped area, down to the background
-(:func:`camvlp.pipeline.detect.light_support`), not only over the bright disc detection
+(:func:`camvlp.pipeline.detect.candidates.light_support`), not only over the bright disc detection
 outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
 period more tells the frequency better.
 """
@@ -24,10 +24,10 @@ import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.beacon import BeaconProfile, hold_against, light_profile, stripes_period
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import light_support
-from camvlp.pipeline.light_wave import LightWave, separated_wave
+from camvlp.pipeline.decode.beacon import BeaconProfile, hold_against, light_profile, stripes_period
+from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.detect.candidates import light_support
+from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 
 __all__ = [
     "FrequencyAssignment",
@@ -240,7 +240,7 @@ def _disc_support(blob) -> np.ndarray:
 def _support(blob, gray: np.ndarray, axis: str) -> tuple[np.ndarray, bool]:
     """A light's striped area, and whether it glows: down to the background for a light that
     glows (its support covers :data:`_GLOW_RATIO` times the disc or more,
-    :func:`~camvlp.pipeline.detect.light_support`), the disc's own outline otherwise."""
+    :func:`~camvlp.pipeline.detect.candidates.light_support`), the disc's own outline otherwise."""
     support = light_support(gray, blob.mask, axis, cell=blob.cell)
     if support.sum() >= _GLOW_RATIO * blob.mask.sum():
         return support, True
@@ -249,11 +249,11 @@ def _support(blob, gray: np.ndarray, axis: str) -> tuple[np.ndarray, bool]:
 
 def _profile(blob, gray: np.ndarray, support: np.ndarray, axis: str) -> BeaconProfile:
     """A light's waveform per line, separated from its radial shape
-    (:func:`~camvlp.pipeline.light_wave.separated_wave`: on the real photos' lights the true
+    (:func:`~camvlp.pipeline.lamp.light_wave.separated_wave`: on the real photos' lights the true
     frequency's fit then leaves every other map frequency 2.6 times its residual or more,
     against 1.6 on the mean level per line), else (the separation fails, or leaves too few
     lines unclipped: a light saturated all over) its mean level per line
-    (:func:`~camvlp.pipeline.beacon.light_profile`)."""
+    (:func:`~camvlp.pipeline.decode.beacon.light_profile`)."""
     x0, y0 = blob.box[0], blob.box[1]
     ellipse = ((blob.pixel[0] - x0, blob.pixel[1] - y0), tuple(blob.axes_px), blob.angle_deg)
     got = separated_wave(gray, support, ellipse, axis)
@@ -322,13 +322,13 @@ def decode_frequencies(
     blobs, gray_rois, axis: str, camera: Camera, fixture_map: FixtureMap
 ) -> tuple[list[StripeDecode], np.ndarray, np.ndarray, str, list]:
     """Identify frequency-coded fixtures: each light's stripes held against the forward model
-    of a beacon at each map frequency (:mod:`camvlp.pipeline.beacon`).
+    of a beacon at each map frequency (:mod:`camvlp.pipeline.decode.beacon`).
 
     Each light's mean level per line over its striped area (:func:`_support`) is fitted with
     a 50 % square wave integrated over a window, times and above smooth envelopes (the
     light's shape).  A light gets the map frequency whose wave explains its stripes best, by
     a margin over every other map frequency, nearly as well as any frequency at all and line
-    by line (:func:`~camvlp.pipeline.beacon.hold_against`); a light that sends data, text, or
+    by line (:func:`~camvlp.pipeline.decode.beacon.hold_against`); a light that sends data, text, or
     a light at no map frequency is refused with the reason.  Two lights that choose the same
     frequency are both refused.  Without the camera's row time, the stripes' own periods are
     matched to the map's frequencies by their ratios first (:func:`assign_frequencies`).
@@ -359,8 +359,8 @@ def decode_frequencies(
     note : str
         A remark on a row time fitted from the ratios ("" otherwise).
     beacons : list of tuple
-        Per blob, its :class:`~camvlp.pipeline.beacon.BeaconProfile`, its
-        :class:`~camvlp.pipeline.beacon.FrequencyTest` (None where the row time is unknown)
+        Per blob, its :class:`~camvlp.pipeline.decode.beacon.BeaconProfile`, its
+        :class:`~camvlp.pipeline.decode.beacon.FrequencyTest` (None where the row time is unknown)
         and the map's periods it was held against (lines): what the debug pictures draw.
     """
     n = len(blobs)

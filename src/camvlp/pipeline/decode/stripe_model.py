@@ -13,7 +13,7 @@ The model is periodic (one frame), so on a grid of ``S`` samples per chip every 
 ID is one circular cross-correlation of the profile (folded onto the frame's period) with the
 ID's template: three FFT correlations give, for all IDs and phases at once, the sums from which
 the least-squares gain and offset and the residual follow in closed form
-(:mod:`camvlp.pipeline.model_decode` decides the ID from them).
+(:mod:`camvlp.pipeline.decode.model` decides the ID from them).
 """
 
 from __future__ import annotations

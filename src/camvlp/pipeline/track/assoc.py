@@ -1,4 +1,4 @@
-"""Fixture association for the video tracker (:mod:`camvlp.pipeline.track`).
+"""Fixture association for the video tracker (:mod:`camvlp.pipeline.track.tracker`).
 
 Each blob of a frame gets an ID from its decoded stripes when the track's prediction of that
 fixture agrees (a decoded ID far from where the track puts that fixture is refused), else the

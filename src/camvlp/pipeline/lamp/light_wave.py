@@ -14,7 +14,7 @@ fit), so that ``s`` comes out free of the light's shape: a hot core or a glow no
 masquerades as a stripe, and a stripe seen only in the glow still counts.  A clipped pixel is
 not dropped: it says that ``s`` reached at least the level that clips it there.  What the
 radial shape leaves (a core off the light's centre) the beacon model's envelopes take
-(:mod:`camvlp.pipeline.beacon`), which fits ``s``.
+(:mod:`camvlp.pipeline.decode.beacon`), which fits ``s``.
 """
 
 from __future__ import annotations
@@ -26,8 +26,8 @@ from typing import NamedTuple
 import cv2
 import numpy as np
 
-from camvlp.pipeline.levels import CLIP_LEVEL, FULL_SCALE
-from camvlp.pipeline.threads import one_blas_thread
+from camvlp.imaging.levels import CLIP_LEVEL, FULL_SCALE
+from camvlp.imaging.threads import one_blas_thread
 
 __all__ = ["LightWave", "outline_ellipse", "separated_wave"]
 

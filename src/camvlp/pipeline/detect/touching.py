@@ -64,7 +64,7 @@ def one_disc(region: np.ndarray) -> bool:
     :data:`ONE_DISC` times its inscribed circle's (the largest of its distance transform).
 
     Such a region holds one light, whatever the chords its lines clip say
-    (:func:`~camvlp.pipeline.chords.chord_seeds`): two lights' glows make a region longer
+    (:func:`~camvlp.pipeline.detect.chords.chord_seeds`): two lights' glows make a region longer
     than wide, by the distance between them.  A lamp that clips only in part (its level
     about full scale, a phone's vignetting and tone curve) clips runs that are no chords of
     its disc, whose middles pile up off its centre: a 1080p phone photo's lamp (0.85 chip,
@@ -369,7 +369,7 @@ def one_per_light(
         a region (e.g. :func:`codes_differ` on its pixels at full resolution).
     chords_of : callable, optional
         ``chords_of((x, y, w, h), inside, axis)``: a region's lights from the chords its
-        lines clip (:func:`~camvlp.pipeline.chords.chord_seeds`), ``[x, y, r]`` (k, 3) in
+        lines clip (:func:`~camvlp.pipeline.detect.chords.chord_seeds`), ``[x, y, r]`` (k, 3) in
         the box's pixels; taken when they are more lights than the region's peaks found
         (:func:`_with_chords`), unless the region is one disc (:func:`one_disc`).
 
@@ -432,7 +432,7 @@ def one_per_light(
 
 def _with_chords(seeds: np.ndarray, chords: np.ndarray) -> np.ndarray:
     """A region's lights ``[x, y, r, reach]`` (k, 4): when its clipped chords show more
-    lights (:func:`~camvlp.pipeline.chords.chord_seeds`) than its peaks ``seeds`` of a
+    lights (:func:`~camvlp.pipeline.detect.chords.chord_seeds`) than its peaks ``seeds`` of a
     lamp's size, the chords' lights, each bounded by its clipped disc (``reach`` its
     radius: the region's pixels beyond are glow, its own or its neighbours', which says
     nothing of where its disc lies), and the peaks that hold none of theirs and lie in none

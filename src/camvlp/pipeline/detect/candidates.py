@@ -2,7 +2,7 @@
 
 Candidates are found on a reduced copy of the image (threshold, then closing so that each
 striped disc becomes one blob, then connected components).  Each candidate is then worked at
-full resolution inside its region of interest only (:mod:`camvlp.pipeline.refine`): a
+full resolution inside its region of interest only (:mod:`camvlp.pipeline.detect.refine`): a
 threshold of its own, a closing along the sensor's readout axis that fills the dark stripes,
 and the disc's outline.  The centre is the centre of an ellipse fitted to sub-pixel edge
 points of the lit rows, so it comes from the disc and not from the stripes.
@@ -17,9 +17,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.pipeline.chords import chord_seeds
-from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
-from camvlp.pipeline.refine import (
+from camvlp.pipeline.detect.chords import chord_seeds
+from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
+from camvlp.pipeline.detect.refine import (
     Blob,
     _axis_contrast,
     _kernel,
@@ -29,7 +29,7 @@ from camvlp.pipeline.refine import (
     refine_regions,
     to_gray,
 )
-from camvlp.pipeline.touching import (
+from camvlp.pipeline.detect.touching import (
     codes_differ,
     dark_level,
     not_convex,

@@ -2,9 +2,9 @@
 
 The photo is the sum of its lights' looks through the sensor's clipping: each light shines
 ``g_i(rho_i) * s_i(line)`` (its radially symmetric shape, disc and glow, times its own
-stripes, :mod:`camvlp.pipeline.light_wave`), so where two glows overlap a pixel holds
+stripes, :mod:`camvlp.pipeline.lamp.light_wave`), so where two glows overlap a pixel holds
 ``A + g_i s_i + g_j s_j``.  A light fitted alone within its own cell of the joined region
-(:func:`camvlp.pipeline.glow.centred_on_glow`) explains its neighbour's glow in its lines
+(:func:`camvlp.pipeline.lamp.glow.centred_on_glow`) explains its neighbour's glow in its lines
 with its own shape, and since its stripes are free per line, a neighbour's glow in a line
 where the light itself is dark pulls its centre along the readout (10 to 26 px on the stress
 benchmark's crowded photos).  Here the lights' looks are fitted together, by blocks: each
@@ -41,9 +41,9 @@ import numpy as np
 
 from camvlp.geometry.disc import _sampson
 from camvlp.pipeline.later import replaced
-from camvlp.pipeline.levels import CLIP_LEVEL as _CLIP
-from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
-from camvlp.pipeline.refine import Blob, light_support, to_gray
+from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
+from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
+from camvlp.pipeline.detect.refine import Blob, light_support, to_gray
 
 __all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]
 

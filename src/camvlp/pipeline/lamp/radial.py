@@ -1,6 +1,6 @@
 """The centre of a round light's radial shape, fitted where the shape tells it.
 
-:func:`camvlp.pipeline.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and its
+:func:`camvlp.pipeline.lamp.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and its
 stripes ``s(line)`` together, and refines the shape's centre on the way (on every k-th pixel
 of a few thousand, with radial bins of 1/40 of the outline's radius, and a shape that starts
 from the outline's centre: enough to separate the stripes from the shape).  The centre
@@ -22,7 +22,7 @@ model, from the shape fitted at the start: chosen by the model, not by the pixel
 and with the shape refitted in :data:`_ITERS` steps at each trial centre.  The fit keeps the
 light's look, its shape and stripes (:class:`RadialModel`), which :func:`radial_model`
 renders: lights whose glows joined are fitted each to what its neighbours' looks leave
-(:mod:`camvlp.pipeline.crowded`), their centres searched for widely first (``wide``).
+(:mod:`camvlp.pipeline.lamp.crowded`), their centres searched for widely first (``wide``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from camvlp.pipeline.light_wave import (
+from camvlp.pipeline.lamp.light_wave import (
     _MAX_LOG_RATIO,
     LightWave,
     _aggregate,
@@ -41,7 +41,7 @@ from camvlp.pipeline.light_wave import (
     _search_centre,
     _shape_fit,
 )
-from camvlp.pipeline.threads import one_blas_thread
+from camvlp.imaging.threads import one_blas_thread
 
 __all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model", "rim_extents"]
 
@@ -137,7 +137,7 @@ def radial_fit(
     gray : ndarray, shape (h, w)
         The light's region of interest, gray levels 0-255 (any real dtype).
     support : ndarray of bool, shape (h, w)
-        The light's whole striped area (:func:`camvlp.pipeline.detect.light_support`).
+        The light's whole striped area (:func:`camvlp.pipeline.detect.candidates.light_support`).
     ellipse : tuple
         A first outline of the light in the region, as :func:`cv2.fitEllipse` gives it:
         ``((cx, cy), (width, height), angle_deg)``.

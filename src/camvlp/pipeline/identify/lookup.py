@@ -18,9 +18,9 @@ from camvlp.geometry.gravity import GravityPose
 from camvlp.model.camera import Camera, project_points
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
-from camvlp.pipeline.manchester import Manchester
-from camvlp.pipeline.pose import PoseEstimate
+from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
+from camvlp.pipeline.decode.manchester import Manchester
+from camvlp.geometry.pose import PoseEstimate
 
 __all__ = ["Decided", "Identified", "decided", "identifier", "identify", "with_told"]
 
@@ -136,7 +136,7 @@ def with_told(
     needed: int,
 ):
     """Fixtures the stripes leave between look-alike IDs, told apart by the pose
-    (:mod:`camvlp.pipeline.by_pose`; when the identified ones are too few for a pose, by the
+    (:mod:`camvlp.pipeline.identify.by_pose`; when the identified ones are too few for a pose, by the
     only assignment of look-alikes that gives one, whose pose then tells the others) and the
     pose solved again with them.
     Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
@@ -184,7 +184,7 @@ def with_told(
 
 
 def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, est) -> Spread:
-    """The pose's and the centres' uncertainty (:class:`~camvlp.pipeline.by_pose.Spread`),
+    """The pose's and the centres' uncertainty (:class:`~camvlp.pipeline.identify.by_pose.Spread`),
     the pose's from the fixtures it uses."""
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
     points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
@@ -206,7 +206,7 @@ def _told_round_by_round(
     fixture told whose centre lies beyond the pose's outlier distance from where its ID
     projects (a glowing lamp's centre may be tens of pixels off) keeps its ID, left out of
     the pose with that reason (within its tolerance, see
-    :func:`~camvlp.pipeline.by_pose.told_by_pose`, it would otherwise pull the pose).
+    :func:`~camvlp.pipeline.identify.by_pose.told_by_pose`, it would otherwise pull the pose).
     ``pixels`` (n, 2) are the blobs' centres, ``fixed`` the identified fixtures (index -> ID)."""
     told: dict[int, int] = {}
     near: dict[int, int] = {}

@@ -4,7 +4,7 @@ All fixtures of a photo share the chip length in rows, the exposure, the sensor'
 (gamma) and the blur; :func:`estimate_photo_model` fits them jointly to the fixtures'
 profiles (a trimmed cost, so one bad fixture does not pull them), seeded by the chip length
 when the camera's row time and the map's chip rate are known.  The saturation knee is fitted
-too, as a start: each fixture is then judged at its own (:mod:`camvlp.pipeline.model_decode`).
+too, as a start: each fixture is then judged at its own (:mod:`camvlp.pipeline.decode.model`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.stripe_model import (
+from camvlp.pipeline.decode.stripe_model import (
     MIN_FRAMES,
     SAMPLES_PER_CHIP,
     SensorModel,

@@ -1,10 +1,10 @@
 """Manchester IDs of a photo's fixtures, and the readout direction when it is not known.
 
-First the run-length decoder (:func:`camvlp.pipeline.decode.decode_profiles`, a few
+First the run-length decoder (:func:`camvlp.pipeline.decode.runs.decode_profiles`, a few
 milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
 agreeing, a clear run margin, and a chip length that agrees with the other fixtures' (and with
 the camera's row time and the map's chip rate when both are known) is taken as it is.  The
-model fit (:mod:`camvlp.pipeline.model_decode`) runs only for the fixtures it refuses, with the
+model fit (:mod:`camvlp.pipeline.decode.model`) runs only for the fixtures it refuses, with the
 chip length it measured as the seed, and not at all when it refuses none.
 
 When the readout's direction is not known, the run-length decoder reads every profile both
@@ -26,8 +26,8 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode, decode_profiles
-from camvlp.pipeline.model_decode import (
+from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
+from camvlp.pipeline.decode.model import (
     MIN_MARGIN,
     ModelDecode,
     PhotoDecode,
@@ -298,7 +298,7 @@ def decode_manchester(
         up to a constant per profile); None weighs every row alike.
     rank : sequence of float, optional
         Per profile, how clearly its light is striped: the photo-wide parameters are fitted
-        to the first ones (:func:`~camvlp.pipeline.photo_model.estimate_photo_model`).
+        to the first ones (:func:`~camvlp.pipeline.decode.photo_model.estimate_photo_model`).
 
     Returns
     -------

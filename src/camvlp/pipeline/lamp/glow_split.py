@@ -15,7 +15,7 @@ light on the line (the ambient and the glows of lamps not found).  :func:`separa
 fits it by alternating least squares: on each line, the levels of every lamp that reaches it
 and ``a`` (a small linear system per line, all lines at once); then each lamp's shape from
 what the others leave.  Clipped pixels are left out: they say only that the sum reached full
-scale.  The waveforms are decoded as row profiles (:mod:`camvlp.pipeline.model_decode`);
+scale.  The waveforms are decoded as row profiles (:mod:`camvlp.pipeline.decode.model`);
 their weights are each line's precision of ``s_k`` (the inverse of the diagonal of the
 line's normal equations' inverse), so that lines where two lamps' glows cannot be told apart
 count for little.
@@ -31,9 +31,9 @@ import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.manchester import Manchester
-from camvlp.pipeline.model_decode import decode_profile_model
-from camvlp.pipeline.refine import _luma
+from camvlp.pipeline.decode.manchester import Manchester
+from camvlp.pipeline.decode.model import decode_profile_model
+from camvlp.pipeline.detect.refine import _luma
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
 
@@ -259,7 +259,7 @@ def decode_from_glows(
     is not used), and in a photo of at most :data:`MAX_LIGHTS` lights; under each readout
     direction the decode keeps (``man.readout``, and the other one when the pose is to
     decide), with that direction's photo-wide parameters
-    (:class:`~camvlp.pipeline.stripe_model.SensorModel`; the knee at 1: the clipped pixels
+    (:class:`~camvlp.pipeline.decode.stripe_model.SensorModel`; the knee at 1: the clipped pixels
     are left out of the waveforms).  Its new decode is taken when it names an ID that no
     other light of that direction has; otherwise its first decode stays, with its reason.
 
@@ -270,7 +270,7 @@ def decode_from_glows(
     blobs : sequence of Blob
         The detected lights, in the order of ``man.decodes``.
     man : Manchester
-        The photo's decode (:func:`~camvlp.pipeline.manchester.decode_manchester`).
+        The photo's decode (:func:`~camvlp.pipeline.decode.manchester.decode_manchester`).
     fixture_map : FixtureMap
         The map (its frame format and IDs).
 
