@@ -222,9 +222,10 @@ def _prepare(image: np.ndarray, camera: Camera, st: LocateSettings) -> tuple[np.
 _STRIPED = 2.0
 #: ...and its lines along that axis explain at least this share of its pixels' variance
 #: (:attr:`Blob.stripe_share`: 0.6 to 0.98 for the real photos' lights and plain renders,
-#: 0.37 to 0.42 for lamps saturated 7 times over; a camera's burned-in text, under 0.25 for
-#: most of its characters).
-_STRIPE_SHARE = 0.3
+#: 0.37 to 0.42 for their lamps saturated 7 times over, 0.15 to 0.44 for renders of lamps
+#: whose hot core is 5 times their rim's level, with soft stripes; a camera's burned-in text
+#: spreads from 0.02 to 0.6: the share weighs a blob's vote, and the decoders refuse text).
+_STRIPE_SHARE = 0.1
 #: Lights whose stripe contrast times share (:attr:`Blob.stripe_contrast`,
 #: :attr:`Blob.stripe_share`) reaches this are all alike clearly striped (the stress grid's
 #: lamps: 2.2 and up; a burned-in text's characters: 1.2 at most): the photo-wide parameters
