@@ -17,7 +17,9 @@ from tests.conftest import (
 )
 
 import camvlp.pipeline.locate as locate_module
+from camvlp.geometry.pose import estimate_pose
 from camvlp.model.camera import Pose, project_points
+from camvlp.pipeline.decode.model import ModelDecode
 from camvlp.pipeline.identify.by_pose import (
     TOLD_APART,
     Spread,
@@ -26,8 +28,6 @@ from camvlp.pipeline.identify.by_pose import (
     position_sigma,
     told_by_pose,
 )
-from camvlp.pipeline.decode.model import ModelDecode
-from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import render
 
 POSE = Pose.from_euler([0, 0, 0], LOOK_UP)

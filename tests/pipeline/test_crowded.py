@@ -14,9 +14,9 @@ import camvlp.pipeline.lamp.glow as glow
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.detect.refine import light_support, to_gray
 from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.pipeline.lamp.radial import radial_fit, radial_model
-from camvlp.pipeline.detect.refine import light_support, to_gray
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 

@@ -14,6 +14,7 @@ from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.decode import runs as decode_mod
+from camvlp.pipeline.decode.profile import _nonzero
 from camvlp.pipeline.decode.runs import (
     decode_profile,
     decode_profiles,
@@ -21,7 +22,6 @@ from camvlp.pipeline.decode.runs import (
     row_profile,
     shape_profile,
 )
-from camvlp.pipeline.decode.profile import _nonzero
 
 FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
 SUB = 20  # time samples per row

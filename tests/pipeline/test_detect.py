@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from camvlp.locate import locate
 
+from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import (
@@ -26,7 +27,6 @@ from camvlp.pipeline.detect.candidates import (
     detect_fixtures,
     to_gray,
 )
-from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
 from camvlp.pipeline.detect.refine import _bridged, _drop_duplicates
 from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 import camvlp.pipeline.lamp.light_wave as light_wave_module
+from camvlp.imaging.stripe_period import estimate_stripe_period
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave, stripes_period
-from camvlp.pipeline.detect.candidates import detect_fixtures, light_support, to_gray
 from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.detect.candidates import detect_fixtures, light_support, to_gray
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
-from camvlp.imaging.stripe_period import estimate_stripe_period
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 1 / 47_540.0

@@ -15,11 +15,11 @@ import json
 import numpy as np
 import pytest
 
+from camvlp.geometry.pose import estimate_pose
 from camvlp.io import InputError
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
-from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
 

@@ -7,9 +7,9 @@ from tests.pipeline.test_model_decode import FRAME, synth
 
 from camvlp import Camera, Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode.runs import StripeDecode
 from camvlp.pipeline.decode.manchester import _reversed_ids, decode_manchester
 from camvlp.pipeline.decode.model import ModelDecode
+from camvlp.pipeline.decode.runs import StripeDecode
 
 CAMERA = Camera.from_focal(1920, 1080, 1400.0)  # no row time: the chip length is measured
 RPC = 5.0

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from camvlp.model.camera import Camera, Pose
 from camvlp.geometry.pose import estimate_pose
+from camvlp.model.camera import Camera, Pose
 
 CAMERA = Camera.from_focal(1280, 960, 1000.0)
 UP = np.array([0.0, 1.0, 0.0])  # ceiling fixtures face down into the room (+y)

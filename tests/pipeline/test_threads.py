@@ -9,9 +9,9 @@ from threadpoolctl import threadpool_info, threadpool_limits
 
 import camvlp.pipeline.lamp.light_wave as light_wave
 import camvlp.pipeline.lamp.radial as radial
+from camvlp.imaging.threads import one_blas_thread
 from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.pipeline.lamp.glow import centred_on_glow
-from camvlp.imaging.threads import one_blas_thread
 
 
 def _blas_threads() -> set[int]:

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from camvlp import LocateSettings, locate
+from camvlp.imaging.tone import linear_light
 from camvlp.io import load_map
 from camvlp.model.camera import Camera, Pose
-from camvlp.imaging.tone import linear_light
 from camvlp.sim.render import RenderSettings, render
 
 

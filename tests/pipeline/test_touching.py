@@ -11,9 +11,8 @@ from camvlp.locate import locate
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.pipeline.detect.candidates import detect_fixtures
-from camvlp.pipeline.lamp.glow import centred_on_glow
+from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.pipeline.detect.touching import (
     _run_modes,
     codes_differ,
@@ -21,6 +20,7 @@ from camvlp.pipeline.detect.touching import (
     one_disc,
     power_cell,
 )
+from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 

@@ -24,10 +24,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
 from camvlp.io import InputError, load_image
 from camvlp.model.camera import Camera
 from camvlp.pipeline.detect.candidates import gray_float, to_gray
-from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
 from camvlp.sim.chessboard import board_object_points, parse_board, render_chessboard
 
 __all__ = [

@@ -24,23 +24,23 @@ from camvlp.geometry.gravity import (
     solve_pose_gravity,
 )
 from camvlp.geometry.pnp import check_solver
+from camvlp.geometry.pose import PoseEstimate, estimate_pose
+from camvlp.imaging.tone import linear_light
 from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.identify.by_pose import position_sigma
+from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
+from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.decode.runs import StripeDecode
 from camvlp.pipeline.detect.candidates import MIN_SIDE_PX, Blob, Detection, detect_fixtures, to_gray
-from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.identify.by_pose import position_sigma
+from camvlp.pipeline.identify.lookup import Identified, decided, identifier, identify
 from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.pipeline.lamp.glow_split import decode_from_glows
-from camvlp.pipeline.identify.lookup import Identified, decided, identifier, identify
 from camvlp.pipeline.later import Later, later_of, replaced
-from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
-from camvlp.geometry.pose import PoseEstimate, estimate_pose
-from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
-from camvlp.imaging.tone import linear_light
 
 __all__ = ["FixtureResult", "LocateResult", "LocateSettings", "LocateStages", "locate"]
 

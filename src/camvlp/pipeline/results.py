@@ -9,10 +9,10 @@ import numpy as np
 
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
+from camvlp.pipeline.decode.model import ModelDecode
 from camvlp.pipeline.decode.runs import StripeDecode
 from camvlp.pipeline.detect.candidates import Detection
 from camvlp.pipeline.later import LaterField
-from camvlp.pipeline.decode.model import ModelDecode
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 

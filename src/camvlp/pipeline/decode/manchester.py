@@ -26,7 +26,6 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
 from camvlp.pipeline.decode.model import (
     MIN_MARGIN,
     ModelDecode,
@@ -35,6 +34,7 @@ from camvlp.pipeline.decode.model import (
     decode_photo,
     estimate_photo_model,
 )
+from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
 

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
+from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.pipeline.detect.refine import (
     Blob,
     _axis_contrast,

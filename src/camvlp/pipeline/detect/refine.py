@@ -23,10 +23,10 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
-from camvlp.pipeline.later import Later, LaterField
 from camvlp.imaging.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
 from camvlp.imaging.ragged import pieces, starts
 from camvlp.pipeline.detect.touching import own_face
+from camvlp.pipeline.later import Later, LaterField
 
 __all__ = [
     "Blob",

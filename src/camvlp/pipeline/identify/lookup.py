@@ -15,12 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from camvlp.geometry.gravity import GravityPose
+from camvlp.geometry.pose import PoseEstimate
 from camvlp.model.camera import Camera, project_points
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
 from camvlp.pipeline.decode.manchester import Manchester
-from camvlp.geometry.pose import PoseEstimate
+from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
 
 __all__ = ["Decided", "Identified", "decided", "identifier", "identify", "with_told"]
 

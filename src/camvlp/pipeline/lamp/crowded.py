@@ -40,10 +40,10 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import _sampson
-from camvlp.pipeline.later import replaced
 from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
-from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
 from camvlp.pipeline.detect.refine import Blob, light_support, to_gray
+from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
+from camvlp.pipeline.later import replaced
 
 __all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]
 

@@ -23,11 +23,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.detect.candidates import Blob, light_support, to_gray
-from camvlp.pipeline.later import replaced
-from camvlp.pipeline.lamp.radial import radial_fit
 from camvlp.pipeline.detect.touching import power_cell
+from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
+from camvlp.pipeline.lamp.radial import radial_fit
+from camvlp.pipeline.later import replaced
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 

@@ -31,6 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from camvlp.imaging.threads import one_blas_thread
 from camvlp.pipeline.lamp.light_wave import (
     _MAX_LOG_RATIO,
     LightWave,
@@ -41,7 +42,6 @@ from camvlp.pipeline.lamp.light_wave import (
     _search_centre,
     _shape_fit,
 )
-from camvlp.imaging.threads import one_blas_thread
 
 __all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model", "rim_extents"]
 

@@ -45,8 +45,8 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
-from camvlp.pipeline.lamp.glow import centred_on_glow, glowing
 from camvlp.pipeline.identify.lookup import Identified, identify
+from camvlp.pipeline.lamp.glow import centred_on_glow, glowing
 from camvlp.pipeline.later import replaced
 from camvlp.pipeline.locate import (
     _decode,
