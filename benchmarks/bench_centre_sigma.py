@@ -4,7 +4,7 @@ Renders of the thesis' room (camera on the floor and 1 m up, tilts up to 20 degr
 heading, exposures as in ``bench_gravity.py``); every fixture whole in the image is detected
 and its centre compared with the true centre of its image (the projected centre plus the
 perspective offset of the disc's ellipse, :func:`camvlp.geometry.disc.perspective_offset`).
-Prints the estimated sigma (:attr:`camvlp.pipeline.detect.candidates.Blob.centre_sigma_px`) against the
+Prints the estimated sigma (:attr:`camvlp.pipeline.detect.Blob.centre_sigma_px`) against the
 true error: if the estimate is right, each axis' error over its sigma has an RMS near 1, the
 squared Mahalanobis distance a mean near 2, and ``|error| / sigma`` a median near 1.18 (the
 median of a Rayleigh distribution).

@@ -1,4 +1,5 @@
-"""Look-alike IDs told apart by the pose (camvlp.pipeline.identify.by_pose and its use in locate)."""
+"""Look-alike IDs told apart by the pose (camvlp.pipeline.identify.by_pose, and its use in
+locate)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """Running the tracker over a video: the files it writes, and its figures against the truth.
 
 :func:`run_track` feeds the frames of a :class:`camvlp.io.video.FrameSource` to a
-:class:`camvlp.pipeline.track.tracker.Tracker` and writes, as it goes, into a folder (``camvlp track``
+:class:`camvlp.pipeline.track.Tracker` and writes, as it goes, into a folder (``camvlp track``
 gives it a temporary one and moves the files into place once every output is written, so a
 failure leaves nothing; a run that the input's end or an interruption stops early is whole):
 

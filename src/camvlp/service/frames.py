@@ -2,7 +2,7 @@
 
 A phone that streams its camera sends one frame after another to
 ``POST /api/v1/sites/{id}/frames``.  Each device (site, camera and device name) keeps a
-:class:`camvlp.pipeline.track.tracker.Tracker` in the service process, as ``camvlp track`` does along
+:class:`camvlp.pipeline.track.Tracker` in the service process, as ``camvlp track`` does along
 a video: the readout and chip length found in the first frames, every fixture's ID and image
 position, and the last pose with a constant-velocity filter, the prior of the next frame (two
 or three fixtures are then enough).  A frame that the track cannot place, sent with the

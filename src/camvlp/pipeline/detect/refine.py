@@ -1,6 +1,6 @@
 """Stage 1 at full resolution: each candidate region's disc, readout axis and centre.
 
-A candidate of :func:`camvlp.pipeline.detect.candidates.detect_fixtures` is worked inside its region of
+A candidate of :func:`camvlp.pipeline.detect.detect_fixtures` is worked inside its region of
 interest only: a threshold of its own, a closing along the sensor's readout axis that fills the
 dark stripes, and the disc's outline.  The centre is the centre of an ellipse fitted to
 sub-pixel edge points of the lit rows, so it comes from the disc and not from the stripes; its

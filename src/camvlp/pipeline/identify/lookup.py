@@ -136,8 +136,8 @@ def with_told(
     needed: int,
 ):
     """Fixtures the stripes leave between look-alike IDs, told apart by the pose
-    (:mod:`camvlp.pipeline.identify.by_pose`; when the identified ones are too few for a pose, by the
-    only assignment of look-alikes that gives one, whose pose then tells the others) and the
+    (:mod:`camvlp.pipeline.identify.by_pose`; when the identified ones are too few for a pose,
+    by the only assignment of look-alikes that gives one, whose pose then tells the others) and the
     pose solved again with them.
     Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
     when none is told."""

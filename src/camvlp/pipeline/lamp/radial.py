@@ -1,19 +1,18 @@
 """The centre of a round light's radial shape, fitted where the shape tells it.
 
-:func:`camvlp.pipeline.lamp.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and its
-stripes ``s(line)`` together, and refines the shape's centre on the way (on every k-th pixel
-of a few thousand, with radial bins of 1/40 of the outline's radius, and a shape that starts
-from the outline's centre: enough to separate the stripes from the shape).  The centre
-itself asks for more when the light clips.  Where a bright stripe clips the disc and the
-glow next to it, the rim, the shape's sharpest feature, shows only in the dim lines (the
-edges of the stripes), and the rest of what tells the centre is the glow's slow fall beyond
-the clipped part, which along a line trades off with the line's own brightness (a clipped
-exponential glow brighter by a factor is the same glow moved outward).  So on 1080p renders
-of a lamp with a halo of 0.4 clipping at 4 full scales the fit's centres were 0.55 px off
-(RMS; 0.07 px unclipped), no better than the outline's 0.66 px: every k-th pixel keeps one
-in nine of the few pixels that tell the centre, bins of 2.5 px (the clipped glow's outline
-is twice the disc) cannot draw a rim blurred over 1 px, and a shape fitted at the outline's
-centre and refitted in two steps holds the centre near the outline's.
+:func:`camvlp.pipeline.lamp.light_wave.separated_wave` fits a light's radial shape ``g(rho)`` and
+its stripes ``s(line)`` together, and refines the shape's centre on the way (on every k-th pixel of
+a few thousand, with radial bins of 1/40 of the outline's radius, and a shape that starts from the
+outline's centre: enough to separate the stripes from the shape).  The centre itself asks for more
+when the light clips.  Where a bright stripe clips the disc and the glow next to it, the rim, the
+shape's sharpest feature, shows only in the dim lines (the edges of the stripes), and the rest of
+what tells the centre is the glow's slow fall beyond the clipped part, which along a line trades off
+with the line's own brightness (a clipped exponential glow brighter by a factor is the same glow
+moved outward).  So on 1080p renders of a lamp with a halo of 0.4 clipping at 4 full scales the
+fit's centres were 0.55 px off (RMS; 0.07 px unclipped), no better than the outline's 0.66 px: every
+k-th pixel keeps one in nine of the few pixels that tell the centre, bins of 2.5 px (the clipped
+glow's outline is twice the disc) cannot draw a rim blurred over 1 px, and a shape fitted at the
+outline's centre and refitted in two steps holds the centre near the outline's.
 
 :func:`radial_centre` refits the centre from the coarse fit's start with bins of
 :data:`_BIN_PX`, on the pixels whose shape and stripe say the most about the centre (the

@@ -1,4 +1,5 @@
-"""Constant-velocity Kalman filter used by the video tracker (:mod:`camvlp.pipeline.track.tracker`)."""
+"""Constant-velocity Kalman filter used by the video tracker
+(:mod:`camvlp.pipeline.track.tracker`)."""
 
 from __future__ import annotations
 
