@@ -17,7 +17,8 @@ from tests.conftest import (
     small_settings,
 )
 
-import camvlp.pipeline.locate as locate_module
+import camvlp.pipeline.decode.stage as decode_stage
+import camvlp.pipeline.detect.stage as detect_stage
 from camvlp.geometry.pose import estimate_pose
 from camvlp.model.camera import Pose, project_points
 from camvlp.pipeline.decode.model import ModelDecode
@@ -270,7 +271,7 @@ def test_a_witness_does_not_settle_look_alikes_that_two_assignments_fit(small_ca
         assert _with_unread(small_camera, small_room, TURNED, unread, 1, witnesses=True) == {}
 
 
-_DECODE_MANCHESTER = locate_module.decode_manchester
+_DECODE_MANCHESTER = decode_stage.decode_manchester
 
 
 def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[int, int]):
@@ -315,7 +316,7 @@ def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> ModelDecode:
 def test_locate_tells_a_refused_fixture_by_the_pose(
     monkeypatch, small_camera, small_room, small_render, candidates
 ):
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, candidates))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, candidates))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(
@@ -331,7 +332,7 @@ def test_locate_tells_a_refused_fixture_by_the_pose(
 def test_locate_does_not_tell_a_fixture_whose_true_id_is_not_a_candidate(
     monkeypatch, small_camera, small_room, small_render
 ):
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 12)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 12)))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(
@@ -345,7 +346,7 @@ def test_locate_assigns_look_alikes_when_no_fixture_is_identified(
     monkeypatch, small_camera, small_room, small_render
 ):
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, NEXT))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     for f in res.fixtures:
@@ -372,7 +373,7 @@ def test_locate_assigns_four_look_alikes_that_an_unread_fixture_witnesses(
         )
         return dataclasses.replace(man, decodes=tuple(decodes))
 
-    monkeypatch.setattr(locate_module, "decode_manchester", fake)
+    monkeypatch.setattr(decode_stage, "decode_manchester", fake)
     res = locate(small_render.image, small_camera, small_room)
     assert res
     for f in res.fixtures:
@@ -390,13 +391,13 @@ def test_locate_refuses_look_alikes_that_two_assignments_fit(
     monkeypatch, small_camera, small_room, small_render
 ):
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, TURNED))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, TURNED))
     res = locate(small_render.image, small_camera, small_room)
     assert not res and "at least 4 are needed" in res.reason
     assert all(f.id is None and "almost equally" in f.reason for f in res.fixtures)
 
 
-_CENTRED_ON_GLOW = locate_module.centred_on_glow
+_CENTRED_ON_GLOW = detect_stage.centred_on_glow
 
 
 def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=False):
@@ -434,15 +435,15 @@ def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
     # fixture 9 refused between 5 and 9, its centre 14 px off (the outlier distance is 10 px)
     # and known to 6 px: told, but not used by the pose
     nine = where(small_camera, small_room, 9)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 9)))
     shift = np.array([0.0, 14.0])
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 6.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 6.0, nine))
     res = locate(small_render.image, small_camera, small_room)
     _told_nine_not_used(res, nine + shift)
     assert sum(f.used for f in res.fixtures) == 4
     assert np.linalg.norm(res.position - POSE.position) < 0.01
     # known to 3 px, it is not told
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 3.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 3.0, nine))
     res = locate(small_render.image, small_camera, small_room)
     f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
     assert f.id is None and "almost equally" in f.reason
@@ -454,9 +455,9 @@ def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_po
     # fixture 9 refused between 5 and 9 and taken as cut by the border: told by the pose of
     # the others (no other fixture of the ceiling is centred within its disc), not used
     nine = where(small_camera, small_room, 9)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 9)))
     still = np.zeros(2)
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(still, 1.0, nine, True))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(still, 1.0, nine, True))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine)) < 5)
@@ -466,7 +467,7 @@ def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_po
     # it seeds no joint assignment of look-alikes: the four others are one too few (a
     # fixture beyond the seeds must confirm them)
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, NEXT))
     res = locate(small_render.image, small_camera, small_room)
     assert not res and all(f.id is None for f in res.fixtures)
 
@@ -479,10 +480,10 @@ def test_the_pose_of_assigned_look_alikes_tells_an_off_centre_one(monkeypatch, s
     room = make_small_room((*SMALL_ROOM_IDS, 3), (*SMALL_ROOM_XZ, (0.0, 0.9)))
     photo = render(small_camera, room, POSE, small_settings(seed=1))
     ring = {5: 6, 6: 10, 10: 12, 12: 3, 3: 5, 9: 5}
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(tuple(ring), ring))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(tuple(ring), ring))
     nine = where(small_camera, room, 9)
     shift = np.array([0.0, 30.0])
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 12.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 12.0, nine))
     res = locate(photo.image, small_camera, room)
     _told_nine_not_used(res, nine + shift)
     assert sorted(f.id for f in res.fixtures if f.used) == [3, 5, 6, 10, 12]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import camvlp.pipeline.locate as locate_module
+import camvlp.pipeline.decode.stage as decode_stage
 from camvlp import locate
 from camvlp.pipeline.lamp.glow_split import separated_waveforms
 from conftest import stress_scene, stress_settings
@@ -97,7 +97,7 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
 
     got = read(locate(image, cam, room))
     assert got == {i: i for i, *_ in _SEVEN}, got
-    monkeypatch.setattr(locate_module, "decode_from_glows", lambda img, b, man, fm: (man, {}))
+    monkeypatch.setattr(decode_stage, "decode_from_glows", lambda img, b, man, fm: (man, {}))
     before = read(locate(image, cam, room))
     if alone is not None:
         assert (before.get(9) is not None) == alone, before  # the disc alone does not tell it

@@ -15,6 +15,7 @@ import json
 import numpy as np
 import pytest
 
+import camvlp.pipeline.solve as solve_module
 from camvlp.geometry.pose import estimate_pose
 from camvlp.io import InputError
 from camvlp.model.camera import Camera, Pose
@@ -393,7 +394,6 @@ def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
     small_render, small_camera, small_room, monkeypatch
 ):
     import camvlp.pipeline.identify.by_pose as by_pose
-    import camvlp.pipeline.locate as locate_module
 
     calls = []
     real = by_pose.position_sigma
@@ -403,14 +403,14 @@ def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
         return real(*args)
 
     monkeypatch.setattr(by_pose, "position_sigma", counted)
-    monkeypatch.setattr(locate_module, "position_sigma", counted)
+    monkeypatch.setattr(solve_module, "position_sigma", counted)
     limited = LocateSettings(max_position_sigma=1.0)
     res = locate(small_render.image, small_camera, small_room, limited)
     assert res and calls == [1]
     assert res.to_dict()["position_sigma"] == np.round(res.position_sigma, 6).tolist()
     assert calls == [1]
     # a sigma that is not finite is refused, and said so
-    monkeypatch.setattr(locate_module, "position_sigma", lambda *a: np.array([1e-6, np.nan, 0.0]))
+    monkeypatch.setattr(solve_module, "position_sigma", lambda *a: np.array([1e-6, np.nan, 0.0]))
     res = locate(small_render.image, small_camera, small_room, limited)
     assert not res and "along y is not finite, for the limit of 1" in res.reason
 

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+import camvlp.pipeline.decode.stage as decode_stage
 import camvlp.pipeline.lamp.glow
 import camvlp.pipeline.track.tracker
 from camvlp.errors import InputError
@@ -252,17 +253,15 @@ def test_the_readout_direction_is_found_never_guessed(readout):
 def test_the_tracker_weighs_the_rows_as_locate_does(video, monkeypatch):
     # the model fit weighs each profile line by its inverse variance (its pixels): the
     # tracker decodes the stripes it must with the same weights as camvlp.locate
-    import camvlp.pipeline.locate as loc
-
     cam, room, frames = video
     seen = []
-    real = loc.decode_manchester
+    real = decode_stage.decode_manchester
 
-    def spy(profiles, readout, known, camera, fixture_map, weights=None):
+    def spy(profiles, readout, known, camera, fixture_map, weights=None, *more, **kw):
         seen.append((len(profiles), None if weights is None else len(weights)))
-        return real(profiles, readout, known, camera, fixture_map, weights)
+        return real(profiles, readout, known, camera, fixture_map, weights, *more, **kw)
 
-    monkeypatch.setattr(loc, "decode_manchester", spy)
+    monkeypatch.setattr(decode_stage, "decode_manchester", spy)
     tracker = Tracker(cam, room, TrackSettings(carry_chip_length=False))
     tracker.update(frames[0].image, 0.0)
     assert seen and all(n == w for n, w in seen)

@@ -278,6 +278,7 @@ def decode_manchester(
     fixture_map: FixtureMap,
     weights=None,
     rank=None,
+    rows_per_chip: float | None = None,
 ) -> Manchester:
     """Decode every profile: the run-length decoder's sure IDs, the model fit for the rest.
 
@@ -299,14 +300,17 @@ def decode_manchester(
     rank : sequence of float, optional
         Per profile, how clearly its light is striped: the photo-wide parameters are fitted
         to the first ones (:func:`~camvlp.pipeline.decode.photo_model.estimate_photo_model`).
+    rows_per_chip : float, optional
+        The chip length when known otherwise (a video's earlier frames), rows: it seeds the
+        decoders in place of the camera's row time and the map's chip rate.
 
     Returns
     -------
     Manchester
         The decodes, the readout they were read with, the photo-wide parameters.
     """
-    seed = None
-    if camera.row_time_s and fixture_map.chip_rate_hz:
+    seed = rows_per_chip
+    if seed is None and camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
     man = _decode_manchester(profiles, readout, direction_known, fixture_map, seed, weights, rank)
     if seed is None or any(d.id is not None for d in man.decodes):

@@ -31,8 +31,8 @@ Frame time convention: a frame's ``t`` is its middle sensor row's time (see
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,17 +44,17 @@ from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
-from camvlp.pipeline.identify.lookup import Identified, identify
-from camvlp.pipeline.lamp.glow import centred_on_glow, glowing
+from camvlp.pipeline.identify.identified import Identified, identify
 from camvlp.pipeline.later import replaced
-from camvlp.pipeline.locate import (
-    _decode,
-    _detect,
-    _prepare,
-    _profiles,
-    _solve,
+from camvlp.pipeline.locate import StageClock
+from camvlp.pipeline.stages import (
+    PoseProblem,
+    decode,
+    find_lights,
+    prepare,
+    read_profiles,
     readout_direction,
+    solve_pose,
 )
 from camvlp.pipeline.track.assoc import associate, known_blobs
 from camvlp.pipeline.track.kalman import ConstantVelocityFilter
@@ -68,10 +68,6 @@ __all__ = [
     "TrackedFixture",
     "Tracker",
 ]
-
-_NOT_DECODED = StripeDecode(
-    None, "not decoded: its ID comes from the track", -1, 0.0, math.nan, math.nan, "", 0.0
-)
 
 
 @dataclass
@@ -120,7 +116,6 @@ class Tracker:
         self._tilts: list[np.ndarray] = []  # (theta_x, theta_y) of the recent fixes
         self._offset_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
-        self._glows: dict[int, bool] = {}  # whether each fixture glows, told once
 
     # ---------------------------------------------------------------------------------------
     # Prediction
@@ -205,47 +200,20 @@ class Tracker:
             self.settings.ambiguity,
         )
 
-    def _decode(self, img, blobs, readout, skip: set[int]):
-        todo = [k for k in range(len(blobs)) if k not in skip]
-        sub = [blobs[k] for k in todo]
-        gray_rois, _, profiles, weights = _profiles(img, sub, readout)
+    def _rpc(self) -> float | None:
+        """The chip length the recent frames' decodes agree on (their median, rows), when
+        carried (:attr:`TrackSettings.carry_chip_length`) and three or more were read."""
         carry = self.settings.carry_chip_length and self.map.mode != "frequency"
         if carry and len(self._chip_rows) >= 3:
-            rpc = float(np.median(self._chip_rows[-50:]))
-            done = decode_profiles(profiles, self.map.frame, rows_per_chip=rpc)
-        else:  # (a frequency-coded light's blob comes back re-centred on its striped area)
-            done, _, _, sub, _ = _decode(
-                sub, gray_rois, profiles, readout, self.camera, self.map, weights
-            )
-        for d in done:
+            return float(np.median(self._chip_rows[-50:]))
+        return None
+
+    def _carry(self, decodes) -> None:
+        """Remember the chip lengths of the IDs read (the last 50)."""
+        for d in decodes:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
         del self._chip_rows[:-50]
-        decodes = [_NOT_DECODED] * len(blobs)
-        for k, d, b in zip(todo, done, sub, strict=True):
-            decodes[k], blobs[k] = d, b
-        return decodes
-
-    def _centre_glowing(self, img, blobs, ids, usable: list[int], axis: str) -> None:
-        """Centre the usable blobs of glowing fixtures on their radial shape, in place (as
-        :func:`camvlp.locate` does; a frequency-coded light is centred as it is decoded).
-
-        Whether a fixture glows is told once, at its first sighting that can tell it (the
-        glow is the lamp's own): only a glowing lamp's frames pay for the centring.
-        """
-        if self.map.mode == "frequency" or not usable:
-            return
-        new = [k for k in usable if ids[k] not in self._glows]
-        if new:
-            glows, told = glowing(img, [blobs[k] for k in new])
-            for k, g, t in zip(new, glows, told, strict=True):
-                if t:
-                    self._glows[ids[k]] = bool(g)
-        which = [self._glows.get(ids[k], False) for k in usable]
-        if any(which):
-            moved = centred_on_glow(img, [blobs[k] for k in usable], axis, which)
-            for k, b in zip(usable, moved, strict=True):
-                blobs[k] = b
 
     def _checked_time(self, t: object) -> float:
         """``t`` as a float when it is a finite time within +-1e9 s and later than the last
@@ -283,32 +251,39 @@ class Tracker:
         """
         t = self._checked_time(t)
         st = self.settings.locate
-        t0 = time.perf_counter()
-        img, mirrored = _prepare(image, self.camera, st)
+        clock = StageClock()
+        # the stages of camvlp.locate, in its order (a video's readout, once decided, and
+        # its chip length carried from frame to frame; the IDs the track knows not decoded)
+        prepared = prepare(image, self.camera, self.map, st)
+        img = prepared.image
         index = self._index  # the frame is taken: its time and index count from here
         self._index += 1
         self._t_given = t
-        detection, found_readout, _, _ = _detect(img, self.readout, st)
-        readout = found_readout or Readout.ROWS  # (an unclear axis: nothing is read below)
-        blobs = list(detection.blobs)
-        if self.readout is None and found_readout is not None:
+        lights = find_lights(prepared, self.map, st, readout=self.readout)
+        if self.readout is None and lights.readout is not None:
             # the first frame that decides the direction, from now on
-            args = (self.camera, self.map, st, self._outlier_px)
-            self.readout = readout_direction(img, blobs, readout, *args)
+            self.readout = readout_direction(prepared, lights, self.map, st)
+        readout = self.readout or lights.readout or Readout.ROWS
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
         # no ID read reversed, nor along an axis the stripes do not show
-        undecided = found_readout is None or (self.readout is None and self.map.mode != "frequency")
+        undecided = lights.readout is None or (
+            self.readout is None and self.map.mode != "frequency"
+        )
+        blobs = list(lights.blobs)
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
-        decodes = self._decode(img, blobs, self.readout or readout, skip)
-        found = identify(blobs, decodes, self.map)
-        t1 = time.perf_counter()
+        known = dataclasses.replace(lights, readout=readout, direction_known=True)
+        profiles = read_profiles(img, blobs, readout)
+        decoded = decode(prepared, known, profiles, self.map, skip=skip, rows_per_chip=self._rpc())
+        self._carry(decoded.decodes)
+        blobs = list(decoded.blobs)
+        found = identify(blobs, list(decoded.decodes), self.map)
+        clock.lap("locate")
 
         ids, sources, reasons = self._associate(blobs, found, predicted, from_pose)
         for k, src in enumerate(sources):
             if src == "decoded":
                 self._verified[ids[k]] = index
         usable = [k for k in range(len(blobs)) if ids[k] is not None and not reasons[k]]
-        self._centre_glowing(img, blobs, ids, usable, (self.readout or readout).axis)
         state = self._predicted_state(t)
         fresh = from_pose and state is not None
 
@@ -334,10 +309,10 @@ class Tracker:
         elif self.filter is not None and self._t_measured is not None:
             status, reason = self._coast(t, reason)
         self._remember(blobs, ids, reasons, t)
-        t2 = time.perf_counter()
+        clock.lap("track")
 
         no_pose = "" if raw_pose is not None else (reason or "no pose")
-        mirror_w = img.shape[1] if mirrored else None
+        mirror_w = img.shape[1] if prepared.mirrored else None
         fixtures = self._fixtures(
             blobs, ids, sources, reasons, usable, used_mask, mirror_w, no_pose
         )
@@ -357,11 +332,7 @@ class Tracker:
             reprojection_rms_px=rms,
             fixtures=fixtures,
             reason=reason,
-            timing_ms={
-                "locate": 1e3 * (t1 - t0),
-                "track": 1e3 * (t2 - t1),
-                "total": 1e3 * (t2 - t0),
-            },
+            timing_ms=clock.total(),
         )
 
     def _solve_frame(self, blobs, ids, usable, state, fresh: bool, obj, measured, pixels, dts):
@@ -387,7 +358,8 @@ class Tracker:
             sub = Identified(
                 tuple(ids[k] for k in usable), ("",) * len(usable), tuple(range(len(usable)))
             )
-            est, why = _solve(self.camera, self.map, moved, sub, st, self._outlier_px)
+            problem = PoseProblem(self.camera, self.map, tuple(moved), st, self._outlier_px)
+            est, why = solve_pose(problem, sub)
             if est is not None and est.pose is not None:
                 used_mask = np.asarray(est.used, bool)
                 solved = self._refine(est.pose, state, obj, measured, dts, used_mask, fix=True)

@@ -1,9 +1,8 @@
-"""Stages 4 and 5's decisions: the IDs looked up in the map, look-alikes told by the pose, and
-the readout direction decided by the pose when the stripes fit both directions.
+"""Stages 4 and 5's decisions: look-alikes and IDs read twice told by the pose, and the readout
+direction decided by the pose when the stripes fit both directions.
 
-The pose itself is solved by a callable given by :mod:`camvlp.pipeline.locate` (``solve``:
-:class:`Identified` -> ``(estimate or None, reason)``), so these decisions are the same with
-and without gravity.
+Each set of IDs weighed is solved as the photo's :class:`~camvlp.pipeline.solve.PoseProblem`
+says (with or without gravity), so these decisions are the same either way.
 """
 
 from __future__ import annotations
@@ -16,67 +15,24 @@ import numpy as np
 
 from camvlp.geometry.gravity import GravityPose
 from camvlp.geometry.pose import PoseEstimate
-from camvlp.model.camera import Camera, project_points
-from camvlp.model.fixtures import FixtureMap
+from camvlp.model.camera import project_points
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
 from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
+from camvlp.pipeline.identify.identified import TWICE, Identified, identified_as, identify
+from camvlp.pipeline.solve import PoseProblem
 
-__all__ = ["Decided", "Identified", "decided", "identifier", "identify", "with_told"]
-
-
-@dataclass(frozen=True)
-class Identified:
-    """The identify stage: each blob's ID (or None) and why it cannot be used ("" if it can)."""
-
-    ids: tuple[int | None, ...]
-    reasons: tuple[str, ...]
-    usable: tuple[int, ...]  # indices of blobs with an ID and no reason
+__all__ = ["Decided", "decided", "identified", "with_told"]
 
 
-def _identified(ids, reasons) -> Identified:
-    """The identities of blobs with these IDs (or None) and reasons ("" if usable)."""
-    usable = tuple(k for k, r in enumerate(reasons) if ids[k] is not None and not r)
-    return Identified(tuple(ids), tuple(reasons), usable)
-
-
-def identify(blobs, decodes, fixture_map: FixtureMap) -> Identified:
-    """Stage 4: IDs looked up in the map; cut discs, unknown and repeated IDs set aside."""
-    reasons: list[str] = []
-    ids: list[int | None] = []
-    for b, dec in zip(blobs, decodes, strict=True):
-        fid, reason = dec.id, dec.reason
-        outside = getattr(dec, "outside_id", None)
-        if fid is None and outside is not None:  # a light that sends an ID the map lacks
-            ids.append(outside)
-            reasons.append(f"sends ID {outside}, which is not in the map")
-            continue
-        if fid is not None and fixture_map.get(fid) is None:
-            reason, fid = f"sends ID {dec.id}, which is not in the map", None
-        elif fid is not None and b.touches_border:
-            reason = "cut by the image border (its centre would be biased)"
-        ids.append(dec.id if fid is None and dec.id is not None else fid)
-        reasons.append(reason)
-    # the same ID twice: neither can be trusted (unless a pose tells which it is:
-    # :func:`_duplicates_told`)
-    decoded = [i for i, r in zip(ids, reasons, strict=True) if i is not None and not r]
-    for k, (i, r) in enumerate(zip(ids, reasons, strict=True)):
-        if i is not None and not r and decoded.count(i) > 1:
-            reasons[k] = _TWICE.format(i)
-    return _identified(ids, reasons)
-
-
-#: Why a fixture whose ID another fixture of the photo was read as too is not used.
-_TWICE = "ID {} was decoded for two fixtures"
-
-
-def _duplicates_told(camera: Camera, fixture_map: FixtureMap, blobs, found, est, outlier_px, solve):
+def _duplicates_told(problem: PoseProblem, found: Identified, est):
     """An ID read for two fixtures (a light that sends data, a reflection), told by the pose:
     the pose the others give, where they give one, else each claimant's own pose with them
     (too few without it); the one fixture that fits (within ``outlier_px`` of the ID's map
     position) keeps the ID, the others are refused with no ID, and the pose is solved again.
     ``found`` and ``est`` as given when no one fixture fits."""
-    twice = [k for k, r in enumerate(found.reasons) if r == _TWICE.format(found.ids[k])]
+    camera, fixture_map, blobs = problem.camera, problem.fixture_map, problem.blobs
+    twice = [k for k, r in enumerate(found.reasons) if r == TWICE.format(found.ids[k])]
     if not twice:
         return found, est
     posed = est is not None and est.pose is not None
@@ -87,8 +43,8 @@ def _duplicates_told(camera: Camera, fixture_map: FixtureMap, blobs, found, est,
             where = camera.project(est.pose, fixture_map.get(fid).position[None, :])[0]
             off = {k: float(np.hypot(*(blobs[k].pixel - where))) for k in claims}
         else:  # each claimant with the others: does its pose take it?
-            off = {k: _claimant_fit(found, k, claims, solve) for k in claims}
-        near = [k for k in claims if off[k] <= outlier_px]
+            off = {k: _claimant_fit(problem, found, k, claims) for k in claims}
+        near = [k for k in claims if off[k] <= problem.outlier_px]
         if len(near) != 1:
             continue
         for k in claims:
@@ -102,14 +58,14 @@ def _duplicates_told(camera: Camera, fixture_map: FixtureMap, blobs, found, est,
                     if np.isfinite(off[k])
                     else f"read as ID {fid}, which another fixture of the photo is (by the pose)"
                 )
-    told = _identified(ids, reasons)
+    told = identified_as(ids, reasons)
     if told.usable == found.usable:
         return found, est
-    est2, _ = solve(told)
+    est2, _ = problem.solve(told)
     return (told, est2) if est2 else (found, est)
 
 
-def _claimant_fit(found: Identified, k: int, claims: list[int], solve) -> float:
+def _claimant_fit(problem: PoseProblem, found: Identified, k: int, claims: list[int]) -> float:
     """How far (pixels) the pose of the usable fixtures and fixture ``k``, given the ID the
     ``claims`` share, puts ``k`` from it (its reprojection error); inf without such a pose
     or where the pose drops a fixture."""
@@ -117,30 +73,21 @@ def _claimant_fit(found: Identified, k: int, claims: list[int], solve) -> float:
         "" if j == k else ("another fixture claims this ID" if j in claims else r)
         for j, r in enumerate(found.reasons)
     ]
-    trial = _identified(list(found.ids), reasons)
-    e, _ = solve(trial)
+    trial = identified_as(list(found.ids), reasons)
+    e, _ = problem.solve(trial)
     if not e or not all(e.used):
         return float("inf")
     return float(e.residuals_px[trial.usable.index(k)])
 
 
-def with_told(
-    camera: Camera,
-    fixture_map: FixtureMap,
-    blobs,
-    decodes,
-    found: Identified,
-    est,
-    outlier_px: float,
-    solve,
-    needed: int,
-):
+def with_told(problem: PoseProblem, decodes, found: Identified, est):
     """Fixtures the stripes leave between look-alike IDs, told apart by the pose
     (:mod:`camvlp.pipeline.identify.by_pose`; when the identified ones are too few for a pose,
     by the only assignment of look-alikes that gives one, whose pose then tells the others) and the
     pose solved again with them.
     Returns ``found, est, told`` (``told``: fixture index -> its candidate IDs); as given
     when none is told."""
+    camera, fixture_map, blobs = problem.camera, problem.fixture_map, problem.blobs
     if est is not None and est.pose is None:
         return found, est, {}
     # (a disc cut by the border is told by a pose, never a seed of one)
@@ -153,22 +100,28 @@ def with_told(
     pixels = np.array([b.pixel for b in blobs]).reshape(-1, 2)
     fixed = {k: found.ids[k] for k in found.usable}
     if est is not None:
-        return _told_round_by_round(
-            camera, fixture_map, blobs, pixels, fixed, found, est, cands, outlier_px, solve
-        )
+        return _told_round_by_round(problem, pixels, fixed, found, est, cands)
 
     def pose_of(assigned: dict[int, int]):
-        e, _ = solve(_given(found, assigned))
+        e, _ = problem.solve(_given(found, assigned))
         return e.pose if e and all(e.used) else None
 
     unread = [i is None and not b.touches_border for b, i in zip(blobs, found.ids, strict=True)]
     told = assigned_by_pose(
-        camera, fixture_map, pixels, fixed, cands, outlier_px, pose_of, needed, unread
+        camera,
+        fixture_map,
+        pixels,
+        fixed,
+        cands,
+        problem.outlier_px,
+        pose_of,
+        problem.needed,
+        unread,
     )
     if not told:
         return found, est, {}
     found2 = _given(found, {**fixed, **told})
-    est2, _ = solve(found2)
+    est2, _ = problem.solve(found2)
     if not est2 or not all(est2.used[found2.usable.index(k)] for k in told):
         return found, est, {}
     # the look-alikes left, told by that pose as by one the stripes gave (round by round,
@@ -178,14 +131,15 @@ def with_told(
         for d, i in zip(decodes, found2.ids, strict=True)
     ]
     found3, est3, more = _told_round_by_round(
-        camera, fixture_map, blobs, pixels, {**fixed, **told}, found2, est2, left, outlier_px, solve
+        problem, pixels, {**fixed, **told}, found2, est2, left
     )
     return found3, est3, {**{k: cands[k] for k in told}, **more}
 
 
-def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, est) -> Spread:
+def _spread(problem: PoseProblem, found: Identified, est) -> Spread:
     """The pose's and the centres' uncertainty (:class:`~camvlp.pipeline.identify.by_pose.Spread`),
     the pose's from the fixtures it uses."""
+    camera, fixture_map, blobs = problem.camera, problem.fixture_map, problem.blobs
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
     points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
     pixels = np.array([blobs[k].pixel for k in used]).reshape(-1, 2)
@@ -196,9 +150,7 @@ def _spread(camera: Camera, fixture_map: FixtureMap, blobs, found: Identified, e
     )
 
 
-def _told_round_by_round(
-    camera, fixture_map, blobs, pixels, fixed, found, est, cands, outlier_px, solve
-):
+def _told_round_by_round(problem: PoseProblem, pixels, fixed, found, est, cands):
     """Look-alikes told by the pose of the identified fixtures (:func:`with_told`), the pose
     solved again with those told and the others told by it, until none is left to tell.
 
@@ -208,13 +160,15 @@ def _told_round_by_round(
     the pose with that reason (within its tolerance, see
     :func:`~camvlp.pipeline.identify.by_pose.told_by_pose`, it would otherwise pull the pose).
     ``pixels`` (n, 2) are the blobs' centres, ``fixed`` the identified fixtures (index -> ID)."""
+    camera, fixture_map, blobs = problem.camera, problem.fixture_map, problem.blobs
+    outlier_px = problem.outlier_px
     told: dict[int, int] = {}
     near: dict[int, int] = {}
     far: dict[int, str] = {}
     cur_found, cur_est = found, est
     while True:
         left = [() if k in told else c for k, c in enumerate(cands)]
-        spread = _spread(camera, fixture_map, blobs, cur_found, cur_est)
+        spread = _spread(problem, cur_found, cur_est)
         taken = set(fixed.values()) | set(told.values())
         new = told_by_pose(
             camera, cur_est.pose, fixture_map, pixels, left, taken, outlier_px, spread
@@ -228,7 +182,7 @@ def _told_round_by_round(
         add = {k: i for k, i in new.items() if off[k] <= outlier_px and not blobs[k].touches_border}
         nxt, est2 = _given(found, {**fixed, **near, **add}), cur_est
         if add:
-            est2, _ = solve(nxt)
+            est2, _ = problem.solve(nxt)
             if not est2 or int(np.sum(est2.used)) < int(np.sum(cur_est.used)):
                 break
         told.update(new)
@@ -245,7 +199,7 @@ def _told_round_by_round(
     ids, reasons = list(cur_found.ids), list(cur_found.reasons)
     for k, why in far.items():
         ids[k], reasons[k] = told[k], why
-    return _identified(ids, reasons), cur_est, {k: cands[k] for k in told}
+    return identified_as(ids, reasons), cur_est, {k: cands[k] for k in told}
 
 
 def _given(found: Identified, ids: dict[int, int]) -> Identified:
@@ -253,7 +207,7 @@ def _given(found: Identified, ids: dict[int, int]) -> Identified:
     and those already usable usable."""
     new = [ids.get(k, i) for k, i in enumerate(found.ids)]
     reasons = ["" if k in ids else r for k, r in enumerate(found.reasons)]
-    return _identified(new, reasons)
+    return identified_as(new, reasons)
 
 
 def _same_answer(a: Identified, b: Identified) -> bool:
@@ -295,20 +249,14 @@ class Decided:
     told: dict[int, tuple[int, ...]]
 
 
-def identifier(camera: Camera, fixture_map: FixtureMap, blobs, outlier_px: float, solve, needed):
-    """Stages 4 and 5 for one readout direction: decodes -> :class:`Decided` (the IDs looked
-    up, the pose solved by ``solve``, look-alikes told by the pose)."""
-
-    def identified(decodes: list) -> Decided:
-        found = identify(blobs, decodes, fixture_map)
-        est, reason = solve(found)
-        found, est = _duplicates_told(camera, fixture_map, blobs, found, est, outlier_px, solve)
-        found, est, told = with_told(
-            camera, fixture_map, blobs, decodes, found, est, outlier_px, solve, needed
-        )
-        return Decided(decodes, found, est, "" if est else reason, told)
-
-    return identified
+def identified(problem: PoseProblem, decodes: list) -> Decided:
+    """Stages 4 and 5 for one readout direction: the IDs looked up, the pose solved, IDs read
+    twice and look-alikes told by the pose."""
+    found = identify(problem.blobs, decodes, problem.fixture_map)
+    est, reason = problem.solve(found)
+    found, est = _duplicates_told(problem, found, est)
+    found, est, told = with_told(problem, decodes, found, est)
+    return Decided(decodes, found, est, "" if est else reason, told)
 
 
 def _withheld(decodes, decodes2) -> list:
@@ -337,13 +285,12 @@ def _withheld(decodes, decodes2) -> list:
 DIRECTION_HYPOTHESES = 8
 
 
-def _unread_hypotheses(
-    blobs, fixture_map: FixtureMap, d: Decided, needed: int, limit: int
-) -> list[dict]:
+def _unread_hypotheses(problem: PoseProblem, d: Decided, limit: int) -> list[dict]:
     """Direction ``d``'s identified fixtures and, for as many of its unread fixtures (no ID,
     not cut by the border) as a pose needs besides, an ID each: its look-alikes when the
     stripes list some, else any ID of the map not identified that way; every way, or the
     first ``limit`` + 1 when there are more (a photo of many unread lights has billions)."""
+    blobs, fixture_map, needed = problem.blobs, problem.fixture_map, problem.needed
     found = d.found
     fixed = {k: found.ids[k] for k in found.usable}
     m = needed - len(fixed)
@@ -370,7 +317,7 @@ def _unread_hypotheses(
     return list(itertools.islice(ways, limit + 1))
 
 
-def _direction_by_unread(blobs, fixture_map: FixtureMap, one: Decided, two: Decided, solve, needed):
+def _direction_by_unread(problem: PoseProblem, one: Decided, two: Decided) -> int:
     """1 or 2, the direction whose IDs, with the fixtures whose stripes it could not read,
     give a pose (when neither direction's IDs alone are enough); 0 when both or neither do,
     or when the ways to try are more than :data:`DIRECTION_HYPOTHESES`.
@@ -379,32 +326,28 @@ def _direction_by_unread(blobs, fixture_map: FixtureMap, one: Decided, two: Deci
     when it has some), the pose that fits every fixture says that direction's IDs are
     where the map has them.  Read the wrong way, the IDs are the reverses' and their
     places are not where the map has them (the pose fits no assignment)."""
-    hyps = [
-        _unread_hypotheses(blobs, fixture_map, d, needed, DIRECTION_HYPOTHESES) for d in (one, two)
-    ]
+    hyps = [_unread_hypotheses(problem, d, DIRECTION_HYPOTHESES) for d in (one, two)]
     if not 0 < len(hyps[0]) + len(hyps[1]) <= DIRECTION_HYPOTHESES:
         return 0
 
     def fits(d: Decided, given: dict[int, int]) -> bool:
-        e, _ = solve(_given(d.found, given))
+        e, _ = problem.solve(_given(d.found, given))
         return bool(e) and bool(np.all(e.used))
 
     ok = [any(fits(d, h) for h in hs) for d, hs in zip((one, two), hyps, strict=True)]
     return 0 if ok[0] == ok[1] else (1 if ok[0] else 2)
 
 
-def _direction_by_pose(
-    blobs, fixture_map: FixtureMap, man: Manchester, one: Decided, identified, solve, needed
-):
-    """The direction whose IDs give a pose, when the stripes fit both about equally (with
-    ``solve``, when neither gives one alone, the direction whose IDs with its unread
-    fixtures do: :func:`_direction_by_unread`); else no pose and every ID that depends on
-    the direction withheld.  Returns ``man`` and the :class:`Decided` of the direction kept
+def _direction_by_pose(problem: PoseProblem, man: Manchester, one: Decided):
+    """The direction whose IDs give a pose, when the stripes fit both about equally (when
+    neither gives one alone, the direction whose IDs with its unread fixtures do:
+    :func:`_direction_by_unread`); else no pose and every ID that depends on the direction
+    withheld.  Returns ``man`` and the :class:`Decided` of the direction kept
     (``man.readout`` says which)."""
-    two = identified(list(man.other))
+    two = identified(problem, list(man.other))
     pick = _pick_direction(one.est, two.est, one.found, two.found)
-    if pick == -1 and solve is not None:
-        pick = _direction_by_unread(blobs, fixture_map, one, two, solve, needed) or -1
+    if pick == -1:
+        pick = _direction_by_unread(problem, one, two) or -1
     if pick == 2:
         flipped = Readout.of(man.readout.axis, not man.readout.reversed)
         man = Manchester(tuple(two.decodes), flipped, man.rows_per_chip, man.other_model)
@@ -419,25 +362,17 @@ def _direction_by_pose(
         if pick == 0
         else f"{one.reason} (and the readout direction is undecided)"
     )
-    return man, Decided(decodes, identify(blobs, decodes, fixture_map), None, reason, {})
+    found = identify(problem.blobs, decodes, problem.fixture_map)
+    return man, Decided(decodes, found, None, reason, {})
 
 
-def decided(
-    blobs,
-    fixture_map: FixtureMap,
-    man: Manchester | None,
-    decodes: list,
-    identified,
-    solve=None,
-    needed: int = 4,
-):
-    """Stages 4 and 5 (``identified``, from :func:`_identifier`); when the stripes fit both
-    readout directions about equally (``man.other``: IDs whose reversed frames are other
-    IDs'), the direction whose IDs give a pose decides (with ``solve``, the pose solver of
-    :func:`identifier`, and ``needed``, the fixtures it needs, also with the fixtures whose
-    stripes were not read), else the photo is refused.  Returns ``man`` and the
-    :class:`Decided` of the direction kept (``man.readout`` says which)."""
-    one = identified(decodes)
+def decided(problem: PoseProblem, man: Manchester | None, decodes: list):
+    """Stages 4 and 5 (:func:`identified`); when the stripes fit both readout directions
+    about equally (``man.other``: IDs whose reversed frames are other IDs'), the direction
+    whose IDs give a pose decides (also with the fixtures whose stripes were not read), else
+    the photo is refused.  Returns ``man`` and the :class:`Decided` of the direction kept
+    (``man.readout`` says which)."""
+    one = identified(problem, decodes)
     if man is not None and man.other is not None:
-        return _direction_by_pose(blobs, fixture_map, man, one, identified, solve, needed)
+        return _direction_by_pose(problem, man, one)
     return man, one
