@@ -64,7 +64,7 @@ import numpy as np
 
 from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
 from camvlp.pipeline.decode.model import FIXTURE_KNEES, MIN_MARGIN
-from camvlp.pipeline.decode.stripe_model import _direct_fit, _prepare, _templates_batch
+from camvlp.pipeline.decode.stripe_model import direct_fit, prepared_profile, templates_batch
 from camvlp.sim.oracle import id_separation
 from camvlp.sim.sensor import camera_date
 from camvlp.viz.annotate import annotate, write_debug_pictures
@@ -384,13 +384,13 @@ def separation(
     book = fmap.frame.codebook[ids]
     kn = np.asarray(FIXTURE_KNEES)
     one = np.ones(kn.size)
-    t = _templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
-    p, w = _prepare(profile, weights)
+    t = templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
+    p, w = prepared_profile(profile, weights)
     x = np.arange(p.size) / rpc * s
     phases = np.arange(t.shape[2], dtype=float)
 
     def best_fit(target, k):
-        fits = [_direct_fit(target, w, t[v, k], x, phases) for v in range(kn.size)]
+        fits = [direct_fit(target, w, t[v, k], x, phases) for v in range(kn.size)]
         v = int(np.argmin([f[0].min() for f in fits]))
         j = int(np.argmin(fits[v][0]))
         return fits[v][0][j], fits[v][1][j], fits[v][2][j], v, j

@@ -412,7 +412,7 @@ def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=
             if np.hypot(*(b.pixel - near)) < 5:
                 cov = np.eye(2) * sigma_px**2
                 b = dataclasses.replace(
-                    b, pixel=b.pixel + shift_px, centre_cov_px2=cov, touches_border=border
+                    b, pixel=b.pixel + shift_px, centre_cov=cov, touches_border=border
                 )
             out.append(b)
         return out

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from camvlp.locate import locate
 
-from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
+from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import (
@@ -259,7 +259,7 @@ def test_median_by_counting_is_the_histograms():
             g = rng.integers(100, 140, (h, w)).astype(float)
             g[::16] = rng.integers(0, 20)
         g = g.astype(np.uint8)
-        assert _median_u8(g) == _percentiles_u8(g, [50])[0]
+        assert _median_u8(g) == percentiles_u8(g, [50])[0]
 
 
 def test_blurred_peak_is_the_blurs_maximum():
@@ -304,8 +304,8 @@ def test_percentiles_by_counting_are_the_histograms():
         g = g.astype(np.uint8)[:, :: int(rng.integers(1, 3))]
         qs = [float(rng.choice([0.0, 10.0, 50.0, 99.5, 100.0, rng.uniform(0, 100)])), 99.5]
         guesses = [int(v) for v in rng.integers(-10, 300, 2)]
-        expected = _percentiles_u8(np.ascontiguousarray(g), qs)
-        assert _counted_percentiles(g, qs, guesses) == expected
+        expected = percentiles_u8(np.ascontiguousarray(g), qs)
+        assert counted_percentiles(g, qs, guesses) == expected
 
 
 @pytest.mark.parametrize("s", [1, 2, 3, 8])

@@ -323,22 +323,23 @@ def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
 
 
 def test_centring_glowing_lights_leaves_the_centres_covariances_unread(monkeypatch):
-    """The glowing lights moved to their shapes' centres keep their ellipse fits'
-    covariances still to be worked out (``later.replaced``): ``locate`` works none out, and
-    the first read gives the detector's values, for all the lights at once."""
+    """The glowing lights moved to their shapes' centres keep their ellipse fits, whose
+    covariances are still to be worked out: ``locate`` works none out, and the first read
+    gives the detector's values, once per light."""
     import camvlp.pipeline.detect.refine as refine
 
     photo, _ = _photo(1, halo=0.4, brightness=1.0)
     calls = []
-    real = refine.ellipse_centre_covariances
-    monkeypatch.setattr(refine, "ellipse_centre_covariances", lambda f: calls.append(1) or real(f))
+    real = refine.ellipse_centre_covariance
+    monkeypatch.setattr(refine, "ellipse_centre_covariance", lambda *a: calls.append(1) or real(*a))
     blobs = detect_fixtures(photo.image).blobs
     moved = centred_on_glow(photo.image, blobs, "rows")
     assert all(a is not b for a, b in zip(blobs, moved, strict=True))  # every light moved
     res = locate(photo.image, CAM, ROOM)
     assert res and calls == []
     sigmas = [f.centre_sigma_px for f in res.fixtures]
-    assert calls == [1]
+    assert len(calls) == len(res.fixtures)
+    assert [f.centre_sigma_px for f in res.fixtures] == sigmas and len(calls) == len(sigmas)
     expected = sorted(b.centre_sigma_px for b in blobs)
     assert sorted(sigmas) == expected and all(np.isfinite(expected))
 

@@ -343,26 +343,27 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     small_render, small_camera, small_room, monkeypatch
 ):
     """A plain photo's ``locate`` does not work out the centres' covariances (a tenth of a
-    1080p photo's time); reading one works them all out at once, the same values as the
-    detector's blobs give, and the result pickles unread."""
+    1080p photo's time); reading one works it out, once, the same value as the detector's
+    blob gives, and the result pickles unread."""
     import pickle
 
     import camvlp.pipeline.detect.refine as refine
     from camvlp.pipeline.detect.candidates import detect_fixtures
 
     calls = []
-    real = refine.ellipse_centre_covariances
+    real = refine.ellipse_centre_covariance
 
-    def counted(fits):
-        calls.append(len(fits))
-        return real(fits)
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
 
-    monkeypatch.setattr(refine, "ellipse_centre_covariances", counted)
+    monkeypatch.setattr(refine, "ellipse_centre_covariance", counted)
     res = locate(small_render.image, small_camera, small_room)
     assert res and calls == []
     unread = pickle.loads(pickle.dumps(res))
     sigmas = [f.centre_sigma_px for f in res.fixtures]
-    assert calls == [len(res.fixtures)]  # one batch for the photo
+    assert [f.centre_sigma_px for f in res.fixtures] == sigmas
+    assert len(calls) == len(res.fixtures)  # one each, once
     assert [f.centre_sigma_px for f in unread.fixtures] == sigmas
     blobs = detect_fixtures(small_render.image).blobs
     by_pixel = {tuple(np.round(b.pixel, 6)): b.centre_sigma_px for b in blobs}

@@ -8,10 +8,9 @@ import itertools
 import cv2
 import numpy as np
 import pytest
+from camvlp.locate import locate
 
 import camvlp.pipeline.decode.stage as decode_stage
-import camvlp.pipeline.lamp.glow
-import camvlp.pipeline.track.tracker
 from camvlp.errors import InputError
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -103,25 +102,20 @@ def test_glowing_lamps_are_centred_on_their_shape():
     assert len(px) == 12 and np.median(px) < 0.2 and max(px) < 0.4, px
 
 
-def test_plain_lamps_cost_one_glow_check(video, monkeypatch):
-    # a lamp's glow is told once (a ring of samples); a plain one is never fitted
-    cam, room, frames = video
-    told = []
-
-    def glowing(img, blobs):
-        told.extend(blobs)
-        return real(img, blobs)
-
-    def no_fit(*args):
-        raise AssertionError("a plain lamp was centred on its radial shape")
-
-    real = camvlp.pipeline.track.tracker.glowing
-    monkeypatch.setattr(camvlp.pipeline.track.tracker, "glowing", glowing)
-    monkeypatch.setattr(camvlp.pipeline.lamp.glow, "radial_fit", no_fit)
-    tracker = Tracker(cam, room)
-    results = [tracker.update(f.image, f.t) for f in frames]
-    used = {i for r in results for i in r.fixtures_used}
-    assert len(told) == len(used) == 4
+@pytest.mark.parametrize("halo", [0.0, 0.4])
+def test_the_tracker_reads_a_first_frame_as_locate_does(halo):
+    # the same stages in the same order: the same lights, centred alike (a glowing lamp on
+    # its radial shape), with the same IDs
+    cam, room, traj = small_scene()
+    frame = next(iter(iter_frames(cam, room, traj, FPS, RenderSettings(seed=3, halo=halo))))
+    alone = locate(frame.image, cam, room)
+    tracked = Tracker(cam, room, TrackSettings(rolling_shutter=False)).update(frame.image, 0.0)
+    assert alone and tracked.status == "fix"
+    got = {f.id: f.pixel for f in tracked.fixtures if f.id is not None}
+    want = {f.id: f.pixel for f in alone.fixtures if f.id is not None}
+    assert got.keys() == want.keys() and len(got) >= 4
+    for i, pixel in want.items():
+        np.testing.assert_allclose(got[i], pixel, atol=1e-9)
 
 
 def smear(image: np.ndarray, centre, radius: int) -> np.ndarray:

@@ -19,14 +19,14 @@ CLIP_LEVEL = 235.0
 FULL_SCALE = 255.0
 
 
-def _percentiles_u8(gray: np.ndarray, qs) -> list[float]:
+def percentiles_u8(gray: np.ndarray, qs) -> list[float]:
     """Percentiles (0-100) of a uint8 image from its histogram (much faster than sorting)."""
     hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).reshape(1, 256)
-    return _hist_percentiles(hist, qs)[0].tolist()
+    return hist_percentiles(hist, qs)[0].tolist()
 
 
-def _counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
-    """``_percentiles_u8(gray, qs)`` of a uint8 image found by counting instead of from its
+def counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
+    """``percentiles_u8(gray, qs)`` of a uint8 image found by counting instead of from its
     histogram: for each ``q``, the smallest level ``v`` with at least ``q`` % of the pixels
     at or below it (counted by OpenCV: ``cv2.threshold`` and ``cv2.countNonZero``), searched
     for from ``guesses`` (one level each) by steps that double, then by halves.  The same
@@ -34,7 +34,7 @@ def _counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
     guess is near, which costs less than the histogram."""
     n = gray.size
     if n >= 1 << 24:  # beyond float32's whole numbers: the histogram's own float32 counts
-        return _percentiles_u8(gray, qs)
+        return percentiles_u8(gray, qs)
 
     def enough(v: int, most_above: float) -> bool:  # at least the share at or below v
         # (one frame a count: it is called a few times per region)
@@ -65,7 +65,7 @@ def _counted_percentiles(gray: np.ndarray, qs, guesses) -> list[float]:
     return out
 
 
-def _hist_percentiles(hists: np.ndarray, qs) -> np.ndarray:
+def hist_percentiles(hists: np.ndarray, qs) -> np.ndarray:
     """Percentiles (0-100) of uint8 images from their histograms (K, 256) (float32 counts, as
     ``cv2.calcHist`` gives them): per image and ``q``, the level where its cumulative count
     reaches ``q`` % of its pixels (in float32, as the counts are).  Returns (K, len(qs))."""

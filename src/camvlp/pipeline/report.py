@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from camvlp.geometry.disc import centre_sigma
 from camvlp.geometry.gravity import GravityPose
 from camvlp.geometry.pose import PoseEstimate
 from camvlp.model.fixtures import FixtureMap
@@ -13,7 +12,6 @@ from camvlp.pipeline.decode.stage import Decoded, Profiles
 from camvlp.pipeline.detect.stage import Lights
 from camvlp.pipeline.identify.identified import Identified
 from camvlp.pipeline.identify.stage import Solved
-from camvlp.pipeline.later import later_of
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
 from camvlp.pipeline.settings import LocateSettings
@@ -71,7 +69,7 @@ def report(
         solver=est.solver if gravity else ("pnp" if prepared.gravity is None else "gravity"),
         tilt_disagreement_deg=est.tilt_disagreement_deg if gravity and pose is not None else nan,
         gravity_residual_deg=est.gravity_residual_deg if gravity and pose is not None else nan,
-        position_sigma=solved.position_sigma,
+        sigma_of=solved.sigma_of,
     )
 
 
@@ -144,7 +142,7 @@ def fixture_results(
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,
                 frequency_hz=float(frequencies[k]),
-                centre_sigma_px=later_of(b, "centre_cov_px2", centre_sigma),
+                edge_fit=b.edge_fit,
                 look_alikes=(told or {}).get(k, ()),
             )
         )

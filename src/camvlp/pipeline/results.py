@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from camvlp.geometry.disc import centre_sigma
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import ModelDecode
 from camvlp.pipeline.decode.runs import StripeDecode
 from camvlp.pipeline.detect.candidates import Detection
-from camvlp.pipeline.later import LaterField
+from camvlp.pipeline.detect.refine import EllipseFit
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 
@@ -51,8 +54,8 @@ class FixtureResult:
         Measured blinking frequency (frequency mode), Hz; NaN otherwise.
     centre_sigma_px : float
         Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
-        axis; NaN when the disc was too small to fit).  Worked out when first read
-        (:class:`~camvlp.pipeline.later.LaterField`).
+        axis; NaN when the disc was too small to fit).  Worked out when first read, from
+        ``edge_fit`` (:class:`~camvlp.pipeline.detect.refine.EllipseFit`).
     look_alikes : tuple of int
         When the stripes fit two or more IDs of the map almost equally and the pose told
         them apart (:mod:`camvlp.pipeline.identify.by_pose`): those IDs, ``id`` among them (the one
@@ -70,8 +73,15 @@ class FixtureResult:
     rows_per_chip: float = float("nan")
     residual_px: float = float("nan")
     frequency_hz: float = float("nan")
-    centre_sigma_px: float = LaterField(float("nan"))  # a descriptor: read per instance
     look_alikes: tuple[int, ...] = ()
+    edge_fit: EllipseFit | None = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def centre_sigma_px(self) -> float:
+        """See the class' attributes."""
+        if self.edge_fit is None:
+            return float("nan")
+        return centre_sigma(self.edge_fit.covariance)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
@@ -150,9 +160,10 @@ class LocateResult:
     position_sigma : ndarray, shape (3,), or None
         How sure the position is: its standard deviation along the map's x, y and z, map
         units, from the fixtures' reprojection errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.identify.by_pose.position_sigma`), for the pose located; worked out
-        when first read (:class:`~camvlp.pipeline.later.LaterField`).  None when not
-        located, when the pose was solved with gravity, or when it is not finite.
+        (:func:`camvlp.pipeline.identify.by_pose.position_sigma`), for the pose located;
+        worked out when first read (``sigma_of``, a function of no arguments that gives it).
+        None when not located, when the pose was solved with gravity, or when it is not
+        finite.
     """
 
     position: np.ndarray | None
@@ -174,7 +185,14 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
-    position_sigma: np.ndarray | None = LaterField(None)  # noqa: RUF009 (a descriptor)
+    sigma_of: Callable[[], np.ndarray | None] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    @functools.cached_property
+    def position_sigma(self) -> np.ndarray | None:
+        """See the class' attributes."""
+        return None if self.sigma_of is None else self.sigma_of()
 
     @property
     def fixtures_used(self) -> int:

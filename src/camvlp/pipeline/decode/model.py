@@ -25,21 +25,21 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline.decode.photo_model import _trimmed, estimate_photo_model
+from camvlp.pipeline.decode.photo_model import estimate_photo_model, trimmed_cost
 from camvlp.pipeline.decode.stripe_model import (
     MIN_FRAMES,
     SAMPLES_PER_CHIP,
+    Fit,
+    Folded,
     SensorModel,
-    _candidates,
-    _direct_fit,
-    _Fit,
-    _fit_folded,
-    _fold,
-    _Folded,
-    _prepare,
-    _spectra,
-    _templates_batch,
+    candidate_ids,
+    direct_fit,
+    fit_folded,
+    fold_profile,
     model_profile,
+    model_spectra,
+    prepared_profile,
+    templates_batch,
 )
 
 __all__ = [
@@ -180,7 +180,7 @@ class PhotoDecode:
         """Mean unexplained variance fraction of every profile's best fit, the worst dropped
         (inf when none was fitted): compares decodes of the same profiles."""
         un = np.array([d.unexplained for d in self.decodes if np.isfinite(d.gain)])
-        return float(_trimmed(un)) if un.size else float("inf")
+        return float(trimmed_cost(un)) if un.size else float("inf")
 
     @property
     def exposure_chips(self) -> float:
@@ -213,7 +213,7 @@ class _Leaders:
     knees: np.ndarray
 
 
-def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, samples):
+def _refine_leaders(fit: Fit, chips, knees, model: SensorModel, in_map, p, w, samples):
     """Each candidate's best residual and phase; the leading candidates' (the best of the map
     and those close to it, and the best outside it) refined on templates
     :data:`FINE_PHASE` times finer, to a parabola's minimum between their points, so that
@@ -238,7 +238,7 @@ def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, s
         near = int(np.argmin(np.abs(np.log(grid / knees[k]))))
         kn = np.unique(np.append(grid[max(near - 2, 0) : near + 3], knees[k]))
         one = np.ones(kn.size)
-        tfs = _templates_batch(
+        tfs = templates_batch(
             chips[k : k + 1],
             model.rows_per_chip,
             one * model.exposure_chips,
@@ -248,7 +248,7 @@ def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, s
             samples * f,
         )[:, 0]
         ph = phase[k] * f + steps
-        rss_v = np.stack([_direct_fit(p, w, tf, xf, ph)[0] for tf in tfs])
+        rss_v = np.stack([direct_fit(p, w, tf, xf, ph)[0] for tf in tfs])
         v, i = np.unravel_index(int(np.argmin(rss_v)), rss_v.shape)
         rss_k, tf = rss_v[v], tfs[v]
         best, at = float(rss_k[i]), float(ph[i])
@@ -257,14 +257,14 @@ def _refine_leaders(fit: _Fit, chips, knees, model: SensorModel, in_map, p, w, s
             den = c0 - 2 * c1 + c2
             if den > 0:
                 x = float(ph[i] + np.clip(0.5 * (c0 - c2) / den, -0.5, 0.5))
-                r = float(_direct_fit(p, w, tf, xf, np.array([x]))[0][0])
+                r = float(direct_fit(p, w, tf, xf, np.array([x]))[0][0])
                 if r < best:
                     best, at = r, x
         per_id[k], phase[k], fine[k], knees[k] = best, at / f, tf, kn[v]
     return _Leaders(per_id, phase, fine, knees)
 
 
-def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, float, int]:
+def _noise(resid: np.ndarray, w: np.ndarray, fit: Fit) -> tuple[float, float, float, int]:
     """The best fit's own weighted residual sum of squares, the noise variance it implies, the
     variance inflation of its correlated residuals (AR(1), of the residuals each scaled by
     the square root of its row's weight, which makes them alike in variance) and its degrees
@@ -281,7 +281,7 @@ def _noise(resid: np.ndarray, w: np.ndarray, fit: _Fit) -> tuple[float, float, f
 
 
 def _decide(
-    fit: _Fit,
+    fit: Fit,
     chips: np.ndarray,
     cand_ids: np.ndarray,
     in_map: np.ndarray,
@@ -308,7 +308,7 @@ def _decide(
     tf = leaders.fine[k1]
     xs = (fit.x + j1) * FINE_PHASE % tf.size
     model_rows = np.interp(xs, np.arange(tf.size + 1), np.append(tf, tf[0]))
-    _, g1, o1 = _direct_fit(p, w, tf, fit.x * FINE_PHASE, np.array([j1 * FINE_PHASE]))
+    _, g1, o1 = direct_fit(p, w, tf, fit.x * FINE_PHASE, np.array([j1 * FINE_PHASE]))
     gain1, offset1 = float(g1[0]), float(o1[0])
     resid = p - (gain1 * model_rows + offset1)
     rss1, sigma2, inflation, dof = _noise(resid, w, fit)
@@ -407,8 +407,8 @@ def decode_profile_model(
     ModelDecode
         Falsy, with a reason, when the stripes do not give one ID safely.
     """
-    p, w = _prepare(profile, weights)
-    cand, in_map = _candidates(frame, ids)
+    p, w = prepared_profile(profile, weights)
+    cand, in_map = candidate_ids(frame, ids)
     chips = frame.codebook[cand]
     return _decode_with(
         p,
@@ -417,7 +417,7 @@ def decode_profile_model(
         cand,
         in_map,
         chips,
-        _spectra(chips, model, samples),
+        model_spectra(chips, model, samples),
         model,
         min_margin,
         samples,
@@ -443,8 +443,8 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
         )
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see _decide)
-    fo = _fold(p, w, model.rows_per_chip, samples // 2, n)
-    fit = _Fit(*_fit_folded(fo, *spec), fo.spp, p.size, fo.x)
+    fo = fold_profile(p, w, model.rows_per_chip, samples // 2, n)
+    fit = Fit(*fit_folded(fo, *spec), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
         return _fail_small(p, model, n, "no stripes (a steady light)")
     fit, knees = _own_knee(fit, fo, chips, in_map, model, samples, cache)
@@ -454,7 +454,7 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
     )
 
 
-def _own_knee(fit: _Fit, fo: _Folded, chips, in_map, model: SensorModel, samples, cache):
+def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples, cache):
     """Each candidate's fits at its own best saturation knee (internal).
 
     ``fit`` is at the photo's knee (``fo``: the profile folded for it); the
@@ -476,10 +476,10 @@ def _own_knee(fit: _Fit, fo: _Folded, chips, in_map, model: SensorModel, samples
         spec_k = cache[key]
     else:
         kn = np.asarray(FIXTURE_KNEES, dtype=np.float64)
-        spec_k = _spectra(chips[lead], model, samples, kn)
+        spec_k = model_spectra(chips[lead], model, samples, kn)
         if cache is not None:
             cache[key] = spec_k
-    rss, gain, offset = _fit_folded(fo, *spec_k)  # each (K, L, P)
+    rss, gain, offset = fit_folded(fo, *spec_k)  # each (K, L, P)
     kb = rss.min(axis=2).argmin(axis=0)  # (L,)
     li = np.arange(lead.size)
     better = rss[kb, li].min(axis=1) < fit.rss[lead].min(axis=1)
@@ -550,13 +550,13 @@ def decode_photo(
                 _fail_small(p, fallback, frame.n_chips, f"no sensor model: {exc}") for p in ps
             )
             return PhotoDecode(fallback, decodes, float("inf"))
-    cand, in_map = _candidates(frame, ids)
+    cand, in_map = candidate_ids(frame, ids)
     chips = frame.codebook[cand]
-    spec = _spectra(chips, model, samples)
+    spec = model_spectra(chips, model, samples)
     cache: dict = {}  # the knees' templates, shared by the fixtures with the same leaders
     decodes = []
     for p, w in zip(ps, ws, strict=True):
-        pp, wp = _prepare(p, w)
+        pp, wp = prepared_profile(p, w)
         decodes.append(
             _decode_with(
                 pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples, cache
@@ -564,5 +564,5 @@ def decode_photo(
         )
     if not math.isfinite(cost):
         un = np.array([d.unexplained for d in decodes if np.isfinite(d.unexplained)])
-        cost = float(_trimmed(un)) if un.size else float("inf")
+        cost = float(trimmed_cost(un)) if un.size else float("inf")
     return PhotoDecode(model, tuple(decodes), cost)

@@ -17,15 +17,15 @@ from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.decode.stripe_model import (
     MIN_FRAMES,
     SAMPLES_PER_CHIP,
+    Folded,
     SensorModel,
-    _candidates,
-    _fit_folded,
-    _fold,
-    _Folded,
-    _prepare,
-    _template_spectra,
-    _templates,
-    _templates_batch,
+    candidate_ids,
+    fit_folded,
+    fold_profile,
+    prepared_profile,
+    template_spectra,
+    templates,
+    templates_batch,
 )
 
 __all__ = ["estimate_photo_model"]
@@ -37,7 +37,7 @@ _BLURS = (0.0, 0.4, 0.8, 1.3, 2.0)
 _GAMMAS = (1.0, 0.7, 0.45)
 
 
-def _trimmed(costs: np.ndarray) -> np.ndarray:
+def trimmed_cost(costs: np.ndarray) -> np.ndarray:
     """Photo cost from per-fixture unexplained fractions (..., F): mean log, worst dropped."""
     c = np.sort(costs, axis=-1)
     if c.shape[-1] >= 3:
@@ -57,12 +57,14 @@ class _PhotoFitter:
         self.samples = samples
         self.n_chips = n_chips
         self.own = own if own is not None else [slice(None)] * len(data)
-        self._folds: dict[float, list[_Folded]] = {}
+        self._folds: dict[float, list[Folded]] = {}
 
-    def folds(self, rows_per_chip: float) -> list[_Folded]:
+    def folds(self, rows_per_chip: float) -> list[Folded]:
         key = float(rows_per_chip)
         if key not in self._folds:
-            self._folds[key] = [_fold(p, w, key, self.samples, self.n_chips) for p, w in self.data]
+            self._folds[key] = [
+                fold_profile(p, w, key, self.samples, self.n_chips) for p, w in self.data
+            ]
         return self._folds[key]
 
     def costs(self, rows_per_chip: float, exposure, knee, gamma, blur) -> np.ndarray:
@@ -71,16 +73,16 @@ class _PhotoFitter:
         A profile that spans fewer than :data:`MIN_FRAMES` frames at this chip length cannot
         be read: nothing of it counts as explained (a few chips fit any ID, so a chip length
         too long for most of the lights would otherwise fit them best)."""
-        t = _templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
-        spectra = _template_spectra(t)  # each (V, I, F)
+        t = templates_batch(self.chips, rows_per_chip, exposure, knee, gamma, blur, self.samples)
+        spectra = template_spectra(t)  # each (V, I, F)
         un = np.ones((t.shape[0], len(self.data)))
         for k, fo in enumerate(self.folds(rows_per_chip)):
             if self.data[k][0].size < MIN_FRAMES * self.n_chips * rows_per_chip:
                 continue
             sel = self.own[k]
-            rss = _fit_folded(fo, *(h[:, sel] for h in spectra))[0]
+            rss = fit_folded(fo, *(h[:, sel] for h in spectra))[0]
             un[:, k] = rss.reshape(rss.shape[0], -1).min(axis=1) / max(fo.spp, 1e-300)
-        return _trimmed(un)
+        return trimmed_cost(un)
 
     def sweep(self, model: SensorModel, name: str, values) -> tuple[SensorModel, float]:
         """Best of ``model`` with ``name`` set to each of ``values`` (and its cost)."""
@@ -134,9 +136,9 @@ def _own_fitter(data, chips: np.ndarray, n: int, s: int, m: SensorModel, keep: i
     """A :class:`_PhotoFitter` on ``s`` samples per chip with each profile's ``keep`` best
     IDs under ``m``."""
     f = _PhotoFitter(data, chips, s, n)
-    spec = _template_spectra(_templates(chips, m, s))
+    spec = template_spectra(templates(chips, m, s))
     tops = [
-        np.argsort(_fit_folded(fo, *spec)[0].min(axis=1))[:keep] for fo in f.folds(m.rows_per_chip)
+        np.argsort(fit_folded(fo, *spec)[0].min(axis=1))[:keep] for fo in f.folds(m.rows_per_chip)
     ]
     union = np.unique(np.concatenate(tops))
     return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
@@ -201,8 +203,8 @@ def estimate_photo_model(
     use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
     if not use:
         raise ValueError("no profile long enough to fit the sensor model")
-    data = [_prepare(ps[k], ws[k]) for k in use]
-    cand, _ = _candidates(frame, ids)
+    data = [prepared_profile(ps[k], ws[k]) for k in use]
+    cand, _ = candidate_ids(frame, ids)
     chips = frame.codebook[cand]
     n = frame.n_chips
     start = SensorModel(1.0, 0.5, 0.4, 1.0 if gamma is None else float(gamma), 0.5)

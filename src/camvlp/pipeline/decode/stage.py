@@ -19,7 +19,6 @@ from camvlp.pipeline.detect.candidates import to_gray
 from camvlp.pipeline.detect.refine import Blob
 from camvlp.pipeline.detect.stage import STRIPE_SHARE, STRIPED, UNCLEAR_AXIS, Lights, spread_out
 from camvlp.pipeline.lamp.glow_split import decode_from_glows
-from camvlp.pipeline.later import replaced
 from camvlp.pipeline.prepare import Prepared
 
 __all__ = ["CLEAR", "Decoded", "Profiles", "decode", "no_stripes", "read_profiles", "unread"]
@@ -167,7 +166,7 @@ def _frequencies(prepared, lights, profiles, fixture_map, keep, refused) -> Deco
         fixture_map,
     )
     moved = [
-        b if np.array_equal(c, b.pixel) else replaced(b, pixel=c)
+        b if np.array_equal(c, b.pixel) else dataclasses.replace(b, pixel=c)
         for b, c in zip(sub, centres, strict=True)
     ]
     frequencies = np.full(len(blobs), np.nan)

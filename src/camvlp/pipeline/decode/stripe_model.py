@@ -85,7 +85,7 @@ def _on_time(cum: np.ndarray, chips: np.ndarray, t: np.ndarray) -> np.ndarray:
     return cycles[..., None] * cum[:, -1] + cum.T[k] + frac[..., None] * chips.T[k]
 
 
-def _templates_batch(
+def templates_batch(
     chips: np.ndarray,
     rows_per_chip: float,
     exposure: np.ndarray,
@@ -134,9 +134,9 @@ def _templates_batch(
     return h
 
 
-def _templates(chips: np.ndarray, model: SensorModel, samples: int) -> np.ndarray:
-    """:func:`_templates_batch` for one parameter set: shape (I, N * samples)."""
-    return _templates_batch(
+def templates(chips: np.ndarray, model: SensorModel, samples: int) -> np.ndarray:
+    """:func:`templates_batch` for one parameter set: shape (I, N * samples)."""
+    return templates_batch(
         chips,
         model.rows_per_chip,
         np.array([model.exposure_chips]),
@@ -172,7 +172,7 @@ def model_profile(
         Values in [0, 1]: 0 for the LED off throughout, 1 for full scale.
     """
     c = np.asarray(chips, dtype=np.float64).reshape(1, -1)
-    t = _templates(c, model, samples)[0]
+    t = templates(c, model, samples)[0]
     period = t.size
     x = (np.arange(n_rows) / model.rows_per_chip + phase_chips) * samples
     return np.interp(x % period, np.arange(period + 1), np.append(t, t[0]))
@@ -183,7 +183,7 @@ def model_profile(
 
 
 @dataclass(frozen=True)
-class _Folded:
+class Folded:
     """A profile folded onto the template grid's period at one chip length (internal).
 
     Row ``r`` falls at grid position ``x = r * samples / rows_per_chip`` (modulo the period),
@@ -203,8 +203,8 @@ class _Folded:
     period: int  # grid points per frame
 
 
-def _fold(p: np.ndarray, w: np.ndarray, rows_per_chip: float, samples: int, n_chips: int):
-    """Fold a profile onto one frame's grid (see :class:`_Folded`)."""
+def fold_profile(p: np.ndarray, w: np.ndarray, rows_per_chip: float, samples: int, n_chips: int):
+    """Fold a profile onto one frame's grid (see :class:`Folded`)."""
     period = n_chips * samples
     centre = float((w * p).sum() / max(w.sum(), 1e-300))
     pc = p - centre
@@ -224,7 +224,7 @@ def _fold(p: np.ndarray, w: np.ndarray, rows_per_chip: float, samples: int, n_ch
         return np.conj(np.fft.rfft(v))
 
     wp = w * pc
-    return _Folded(
+    return Folded(
         spec(wp * (1 - f), wp * f),
         spec(w * (1 - f), w * f),
         spec(w * (1 - f) ** 2, w * f * f),
@@ -237,7 +237,7 @@ def _fold(p: np.ndarray, w: np.ndarray, rows_per_chip: float, samples: int, n_ch
     )
 
 
-def _fit_folded(fo: _Folded, mh: np.ndarray, m2h: np.ndarray, mmh: np.ndarray):
+def fit_folded(fo: Folded, mh: np.ndarray, m2h: np.ndarray, mmh: np.ndarray):
     """Least-squares ``gain * template(phase) + offset`` for every template and phase.
 
     ``mh``, ``m2h`` and ``mmh`` (..., F) are the spectra of the templates, of their squares
@@ -260,7 +260,7 @@ def _fit_folded(fo: _Folded, mh: np.ndarray, m2h: np.ndarray, mmh: np.ndarray):
     return np.maximum(rss, 0.0), gain, offset
 
 
-def _template_spectra(t: np.ndarray):
+def template_spectra(t: np.ndarray):
     """Spectra of templates (..., P), of their squares and of their products with the next."""
     return (
         np.fft.rfft(t, axis=-1),
@@ -269,7 +269,7 @@ def _template_spectra(t: np.ndarray):
     )
 
 
-def _direct_fit(
+def direct_fit(
     p: np.ndarray, w: np.ndarray, template: np.ndarray, x: np.ndarray, phases: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Weighted least-squares fits of one template at given (fractional) phases.
@@ -298,7 +298,7 @@ def _direct_fit(
 
 
 @dataclass(frozen=True)
-class _Fit:
+class Fit:
     """Least-squares fits of every candidate at every phase (internal)."""
 
     rss: np.ndarray  # (I, P) weighted residual sum of squares
@@ -309,19 +309,19 @@ class _Fit:
     x: np.ndarray  # (n,) grid position of each row at phase 0
 
 
-def _spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
-    """Spectra (see :func:`_template_spectra`) of the templates on the search grid: every
+def model_spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
+    """Spectra (see :func:`template_spectra`) of the templates on the search grid: every
     other point of the ``samples``-per-chip grid.
 
     With ``knees`` (K,), those of the templates at each of these saturation knees instead of
     the model's: shapes (K, I, F) instead of (I, F).
     """
     if knees is None:
-        t = _templates(chips, model, samples)
+        t = templates(chips, model, samples)
     else:
         kn = np.asarray(knees, dtype=np.float64).reshape(-1)
         v = np.ones(kn.size)
-        t = _templates_batch(
+        t = templates_batch(
             chips,
             model.rows_per_chip,
             v * model.exposure_chips,
@@ -330,10 +330,10 @@ def _spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
             v * model.blur_rows,
             samples,
         )
-    return _template_spectra(t[..., ::2])
+    return template_spectra(t[..., ::2])
 
 
-def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
+def prepared_profile(profile, weights) -> tuple[np.ndarray, np.ndarray]:
     p = np.asarray(profile, dtype=np.float64).reshape(-1)
     if weights is None:
         w = np.ones(p.size)
@@ -347,7 +347,7 @@ def _prepare(profile, weights) -> tuple[np.ndarray, np.ndarray]:
     return np.where(good, p, 0.0), np.where(good, w, 0.0)
 
 
-def _candidates(frame, ids, max_extra: int = 1024):
+def candidate_ids(frame, ids, max_extra: int = 1024):
     """Candidate IDs (the map's first, then the format's others) and which are in the map."""
     map_ids = np.unique(np.asarray(list(ids), dtype=np.int64))
     if map_ids.size == 0:

@@ -17,16 +17,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.imaging.levels import _counted_percentiles, _percentiles_u8
+from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.pipeline.detect.refine import (
     Blob,
-    _axis_contrast,
-    _kernel,
+    axis_contrast,
     find_readout_axis,
     gray_float,
     light_support,
     refine_regions,
+    structuring_element,
     to_gray,
 )
 from camvlp.pipeline.detect.touching import (
@@ -76,17 +76,17 @@ class Detection:
 
 
 def _median_u8(gray: np.ndarray) -> float:
-    """``_percentiles_u8(gray, [50])`` of a large uint8 image without its whole histogram:
+    """``percentiles_u8(gray, [50])`` of a large uint8 image without its whole histogram:
     the median of every 4th pixel of every 16th row is a guess, from which the median is
     found by counting the pixels at or below a level in the whole image
-    (:func:`_counted_percentiles`)."""
+    (:func:`counted_percentiles`)."""
     if gray.ndim != 2 or gray.size < 4096:
-        return _percentiles_u8(gray, [50])[0]
+        return percentiles_u8(gray, [50])[0]
     sample = gray[::16, ::4]
     # the guess by NumPy's partition (8 us against 17 for the sample's histogram): any
     # guess gives the same median, a near one in fewer counts
     guess = np.partition(sample, sample.size // 2, axis=None)[sample.size // 2]
-    return _counted_percentiles(gray, [50], [guess])[0]
+    return counted_percentiles(gray, [50], [guess])[0]
 
 
 def _blurred_peak(gray: np.ndarray) -> float:
@@ -232,7 +232,7 @@ def detect_fixtures(
 
     def axis_of(inside: np.ndarray, box: tuple[int, int, int, int]) -> str:
         x, y, w, h = box
-        return readout or _axis_contrast(small[y : y + h, x : x + w], inside)[0]
+        return readout or axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
     def dark_of(box: tuple[int, int, int, int], axis: str) -> tuple[np.ndarray, float] | None:
         """A region's dark-stripe levels and the level its faces must reach
@@ -300,7 +300,7 @@ def _close_lit(
     and the closing is 0 on each box's outer line but where the image's edge is.  A photo
     with many groups (noise) or large ones is closed whole.
     """
-    kernel = _kernel(cv2.MORPH_ELLIPSE, (k, k))
+    kernel = structuring_element(cv2.MORPH_ELLIPSE, (k, k))
     h, w = binary.shape
     r = k // 2
     margin, gap = r + 1, 4 * r + 1

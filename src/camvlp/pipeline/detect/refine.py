@@ -22,11 +22,9 @@ import cv2
 import numpy as np
 from numpy.polynomial import legendre
 
-from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariances
-from camvlp.imaging.levels import _counted_percentiles, _hist_percentiles, _percentiles_u8
-from camvlp.imaging.ragged import pieces, starts
+from camvlp.geometry.disc import centre_sigma, ellipse_centre_covariance
+from camvlp.imaging.levels import counted_percentiles, hist_percentiles, percentiles_u8
 from camvlp.pipeline.detect.touching import own_face
-from camvlp.pipeline.later import Later, LaterField
 
 __all__ = [
     "Blob",
@@ -68,11 +66,9 @@ class Blob:
     edge_points : int
         Edge points the ellipse was fitted to (0 when the centroid was used instead).
     centre_cov_px2 : ndarray, shape (2, 2)
-        Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared
-        (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`); NaN when the centroid was
-        used or the fit cannot tell.  Worked out when first read (for all the blobs of a
-        photo at once: :class:`~camvlp.pipeline.later.LaterField`); it may be given as a
-        :class:`~camvlp.pipeline.later.Later`.
+        Covariance of ``pixel`` from the ellipse fit's residuals, pixels squared (read-only:
+        ``centre_cov`` when given, else :attr:`EllipseFit.covariance` of ``edge_fit``); NaN
+        when the centroid was used or the fit cannot tell.
     gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
         The region of interest in gray levels (:func:`to_gray`), kept so that later stages
         need not convert it again.
@@ -99,14 +95,21 @@ class Blob:
     axis: str
     stripe_contrast: float
     edge_points: int
-    centre_cov_px2: np.ndarray = LaterField(  # noqa: RUF009 (a descriptor, read per instance)
-        missing=lambda: np.full((2, 2), np.nan)
-    )
-
     gray: np.ndarray | None = field(default=None, repr=False, compare=False)
     cell: np.ndarray | None = field(default=None, repr=False, compare=False)
     face: bool = field(default=False, repr=False, compare=False)
     stripe_share: float = field(default=float("nan"), compare=False)
+    edge_fit: EllipseFit | None = field(default=None, repr=False, compare=False)
+    centre_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def centre_cov_px2(self) -> np.ndarray:
+        """:attr:`centre_cov` when given, else the ellipse fit's (NaN without one), (2, 2)."""
+        if self.centre_cov is not None:
+            return self.centre_cov
+        if self.edge_fit is None:
+            return np.full((2, 2), np.nan)
+        return self.edge_fit.covariance.copy()
 
     @property
     def centre_sigma_px(self) -> float:
@@ -116,7 +119,7 @@ class Blob:
         return centre_sigma(self.centre_cov_px2)
 
 
-def _luma(image: np.ndarray, dtype=None) -> np.ndarray:
+def luma(image: np.ndarray, dtype=None) -> np.ndarray:
     """One channel (H, W) from gray or BGR(A) pixels, OpenCV's luma weights (0.299 R +
     0.587 G + 0.114 B), optionally converted to ``dtype`` first."""
     img = np.asarray(image)
@@ -135,14 +138,14 @@ def _luma(image: np.ndarray, dtype=None) -> np.ndarray:
 def gray_float(image: np.ndarray) -> np.ndarray:
     """Gray ``float64`` (H, W) from a BGR (H, W, 3) or gray image, in its own units (no
     rescaling): the same weights as :func:`to_gray`, for measurements on raw levels."""
-    return _luma(image, np.float32).astype(np.float64)
+    return luma(image, np.float32).astype(np.float64)
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:
     """Gray ``uint8`` (H, W) from a BGR (H, W, 3) or gray image, 8- or 16-bit."""
     if isinstance(image, np.ndarray) and image.dtype == np.uint8 and image.shape[2:] == (3,):
-        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)  # the usual photo: as _luma does it
-    img = _luma(image)
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)  # the usual photo: as luma does it
+    img = luma(image)
     if img.dtype == np.uint16:
         img = (img >> 8).astype(np.uint8)
     elif img.dtype != np.uint8:
@@ -173,7 +176,7 @@ def find_readout_axis(gray: np.ndarray, mask: np.ndarray) -> tuple[str, float]:
     g = np.asarray(gray)
     m = np.asarray(mask, dtype=bool).view(np.uint8)
     if g.dtype == np.uint8:
-        return _axis_contrast(g, m)
+        return axis_contrast(g, m)
     m = m.astype(np.float32)
     g = g.astype(np.float32, copy=False) * m
     return _axis_from_sums(g.sum(1), m.sum(1), g.sum(0), m.sum(0))
@@ -206,7 +209,7 @@ def stripe_share(gray8: np.ndarray, mask01: np.ndarray, axis: str) -> float:
     return float(np.clip(between / spread, 0.0, 1.0)) if spread > 0 else 0.0
 
 
-def _axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
+def axis_contrast(gray8: np.ndarray, mask01: np.ndarray) -> tuple[str, float]:
     """:func:`find_readout_axis` of a uint8 region and a uint8 mask of 0 and 1: the sums by
     OpenCV, exact in float32 like NumPy's (whole levels, below 2**24).  (The product by
     NumPy: ``cv2.multiply`` of a crop that is not contiguous costs several times as much.)"""
@@ -281,7 +284,7 @@ def _stripe_variance(level: np.ndarray, count: np.ndarray) -> float:
 
 
 @functools.lru_cache(maxsize=64)
-def _kernel(shape: int, ksize: tuple[int, int]) -> np.ndarray:
+def structuring_element(shape: int, ksize: tuple[int, int]) -> np.ndarray:
     """``cv2.getStructuringElement(shape, ksize)``, made once per shape and size."""
     k = cv2.getStructuringElement(shape, ksize)
     k.flags.writeable = False
@@ -361,8 +364,10 @@ def _bridged(
     else:
         m = r + 3
         part, offset = cv2.copyMakeBorder(lit, m, m, m, m, cv2.BORDER_REPLICATE), (-m, -m)
-    closed = cv2.morphologyEx(part, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_RECT, ksize))
-    closed = cv2.morphologyEx(closed, cv2.MORPH_CLOSE, _kernel(cv2.MORPH_ELLIPSE, (5, 5)))
+    closed = cv2.morphologyEx(part, cv2.MORPH_CLOSE, structuring_element(cv2.MORPH_RECT, ksize))
+    closed = cv2.morphologyEx(
+        closed, cv2.MORPH_CLOSE, structuring_element(cv2.MORPH_ELLIPSE, (5, 5))
+    )
     if offset[0] < 0:  # the padding cut off again
         return np.ascontiguousarray(closed[-offset[1] : offset[1], -offset[0] : offset[0]]), (0, 0)
     return closed, offset
@@ -484,7 +489,7 @@ def refine_regions(
     edge points of the lit sensor rows (:func:`_edge_points`), or the mask's centroid when
     fewer than 12 edge points are found.  Of two regions whose discs are the same fixture the
     larger is kept; each ellipse's centre comes with its covariance
-    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`).
+    (:class:`EllipseFit`).
 
     Parameters
     ----------
@@ -504,7 +509,7 @@ def refine_regions(
         within it, and no edge point is taken where it cuts the light off from another.
     guesses : tuple of float, optional
         Gray levels near the regions' background and peak (the photo's): the two levels are
-        then found by counting pixels from them (:func:`_counted_percentiles`) rather than
+        then found by counting pixels from them (:func:`counted_percentiles`) rather than
         from each region's histogram (the same levels).
     seeds : list of (ndarray or None), optional
         Per region with a cell, its light's ``[x, y, r]`` in the region's pixels
@@ -529,11 +534,11 @@ def refine_regions(
         hists = np.stack(
             [cv2.calcHist([grays[k]], [0], None, [256], [0, 256]).ravel() for k in usable]
         )
-        levels = _hist_percentiles(hists, [10, 99.5]).tolist()
+        levels = hist_percentiles(hists, [10, 99.5]).tolist()
     else:  # each region's guesses: the previous region's levels (lights look alike)
         levels = []
         for k in usable:
-            guesses = _counted_percentiles(grays[k], (10, 99.5), guesses)
+            guesses = counted_percentiles(grays[k], (10, 99.5), guesses)
             levels.append(guesses)
     regions = []
     min_area = 0.5 * min_diameter_px**2
@@ -579,14 +584,14 @@ def _region(
     near = (slice(max(0, y - 1), y + h + 1), slice(max(0, x - 1), x + w + 1))
     # (dilated: the dark stripes' pixels next to the lit ones count, or each line's mean
     # would be only its lit pixels' and the stripes would not show)
-    axis, contrast = _axis_contrast(gray8[near], cv2.dilate(lit[near], _AXIS_KERNEL))
+    axis, contrast = axis_contrast(gray8[near], cv2.dilate(lit[near], _AXIS_KERNEL))
     if readout is not None and readout != axis:  # along the given axis: less than across
         axis, contrast = readout, 1.0 / contrast
     edges, edge_bg, on_face = gray8, background, False  # the image of the edge points
     found = None if seed is None or cell is None else own_face(gray8, lit, cell, axis, seed)
     if found is not None:  # its face, unclipped in its dark stripes
         lit, edges, on_face = found[0], found[1], True
-        edge_bg = _percentiles_u8(edges, [10])[0]
+        edge_bg = percentiles_u8(edges, [10])[0]
         lit_box = None
     found = _disc_mask(lit, axis, kernel_px, lit_box)
     if found is None:
@@ -854,51 +859,53 @@ def _two_cells(a: dict, b: dict) -> bool:
 
 
 def _blobs(found: list[tuple[dict, tuple | None]]) -> list[Blob]:
-    """The blobs, their centres' covariances to be worked out when first read, all at once
-    (:class:`_Covariances`); a centroid's stays NaN."""
-    k = [i for i, (_, fit) in enumerate(found) if fit is not None]
-    covs = _Covariances([found[i][1] for i in k], [found[i][0]["axis"] for i in k])
-    at = {i: j for j, i in enumerate(k)}
+    """The blobs, each with its ellipse fit ``(points, centre, axes, angle)`` (its centre's
+    covariance worked out when first read); a centroid's has none."""
     return [
-        Blob(**b, centre_cov_px2=Later(covs.get, at[i])) if i in at else Blob(**b)
-        for i, (b, _) in enumerate(found)
+        Blob(**b, edge_fit=None if fit is None else EllipseFit(*fit, b["axis"])) for b, fit in found
     ]
 
 
-class _Covariances:
-    """The centres' covariances of a photo's ellipse fits ``(points, centre, axes, angle)``
-    and their readout axes, worked out together the first time one is asked for
-    (:func:`~camvlp.geometry.disc.ellipse_centre_covariances`, the edge points in groups of
-    :func:`_row_groups`): a tenth of a 1080p photo's :func:`~camvlp.pipeline.locate.locate`,
-    which most calls never read."""
+@dataclass(frozen=True)
+class EllipseFit:
+    """The ellipse fitted to a disc's edge points, whose scatter tells how sure its centre is.
 
-    def __init__(self, fits: list[tuple], axes: list[str]) -> None:
-        self.fits, self.axes = fits, axes
-        self.covs: np.ndarray | None = None
+    Attributes
+    ----------
+    points : ndarray, shape (M, 2)
+        The edge points fitted, pixels.
+    centre : ndarray, shape (2,)
+    axes : ndarray, shape (2,)
+        Full lengths of the axes, as :func:`cv2.fitEllipse` gives them.
+    angle_deg : float
+    axis : {"rows", "columns"}
+        The readout axis: the points of a run of sensor lines share their errors.
+    """
 
-    def get(self, j: int) -> np.ndarray:
-        """The ``j``-th fit's centre covariance, pixels squared, shape (2, 2)."""
-        if self.covs is None:
-            groups = _row_groups([f[0] for f in self.fits], self.axes)
-            self.covs = ellipse_centre_covariances(
-                [(*f, g) for f, g in zip(self.fits, groups, strict=True)]
-            )
-        return self.covs[j].copy()
+    points: np.ndarray
+    centre: np.ndarray
+    axes: np.ndarray
+    angle_deg: float
+    axis: str
+
+    @functools.cached_property
+    def covariance(self) -> np.ndarray:
+        """The centre's covariance, pixels squared, shape (2, 2)
+        (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`, the points grouped by
+        :func:`row_groups`); worked out when first read (most calls never read it)."""
+        groups = row_groups(self.points, self.axis)
+        return ellipse_centre_covariance(
+            self.points, self.centre, self.axes, self.angle_deg, groups
+        )
 
 
-def _row_groups(points: list[np.ndarray], axes: list[str]) -> list[np.ndarray]:
-    """The groups of edge points whose errors an ellipse's centre covariance takes as shared
-    (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`): runs of about sqrt(n)
-    consecutive sensor rows out of the n they span (batch means).  A row's two ends share
-    its exposure, and the stripes make neighbouring rows' errors depend on each other, while
-    runs far apart do not.  Each fit's points (non-empty) and readout axis; one label each."""
-    sizes = np.array([p.shape[0] for p in points])
-    rows = np.concatenate(
-        [p[:, 1] if ax == "rows" else p[:, 0] for p, ax in zip(points, axes, strict=True)]
-    )
-    first = starts(sizes)
-    low = np.minimum.reduceat(rows, first)
-    span = np.maximum.reduceat(rows, first) - low + 1.0
-    step = np.maximum(1.0, np.sqrt(span))
-    groups = np.floor((rows - low.repeat(sizes)) / step.repeat(sizes)).astype(np.int64)
-    return [groups[a:b] for a, b in pieces(first[1:], groups.size)]
+def row_groups(points: np.ndarray, axis: str) -> np.ndarray:
+    """The groups of edge points (M, 2) whose errors an ellipse's centre covariance takes as
+    shared (:func:`~camvlp.geometry.disc.ellipse_centre_covariance`): runs of about sqrt(n)
+    consecutive sensor lines out of the n they span (batch means).  A line's two ends share
+    its exposure, and the stripes make neighbouring lines' errors depend on each other,
+    while runs far apart do not.  One label per point, shape (M,)."""
+    lines = points[:, 1] if axis == "rows" else points[:, 0]
+    low = lines.min()
+    step = max(1.0, math.sqrt(lines.max() - low + 1.0))
+    return np.floor((lines - low) / step).astype(np.int64)

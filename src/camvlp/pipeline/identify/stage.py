@@ -5,7 +5,11 @@ direction decided by the pose when the stripes fit both ways), then how sure the
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
+
+import numpy as np
 
 from camvlp.geometry.gravity import GravityPose
 from camvlp.geometry.pose import PoseEstimate
@@ -16,7 +20,6 @@ from camvlp.pipeline.decode.stage import Decoded, read_profiles
 from camvlp.pipeline.detect.stage import UNCLEAR_AXIS, Lights, striped
 from camvlp.pipeline.identify.decide import decided
 from camvlp.pipeline.identify.identified import Identified, identify
-from camvlp.pipeline.later import Later
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.settings import LocateSettings
 from camvlp.pipeline.solve import PoseProblem, finite_sigma, sigma_inputs, sure_enough
@@ -45,8 +48,9 @@ class Solved:
         The readout the stripes were read with (the direction the pose decided).
     manchester : Manchester or None
         The Manchester decode in the direction kept.
-    position_sigma : ndarray, shape (3,), or Later or None
-        The position's standard deviation along the map's axes (worked out when first read).
+    sigma_of : callable or None
+        A function of no arguments that gives the position's standard deviation along the
+        map's axes, shape (3,) (worked out when first read), or None without a position.
     """
 
     decodes: tuple
@@ -56,7 +60,7 @@ class Solved:
     told: dict
     readout: Readout
     manchester: Manchester | None
-    position_sigma: object = None
+    sigma_of: Callable[[], np.ndarray | None] | None = None
 
 
 def identify_and_solve(
@@ -83,10 +87,16 @@ def identify_and_solve(
         reason = UNCLEAR_AXIS
     readout = man.readout if man is not None else (lights.readout or Readout.ROWS)
     inputs = sigma_inputs(prepared.camera, fixture_map, est, kept.found, prepared.gravity)
-    sigma = None if inputs is None else Later(finite_sigma, *inputs)  # when first read
+    sigma_of = None if inputs is None else functools.partial(finite_sigma, *inputs)
     if inputs is not None and settings.max_position_sigma is not None:  # now, against the limit
         est, reason, sigma = sure_enough(est, inputs, settings.max_position_sigma)
-    return Solved(tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma)
+        sigma_of = functools.partial(_given, sigma)
+    return Solved(tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of)
+
+
+def _given(value):
+    """``value`` (what :func:`functools.partial` of it gives when called)."""
+    return value
 
 
 def readout_direction(

@@ -43,7 +43,6 @@ from camvlp.geometry.disc import _sampson
 from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.detect.refine import Blob, light_support, to_gray
 from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
-from camvlp.pipeline.later import replaced
 
 __all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]
 
@@ -174,7 +173,7 @@ def centred_jointly(
     rims = {k: known[k] if k in known else rim_from_chords(img, blobs, k, axis) for k in crowded}
     for k in crowded:  # a clean rim says where the light is
         if not on_rim(blobs[k].pixel, rims[k]):
-            blobs[k] = replaced(blobs[k], pixel=rims[k][0])
+            blobs[k] = dataclasses.replace(blobs[k], pixel=rims[k][0])
     fits: list[Fitted | None] = [None] * len(blobs)
     faced = sorted({j for k in crowded for j in near[k] if blobs[j].face})
     for k in faced + crowded:  # each one's look where it was centred (alone, by its rim or face)
@@ -457,7 +456,7 @@ def _refitted(
     if not (0 <= cx < w and 0 <= cy < h and b.mask[cy, cx]):  # drawn off its disc: failed
         return None
     pixel = c + np.array([x0, y0], dtype=float)
-    return replaced(b, pixel=pixel), Fitted(fit, box)
+    return dataclasses.replace(b, pixel=pixel), Fitted(fit, box)
 
 
 def _paste(dst: np.ndarray, src: np.ndarray, src_box, dst_box, grow: bool = True) -> None:

@@ -21,13 +21,14 @@ glowing ones it uses, frame after frame.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from camvlp.pipeline.detect.candidates import Blob, light_support, to_gray
 from camvlp.pipeline.detect.touching import power_cell
 from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.lamp.radial import radial_fit
-from camvlp.pipeline.later import replaced
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
@@ -239,7 +240,7 @@ def _to_clean_rim(b: Blob, rim, shape: tuple[int, ...]) -> Blob:
         return b
     if _reaches_border(b.box, shape) and not _rim_inside(*rim, shape):
         return b  # (a rim the border may cut)
-    return replaced(b, pixel=rim[0])
+    return dataclasses.replace(b, pixel=rim[0])
 
 
 def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
@@ -252,9 +253,9 @@ def _on_rim(img: np.ndarray, blobs, k: int, axis: str, fitted: Blob) -> Blob:
         return fitted
     b, (centre, radius) = blobs[k], rim
     if not _reaches_border(b.box, img.shape):
-        return replaced(b, pixel=centre)
+        return dataclasses.replace(b, pixel=centre)
     inside = _rim_inside(centre, radius, img.shape)
-    return replaced(b, pixel=centre, touches_border=not inside)
+    return dataclasses.replace(b, pixel=centre, touches_border=not inside)
 
 
 def _reaches_border(box, shape) -> bool:
@@ -296,7 +297,7 @@ def _round(b: Blob) -> Blob:
     along them without end)."""
     if not b.touches_border:
         return b
-    return replaced(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
+    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
 #: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
@@ -351,9 +352,9 @@ def _centred(img: np.ndarray, b: Blob, axis: str, cell: np.ndarray | None = None
     pixel = centre + np.array([x0, y0], dtype=float)
     on_disc = b.mask[min(int(centre[1] + 0.5), h - 1), min(int(centre[0] + 0.5), w - 1)]
     if not on_disc or (not far and not _within_outline(b, pixel, fit.rim)):
-        return replaced(b, touches_border=True) if far else b
+        return dataclasses.replace(b, touches_border=True) if far else b
     if not far:
-        return replaced(b, pixel=pixel)
+        return dataclasses.replace(b, pixel=pixel)
     if _rim_inside(pixel, fit.rim, img.shape):
-        return replaced(b, pixel=pixel, touches_border=False)
-    return replaced(b, touches_border=True)  # its disc cut (or its rim not found)
+        return dataclasses.replace(b, pixel=pixel, touches_border=False)
+    return dataclasses.replace(b, touches_border=True)  # its disc cut (or its rim not found)

@@ -33,7 +33,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
 from camvlp.pipeline.decode.model import decode_profile_model
-from camvlp.pipeline.detect.refine import _luma
+from camvlp.pipeline.detect.refine import luma
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
 
@@ -164,7 +164,7 @@ def _pixels(photo: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
     if x0 >= x1 or y0 >= y1:
         return None
     xs = np.arange(x0, x1, stride)
-    block = _luma(np.ascontiguousarray(photo[y0:y1, xs]), np.float32)
+    block = luma(np.ascontiguousarray(photo[y0:y1, xs]), np.float32)
     clip = CLIP_FRACTION * _brightest(photo)
     yy, jj = np.nonzero(block < clip)
     px, py = xs[jj].astype(np.float64), (yy + y0).astype(np.float64)
@@ -186,7 +186,7 @@ def _pixels(photo: np.ndarray, c: np.ndarray, r: np.ndarray, max_pixels: int):
 def _brightest(photo: np.ndarray, rows: int = 256) -> float:
     """The photo's brightest gray level, made gray a band of ``rows`` at a time."""
     return max(
-        float(_luma(np.ascontiguousarray(photo[a : a + rows]), np.float32).max())
+        float(luma(np.ascontiguousarray(photo[a : a + rows]), np.float32).max())
         for a in range(0, photo.shape[0], rows)
     )
 

@@ -40,7 +40,7 @@ _CLIP, _FULL = CLIP_LEVEL, FULL_SCALE
 _GEOMETRY_PIXELS = 4000
 #: Largest axis ratio of the light's outline (natural log): a degenerate outline (an axis
 #: of 0) would otherwise stretch the radial bins without end.
-_MAX_LOG_RATIO = float(np.log(20.0))
+MAX_LOG_RATIO = float(np.log(20.0))
 
 
 @dataclass(frozen=True)
@@ -118,15 +118,15 @@ def outline_ellipse(support: np.ndarray, axis: str):
     return cv2.fitEllipse(sides.astype(np.float32))
 
 
-#: The (line, knot) sums of :func:`_aggregate` are kept per cell that holds a pixel, not as a
+#: The (line, knot) sums of :func:`aggregate` are kept per cell that holds a pixel, not as a
 #: (lines, knots) array, when that array would have more than this many cells per pixel: a
 #: big light's fine bins (hundreds of knots) over a few thousand picked pixels fill one cell
 #: in 75 (a 20 MP lamp's fit: 380 x 811 cells, 4,134 of them with pixels, at the median).
 _DENSE_CELLS_PER_PIXEL = 32
 
 
-class _Cells(NamedTuple):
-    """:func:`_aggregate`'s sums of the (line, knot) cells that hold a pixel: each cell's line
+class Cells(NamedTuple):
+    """:func:`aggregate`'s sums of the (line, knot) cells that hold a pixel: each cell's line
     and knot, and its sums ``A``, ``D``, ``O`` (shape (M,) each)."""
 
     line: np.ndarray
@@ -137,15 +137,15 @@ class _Cells(NamedTuple):
     n_lines: int
 
 
-def _aggregate(rho: np.ndarray, line: np.ndarray, value: np.ndarray, n_lines: int, bin_px: float):
-    """Sums per (line, knot of the radial shape) for :func:`_shape_fit`.
+def aggregate(rho: np.ndarray, line: np.ndarray, value: np.ndarray, n_lines: int, bin_px: float):
+    """Sums per (line, knot of the radial shape) for :func:`shape_fit`.
 
     The shape is piecewise linear over bins of ``bin_px``: a pixel at ``t`` (0 to 1) between
     knots ``k`` and ``k + 1`` sees ``(1 - t) g[k] + t g[k + 1]``.  Returns the knot count
     ``K`` (the bins plus one), the sums per line and knot: ``A`` of ``value`` times the
     knot's weight, ``D`` of the weight squared, and ``O`` of the product of the weights of
     the knot and the next one (0 at the last knot), and the sum of ``value ** 2``.  The sums
-    are an array of shape (3, n_lines, K), or :class:`_Cells` when few of its cells would
+    are an array of shape (3, n_lines, K), or :class:`Cells` when few of its cells would
     hold a pixel (:data:`_DENSE_CELLS_PER_PIXEL`).
     """
     f = rho / bin_px
@@ -158,7 +158,7 @@ def _aggregate(rho: np.ndarray, line: np.ndarray, value: np.ndarray, n_lines: in
     if size > _DENSE_CELLS_PER_PIXEL * key.size:
         cells, at = np.unique(np.concatenate([key, key + 1]), return_inverse=True)
         m, first = cells.size, at[: key.size]
-        sums = _Cells(
+        sums = Cells(
             cells // knots,
             cells % knots,
             np.bincount(at, np.concatenate([value * u, value * t]), minlength=m),
@@ -175,8 +175,8 @@ def _aggregate(rho: np.ndarray, line: np.ndarray, value: np.ndarray, n_lines: in
 
 def _per_line(sums, gv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per line, the sum of ``value * g(rho)`` and of ``g(rho) ** 2`` over its pixels, from
-    :func:`_aggregate`'s sums and ``gv`` (3, K, 1): g, g ** 2, and 2 g times the next knot's g."""
-    if isinstance(sums, _Cells):
+    :func:`aggregate`'s sums and ``gv`` (3, K, 1): g, g ** 2, and 2 g times the next knot's g."""
+    if isinstance(sums, Cells):
         g, g2, g2x = gv[:, :, 0]
         num = np.bincount(sums.line, sums.a * g[sums.knot], minlength=sums.n_lines)
         den = sums.d * g2[sums.knot]
@@ -189,8 +189,8 @@ def _per_line(sums, gv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _per_knot(sums, sv: np.ndarray, knots: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per knot, the sums of ``A s``, ``D s ** 2`` and ``O s ** 2`` over the lines, from
-    :func:`_aggregate`'s sums and ``sv`` (3, 1, n_lines): s, s ** 2, s ** 2."""
-    if isinstance(sums, _Cells):
+    :func:`aggregate`'s sums and ``sv`` (3, 1, n_lines): s, s ** 2, s ** 2."""
+    if isinstance(sums, Cells):
         s = sv[0, 0][sums.line]
         s2 = s * s
         return (
@@ -202,14 +202,14 @@ def _per_knot(sums, sv: np.ndarray, knots: int) -> tuple[np.ndarray, np.ndarray,
     return num_k, den_k, o
 
 
-def _shape_fit(agg, g0, iters: int):
-    """Alternating least squares of ``value = g(rho) * s(line)`` on :func:`_aggregate`'s sums.
+def shape_fit(agg, g0, iters: int):
+    """Alternating least squares of ``value = g(rho) * s(line)`` on :func:`aggregate`'s sums.
 
     ``g`` is piecewise linear over the radial bins.  Returns (residual sum of squares, s per
     line, its weight, g per bin knot).
     """
     knots, sums, vv = agg
-    n_lines = sums.n_lines if isinstance(sums, _Cells) else sums.shape[1]
+    n_lines = sums.n_lines if isinstance(sums, Cells) else sums.shape[1]
     gv = np.zeros((3, knots, 1))  # g, g ** 2, and 2 g times the next knot's g
     g = gv[0, :, 0]
     g[:] = 1.0
@@ -275,28 +275,28 @@ def _clip_bounds(f: np.ndarray, line: np.ndarray, shape: np.ndarray, full: float
     return np.arange(n_lines, dtype=float), bounds, np.bincount(line, env * env, minlength=n_lines)
 
 
-def _axes(x: np.ndarray, y: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
+def along_axes(x: np.ndarray, y: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
     """Pixels ``(x, y)`` (shape (N,)) along the axes of an ellipse at angle ``cs`` = (cos, sin)
-    from the x axis, shape (2, N): for :func:`_radius`."""
+    from the x axis, shape (2, N): for :func:`elliptical_radius`."""
     c, s = cs
     return np.stack([x * c + y * s, y * c - x * s])
 
 
-def _radius(uv: np.ndarray, p: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
-    """Elliptical radius of pixels ``uv`` (:func:`_axes`, shape (2, N)), pixels, shape (N,).
+def elliptical_radius(uv: np.ndarray, p: np.ndarray, cs: tuple[float, float]) -> np.ndarray:
+    """Elliptical radius of pixels ``uv`` (:func:`along_axes`, shape (2, N)), pixels, shape (N,).
 
     About the centre ``(p[0], p[1])`` (x, y), the axis ratio ``exp(p[2])`` (clipped to
-    :data:`_MAX_LOG_RATIO`), the ellipse's first axis along ``cs`` = (cos, sin) of its angle.
+    :data:`MAX_LOG_RATIO`), the ellipse's first axis along ``cs`` = (cos, sin) of its angle.
     """
     c, s = cs
     u = uv[0] - (p[0] * c + p[1] * s)
     v = uv[1] - (p[1] * c - p[0] * s)
-    r = float(np.clip(p[2], -_MAX_LOG_RATIO, _MAX_LOG_RATIO))
+    r = float(np.clip(p[2], -MAX_LOG_RATIO, MAX_LOG_RATIO))
     return np.hypot(u * np.exp(-0.5 * r), v * np.exp(0.5 * r))
 
 
-class _Radial(NamedTuple):
-    """The light's radial fit (:func:`_radial`), in readout coordinates (lines down axis 0)."""
+class RadialShape(NamedTuple):
+    """The light's radial fit (:func:`radial_shape`), in readout coordinates (lines down axis 0)."""
 
     best: np.ndarray  # centre x, y (pixels) and log axis ratio
     warm: np.ndarray  # the radial shape fitted at the start, per bin knot
@@ -309,14 +309,14 @@ class _Radial(NamedTuple):
     pixels: tuple[np.ndarray, np.ndarray, np.ndarray]  # (lines, x, level) of the unclipped
 
 
-def _radial(
+def radial_shape(
     gray: np.ndarray,
     support: np.ndarray,
     ellipse,
     axis: str,
     refine: bool = True,
     background: float | None = None,
-) -> _Radial | LightWave:
+) -> RadialShape | LightWave:
     """The light's radial shape and its centre fitted (see :func:`light_wave`), or a failed
     :class:`LightWave`; without ``refine``, ``best`` is the start (the centre not fitted);
     ``background`` (gray level) when known, else measured around the support."""
@@ -342,17 +342,17 @@ def _radial(
     bin_px = max(_BIN_PX, radius / _BINS_PER_RADIUS)
     every = max(1, ly.size // _GEOMETRY_PIXELS)  # the geometry needs a few thousand pixels
 
-    uv = _axes(lx, ly, cs)
+    uv = along_axes(lx, ly, cs)
     pixels = (ly, lx, value)
 
     def fit(p: np.ndarray, g0, iters: int, step: int = 1):
         y, v = ly[::step], value[::step]
-        return _shape_fit(
-            _aggregate(_radius(uv[:, ::step], p, cs), y, v, n_lines, bin_px), g0, iters
+        return shape_fit(
+            aggregate(elliptical_radius(uv[:, ::step], p, cs), y, v, n_lines, bin_px), g0, iters
         )
 
     # starts: the given outline and the support's, each round and with the given axis ratio
-    ratio = np.clip(np.log(max(aw, 1e-6) / max(ah, 1e-6)), -_MAX_LOG_RATIO, _MAX_LOG_RATIO)
+    ratio = np.clip(np.log(max(aw, 1e-6) / max(ah, 1e-6)), -MAX_LOG_RATIO, MAX_LOG_RATIO)
     centres = [(cx, cy)]
     other = outline_ellipse(m, "rows")  # m is in readout coordinates already
     if other is not None:
@@ -362,11 +362,11 @@ def _radial(
     warm = fit(start, None, 8)[3]
 
     if refine:
-        start = _search_centre(lambda p: fit(p, warm, 2, every)[0], start)
-    return _Radial(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels)
+        start = search_centre(lambda p: fit(p, warm, 2, every)[0], start)
+    return RadialShape(start, warm, fit, clipped, cs, bin_px, background, n_lines, pixels)
 
 
-def _search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
+def search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
     """Nelder-Mead over a light's ``[x, y, log axis ratio]`` from ``start`` (pixels, pixels,
     natural log), on ``cost`` relative to the start's, first steps of ``step_px`` and 0.1;
     the end, shape (3,)."""
@@ -390,13 +390,13 @@ def separated_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str):
     signal, the waveform and its weight, the clipped lines' lower bounds and their weights,
     and the shape's centre ``[x, y]`` in the region; or a failed :class:`LightWave` with
     why.  The arguments are as :func:`light_wave`'s, whose first step this is."""
-    fitted = _radial(gray, support, ellipse, axis)
+    fitted = radial_shape(gray, support, ellipse, axis)
     if isinstance(fitted, LightWave):
         return fitted
     cy_, cx_ = fitted.clipped
     _, s, weight, shape = fitted.fit(fitted.best, fitted.warm, 12)
     bound_lines, bounds, bound_weight = _clip_bounds(
-        _radius(_axes(cx_, cy_, fitted.cs), fitted.best, fitted.cs) / fitted.bin_px,
+        elliptical_radius(along_axes(cx_, cy_, fitted.cs), fitted.best, fitted.cs) / fitted.bin_px,
         cy_,
         shape,
         _CLIP - fitted.background,

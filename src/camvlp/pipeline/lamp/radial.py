@@ -32,14 +32,14 @@ import numpy as np
 
 from camvlp.imaging.threads import one_blas_thread
 from camvlp.pipeline.lamp.light_wave import (
-    _MAX_LOG_RATIO,
+    MAX_LOG_RATIO,
     LightWave,
-    _aggregate,
-    _axes,
-    _radial,
-    _radius,
-    _search_centre,
-    _shape_fit,
+    aggregate,
+    along_axes,
+    elliptical_radius,
+    radial_shape,
+    search_centre,
+    shape_fit,
 )
 
 __all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model", "rim_extents"]
@@ -73,7 +73,7 @@ class RadialModel(NamedTuple):
     """A light's fitted look ``g(rho) * s(line)`` above the background, in readout
     coordinates of its region (lines down axis 0; see :func:`radial_model`)."""
 
-    geometry: np.ndarray  # shape (3,): centre (x, y) and log axis ratio, as _radius takes it
+    geometry: np.ndarray  # shape (3,): centre (x, y), log axis ratio (elliptical_radius')
     cs: tuple[float, float]  # cos, sin of the outline's angle
     shape: np.ndarray  # g per knot, bin_px apart from the centre (0 beyond)
     stripes: np.ndarray  # s per line of the region, gray levels (0 beyond)
@@ -95,7 +95,7 @@ def radial_model(model: RadialModel, x: np.ndarray, y: np.ndarray, axis: str):
     ``(x, y)`` of its region (float arrays of one shape, pixels): ``(level, rho)``, the
     level 0 beyond its shape's last knot and on lines outside its region."""
     lx, ly = (y, x) if axis == "columns" else (x, y)
-    rho = _radius(_axes(lx.ravel(), ly.ravel(), model.cs), model.geometry, model.cs)
+    rho = elliptical_radius(along_axes(lx.ravel(), ly.ravel(), model.cs), model.geometry, model.cs)
     g = np.interp(rho / model.bin_px, np.arange(model.shape.size), model.shape, right=0.0)
     line = np.rint(ly.ravel()).astype(np.intp)
     inside = (line >= 0) & (line < model.stripes.size)
@@ -171,16 +171,16 @@ def radial_fit(
         ellipse of the shape's axis ratio and angle), pixels; NaN when the region has too
         few pixels with signal.
     """
-    fitted = _radial(gray, support, ellipse, axis, refine=False, background=background)
+    fitted = radial_shape(gray, support, ellipse, axis, refine=False, background=background)
     if isinstance(fitted, LightWave):
         return RadialFit(fitted.centre, np.full(2, np.nan))
     ly, lx, value = fitted.pixels
     cs, n_lines = fitted.cs, fitted.n_lines
-    uv = _axes(lx, ly, cs)
+    uv = along_axes(lx, ly, cs)
 
     def fit(p: np.ndarray, g0, iters: int, pick=slice(None), lines=ly, n=n_lines, r0=0.0):
-        rho = np.maximum(_radius(uv[:, pick], p, cs) - r0, 0.0)
-        return _shape_fit(_aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
+        rho = np.maximum(elliptical_radius(uv[:, pick], p, cs) - r0, 0.0)
+        return shape_fit(aggregate(rho, lines, value[pick], n, _BIN_PX), g0, iters)
 
     start = np.asarray(fitted.best, dtype=float)  # not refined: the coarse fit's start
     if not search or keep_start:
@@ -196,14 +196,14 @@ def radial_fit(
         def cost(p: np.ndarray) -> float:
             return fitted.fit(p, coarse, 2, every)[0]
 
-        start = _search_centre(cost, start, max(1.0, 0.1 * radius))
+        start = search_centre(cost, start, max(1.0, 0.1 * radius))
     if wide:
         start = _wide_search(fitted, start, radius)
     _, s, _, g = fit(start, None, _WARM_ITERS)
     pick, lines, n, r0 = slice(None), ly, n_lines, 0.0
     if ly.size > _PIXELS:
         slope = np.gradient(g)  # per bin; the scale does not matter
-        rho = _radius(uv, start, cs)
+        rho = elliptical_radius(uv, start, cs)
         info = np.square(s[ly] * np.interp(rho / _BIN_PX, np.arange(g.size), slope, right=0.0))
         pick = np.argpartition(info, ly.size - _PIXELS)[ly.size - _PIXELS :]
         # the shape over the picked pixels' radii and lines only (a big light's bins and
@@ -213,11 +213,13 @@ def radial_fit(
         n = used.size
     part = {"pick": pick, "lines": lines, "n": n, "r0": r0}
     warm = fit(start, None, _WARM_ITERS, **part)[3]
-    best = _search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
+    best = search_centre(lambda p: fit(p, warm, _ITERS, **part)[0], start)
     _, s, _, g = fit(best, None, _WARM_ITERS)
-    per_bin = np.bincount((_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size)
+    per_bin = np.bincount(
+        (elliptical_radius(uv, best, cs) / _BIN_PX).astype(np.intp), minlength=g.size
+    )
     rim = rim_extents(g, per_bin[: g.size], best[2])
-    r = float(np.clip(abs(best[2]), 0.0, _MAX_LOG_RATIO))
+    r = float(np.clip(abs(best[2]), 0.0, MAX_LOG_RATIO))
     model = RadialModel(best.copy(), cs, g, s, float(rim[0]) * np.exp(-0.5 * r))
     if axis == "columns":
         return RadialFit(best[1::-1].copy(), rim[::-1], model)
@@ -251,7 +253,7 @@ def _wide_search(fitted, start: np.ndarray, radius: float) -> np.ndarray:
     reach = _WIDE_REACH * radius
     steps = np.arange(-reach, reach + 1e-9, max(1.0, radius / 40.0))
     trials = [start + np.array([0.0, d, 0.0]) for d in steps]
-    found = _search_centre(cost, min(trials, key=cost), max(1.0, _WIDE_STEP * radius))
+    found = search_centre(cost, min(trials, key=cost), max(1.0, _WIDE_STEP * radius))
 
     def settled(p: np.ndarray) -> float:  # the shape fitted to the end
         return fitted.fit(p, None, _SETTLED_ITERS, every)[0]
@@ -287,5 +289,5 @@ def rim_extents(g: np.ndarray, per_bin: np.ndarray, log_ratio: float) -> np.ndar
     k = first + int(np.argmax(fall[first : last + 1]))
     radius = _BIN_PX * (float(k) + 0.5 * (n - 1 + _RIM_SPAN))
     # the major axis every way: a light the border cuts shows its axis ratio less surely
-    r = float(np.clip(abs(log_ratio), 0.0, _MAX_LOG_RATIO))
+    r = float(np.clip(abs(log_ratio), 0.0, MAX_LOG_RATIO))
     return np.full(2, radius * np.exp(0.5 * r))

@@ -45,7 +45,6 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.identify.identified import Identified, identify
-from camvlp.pipeline.later import replaced
 from camvlp.pipeline.locate import StageClock
 from camvlp.pipeline.stages import (
     PoseProblem,
@@ -354,7 +353,9 @@ class Tracker:
             else:
                 solved, used_mask = None, np.zeros(len(usable), bool)
         if len(usable) >= 4 and solved is None:
-            moved = [replaced(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)]
+            moved = [
+                dataclasses.replace(blobs[k], pixel=p) for k, p in zip(usable, pixels, strict=True)
+            ]
             sub = Identified(
                 tuple(ids[k] for k in usable), ("",) * len(usable), tuple(range(len(usable)))
             )
