@@ -21,7 +21,7 @@ import camvlp.pipeline.decode.stage as decode_stage
 import camvlp.pipeline.detect.stage as detect_stage
 from camvlp.geometry.pose import estimate_pose
 from camvlp.model.camera import Pose, project_points
-from camvlp.pipeline.decode.model import ModelDecode
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.identify.by_pose import (
     TOLD_APART,
     Spread,
@@ -293,21 +293,22 @@ def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[
     return fake
 
 
-def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> ModelDecode:
+def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> StripeDecode:
     """A model decode refused between look-alike ``candidates``."""
-    return ModelDecode(
+    return StripeDecode(
         None,
         f"IDs {candidates[0]} and {candidates[1]} fit almost equally (margin 0.5, at least 4 "
         "needed)",
-        0.5,
-        candidates[1],
-        0.0,
-        1.0,
-        0.0,
-        0.01,
-        0.01,
-        rows_per_chip,
-        1.5,
+        "model",
+        margin=0.5,
+        runner_up=candidates[1],
+        phase_chips=0.0,
+        gain=1.0,
+        offset=0.0,
+        residual_rms=0.01,
+        unexplained=0.01,
+        rows_per_chip=rows_per_chip,
+        frames=1.5,
         candidates=candidates,
     )
 

@@ -15,6 +15,7 @@ from camvlp.locate import LocateSettings, locate
 import camvlp.pipeline.decode.stage as decode_stage
 from camvlp.model.camera import Pose
 from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
 
@@ -122,16 +123,14 @@ def test_swapped_pairs_in_the_map_are_read_the_way_that_fits_the_map():
 def _unread(true_pixel: np.ndarray):
     """locate's Manchester decode with the fixture at ``true_pixel`` unread both ways (as
     one whose stripes span too little of the code)."""
-    from camvlp.pipeline.decode.model import ModelDecode
-
     real = decode_stage.decode_manchester
 
     def fake(profiles, readout, direction_known, camera, fixture_map, *more, **kw):
         man = real(profiles, readout, direction_known, camera, fixture_map, *more, **kw)
         assert man.other is not None  # (the stripes alone leave the direction open)
         k = int(np.argmin([np.hypot(*(p - true_pixel)) for p in _PIXELS]))
-        nothing = ModelDecode(
-            None, "spans 0.5 frames of the code", 0.0, None, 0.0, 1.0, 0.0, 0.01, 0.01, 4.0, 0.5
+        nothing = StripeDecode(
+            None, "spans 0.5 frames of the code", "model", margin=0.0, rows_per_chip=4.0, frames=0.5
         )
 
         def without(decodes):

@@ -138,6 +138,7 @@ def fixture_results(
                 margin=dec.margin,
                 reason=reason,
                 hamming=dec.hamming,
+                run_margin=dec.run_margin,
                 rows_spanned=float(extents[k]),
                 rows_per_chip=dec.rows_per_chip,
                 residual_px=residual,

@@ -12,8 +12,7 @@ import numpy as np
 from camvlp.geometry.disc import centre_sigma
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode.model import ModelDecode
-from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.candidates import Detection
 from camvlp.pipeline.detect.refine import EllipseFit
 
@@ -33,12 +32,13 @@ class FixtureResult:
     used : bool
         Whether the pose uses it.
     margin : float
-        Decoding confidence.  Manchester IDs the model fit read (``hamming`` -1): the decimal
-        log of the likelihood ratio of the ID over the best other ID of the map (see
-        :class:`camvlp.pipeline.decode.model.ModelDecode`; IDs need 4 or more).  Manchester
-        IDs the run-length decoder read (``hamming`` 0): its run margin in [0, 1] (see
-        :class:`camvlp.pipeline.decode.runs.StripeDecode`; IDs need 0.3 or more).  Frequencies:
-        in [0, 1], how close the measured frequency is to the map's.
+        How sure the ID is: the decimal log of the likelihood ratio of the ID over the best
+        other ID (or frequency) of the map (4: ten thousand times likelier; the model fit needs
+        4, a frequency 5.4; see :class:`~camvlp.pipeline.decode.result.StripeDecode`).  NaN
+        when the run-length decoder read the ID: see ``run_margin``.
+    run_margin : float
+        The run-length decoder's confidence, 0 to 1 (it takes an ID from 0.3 on, with no chip
+        in error); NaN when another decoder read the stripes.
     reason : str
         Why it is not used ("" when used).
     hamming : int
@@ -69,6 +69,7 @@ class FixtureResult:
     margin: float
     reason: str
     hamming: int = -1
+    run_margin: float = float("nan")
     rows_spanned: float = float("nan")
     rows_per_chip: float = float("nan")
     residual_px: float = float("nan")
@@ -89,10 +90,11 @@ class FixtureResult:
             "id": self.id,
             "pixel": [round(float(v), 3) for v in self.pixel],
             "used": self.used,
-            "margin": round(self.margin, 3),
+            "margin": None if not np.isfinite(self.margin) else round(self.margin, 3),
             "reason": self.reason,
         }
-        for key in ("hamming", "rows_spanned", "rows_per_chip", "residual_px", "frequency_hz"):
+        keys = ("hamming", "run_margin", "rows_spanned", "rows_per_chip", "residual_px")
+        for key in (*keys, "frequency_hz"):
             v = getattr(self, key)
             if isinstance(v, float):
                 v = None if not np.isfinite(v) else round(v, 3)
@@ -266,7 +268,7 @@ class LocateStages:
         Each blob's region of interest, gray.
     profiles : tuple of ndarray, each (n,)
         Each blob's row profile, in the order the sensor read it.
-    decodes : tuple of ModelDecode or StripeDecode
+    decodes : tuple of StripeDecode or StripeDecode
         Each blob's decode (the model fit's in Manchester mode).
     profile_weights : tuple of ndarray, each (n,)
         Each profile's row weights, in the same order: the inverse of each row's variance
@@ -280,6 +282,6 @@ class LocateStages:
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
     profiles: tuple[np.ndarray, ...]
-    decodes: tuple[ModelDecode | StripeDecode, ...]
+    decodes: tuple[StripeDecode, ...]
     profile_weights: tuple[np.ndarray, ...] = ()
     beacons: tuple = ()

@@ -391,6 +391,10 @@ class FrequencyTest:
         Refused because another map frequency lies within twice the tolerance of the one
         that fits: a tighter tolerance (the row time rescaled by the photo's other lights)
         may tell them apart.
+    evidence : float
+        The next map frequency's excess residual over the chosen one's, in units of the
+        residual per free line: twice the natural log of their likelihood ratio
+        (:attr:`log_ratio` is its decimal log).
     """
 
     index: int | None
@@ -403,6 +407,13 @@ class FrequencyTest:
     costs: np.ndarray
     waves: tuple = ()
     crowded: bool = False
+    evidence: float = float("nan")
+
+    @property
+    def log_ratio(self) -> float:
+        """The decimal log of the likelihood ratio of the chosen frequency over the next map
+        frequency (:attr:`evidence` / (2 ln 10)): the scale of a Manchester ID's margin."""
+        return float(self.evidence) / (2.0 * np.log(10.0))
 
     def __bool__(self) -> bool:
         return self.index is not None
@@ -556,7 +567,16 @@ def hold_against(
 
     def refused(why: str) -> FrequencyTest:
         return FrequencyTest(
-            None, why, period, seen, explained, margin, agreement, costs, tuple(waves)
+            None,
+            why,
+            period,
+            seen,
+            explained,
+            margin,
+            agreement,
+            costs,
+            tuple(waves),
+            evidence=evidence,
         )
 
     if not np.isfinite(period) or seen < MIN_PERIODS_SEEN:
@@ -588,6 +608,7 @@ def hold_against(
             costs,
             tuple(waves),
             crowded=True,
+            evidence=evidence,
         )
     if evidence < MIN_EVIDENCE:
         return refused(
@@ -599,4 +620,6 @@ def hold_against(
             f"its stripes are not a regular square wave ({100 * agreement:.0f} % of its lines "
             "agree with the best map frequency's): data, flicker or not a beacon"
         )
-    return FrequencyTest(j, "", period, seen, explained, margin, agreement, costs, tuple(waves))
+    return FrequencyTest(
+        j, "", period, seen, explained, margin, agreement, costs, tuple(waves), evidence=evidence
+    )

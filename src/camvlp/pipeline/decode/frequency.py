@@ -25,7 +25,7 @@ import numpy as np
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode.beacon import BeaconProfile, hold_against, light_profile, stripes_period
-from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.candidates import light_support
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 
@@ -393,7 +393,7 @@ def decode_frequencies(
         )
     if not row_time:
         why = "the row time is unknown and the periods fit no set of the map's frequencies"
-        decodes = [StripeDecode(None, why, -1, 0.0, 0.5 * p, np.nan, "", np.nan) for p in periods]
+        decodes = [StripeDecode(None, why, "frequency", rows_per_chip=0.5 * p) for p in periods]
         return decodes, np.full(n, np.nan), centres, note, [(p, None, None) for p in profiles]
     tests = [
         hold_against(p, 1.0 / (map_freqs * row_time), f, row_time_s=row_time)
@@ -407,10 +407,14 @@ def decode_frequencies(
         claims = chosen.count(t.index) if t.index is not None else 0
         if claims > 1:
             fid, reason = None, f"{claims} lights measure {map_freqs[t.index]:.0f} Hz"
-        margin = t.margin if fid is not None else 0.0
         decodes.append(
             StripeDecode(
-                fid, reason, -1, margin, 0.5 * t.period_px, np.nan, "", float(t.periods_seen)
+                fid,
+                reason,
+                "frequency",
+                margin=t.log_ratio,
+                rows_per_chip=0.5 * t.period_px,
+                frames=float(t.periods_seen),
             )
         )
     with np.errstate(invalid="ignore", divide="ignore"):

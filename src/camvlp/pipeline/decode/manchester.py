@@ -28,13 +28,13 @@ from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import (
     MIN_MARGIN,
-    ModelDecode,
     PhotoDecode,
     SensorModel,
     decode_photo,
     estimate_photo_model,
 )
-from camvlp.pipeline.decode.runs import StripeDecode, decode_profiles
+from camvlp.pipeline.decode.result import StripeDecode
+from camvlp.pipeline.decode.runs import decode_profiles
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
 
@@ -51,7 +51,7 @@ class Manchester:
 
     Attributes
     ----------
-    decodes : tuple of (ModelDecode or StripeDecode)
+    decodes : tuple of (StripeDecode or StripeDecode)
         One per profile: the run-length decoder's where it was taken, else the model fit's.
     readout : Readout
         The readout the profiles were read with.
@@ -71,11 +71,11 @@ class Manchester:
         runs show, when no fixture was identified and they disagree.
     """
 
-    decodes: tuple[ModelDecode | StripeDecode, ...]
+    decodes: tuple[StripeDecode, ...]
     readout: Readout
     rows_per_chip: float = float("nan")
     model: SensorModel | None = None
-    other: tuple[ModelDecode | StripeDecode, ...] | None = None
+    other: tuple[StripeDecode, ...] | None = None
     other_model: SensorModel | None = None
     note: str = ""
 
@@ -105,7 +105,7 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     todo = [k for k in range(len(profiles)) if not (k < len(skip) and skip[k])]
     for k, d in zip(todo, decode_profiles([profiles[k] for k in todo], frame), strict=True):
         sure = d.id is not None and d.id in map_ids and d.hamming == 0
-        out[k] = d if sure and d.margin >= MIN_FAST_MARGIN else None
+        out[k] = d if sure and d.run_margin >= MIN_FAST_MARGIN else None
         if d:
             lengths[k] = d.rows_per_chip
     return out, lengths

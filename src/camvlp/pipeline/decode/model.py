@@ -20,12 +20,13 @@ saturation knee (fixtures differ in brightness).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.decode.photo_model import estimate_photo_model, trimmed_cost
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.stripe_model import (
     MIN_FRAMES,
     SAMPLES_PER_CHIP,
@@ -43,7 +44,6 @@ from camvlp.pipeline.decode.stripe_model import (
 )
 
 __all__ = [
-    "ModelDecode",
     "PhotoDecode",
     "SensorModel",
     "decode_photo",
@@ -74,84 +74,6 @@ _LN10 = math.log(10.0)
 
 
 @dataclass(frozen=True)
-class ModelDecode:
-    """What the model fit says about one fixture's stripes.
-
-    Attributes
-    ----------
-    id : int or None
-        Decoded ID, or None.
-    reason : str
-        Why there is no ID ("" when decoded).
-    margin : float
-        Decimal log of the likelihood ratio of the best ID over the best other ID of the map
-        (0 when none was fitted); an ID is returned only from :data:`MIN_MARGIN` on.
-    runner_up : int or None
-        The best other ID of the map.
-    phase_chips : float
-        Chip of the frame (fractional) at the start of the profile's first row's exposure.
-    gain, offset : float
-        Fitted gain and offset, profile units.
-    residual_rms : float
-        RMS residual of the best fit, profile units.
-    unexplained : float
-        Fraction of the profile's variance the best fit leaves (0 = perfect).
-    rows_per_chip : float
-        Chip length used, rows.
-    frames : float
-        Frames of the code the profile spans.
-    hamming : int
-        Always -1 (no chips are thresholded); kept for the run-length decoder's interface.
-    bleed_rows : float
-        NaN (the model has a saturation knee instead); kept for the same reason.
-    chips : str
-        The best ID's chips from the profile's first row on, one frame ("" when no fit).
-    fitted : ndarray, shape (n,), or None
-        The best fit's model of the profile, profile units (None when no fit).
-    frame_rss : float
-        Weighted residual sum of squares of the best fit of any ID of the format (in the map
-        or not): how well the stripes read as a frame at all (compares readout directions).
-    noise_var : float
-        The noise variance the margin assumes (residual variance times the inflation for
-        correlated residuals), profile units squared.
-    outside_id : int or None
-        An ID of the format that is not in the map and that the stripes fit clearly better
-        than any other ID (the light sends it), else None.
-    knee : float
-        The best ID's saturation knee for this fixture (fraction of its on-level; see
-        :data:`FIXTURE_KNEES`), NaN when no fit.
-    candidates : tuple of int
-        When two or more IDs of the map fit almost equally (``margin`` under the least):
-        every ID of the map whose fit is within that margin of the best's, best first (the
-        stripes say the light is one of them; the pose may tell which).  Else empty.
-    """
-
-    id: int | None
-    reason: str
-    margin: float
-    runner_up: int | None
-    phase_chips: float
-    gain: float
-    offset: float
-    residual_rms: float
-    unexplained: float
-    rows_per_chip: float
-    frames: float
-    hamming: int = -1
-    bleed_rows: float = float("nan")
-    chips: str = ""
-    fitted: np.ndarray | None = field(default=None, repr=False, compare=False)
-    frame_rss: float = float("nan")
-    noise_var: float = float("nan")
-    outside_id: int | None = None
-    knee: float = float("nan")
-    candidates: tuple[int, ...] = ()
-
-    def __bool__(self) -> bool:
-        return self.id is not None
-
-
-@dataclass(frozen=True)
 class PhotoDecode:
     """Photo-wide parameters and every fixture's decode.
 
@@ -159,7 +81,7 @@ class PhotoDecode:
     ----------
     model : SensorModel
         The fitted parameters (shared by every fixture of the photo).
-    decodes : tuple of ModelDecode
+    decodes : tuple of StripeDecode
         One per profile, in the order given.
     cost : float
         Trimmed mean, over the fixtures, of the log of the unexplained variance fraction of
@@ -167,7 +89,7 @@ class PhotoDecode:
     """
 
     model: SensorModel
-    decodes: tuple[ModelDecode, ...]
+    decodes: tuple[StripeDecode, ...]
     cost: float
 
     @property
@@ -293,7 +215,7 @@ def _decide(
     min_margin: float,
     codebook: np.ndarray,
     knees: np.ndarray,
-) -> ModelDecode:
+) -> StripeDecode:
     """Pick the ID from the fits of every candidate, each at its own knee (internal)."""
     frames = fit.n / (n_chips * model.rows_per_chip)
     leaders = _refine_leaders(fit, chips, knees, model, in_map, p, w, samples)
@@ -327,6 +249,7 @@ def _decide(
     common = dict(
         frame_rss=frame_rss,
         noise_var=float(sigma2 * inflation),
+        method="model",
         runner_up=int(cand_ids[runner]) if runner is not None else None,
         phase_chips=float(phase),
         gain=float(gain1),
@@ -349,28 +272,28 @@ def _decide(
             rest = np.delete(per_id, ko)
             var_o = max(float(per_id[ko]) / dof, 1e-12 * sigma2) * inflation  # its own fit's
             clear = (float(rest.min()) - float(per_id[ko])) / (2 * var_o) / _LN10
-            return ModelDecode(
+            return StripeDecode(
                 None,
                 f"fits ID {int(cand_ids[ko])}, which is not in the map, better than any of the "
                 f"map's (nearest in the map: {best_id})",
-                margin,
+                margin=margin,
                 outside_id=int(cand_ids[ko]) if clear >= min_margin else None,
                 **common,
             )
     if unexplained > MAX_UNEXPLAINED:
         why = f"the stripes fit no ID's model ({100 * unexplained:.0f} % of their variance "
-        return ModelDecode(None, why + "unexplained)", margin, **common)
+        return StripeDecode(None, why + "unexplained)", margin=margin, **common)
     if margin < min_margin:
         close = [int(cand_ids[k]) for k in order if lr(float(per_id[k])) < min_margin]
-        return ModelDecode(
+        return StripeDecode(
             None,
             f"IDs {best_id} and {common['runner_up']} fit almost equally "
             f"(margin {max(margin, 0.0):.1f}, at least {min_margin:g} needed)",
-            margin,
+            margin=margin,
             **common,
             candidates=tuple(dict.fromkeys([best_id, *close])),
         )
-    return ModelDecode(best_id, "", margin, **common)
+    return StripeDecode(best_id, "", margin=margin, **common)
 
 
 def decode_profile_model(
@@ -382,7 +305,7 @@ def decode_profile_model(
     weights=None,
     min_margin: float = MIN_MARGIN,
     samples: int = SAMPLES_PER_CHIP,
-) -> ModelDecode:
+) -> StripeDecode:
     """Decode one fixture's row profile by fitting the forward model of every ID.
 
     Parameters
@@ -404,7 +327,7 @@ def decode_profile_model(
 
     Returns
     -------
-    ModelDecode
+    StripeDecode
         Falsy, with a reason, when the stripes do not give one ID safely.
     """
     p, w = prepared_profile(profile, weights)
@@ -424,11 +347,16 @@ def decode_profile_model(
     )
 
 
-def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) -> ModelDecode:
-    nan = float("nan")
+def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) -> StripeDecode:
     frames = p.size / (n_chips * model.rows_per_chip)
-    return ModelDecode(
-        None, reason, 0.0, None, nan, nan, nan, nan, 1.0, model.rows_per_chip, frames
+    return StripeDecode(
+        None,
+        reason,
+        method="model",
+        margin=0.0,
+        unexplained=1.0,
+        rows_per_chip=model.rows_per_chip,
+        frames=frames,
     )
 
 
@@ -533,7 +461,7 @@ def decode_photo(
     Returns
     -------
     PhotoDecode
-        The parameters and one :class:`ModelDecode` per profile.
+        The parameters and one :class:`StripeDecode` per profile.
     """
     ps = [np.asarray(p, dtype=np.float64) for p in profiles]
     ws = [None] * len(ps) if weights is None else list(weights)

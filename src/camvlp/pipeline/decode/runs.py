@@ -28,10 +28,10 @@ import numpy as np
 
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.decode.profile import row_profile, shape_profile
+from camvlp.pipeline.decode.result import StripeDecode
 
 __all__ = [
     "Runs",
-    "StripeDecode",
     "decode_profile",
     "find_runs",
     "row_profile",
@@ -204,45 +204,6 @@ def _flat_runs(profiles: list[np.ndarray], thresholds: np.ndarray) -> _FlatRuns:
     run_starts = np.array([a + k for k, a in enumerate(cut[:-1])])
     run_of = np.arange(n).repeat(n_e + 1)
     return _FlatRuns(edges, rising, eo, n_e, lengths, bright, run_of, run_starts)
-
-
-@dataclass(frozen=True)
-class StripeDecode:
-    """What the stripes of one fixture say.
-
-    Attributes
-    ----------
-    id : int or None
-        Decoded ID, or None.
-    reason : str
-        Why there is no ID ("" when decoded).
-    hamming : int
-        Chips that disagree with the decoded (or nearest) ID; -1 when no chips were read.
-    margin : float
-        Confidence in [0, 1]: how far the worst run length is from a decision boundary
-        (1 = every run exactly one or two chips long, 0 = a run on the boundary), times 0 when
-        another ID fits as well.
-    rows_per_chip : float
-        Measured chip length in sensor rows (NaN when it could not be measured).
-    bleed_rows : float
-        How much longer bright runs are than their chip count says (and dark runs shorter).
-    chips : str
-        The chips read, ``"?"`` where a run's count was uncertain.
-    frames : float
-        Frames of the code covered by the chips read.
-    """
-
-    id: int | None
-    reason: str
-    hamming: int
-    margin: float
-    rows_per_chip: float
-    bleed_rows: float
-    chips: str
-    frames: float
-
-    def __bool__(self) -> bool:
-        return self.id is not None
 
 
 def _spacings(r: _FlatRuns) -> tuple[np.ndarray, np.ndarray]:
@@ -510,14 +471,7 @@ def _chips(r: _FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
 
 
 def _refused(reason: str, **kw) -> StripeDecode:
-    fields = dict(
-        hamming=-1,
-        margin=0.0,
-        rows_per_chip=float("nan"),
-        bleed_rows=float("nan"),
-        chips="",
-        frames=0.0,
-    )
+    fields = dict(method="runs", run_margin=0.0, frames=0.0)
     fields.update(kw)
     return StripeDecode(None, reason, **fields)
 
@@ -556,7 +510,9 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
             reason = f"copies of the frame disagree ({res.id} and {other})"
             out.append(_refused(reason, hamming=res.distance, **common))
         else:
-            out.append(StripeDecode(res.id, "", res.distance, margin, rpc, bleed, text, frames))
+            out.append(
+                StripeDecode(res.id, "", "runs", run_margin=margin, hamming=res.distance, **common)
+            )
     return out
 
 

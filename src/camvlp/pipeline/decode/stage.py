@@ -14,7 +14,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.frequency import decode_frequencies
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.profile import shape_profiles
-from camvlp.pipeline.decode.runs import StripeDecode
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.candidates import to_gray
 from camvlp.pipeline.detect.refine import Blob
 from camvlp.pipeline.detect.stage import STRIPE_SHARE, STRIPED, UNCLEAR_AXIS, Lights, spread_out
@@ -84,7 +84,7 @@ class Decoded:
 
     Attributes
     ----------
-    decodes : tuple of StripeDecode or ModelDecode
+    decodes : tuple of StripeDecode or StripeDecode
         Per light: its ID (or None) and why not.
     frequencies : ndarray, shape (n,)
         Per light, the frequency its stripes were measured at, Hz (NaN on a Manchester map).
@@ -143,9 +143,7 @@ def decode(
     skipped = set(skip)
     keep = [k for k in lights.readable if k not in skipped]
     refused = [
-        StripeDecode(None, NOT_DECODED, -1, 0.0, np.nan, np.nan, "", 0.0)
-        if k in skipped
-        else no_stripes(b)
+        StripeDecode(None, NOT_DECODED, frames=0.0) if k in skipped else no_stripes(b)
         for k, b in enumerate(blobs)
     ]
     if fixture_map.mode == "frequency":
@@ -247,9 +245,9 @@ def no_stripes(blob) -> StripeDecode:
             f" times as much from line to line along them as across (more than {STRIPED:g} "
             "needed)"
         )
-    return StripeDecode(None, why, -1, 0.0, np.nan, np.nan, "", np.nan)
+    return StripeDecode(None, why)
 
 
 def unread(blobs) -> list[StripeDecode]:
     """Every blob left unread, as when the photo's readout axis is unclear."""
-    return [StripeDecode(None, UNCLEAR_AXIS, -1, 0.0, np.nan, np.nan, "", np.nan) for _ in blobs]
+    return [StripeDecode(None, UNCLEAR_AXIS) for _ in blobs]
