@@ -6,7 +6,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 from tests.conftest import (
     CEILING_Y,
     LOOK_UP,
@@ -17,6 +16,7 @@ from tests.conftest import (
 )
 
 import camvlp.pipeline.locate as locate_module
+from camvlp import locate
 from camvlp.model.camera import Pose, project_points
 from camvlp.pipeline.by_pose import (
     TOLD_APART,

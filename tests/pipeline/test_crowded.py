@@ -7,10 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
 import camvlp.pipeline.crowded as crowded
 import camvlp.pipeline.glow as glow
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect import detect_fixtures

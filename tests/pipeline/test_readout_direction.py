@@ -10,8 +10,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
+from camvlp import LocateSettings, locate
 from camvlp.model.camera import Pose
 from camvlp.model.linecode import FrameFormat
 from camvlp.sim.render import render

@@ -29,7 +29,6 @@ from typing import Any
 
 import numpy as np
 
-from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import json_number, summary_stats
 from camvlp.io import InputError, load_image, load_sidecar
 from camvlp.io.survey_csv import ANGLE_COLUMNS, AXES, REQUIRED_COLUMNS, Survey, read_survey
@@ -52,17 +51,6 @@ __all__ = [
     "write_evaluation",
     "write_results_csv",
 ]
-
-#: Names that lived here before the plots got their own module.
-_MOVED = {
-    "plot_error_map": "camvlp.viz.evaluate_plots.plot_error_map",
-    "plot_positions": "camvlp.viz.evaluate_plots.plot_positions",
-    "RESULT_COLUMNS": "camvlp.io.writers.RESULT_COLUMNS",
-}
-
-
-__getattr__ = forward_moved_names(__name__, _MOVED)
-
 
 # --------------------------------------------------------------------------------------------
 # Results
