@@ -33,6 +33,7 @@ __all__ = [
     "in_front",
     "matrix_to_euler",
     "project_points",
+    "rotation_from_vector",
     "rotation_x",
     "rotation_y",
     "rotation_z",
@@ -67,6 +68,12 @@ def rotation_z(theta_deg: float) -> np.ndarray:
     t = np.deg2rad(theta_deg)
     c, s = np.cos(t), np.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_from_vector(rotvec) -> np.ndarray:
+    """Rotation matrix, shape (3, 3), of a rotation vector (shape (3,): the axis times the
+    angle, radians), as OpenCV's ``cv2.Rodrigues`` gives it."""
+    return cv2.Rodrigues(np.asarray(rotvec, dtype=np.float64).reshape(3, 1))[0]
 
 
 def euler_to_matrix(euler_deg) -> np.ndarray:
@@ -186,7 +193,7 @@ class Pose:
     @classmethod
     def from_rvec_tvec(cls, rvec, tvec) -> Pose:
         """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
-        r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
+        r_cw = rotation_from_vector(rvec)
         t = np.asarray(tvec, dtype=float).reshape(3)
         if not all_finite(r_cw, t):
             raise ValueError("rvec and tvec must be finite")

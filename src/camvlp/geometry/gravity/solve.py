@@ -14,8 +14,9 @@ from itertools import combinations
 
 import numpy as np
 
+from camvlp.format import format_vector
 from camvlp.geometry.gravity.refine import refine_gravity_batch
-from camvlp.geometry.gravity.tilt import _fmt, check_gravity, map_up, tilt_error_deg
+from camvlp.geometry.gravity.tilt import check_gravity, map_up, tilt_error_deg
 from camvlp.geometry.gravity.two_fixtures import solve_two_fixtures
 from camvlp.model.camera import Camera, Pose
 
@@ -391,7 +392,8 @@ def _two(bearings, obj, g, u, nrm, focal) -> GravityPose:
             return _failure(
                 2,
                 "two poses fit the two fixtures and gravity equally (at "
-                f"{_fmt(ok[0].position)} and {_fmt(ok[1].position)}): a third fixture is needed",
+                f"{format_vector(ok[0].position)} and {format_vector(ok[1].position)}): a third "
+                "fixture is needed",
                 alternative=ok[1],
                 candidates=tuple(ok),
             )
