@@ -23,6 +23,7 @@ __all__ = [
     "perspective_offsets",
     "plane_basis",
     "rim_points",
+    "sampson_distances",
 ]
 
 
@@ -333,7 +334,8 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     sizes_k = np.array([sizes[i] for i in k], dtype=float)
     groups_k = np.array([n_groups[i] for i in k], dtype=float)
     real = np.arange(m_max)[None, :] < sizes_k[:, None]  # (K, M): not padding
-    d, jac = _sampson(np.array([p0[i] for i in k]), xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
+    ellipses = np.array([p0[i] for i in k])
+    d, jac = sampson_distances(ellipses, xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
     d *= real
     jac *= real[:, :, None]
     jtj = jac.transpose(0, 2, 1) @ jac
@@ -362,14 +364,28 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     return out
 
 
-def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sampson distances of points ``(x, y)`` (K, M) from ellipses ``p`` (K, 5) as (centre,
-    semi-axes, angle in radians), (K, M), and their derivatives in the five parameters,
-    (K, M, 5).
+def sampson_distances(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sampson distances of points from ellipses, and their derivatives in the ellipses'
+    parameters: a first-order approximation of each point's distance from its ellipse.
 
     With ``(u, v)`` a point in the ellipse's axes, ``P = u / a^2``, ``Q = v / b^2``, the
     distance is ``d = (u P + v Q - 1) / (2 g)``, ``g = hypot(P, Q)``; moving the centre or
     the angle changes ``(u, v)`` only, by which ``d`` changes by ``alpha du + beta dv``.
+
+    Parameters
+    ----------
+    p : ndarray, shape (K, 5)
+        Each ellipse's centre ``(cx, cy)`` and semi-axes ``(a, b)``, pixels, and the angle of
+        its ``a`` axis, radians.
+    x, y : ndarray, shape (K, M)
+        The points' coordinates, pixels: ``M`` points for each ellipse.
+
+    Returns
+    -------
+    d : ndarray, shape (K, M)
+        Signed distances (positive outside), pixels.
+    jac : ndarray, shape (K, M, 5)
+        Their derivatives with respect to ``(cx, cy, a, b, angle)``.
     """
     c, s = np.cos(p[:, 4:5]), np.sin(p[:, 4:5])
     dx, dy = x - p[:, 0:1], y - p[:, 1:2]

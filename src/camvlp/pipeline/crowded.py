@@ -39,7 +39,7 @@ import dataclasses
 import cv2
 import numpy as np
 
-from camvlp.geometry.disc import _sampson
+from camvlp.geometry.disc import sampson_distances as _sampson
 from camvlp.pipeline.later import replaced
 from camvlp.pipeline.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.radial import RadialFit, radial_fit, radial_model
