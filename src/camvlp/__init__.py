@@ -43,7 +43,7 @@ _HOMES = {
     "all_fully_inside": "camvlp.sim.render",
     "fixture_truths": "camvlp.sim.render",
     "render": "camvlp.sim.render",
-    "save_render": "camvlp.sim.render",
+    "save_render": "camvlp.io.writers",
     "tilt_limit": "camvlp.sim.render",
 }
 
@@ -97,6 +97,7 @@ def __dir__() -> list[str]:
 if TYPE_CHECKING:  # what static tools (type checkers, editors, mkdocstrings) see
     from camvlp.errors import InputError
     from camvlp.io import load_camera, load_image, load_map, save_camera, save_map
+    from camvlp.io.writers import save_render
     from camvlp.model.camera import (
         Camera,
         Pose,
@@ -114,6 +115,5 @@ if TYPE_CHECKING:  # what static tools (type checkers, editors, mkdocstrings) se
         all_fully_inside,
         fixture_truths,
         render,
-        save_render,
         tilt_limit,
     )

@@ -40,17 +40,21 @@ from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.io.limits import limit
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim import render as _render
 from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
-from camvlp.sim.render import (
+from camvlp.sim.render import stamp_photo
+from camvlp.sim.scene import (
     FixtureTruth,
-    RenderSettings,
-    check_render_size,
     core_places,
+    fixture_colours,
+    fixture_rim,
+    fixture_views,
+    led_phases,
+    lens_field_radius,
+    project_within_field,
     sent_waveform,
-    stamp_photo,
 )
 from camvlp.sim.sensor import expose
+from camvlp.sim.settings import RenderSettings, check_render_size
 
 __all__ = [
     "TRAJECTORY_COLUMNS",
@@ -206,8 +210,8 @@ def row_truths(
     s = (settings or RenderSettings()).resolved(camera)
     n_rows = camera.height if s.readout.by_rows else camera.width
     size = np.array([camera.width, camera.height]) - 0.5
-    phases = _render._phases(fixture_map, s)
-    mid = _render._truths(camera, fixture_map, trajectory.pose(t), s, phases=phases)[0]
+    phases = led_phases(fixture_map, s)
+    mid = fixture_views(camera, fixture_map, trajectory.pose(t), s, phases=phases)[0]
     out = []
     for j, truth in enumerate(mid):
         reach = truth.rows_spanned  # the disc's extent, pixels: a cut disc is refined too
@@ -221,7 +225,7 @@ def row_truths(
             k = (n_rows - 1 - k) if s.readout.reversed else k
             row_t = t + (k - 0.5 * (n_rows - 1)) * s.row_time_s
             pose = trajectory.pose(row_t)
-            truth = _render._truths(camera, fixture_map, pose, s, [j], phases)[0][0]
+            truth = fixture_views(camera, fixture_map, pose, s, [j], phases)[0][0]
         out.append(truth)
     return tuple(out)
 
@@ -266,11 +270,11 @@ def render_frame(
     n_rows = h if s.readout.by_rows else w
     half = 0.5 * (n_rows - 1) * s.row_time_s
     mid = trajectory.pose(t)
-    truths, normals, _ = _render._truths(camera, fixture_map, mid, s)
-    colours = _render._colours(s, len(fixture_map.fixtures))
+    truths, normals, _ = fixture_views(camera, fixture_map, mid, s)
+    colours = fixture_colours(s, len(fixture_map.fixtures))
     cores = core_places(fixture_map, s)
     off_centre = s.core > 0 and s.core_offset > 0
-    field = _render._field_radius(camera)
+    field = lens_field_radius(camera)
     ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
     margin = math.ceil(4.0 * s.blur_px) + 2
     patches = []
@@ -279,8 +283,8 @@ def render_frame(
     ):
         if not truth.in_front or n @ (mid.position - f.position) <= 0:
             continue
-        rim = _render._rim_points(f, n)
-        rims = [_render._project_within_field(camera, p, rim, field)[0] for p in ends]
+        rim = fixture_rim(f, n)
+        rims = [project_within_field(camera, p, rim, field)[0] for p in ends]
         if not all(np.all(np.isfinite(r)) for r in rims):
             continue
         rim_all = np.concatenate(rims)
