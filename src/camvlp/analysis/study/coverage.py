@@ -20,7 +20,7 @@ from camvlp.analysis.study.common import (
 )
 from camvlp.geometry.disc import rim_points
 from camvlp.geometry.gravity import refine_gravity_batch
-from camvlp.geometry.pnp import project_batch
+from camvlp.geometry.projection import project_batch
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
