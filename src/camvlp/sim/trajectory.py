@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import MAX_MAGNITUDE, read_text_file
+from camvlp.io.files import MAX_MAGNITUDE
+from camvlp.io.textfiles import read_text_file
 from camvlp.model.camera import Pose
 
 __all__ = ["TRAJECTORY_COLUMNS", "Trajectory", "load_trajectory", "save_trajectory"]
