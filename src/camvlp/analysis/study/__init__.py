@@ -23,7 +23,8 @@ means ``y = -h``.
 
 The package, one module per study: :mod:`~camvlp.analysis.study.rounding`,
 :mod:`~camvlp.analysis.study.forced` (image and world error),
-:mod:`~camvlp.analysis.study.montecarlo`, :mod:`~camvlp.analysis.study.coverage`, and
+:mod:`~camvlp.analysis.study.montecarlo`, :mod:`~camvlp.analysis.study.coverage` (with its
+sweep over poses, :mod:`~camvlp.analysis.study.coverage_sweep`), and
 :mod:`~camvlp.analysis.study.common` (the solve and the error per pose they share).  Floor
 grids come from :mod:`camvlp.sim.grid`, statistics from :mod:`camvlp.analysis.stats`; the
 plots are in :mod:`camvlp.viz.study_plots` and the files in :mod:`camvlp.io.writers`.
