@@ -91,6 +91,7 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
+    """The module's names, the public ones not yet loaded included."""
     return sorted({*globals(), *_HOMES})
 
 

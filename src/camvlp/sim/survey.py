@@ -86,7 +86,7 @@ def render_survey(
     """Render one photograph per camera pose and write ``survey.csv`` beside them.
 
     Photo ``i`` is ``out_dir/photo_{i:03d}<suffix>`` (with its ground-truth JSON,
-    ``photo_{i:03d}.json``, see :func:`camvlp.sim.render.save_render`), rendered with seed
+    ``photo_{i:03d}.json``, see :func:`camvlp.io.writers.save_render`), rendered with seed
     ``settings.seed + i`` so that each photo has its own LED phases and noise.
 
     Parameters
