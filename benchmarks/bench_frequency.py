@@ -52,8 +52,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.bound import frequency_bounds, frequency_intervals, share_within

@@ -31,9 +31,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from camvlp.locate import locate
 
 import camvlp
+from camvlp import locate
 from camvlp.model.camera import Camera
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

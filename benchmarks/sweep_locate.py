@@ -24,9 +24,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from camvlp.locate import locate
 
 import camvlp
+from camvlp import locate
 from camvlp.sim.render import RenderSettings, render
 from camvlp.sim.sensor import PHONE
 

@@ -7,7 +7,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 from tests.conftest import (
     CEILING_Y,
     LOOK_UP,
@@ -19,6 +18,7 @@ from tests.conftest import (
 
 import camvlp.pipeline.decode.stage as decode_stage
 import camvlp.pipeline.detect.stage as detect_stage
+from camvlp import locate
 from camvlp.geometry.pose import estimate_pose
 from camvlp.model.camera import Pose, project_points
 from camvlp.pipeline.decode.result import StripeDecode

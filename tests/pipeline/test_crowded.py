@@ -7,10 +7,10 @@ import warnings
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
 import camvlp.pipeline.lamp.crowded as crowded
 import camvlp.pipeline.lamp.glow as glow
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import detect_fixtures

@@ -13,8 +13,8 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap

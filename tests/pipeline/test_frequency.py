@@ -6,8 +6,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
+from camvlp import LocateSettings, locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.decode.frequency import assign_frequencies, decode_frequencies

@@ -7,8 +7,8 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.geometry.disc import perspective_offsets
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap

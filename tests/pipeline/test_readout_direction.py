@@ -10,9 +10,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
 import camvlp.pipeline.decode.stage as decode_stage
+from camvlp import LocateSettings, locate
 from camvlp.model.camera import Pose
 from camvlp.model.linecode import FrameFormat
 from camvlp.pipeline.decode.result import StripeDecode

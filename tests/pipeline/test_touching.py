@@ -7,8 +7,8 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import detect_fixtures

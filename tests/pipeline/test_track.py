@@ -16,7 +16,8 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.track.tracker import ConstantVelocityFilter, Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.video import Trajectory, iter_frames
+from camvlp.sim.trajectory import Trajectory
+from camvlp.sim.video import iter_frames
 
 FPS = 15.0
 

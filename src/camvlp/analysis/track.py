@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import read_text_file
+from camvlp.io.textfiles import read_text_file
 from camvlp.io.video import FrameSource, read_truth
 from camvlp.pipeline.track.tracker import STATUSES, Tracker, TrackFrame
 

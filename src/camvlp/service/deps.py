@@ -16,8 +16,8 @@ from fastapi.exceptions import HTTPException
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from camvlp.errors import InputError
-from camvlp.io.files import parse_mapping
 from camvlp.io.limits import limit
+from camvlp.io.textfiles import parse_mapping
 from camvlp.service.auth import hash_key, keys_match
 from camvlp.service.db import Store
 from camvlp.service.frames import FrameTracks
@@ -76,7 +76,7 @@ def _json_content(request: Request) -> bool:
 
 async def json_body_gate(request: Request) -> None:
     """A JSON body is checked before any route reads it, as the camera and map files are
-    (:func:`camvlp.io.files.parse_mapping`): at most ``CAMVLP_MAX_FILE_BYTES`` (413), UTF-8,
+    (:func:`camvlp.io.textfiles.parse_mapping`): at most ``CAMVLP_MAX_FILE_BYTES`` (413), UTF-8,
     an object nested at most ``CAMVLP_MAX_DEPTH`` deep, no number of more than 30 digits, no
     key given twice in one object (JSON keeps the last one without a word, so a map with a
     fixture's ``position`` given twice would be stored as one of them), and (what a JSON

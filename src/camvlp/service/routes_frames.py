@@ -111,9 +111,7 @@ async def post_frame(
     request.state.device = device
     kind = _kind(request)
     grav = parse_gravity(gravity)
-    if t is not None and not math.isfinite(t):
-        raise HTTPException(422, "t: must be a finite number of seconds")
-    t_frame = time.time() if t is None else float(t)
+    t_frame = _frame_time(t)
     site_row, cameras = await run_in_threadpool(
         lambda: (store.site(site_id), store.cameras(site_id))
     )
@@ -128,27 +126,9 @@ async def post_frame(
     started = time.perf_counter()
     try:
         body = await request.body()
-
-        def build():
-            try:
-                return camera_from_dict(cameras[name], "camera"), map_from_dict(site_row.map, "map")
-            except Exception as exc:  # stored data are checked when stored: never expected
-                raise HTTPException(422, f"the site's camera or map: {exc}") from None
-
+        build = _builder(cameras[name], site_row.map)
         track = tracks.track((site_id, name, device), cameras[name], site_row.map, build, reset)
-        loop = asyncio.get_running_loop()
-
-        async def run(tr, pending) -> dict[str, Any]:
-            args = (tr, pending.body, pending.kind, pending.t, pending.gravity, cfg.max_pixels)
-            t0 = time.perf_counter()
-            try:
-                return await loop.run_in_executor(pool, locate_frame, *args)
-            finally:
-                metrics.locate_seconds.labels("frame").observe(time.perf_counter() - t0)
-
-        def dropped(reason: str) -> None:
-            metrics.frames_dropped.labels(reason).inc()
-
+        run, dropped = _runner(pool, cfg.max_pixels, metrics)
         answer, waited = await tracks.submit(track, body, kind, t_frame, grav, run, dropped)
     except FrameDropped as exc:
         raise HTTPException(409, exc.detail) from None
@@ -175,3 +155,42 @@ async def post_frame(
         "timing_ms": timing,
         "frames_waiting": tracks.waiting(),
     }
+
+
+def _frame_time(t: float | None) -> float:
+    """The frame's time, s: the client's ``t`` (a finite number), else now."""
+    if t is not None and not math.isfinite(t):
+        raise HTTPException(422, "t: must be a finite number of seconds")
+    return time.time() if t is None else float(t)
+
+
+def _builder(camera_spec: dict, map_spec: dict):
+    """A function that makes the site's camera and map for a new track (422 should the stored
+    data not load: they are checked when stored, so never expected)."""
+
+    def build():
+        try:
+            return camera_from_dict(camera_spec, "camera"), map_from_dict(map_spec, "map")
+        except Exception as exc:
+            raise HTTPException(422, f"the site's camera or map: {exc}") from None
+
+    return build
+
+
+def _runner(pool, max_pixels: int, metrics):
+    """What the device's track calls: ``run(track, pending)``, which locates a pending frame
+    in the locate ``pool`` (timed in ``metrics``), and ``dropped(reason)``, which counts a
+    frame a newer one replaced."""
+
+    async def run(tr, pending) -> dict[str, Any]:
+        args = (tr, pending.body, pending.kind, pending.t, pending.gravity, max_pixels)
+        t0 = time.perf_counter()
+        try:
+            return await asyncio.get_running_loop().run_in_executor(pool, locate_frame, *args)
+        finally:
+            metrics.locate_seconds.labels("frame").observe(time.perf_counter() - t0)
+
+    def dropped(reason: str) -> None:
+        metrics.frames_dropped.labels(reason).inc()
+
+    return run, dropped

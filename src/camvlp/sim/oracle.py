@@ -18,7 +18,8 @@ import math
 import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import LightPatch, Render, id_waveform, light_patches
+from camvlp.sim.render import LightPatch, Render, light_patches
+from camvlp.sim.scene import id_waveform
 from camvlp.sim.sensor import develops
 
 __all__ = ["id_separation"]

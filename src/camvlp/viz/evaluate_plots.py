@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp.analysis.evaluate import Evaluation, floor_axes
+from camvlp.analysis.evaluation import Evaluation, floor_axes
 from camvlp.format import mm_per_unit
 from camvlp.io.survey_csv import AXES
 from camvlp.model.fixtures import FixtureMap

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camvlp.geometry.pnp import LOCATE_SOLVER, check_solver, project_batch, solve_pnp_batch
+from camvlp.geometry.pnp import LOCATE_SOLVER, check_solver, solve_pnp_batch
+from camvlp.geometry.projection import project_batch
 from camvlp.model.camera import Camera, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 

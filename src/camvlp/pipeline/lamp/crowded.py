@@ -39,7 +39,7 @@ import dataclasses
 import cv2
 import numpy as np
 
-from camvlp.geometry.disc import _sampson
+from camvlp.geometry.disc import sampson_distances
 from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.detect.refine import Blob, light_support, to_gray
 from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
@@ -306,7 +306,7 @@ def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndar
         fit = _ellipse(ends[fitted])
         if fit is None:
             return None
-        d = _sampson(fit[None], ends[None, :, 0], ends[None, :, 1])[0][0]
+        d = sampson_distances(fit[None], ends[None, :, 0], ends[None, :, 1])[0][0]
         near = np.abs(d) <= RIM_OUT_PX
         if near[fitted].all():
             break
