@@ -48,7 +48,10 @@ def evaluate_command(
         Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
     ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Folder for results.csv, summary.json, plots.")
+        Path,
+        typer.Option(
+            "--out", "-o", metavar="OUT", help="Folder for results.csv, summary.json, plots."
+        ),
     ],
     jobs: Annotated[
         int | None, typer.Option("--jobs", "-j", help="Worker processes (default: all cores).")
@@ -68,9 +71,12 @@ def evaluate_command(
 ) -> None:
     """Locate every photo of SURVEY and compare with the true positions.
 
-    Writes OUT/results.csv (one row per photo), OUT/summary.json and two plots:
+    Writes into the folder OUT:
 
-    OUT/error_map.png (the error over the floor) and OUT/positions.png (true and estimated).
+    - results.csv, one row per photo;
+    - summary.json, the figures;
+    - error_map.png, the error over the floor;
+    - positions.png, the true and estimated positions.
 
     Photos that cannot be read or located are counted and listed; the run goes on. A photo
     with a sidecar PHOTO.json giving gravity is located with it (two fixtures are enough).

@@ -82,7 +82,7 @@ def track_command(
     map_path: Annotated[
         Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
     ],
-    out: Annotated[Path, typer.Option("--out", help="Output folder.")],
+    out: Annotated[Path, typer.Option("--out", metavar="DIR", help="Output folder.")],
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
     fps: Annotated[
         float | None,
