@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 
 import cv2
@@ -11,7 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from camvlp.cli import app
-from camvlp.io import save_camera, save_map
+from camvlp.io import load_map, save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from conftest import one_error_line
@@ -100,6 +101,65 @@ def test_bad_frames_become_lost_rows(scene, tmp_path):
     assert [r["status"] for r in rows] == ["fix", "fix", "fix", "lost"]
     assert "camera file says" in rows[3]["reason"]
     assert "warning: skipped 1 file(s) that are not images: readme.txt" in result.stderr
+    # the frame not located is counted by its reason on stderr
+    assert "note: 1 of 4 frames not located:" in result.stderr.splitlines()
+    assert "  1  image is 100 x 100 but the camera file says 640 x 360" in result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["not_located"] == [
+        {"reason": "image is 100 x 100 but the camera file says 640 x 360", "frames": 1}
+    ]
+
+
+def test_a_wrong_camera_file_is_named_in_the_error(scene, tmp_path):
+    """Nothing located for one reason: the error line gives it, with its count of frames."""
+    save_camera(Camera.from_focal(1280, 720, 966.0, row_time_s=40e-6), tmp_path / "big.yaml")
+    result = runner.invoke(
+        app,
+        [
+            "track",
+            str(scene / "frames"),
+            *("--camera", str(tmp_path / "big.yaml"), "--map", str(scene / "room.yaml")),
+            *("--out", str(tmp_path / "out")),
+        ],
+    )
+    assert result.exit_code == 1
+    line = one_error_line(result)
+    assert line.startswith(
+        "error: no frame could be located: image is 640 x 360 but the camera file says "
+        "1280 x 720 (5 of 5 frames; "
+    ), line
+
+
+def test_the_reasons_frames_failed_are_counted_most_frequent_first(scene, tmp_path):
+    """Nothing located for two reasons (a map without the lights' IDs, two frames of another
+    size): both counted on stderr, the most frequent first, and named in the error line."""
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    names = sorted(p.name for p in (scene / "frames").glob("*.png"))
+    for n in names[:3]:
+        (folder / n).write_bytes((scene / "frames" / n).read_bytes())
+    for n in names[3:]:
+        cv2.imwrite(str(folder / n), np.zeros((100, 100), np.uint8))
+    room = load_map(scene / "room.yaml")
+    others = [dataclasses.replace(f, id=f.id - 4) for f in room.fixtures]  # 1, 2, 5, 6
+    save_map(dataclasses.replace(room, fixtures=tuple(others)), tmp_path / "other.yaml")
+    result = runner.invoke(
+        app,
+        [
+            "track",
+            str(folder),
+            *("--camera", str(scene / "cam.yaml"), "--map", str(tmp_path / "other.yaml")),
+            *("--out", str(tmp_path / "out"), "--fps", "15"),
+        ],
+    )
+    assert result.exit_code == 1
+    lines = result.stderr.splitlines()
+    assert lines[0] == "note: 5 of 5 frames not located:"
+    first, second = lines[1].split(maxsplit=1), lines[2].split(maxsplit=1)
+    assert first[0] == "3" and "identified" in first[1]
+    assert second == ["2", "image is 100 x 100 but the camera file says 640 x 360"]
+    assert lines[3] == f"error: no frame could be located: {first[1]} (3 of 5 frames; {folder})"
+    assert len(lines) == 4
 
 
 def test_a_start_after_the_last_frame_says_so(scene, tmp_path):

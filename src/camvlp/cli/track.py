@@ -116,7 +116,9 @@ def track_command(
     """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
     Writes DIR/trajectory.csv, fixtures.csv, summary.json and trajectory.png, all four or
-    none. Exit code 0 when at least one frame was located, 1 when none was, 2 on bad input.
+    none. The frames that could not be located are counted by reason on stderr (every
+    frame's reason is in trajectory.csv). Exit code 0 when at least one frame was located, 1
+    when none was (the most frequent reason in the error line), 2 on bad input.
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
@@ -146,20 +148,49 @@ def track_command(
         (staged / "summary.json").write_text(strict_json(summary, indent=2) + "\n")
         _plot(staged / "trajectory.png", fixture_map, run, truths)
     located = summary["fix"] + summary["tracked"]
-    if not located:  # the error line only: the warnings are in summary.json
-        why = "no frame could be located"
+    reasons = summary["not_located"]
+    if not located:  # the warnings are in summary.json; the reasons, unless one says all
+        why, where = "no frame could be located", str(source)
         if not summary["frames"]:  # nothing was read: say why rather than "not located"
             why = f"no frame at or after --start {start:g} s" if start else "no frame was read"
             if run.warnings:
                 why += f": {run.warnings[0]}"
-        print(f"error: {why} ({source})", file=sys.stderr)
+        elif reasons:
+            if len(reasons) > 1:
+                _print_reasons(reasons, summary["frames"], out)
+            why += f": {reasons[0]['reason']}"
+            where = f"{reasons[0]['frames']} of {summary['frames']} frames; {source}"
+        print(f"error: {why} ({where})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
     for w in run.warnings:
         print(f"warning: {w} ({source})", file=sys.stderr)
+    if reasons:
+        _print_reasons(reasons, summary["frames"], out)
     if as_json:
         print(strict_json(summary))
     else:
         _print_human(summary, fixture_map.units, out)
+
+
+#: Reasons that track's note on the frames not located lists one by one (the rest counted).
+SHOWN_REASONS = 5
+
+
+def _print_reasons(reasons: list[dict], frames: int, out: Path) -> None:
+    """The frames not located and why, on stderr: a line per reason with its count of frames,
+    the most frequent first (``reasons`` as :func:`camvlp.analysis.track.summarize` gives
+    them), at most :data:`SHOWN_REASONS`, the others counted in a last line."""
+    missed = sum(r["frames"] for r in reasons)
+    width = len(str(reasons[0]["frames"]))
+    lines = [f"note: {missed} of {frames} frames not located:"]
+    lines += [f"  {r['frames']:>{width}}  {r['reason']}" for r in reasons[:SHOWN_REASONS]]
+    rest = reasons[SHOWN_REASONS:]
+    if rest:
+        lines.append(
+            f"  {sum(r['frames'] for r in rest):>{width}}  for {len(rest)} other reasons "
+            f"(the column reason of {out / 'trajectory.csv'})"
+        )
+    print("\n".join(lines), file=sys.stderr)
 
 
 def _plot(path: Path, fixture_map, run, truths: Truths) -> None:
