@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import re
 import sys
 from pathlib import Path
@@ -17,6 +18,7 @@ from camvlp.io.atomic import check_output_file, strict_json
 from camvlp.sim.chessboard import MIN_BOARD_SIDE
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
+from .progress import progress_bar
 
 #: Image files taken from a directory given as an argument.
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}
@@ -144,13 +146,8 @@ def _calibrate_with_progress(
     zero_tangent: bool,
 ) -> CalibrationResult:
     """:func:`calibrate_camera` with a progress bar on stderr (a terminal, 5 photos or more)."""
-    from rich.console import Console
-    from rich.progress import Progress
-
-    console = Console(stderr=True)
-    show = len(paths) >= PROGRESS_FROM and console.is_terminal
-    with Progress(console=console, transient=True, disable=not show) as progress:
-        task = progress.add_task("finding the board", total=len(paths))
+    with progress_bar(len(paths), "finding the board", show=len(paths) >= PROGRESS_FROM) as update:
+        done = itertools.count(1)
         return calibrate_camera(
             paths,
             board,
@@ -158,7 +155,7 @@ def _calibrate_with_progress(
             row_time_s=row_time_s,
             fix_aspect=fix_aspect,
             zero_tangent=zero_tangent,
-            on_image=lambda _name: progress.advance(task),
+            on_image=None if update is None else lambda _name: update(next(done)),
         )
 
 

@@ -32,6 +32,7 @@ from ._app import (
     fail,
     handle_errors,
 )
+from .progress import progress_bar
 
 
 @app.command("evaluate")
@@ -118,36 +119,8 @@ def evaluate_command(
 
 def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
     """Evaluate with a progress bar on stderr (shown only on a terminal)."""
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    console = Console(stderr=True)
-    with Progress(
-        TextColumn("locating"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    ) as bar:
-        task = bar.add_task("locate", total=len(survey))
-        return evaluate_survey(
-            survey,
-            camera,
-            fixture_map,
-            settings,
-            jobs=jobs,
-            progress=lambda done, total: bar.update(task, completed=done),
-        )
+    with progress_bar(len(survey), "locating") as update:
+        return evaluate_survey(survey, camera, fixture_map, settings, jobs=jobs, progress=update)
 
 
 def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -21,6 +19,7 @@ from camvlp.sim.grid import plane_axes, up_sign
 from camvlp.viz import study_plots
 
 from ._app import app, check_solver, fail, handle_errors, parse_floats
+from .progress import progress_bar
 
 study_app = typer.Typer(
     name="study",
@@ -164,31 +163,6 @@ def _grid_options(
     }
 
 
-@contextmanager
-def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None] | None]:
-    """A rich progress bar on stderr, for long runs (about > 1 s) on a terminal only."""
-    if total_hint < 5000 or not sys.stderr.isatty():
-        yield None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(label, total=None)
-
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield update
-
-
 def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
     """Write the files (with --out), then print the summary as JSON or as ``lines``."""
     summary = study.summary()
@@ -259,6 +233,8 @@ def _run(func, *args, **kwargs):
 
 #: Most pose solves one study may ask for (each keeps about 0.5 KB until the end: ~1 GB).
 MAX_SOLVES = 2_000_000
+#: Pose solves from which a study shows a progress bar (a run of about a second or more).
+PROGRESS_FROM_POSES = 5000
 
 
 def _grid_points(grid: dict) -> float:
@@ -277,8 +253,8 @@ def _study(func, label: str, total_hint: float, *args, **kwargs):
             "ranges or give fewer poses"
         )
     total_hint = int(total_hint)
-    with _progress(total_hint, label) as progress:
-        return _run(func, *args, progress=progress, **kwargs)
+    with progress_bar(None, label, show=total_hint >= PROGRESS_FROM_POSES) as update:
+        return _run(func, *args, progress=update, **kwargs)
 
 
 def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, out, as_json) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -39,37 +38,11 @@ from ._app import (
     handle_errors,
     parse_readout,
 )
+from .progress import progress_bar
 from .render import option_names
 
 #: The files ``camvlp track`` writes into its --out folder.
 TRACK_FILES = ("trajectory.csv", "fixtures.csv", "summary.json", "trajectory.png")
-
-
-@contextmanager
-def _progress(total: int | None, what: str):
-    """A rich progress bar on stderr when it is a terminal; yields ``advance(done)``."""
-    if not sys.stderr.isatty():
-        yield lambda done: None
-        return
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
-    with Progress(
-        TextColumn(what),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(what, total=total)
-        yield lambda done: bar.update(task, completed=done)
 
 
 @app.command("track")
@@ -141,8 +114,8 @@ def track_command(
     total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
     with StagedOutputs() as outputs:  # the four files: all or none
         staged = outputs.folder(out)
-        with _progress(total, "tracking") as advance:
-            run = run_track(frames_src, tracker, staged, progress=advance)
+        with progress_bar(total, "tracking") as update:
+            run = run_track(frames_src, tracker, staged, progress=update)
         summary = summarize(run, truths)
         summary["input"] = str(source)
         (staged / "summary.json").write_text(strict_json(summary, indent=2) + "\n")
@@ -362,7 +335,7 @@ def render_video_command(
     if out.suffix:
         check_video_size(camera, camera_path)
     try:
-        with _progress(total, "rendering") as advance:
+        with progress_bar(total, "rendering") as update:
             n = render_video(
                 camera,
                 fixture_map,
@@ -372,7 +345,7 @@ def render_video_command(
                 settings=settings,
                 crf=crf,
                 max_frames=frames,
-                progress=lambda done, _total: advance(done),
+                progress=update,
             )
     except KeyboardInterrupt:
         kept = partial_path(out)  # (a video's: a folder of frames has none)
