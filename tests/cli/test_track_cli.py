@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import json
+import re
+import sys
 
 import cv2
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from camvlp.cli import app
+from camvlp.cli import app, main
+from camvlp.cli.progress import progress_bar
 from camvlp.io import load_map, save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -258,3 +262,81 @@ def test_an_interrupted_render_says_where_its_frames_are(scene, tmp_path, monkey
     assert f"interrupted: the frames so far are in {tmp_path / 'v.partial.mp4'}" in one_error_line(
         result
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The progress bar: drawn on stderr when it is a terminal, else nothing
+
+_CONTROL = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+class Terminal(io.StringIO):
+    """A stderr that says it is a terminal, and keeps what is drawn on it."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def as_terminal(monkeypatch) -> Terminal:
+    """stderr replaced by a :class:`Terminal` (an ordinary one: not TERM=dumb), from within
+    the test itself (pytest sets its own stderr again after the fixtures)."""
+    for name in ("TTY_COMPATIBLE", "TTY_INTERACTIVE", "NO_COLOR"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("TERM", "xterm")
+    stderr = Terminal()
+    monkeypatch.setattr(sys, "stderr", stderr)
+    return stderr
+
+
+def _drawn(stderr: Terminal) -> str:
+    return _CONTROL.sub("", stderr.getvalue())
+
+
+def _render_frames(scene, out) -> int:
+    return main(
+        [
+            "render-video",
+            *("--camera", str(scene / "cam.yaml"), "--map", str(scene / "room.yaml")),
+            *("--trajectory", str(scene / "traj.csv"), "--frames", "3", "--out", str(out)),
+        ]
+    )
+
+
+def test_render_video_and_track_draw_their_progress_on_a_terminal(scene, tmp_path, monkeypatch):
+    terminal = as_terminal(monkeypatch)
+    assert _render_frames(scene, tmp_path / "frames") == 0
+    drawn = _drawn(terminal)
+    assert "rendering" in drawn and "3/3" in drawn, drawn
+    terminal.seek(0)
+    terminal.truncate()
+    code = main(
+        [
+            "track",
+            str(tmp_path / "frames"),
+            *("--camera", str(scene / "cam.yaml"), "--map", str(scene / "room.yaml")),
+            *("--out", str(tmp_path / "track")),
+        ]
+    )
+    assert code == 0
+    drawn = _drawn(terminal)
+    assert "tracking" in drawn and "3/3" in drawn, drawn
+
+
+def test_no_bar_is_drawn_when_stderr_is_not_a_terminal(scene, tmp_path, capsys):
+    assert _render_frames(scene, tmp_path / "frames") == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert captured.out.startswith("wrote 3 frames to")
+
+
+def test_the_bar_counts_what_it_is_told(monkeypatch):
+    terminal = as_terminal(monkeypatch)
+    with progress_bar(None, "working") as update:
+        assert update is not None
+        update(2, total=5)
+    assert "working" in _drawn(terminal) and "2/5" in _drawn(terminal)
+    terminal.seek(0)
+    terminal.truncate()
+    with progress_bar(5, "quiet", show=False) as update:
+        assert update is None  # the caller's choice: no bar, nothing to call
+    assert terminal.getvalue() == ""

@@ -80,7 +80,7 @@ def serve_command(
     from camvlp.service import ServiceSettings
     from camvlp.service.connections import TimedH11Protocol
     from camvlp.service.logs import log_config
-    from camvlp.service.settings import LOG_LEVELS, database_url, default_db_url
+    from camvlp.service.settings import LOG_LEVELS
 
     for value, option in ((workers, "--workers"), (threads, "--threads")):
         check_positive(value, option)
@@ -90,10 +90,7 @@ def serve_command(
         fail(f"--port must be 1 to 65535, got {port}")
     if log_level not in LOG_LEVELS:
         fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
-    try:
-        db = database_url(db) if db is not None else default_db_url()
-    except ValueError as exc:
-        fail(str(exc))
+    db = _database(db)
     if migrate:
         _migrate(db)
         return
@@ -168,6 +165,18 @@ def _migrate(db: str) -> None:
             f"{before or '(empty)'} to {after}"
         )
     print(f"database      {_shown(db)}")
+
+
+def _database(db: str | None) -> str:
+    """The database URL of ``--db`` (or CAMVLP_DB): a URL, or a path to a SQLite file;
+    None, the default (:func:`camvlp.service.settings.default_db_url`). Empty: a usage
+    error."""
+    from camvlp.service.settings import database_url, default_db_url
+
+    try:
+        return database_url(db) if db is not None else default_db_url()
+    except ValueError as exc:
+        fail(str(exc))
 
 
 def _shown(db: str) -> str:
