@@ -70,12 +70,13 @@ def test_serve_refuses_bad_options_in_one_line(tmp_path: Path, capsys):
     from camvlp.cli import main
 
     db = f"sqlite:///{tmp_path / 'x.db'}"
+    (tmp_path / "x.db").write_bytes(b"")  # a file: no folder can be made in its place
     for args, words in (
         (["--port", "0"], "--port must be 1 to 65535"),
         (["--workers", "0"], "--workers must be a positive number"),
         (["--max-upload-mb", "-1"], "--max-upload-mb must be a positive number"),
         (["--db", "nosuchdb://x"], "cannot open the database"),
-        (["--db", f"sqlite:///{tmp_path / 'no' / 'such' / 'dir.db'}"], "cannot open the database"),
+        (["--db", f"sqlite:///{tmp_path / 'x.db' / 'dir.db'}"], "the database's folder"),
         (["--log-level", "loud"], "--log-level must be one of critical, error"),
         (["--host", "256.1.1.1"], "cannot listen on 256.1.1.1:8000"),
     ):

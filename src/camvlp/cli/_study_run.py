@@ -4,41 +4,19 @@ bar on a terminal, a bad value as a usage error (exit 2); then its files and its
 from __future__ import annotations
 
 import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.io.writers import write_outputs
 
 from ._app import fail
+from .progress import progress_bar
 
 __all__ = ["MAX_SOLVES", "finish_study", "run_study", "usage_errors"]
 
 
-@contextmanager
-def _progress_bar(total_hint: int, label: str) -> Iterator[Callable[[int, int], None] | None]:
-    """A rich progress bar on stderr, for long runs (about > 1 s) on a terminal only."""
-    if total_hint < 5000 or not sys.stderr.isatty():
-        yield None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(label, total=None)
-
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield update
+#: Pose solves from which a study shows a progress bar (a run of about a second or more).
+PROGRESS_FROM_POSES = 5000
 
 
 def finish_study(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
@@ -78,5 +56,5 @@ def run_study(func, label: str, total_hint: float, *args, **kwargs):
             "ranges or give fewer poses"
         )
     total_hint = int(total_hint)
-    with _progress_bar(total_hint, label) as progress:
-        return usage_errors(func, *args, progress=progress, **kwargs)
+    with progress_bar(None, label, show=total_hint >= PROGRESS_FROM_POSES) as update:
+        return usage_errors(func, *args, progress=update, **kwargs)

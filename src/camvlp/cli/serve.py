@@ -18,13 +18,16 @@ from ._app import app, check_positive, fail, handle_errors
 @handle_errors
 def serve_command(
     db: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--db",
-            help="Database URL: sqlite:///FILE (default camvlp.db here) or e.g. "
-            "postgresql+psycopg://USER@HOST/NAME.",
+            envvar="CAMVLP_DB",
+            metavar="URL|FILE",
+            help="The database: a SQLite file (a path, or sqlite:///FILE; its folder is "
+            "created) or a URL such as postgresql+psycopg://USER@HOST/NAME. Default: camvlp.db "
+            "in the user's data folder ($XDG_DATA_HOME/camvlp, else ~/.local/share/camvlp).",
         ),
-    ] = "sqlite:///camvlp.db",
+    ] = None,
     host: Annotated[str, typer.Option("--host", help="Address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="TCP port.")] = 8000,
     workers: Annotated[int, typer.Option("--workers", help="Service processes.")] = 1,
@@ -64,14 +67,14 @@ def serve_command(
     """Serve the HTTP API (/api/v1, docs at /docs) and each site's pages (/sites/ID).
 
     /sites/ID/capture is the page that locates a phone from its camera's frames.
-    Sites, cameras, maps and fixes are kept in the database; several processes share it
+    Sites, cameras, maps and fixes are kept in the database (--db; by default camvlp.db in
+    the user's data folder; the start line says where it is); several processes share it
     (--workers, or several machines with one PostgreSQL database). Sites are created with
     the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
     A database made by an older version is upgraded by --migrate (the service refuses to
     start on it until then); phones give their camera only to HTTPS pages: --tls-cert and
     --tls-key, or a reverse proxy (docs/serve/README.md).
     """
-    import sqlalchemy as sa
     import uvicorn
 
     from camvlp.service import ServiceSettings
@@ -87,6 +90,7 @@ def serve_command(
         fail(f"--port must be 1 to 65535, got {port}")
     if log_level not in LOG_LEVELS:
         fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
+    db = _database(db)
     if migrate:
         _migrate(db)
         return
@@ -106,7 +110,6 @@ def serve_command(
     admin_key = settings.admin_key
     _open_database(db)
     os.environ.update(settings.to_env())  # the workers build their app from these
-    shown = sa.engine.make_url(db).render_as_string(hide_password=True)
     if not admin_key:
         print(
             "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
@@ -114,7 +117,8 @@ def serve_command(
             file=sys.stderr,
         )
     scheme = "https" if ssl else "http"
-    print(f"camvlp serve: {scheme}://{host}:{port}/docs  (database {shown}, {workers} worker(s))")
+    print(f"camvlp serve: {scheme}://{host}:{port}/docs  ({workers} worker(s))")
+    print(f"database      {_shown(db)}")
     uvicorn.run(
         "camvlp.service:app_from_env",
         factory=True,
@@ -160,6 +164,32 @@ def _migrate(db: str) -> None:
             f"camvlp serve --migrate: upgraded the database from revision "
             f"{before or '(empty)'} to {after}"
         )
+    print(f"database      {_shown(db)}")
+
+
+def _database(db: str | None) -> str:
+    """The database URL of ``--db`` (or CAMVLP_DB): a URL, or a path to a SQLite file;
+    None, the default (:func:`camvlp.service.settings.default_db_url`). Empty: a usage
+    error."""
+    from camvlp.service.settings import database_url, default_db_url
+
+    try:
+        return database_url(db) if db is not None else default_db_url()
+    except ValueError as exc:
+        fail(str(exc))
+
+
+def _shown(db: str) -> str:
+    """Where the database is, as the start line says it: a SQLite database's file (absolute),
+    another's URL without its password."""
+    import sqlalchemy as sa
+
+    from camvlp.service.settings import sqlite_file
+
+    path = sqlite_file(db)
+    if path is not None:
+        return str(path.absolute())
+    return sa.engine.make_url(db).render_as_string(hide_password=True)
 
 
 def _with_database(db: str, work):
@@ -168,14 +198,18 @@ def _with_database(db: str, work):
 
     from camvlp.service.db import make_engine
     from camvlp.service.migrate import SchemaError
+    from camvlp.service.settings import sqlite_file
 
     try:
-        url = sa.engine.make_url(db)
-        if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
-            path = Path(url.database)
-            if path.exists() and not path.is_file():
-                fail(f"cannot open the database: {path} is not a file (--db {db})")
-        engine = make_engine(db)
+        path = sqlite_file(db)
+        if path is not None and path.exists() and not path.is_file():
+            fail(f"cannot open the database: {path} is not a file (--db {db})")
+        try:
+            engine = make_engine(db)
+        except OSError as exc:
+            where = path.parent if path is not None else db
+            reason = "a file is there" if isinstance(exc, FileExistsError) else exc.strerror
+            fail(f"cannot create the database's folder {where}: {reason or exc} (--db {db})")
         try:
             return work(engine)
         finally:

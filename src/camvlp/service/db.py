@@ -15,6 +15,7 @@ from pydantic import ConfigDict
 from sqlalchemy.engine import Engine
 
 from camvlp.service.schemas import FixFields
+from camvlp.service.settings import sqlite_file
 
 __all__ = ["FixRow", "SiteRow", "Store", "make_engine", "metadata"]
 
@@ -77,11 +78,20 @@ pictures = sa.Table(
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite files get WAL journaling and a busy timeout.
+    """An engine for ``url``; SQLite files get WAL journaling and a busy timeout, and their
+    folder is created when missing.
 
     WAL lets readers (the fix streams) go on while a writer commits, and the timeout makes
     concurrent writers from several processes wait for each other instead of failing.
+
+    Raises
+    ------
+    OSError
+        A SQLite file's folder cannot be created.
     """
+    path = sqlite_file(url)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
     engine = sa.create_engine(url, pool_pre_ping=True)
     if engine.dialect.name == "sqlite":
 
