@@ -26,6 +26,10 @@ SRC = ROOT / "src"
 #: sub-packages: its docstrings join the reference once that is done (empty this set then).
 SKIP = {"camvlp.pipeline"}
 
+#: Where the names ``camvlp`` re-exports from a skipped package are described (from the
+#: ``camvlp`` page of the reference).
+GUIDE = "../../../locating.md#from-python"
+
 #: Folders under ``src/camvlp`` that hold no library code (the service's schema migrations).
 NOT_MODULES = {"migrations", "static"}
 
@@ -61,12 +65,9 @@ def write_api_pages() -> None:
         doc = Path(*parts, "index.md") if package else Path(*parts).with_suffix(".md")
         nav[parts] = doc.as_posix()
         with mkdocs_gen_files.open(Path("reference/api") / doc, "w") as page:
-            page.write(f"# `{module}`\n\n")
-            if module == "camvlp":
-                page.write(_top_level_summary())
-            page.write(f"::: {module}\n")
+            page.write(f"# `{module}`\n\n::: {module}\n")
             if module == "camvlp":  # its names are documented where they are defined
-                page.write("    options:\n      members: false\n")
+                page.write("    options:\n      members: false\n\n" + _top_level_summary())
     with mkdocs_gen_files.open("reference/api/SUMMARY.md", "w") as summary:
         summary.writelines(nav.build_literate_nav())
 
@@ -79,11 +80,11 @@ def _top_level_summary() -> str:
     for name in camvlp.__all__:
         obj = getattr(camvlp, name)
         home = getattr(obj, "__module__", None) or "camvlp"
-        if _skipped(home):
-            rows.append(f"| `camvlp.{name}` | `{home}` (not in this reference yet) |")
+        if _skipped(home):  # described with the guides instead
+            rows.append(f"| `camvlp.{name}` | `{home}` ([Locating a photo]({GUIDE})) |")
         else:
             rows.append(f"| [`camvlp.{name}`][{home}.{name}] | `{home}` |")
-    return "Import these from `camvlp` itself:\n\n" + "\n".join(rows) + "\n\n"
+    return "## Its names\n\nImport these from `camvlp` itself:\n\n" + "\n".join(rows) + "\n"
 
 
 def _cell(text: str) -> str:

@@ -69,7 +69,7 @@ def serve_command(
     the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
     A database made by an older version is upgraded by --migrate (the service refuses to
     start on it until then); phones give their camera only to HTTPS pages: --tls-cert and
-    --tls-key, or a reverse proxy (docs/serve/README.md).
+    --tls-key, or a reverse proxy (docs/service.md).
     """
     import sqlalchemy as sa
     import uvicorn
@@ -110,7 +110,7 @@ def serve_command(
     if not admin_key:
         print(
             "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
-            "docs/serve/README.md)",
+            "docs/service.md)",
             file=sys.stderr,
         )
     scheme = "https" if ssl else "http"
