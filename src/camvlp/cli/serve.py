@@ -109,8 +109,7 @@ def serve_command(
     shown = sa.engine.make_url(db).render_as_string(hide_password=True)
     if not admin_key:
         print(
-            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
-            "docs/service.md)",
+            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see docs/service.md)",
             file=sys.stderr,
         )
     scheme = "https" if ssl else "http"
