@@ -12,7 +12,7 @@ degrees, exactly that angle in a random direction) for 2, 3 and 4 fixtures, fixt
 with ``--noise-px`` (0.1) Gaussian noise; a table, and a CSV and PNG with ``--out``.
 
     python benchmarks/bench_gravity.py --n 20
-    python benchmarks/bench_gravity.py --sweep --trials 300 --out docs/study
+    python benchmarks/bench_gravity.py --sweep --trials 300 --out out/gravity
 """
 
 from __future__ import annotations

@@ -150,7 +150,7 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
 
 def _reference_cpu_ms(runs: int = 15) -> float:
     """CPU time of ``camvlp.locate`` on ``bench_locate.py``'s 1080p photo (median, ms): the
-    same call the README times on an idle machine, to tell how loaded this one is."""
+    same call docs/speed.md times on an idle machine, to tell how loaded this one is."""
     from camvlp.model.camera import Camera
     from camvlp.sim.render import render
 
@@ -243,6 +243,7 @@ def main() -> None:
         "time here (bench_locate.py, idle machine: 10.4 ms)"
     )
     if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2, default=float) + "\n")
 
 

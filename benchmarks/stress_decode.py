@@ -39,7 +39,7 @@ decoder of its profile could tell its ID (:func:`separation`, plain discs) and w
 photo holds it at all (``camvlp.sim.oracle.id_separation``: the renderer's own model, all
 else in the photo known, on the plain sensor).  Run::
 
-    python benchmarks/stress_decode.py --per-cell 4 --plot docs/stress/decode_map.png
+    python benchmarks/stress_decode.py --per-cell 4 --plot out/stress/decode_map.png
 
 To look at one photo of a run (a miss it reported): ``--photo E R K`` renders and locates only
 photo K of the cell of E chips and R rows per chip (the same photo as in the run of the same
@@ -643,6 +643,7 @@ def main() -> int:
         print("  ", r)
     print(_timing_lines(slow))
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(
             json.dumps(
                 dict(

@@ -194,6 +194,7 @@ def main() -> int:
     for f in failures[:20]:
         print("  not decoded:", f)
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(rows, indent=1))
     return 0
 

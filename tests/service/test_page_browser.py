@@ -128,16 +128,26 @@ def test_the_api_documentation_renders_offline(tmp_path: Path):
                 )
                 assert "/api/v1/sites/{site_id}/frames" in paths
                 assert "/api/v1/sites/{site_id}/locate" in paths and len(paths) >= 11
-                shot = tmp_path / "docs.png"
-                page.screenshot(path=str(shot))
-                if SCREENSHOTS:
-                    shutil.copy(shot, Path(SCREENSHOTS) / "docs.png")
-                redoc = browser.new_page()
+                assert page.locator(".opblock-summary-path").first.is_visible()
+                _screenshot(page, tmp_path / "docs.png")
+                redoc = browser.new_page(viewport={"width": 1200, "height": 900})
                 redoc.route("**/*", only_here)
                 redoc.goto(f"{base}/redoc")
-                redoc.get_by_text("Post Frame").first.wait_for(state="attached", timeout=30_000)
+                # every operation has its section, with its heading, in the page
+                operation = redoc.get_by_role("heading", name="Post Frame").first
+                operation.wait_for(state="visible", timeout=30_000)
+                assert redoc.get_by_role("heading", name="Locate Photo").first.is_visible()
+                _screenshot(redoc, tmp_path / "redoc.png")
             finally:
                 browser.close()
     finally:
         stop_server(proc)
     assert elsewhere == []
+
+
+def _screenshot(page, shot: Path) -> None:
+    """Take ``page``'s screenshot into ``shot``, and a copy into ``CAMVLP_SCREENSHOTS``."""
+    page.screenshot(path=str(shot))
+    assert shot.stat().st_size > 0
+    if SCREENSHOTS:
+        shutil.copy(shot, Path(SCREENSHOTS) / shot.name)

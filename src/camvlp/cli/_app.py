@@ -81,7 +81,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
-#: Exit codes (docs/cli.md): located / not located / bad input or usage.
+#: Exit codes (docs/reliability.md): located / not located / bad input or usage.
 EXIT_OK, EXIT_NOT_LOCATED, EXIT_BAD_INPUT = 0, 1, 2
 #: Exit code when stdout was closed early (``camvlp ... | head -1``): 128 + SIGPIPE, what a
 #: shell shows for a tool that SIGPIPE ended (as 130 = 128 + SIGINT after Ctrl-C).

@@ -73,7 +73,7 @@ def serve_command(
     the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
     A database made by an older version is upgraded by --migrate (the service refuses to
     start on it until then); phones give their camera only to HTTPS pages: --tls-cert and
-    --tls-key, or a reverse proxy (docs/serve/README.md).
+    --tls-key, or a reverse proxy (docs/service.md).
     """
     import uvicorn
 
@@ -112,8 +112,7 @@ def serve_command(
     os.environ.update(settings.to_env())  # the workers build their app from these
     if not admin_key:
         print(
-            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
-            "docs/serve/README.md)",
+            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see docs/service.md)",
             file=sys.stderr,
         )
     scheme = "https" if ssl else "http"

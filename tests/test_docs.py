@@ -1,5 +1,6 @@
-"""The README's example of ``camvlp locate --json`` has the keys the command prints, and its
-fixture record's ``margin`` is on the scale its ``hamming`` says (run margin, 0 to 1)."""
+"""The documentation's example of ``camvlp locate --json`` (docs/locating.md) has the keys the
+command prints, and its fixture record's ``margin`` is on the scale its ``hamming`` says (run
+margin, 0 to 1)."""
 
 from __future__ import annotations
 
@@ -8,17 +9,17 @@ from pathlib import Path
 
 from camvlp.pipeline.locate import locate
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+PAGE = Path(__file__).resolve().parents[1] / "docs" / "locating.md"
 
 
 def _json_example() -> str:
-    """The first ```json block after the README's "`--json` prints one object"."""
-    text = README.read_text()
+    """The first ```json block after the page's "`--json` prints one object"."""
+    text = PAGE.read_text()
     start = text.index("```json", text.index("`--json` prints one object"))
     return text[start : text.index("```\n", start + 7)]
 
 
-def test_the_readme_json_example_has_the_keys_locate_prints(small_render, small_camera, small_room):
+def test_the_docs_json_example_has_the_keys_locate_prints(small_render, small_camera, small_room):
     result = locate(small_render.image, small_camera, small_room)
     assert result, result.error
     printed = result.to_dict()
