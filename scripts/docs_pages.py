@@ -22,9 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
 
 #: Packages left out of the API reference (with their sub-modules, and the names the package
-#: ``camvlp`` re-exports from them). ``camvlp.pipeline`` is being reorganised into
-#: sub-packages: its docstrings join the reference once that is done (empty this set then).
-SKIP = {"camvlp.pipeline"}
+#: ``camvlp`` re-exports from them); none today.
+SKIP: set[str] = set()
 
 #: Where the names ``camvlp`` re-exports from a skipped package are described (from the
 #: ``camvlp`` page of the reference).

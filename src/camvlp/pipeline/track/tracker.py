@@ -79,6 +79,8 @@ class _Sighting:
 class Tracker:
     """Locate a camera frame after frame, using what the earlier frames established.
 
+    Call :meth:`update` with each frame in order.
+
     Parameters
     ----------
     camera : Camera
@@ -86,8 +88,7 @@ class Tracker:
     fixture_map : FixtureMap
         The room.
     settings : TrackSettings, optional
-
-    Call :meth:`update` with each frame in order.
+        How to track (defaults when None).
     """
 
     def __init__(
