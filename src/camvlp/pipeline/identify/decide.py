@@ -285,7 +285,7 @@ def _withheld(decodes, decodes2) -> list:
 DIRECTION_HYPOTHESES = 8
 
 
-def _unread_hypotheses(problem: PoseProblem, d: Decided, limit: int) -> list[dict]:
+def unread_hypotheses(problem: PoseProblem, d: Decided, limit: int) -> list[dict]:
     """Direction ``d``'s identified fixtures and, for as many of its unread fixtures (no ID,
     not cut by the border) as a pose needs besides, an ID each: its look-alikes when the
     stripes list some, else any ID of the map not identified that way; every way, or the
@@ -326,7 +326,7 @@ def _direction_by_unread(problem: PoseProblem, one: Decided, two: Decided) -> in
     when it has some), the pose that fits every fixture says that direction's IDs are
     where the map has them.  Read the wrong way, the IDs are the reverses' and their
     places are not where the map has them (the pose fits no assignment)."""
-    hyps = [_unread_hypotheses(problem, d, DIRECTION_HYPOTHESES) for d in (one, two)]
+    hyps = [unread_hypotheses(problem, d, DIRECTION_HYPOTHESES) for d in (one, two)]
     if not 0 < len(hyps[0]) + len(hyps[1]) <= DIRECTION_HYPOTHESES:
         return 0
 
