@@ -8,12 +8,12 @@ import itertools
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
 import camvlp.pipeline.decode.stage as decode_stage
 from camvlp.errors import InputError
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.locate import locate
 from camvlp.pipeline.track.tracker import ConstantVelocityFilter, Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
 from camvlp.sim.trajectory import Trajectory

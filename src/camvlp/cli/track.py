@@ -284,6 +284,56 @@ def render_video_command(
     Each sensor row is seen from the pose at its own time, and the true trajectory is
     written beside the video; the lights look as in `camvlp render` (off level, hot core,
     halo, soft stripes, blur, a phone's processing, readout)."""
+    _check_render_options(fps, chip_rate, row_time, exposure, crf, frames, seed)
+    _check_video_out(out)
+    camera = load_camera(camera_path)
+    check_render_size(camera, camera_path)
+    fixture_map = load_map(map_path)
+    trajectory = load_trajectory(trajectory_path)
+    look = dict(
+        brightness=brightness,
+        off_level=off_level,
+        core=core,
+        halo=halo,
+        soft=soft,
+        blur_px=blur,
+        vignetting=vignetting,
+        bayer=bayer,
+        gamma=gamma,
+        sharpen=sharpen,
+        black_point=black_point,
+    )
+    try:
+        settings = RenderSettings(
+            chip_rate_hz=chip_rate,
+            row_time_s=row_time,
+            exposure_s=exposure,
+            seed=seed,
+            readout=parse_readout(readout) or camera.readout or "rows",
+            **look,
+        )
+    except ValueError as exc:
+        fail(option_names(str(exc)))
+    if any(f.diameter is None for f in fixture_map.fixtures):
+        fail(f"every fixture needs a diameter to be rendered ({map_path})")
+    total = frame_count(trajectory, fps, frames)
+    check_frame_budget(total, trajectory_path)
+    if out.suffix:
+        check_video_size(camera, camera_path)
+    n = _render(camera, fixture_map, trajectory, out, fps, settings, crf, frames, total)
+    print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")
+
+
+def _check_render_options(
+    fps: float,
+    chip_rate: float,
+    row_time: float | None,
+    exposure: float | None,
+    crf: int,
+    frames: int | None,
+    seed: int,
+) -> None:
+    """render-video's numbers in range, else one line of error (exit 2)."""
     check_positive(fps, "--fps")
     check_positive(chip_rate, "--chip-rate")
     check_positive(row_time, "--row-time")
@@ -294,6 +344,11 @@ def render_video_command(
         fail(f"--frames must be at least 1, got {frames}")
     if seed < 0:
         fail(f"--seed must be a non-negative integer, got {seed}")
+
+
+def _check_video_out(out: Path) -> None:
+    """render-video's --out: a video (its truth files beside it) or a folder, where each of
+    those files can be written; else one line of error (exit 2)."""
     if out.suffix and out.suffix.lower() not in VIDEO_SUFFIXES:
         fail(f"--out must be a .mp4, .mov or .mkv video or a folder ({out})")
     if out.suffix:  # the video and its truth beside it
@@ -303,40 +358,14 @@ def render_video_command(
         check_output_dir(out, "--out")
         for path in (out / "timestamps.csv", *truth_paths(out)) if out.is_dir() else ():
             check_output_file(path, "--out")
-    camera = load_camera(camera_path)
-    check_render_size(camera, camera_path)
-    fixture_map = load_map(map_path)
-    trajectory = load_trajectory(trajectory_path)
-    try:
-        settings = RenderSettings(
-            chip_rate_hz=chip_rate,
-            row_time_s=row_time,
-            exposure_s=exposure,
-            seed=seed,
-            brightness=brightness,
-            off_level=off_level,
-            core=core,
-            halo=halo,
-            soft=soft,
-            blur_px=blur,
-            vignetting=vignetting,
-            bayer=bayer,
-            gamma=gamma,
-            sharpen=sharpen,
-            black_point=black_point,
-            readout=parse_readout(readout) or camera.readout or "rows",
-        )
-    except ValueError as exc:
-        fail(option_names(str(exc)))
-    if any(f.diameter is None for f in fixture_map.fixtures):
-        fail(f"every fixture needs a diameter to be rendered ({map_path})")
-    total = frame_count(trajectory, fps, frames)
-    check_frame_budget(total, trajectory_path)
-    if out.suffix:
-        check_video_size(camera, camera_path)
+
+
+def _render(camera, fixture_map, trajectory, out: Path, fps, settings, crf, frames, total) -> int:
+    """Render the video (or frames) with a progress bar; the number of frames written.  On
+    Ctrl-C, where the frames so far were kept."""
     try:
         with progress_bar(total, "rendering") as update:
-            n = render_video(
+            return render_video(
                 camera,
                 fixture_map,
                 trajectory,
@@ -352,4 +381,3 @@ def render_video_command(
         if kept.is_file():
             fail(f"interrupted: the frames so far are in {kept}", 130)
         raise
-    print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")

@@ -15,16 +15,16 @@
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 from itertools import combinations
+from typing import NamedTuple
 
 import cv2
 import numpy as np
 
 from camvlp.geometry.pnp import candidate_methods, check_solver, other_minima, pnp_candidates
-from camvlp.model.camera import Camera, Pose, all_finite, finite_rows, project_camera_points
+from camvlp.model.camera import Camera, Pose, all_finite, project_camera_points
 
 __all__ = ["PoseEstimate", "estimate_pose"]
 
@@ -81,77 +81,54 @@ def _failure(n: int, reason: str, *, mirrored: bool = False) -> PoseEstimate:
     )
 
 
-def _spread(points: np.ndarray) -> tuple[float, ...]:
-    """Singular values of the centred points (how far they are from a point, line, plane),
-    largest first; of image points (N, 2) in closed form (the square roots of their scatter
-    matrix's eigenvalues) in Python floats, without the SVD's set-up (a test of a few points,
-    for which NumPy's calls cost more than the arithmetic; its sums are not NumPy's, so the
-    last bits may differ from theirs: a value only compared with a threshold)."""
-    if points.shape[1] != 2:
-        c = points - np.add.reduce(points, axis=0) / points.shape[0]  # (its mean, as NumPy's)
-        return tuple(np.linalg.svd(c, compute_uv=False).tolist())
-    xs, ys = points.T.tolist()
-    mx, my = sum(xs) / len(xs), sum(ys) / len(ys)
-    a = b = d = 0.0  # the scatter matrix [[a, b], [b, d]]
-    for x, y in zip(xs, ys, strict=True):
-        x, y = x - mx, y - my
-        a, b, d = a + x * x, b + x * y, d + y * y
-    mid, half = 0.5 * (a + d), math.hypot(0.5 * (a - d), b)
-    return math.sqrt(mid + half), math.sqrt(max(mid - half, 0.0))
-
-
-@functools.lru_cache(maxsize=64)
-def _object_spread(data: bytes, n: int) -> tuple[float, ...]:
-    """:func:`_spread` of (n, 3) map points given as their float64 bytes: the same map
-    fixtures come back photo after photo."""
-    return _spread(np.frombuffer(data).reshape(n, 3))
+def _spread(points: np.ndarray) -> np.ndarray:
+    """Singular values of the centred points (N, D), largest first: how far they are from a
+    point, a line, a plane."""
+    return np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
 
 
 def _residuals(camera: Camera, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
+    """Each fixture's reprojection error with ``pose``, pixels (N,): inf behind the camera."""
     d = camera.project(pose, obj) - img
-    return _distances(np.add.reduce(d * d, axis=-1).tolist())
+    return _distances((d * d).sum(axis=-1))
 
 
-def _distances(squared: list[float]) -> np.ndarray:
-    """Reprojection errors (pixels) from their squares, inf where not finite (a fixture
-    behind the camera): ``np.linalg.norm`` of the differences, without its checks (a few
-    values: their square roots in Python floats, correctly rounded as NumPy's)."""
-    return np.array([math.sqrt(v) if math.isfinite(v) else math.inf for v in squared])
+def _distances(squared: np.ndarray) -> np.ndarray:
+    """Reprojection errors (pixels) from their squares (pixels^2), inf where not finite (a
+    fixture behind the camera)."""
+    return np.where(np.isfinite(squared), np.sqrt(squared), np.inf)
 
 
 def _scores(camera: Camera, poses: list[Pose], obj: np.ndarray, img: np.ndarray, normals) -> list:
     """``(rms, in_front, facing, pose, squared)`` of each candidate: its reprojection RMS
     (pixels; inf with a fixture behind the camera), whether every fixture is in front of it,
     whether it is in front of every fixture with a normal, the pose, and its fixtures'
-    squared reprojection errors (pixels^2, a list of N; :func:`_distances` gives the errors):
-    all candidates in one projection (a candidate with a fixture behind it is projected too,
-    its values not used).
-
-    The tests and the RMS are worked out in Python floats from NumPy's sums (the same values
-    as NumPy's, in fewer calls on these few values)."""
-    b, n = len(poses), obj.shape[0]
+    squared reprojection errors (pixels^2, (N,); :func:`_distances` gives the errors): all
+    candidates in one projection (a candidate with a fixture behind it is projected too, its
+    values not used)."""
+    n = obj.shape[0]
     rot = np.array([p.world_from_camera for p in poses])  # (B, 3, 3)
     pos = np.array([p.position for p in poses])  # (B, 3)
     cam = (obj - pos[:, None]) @ rot  # (B, N, 3): Pose.to_camera of each
-    # (the poses and points are finite, so is cam: min is the test of every depth)
-    in_front = [min(z) > 0 for z in cam[:, :, 2].tolist()]
-    facing = [True] * b
+    in_front = (cam[:, :, 2] > 0).all(axis=1)
+    facing = np.ones(len(poses), bool)
     if normals is not None:
-        has = finite_rows(normals)
-        if any(has):
-            nrm, at = (normals, obj) if all(has) else (normals[has], obj[has])
-            ahead = np.add.reduce(nrm * (pos[:, None] - at), axis=2)  # (B, N'), finite
-            facing = [min(row) > 0 for row in ahead.tolist()]
+        has = np.isfinite(normals).all(axis=1)
+        if has.any():
+            ahead = (normals[has] * (pos[:, None] - obj[has])).sum(axis=2)  # (B, N')
+            facing = (ahead > 0).all(axis=1)
     uv = project_camera_points(camera, cam.reshape(-1, 3))
-    e = uv.reshape(b, n, 2) - img
-    r2 = np.add.reduce(e * e, axis=2)  # squared residuals, (B, N)
-    # the RMS: inf unless every squared residual is finite (so is their sum, and the other
-    # way round: a sum of finite squares that overflows gives inf either way)
-    rms = [
-        math.sqrt(total / n) if front and math.isfinite(total) else math.inf
-        for total, front in zip(np.add.reduce(r2, axis=1).tolist(), in_front, strict=True)
+    e = uv.reshape(len(poses), n, 2) - img
+    r2 = (e * e).sum(axis=2)  # squared residuals, (B, N)
+    total = r2.sum(axis=1)
+    # inf unless every squared residual is finite (a sum of finite squares that overflows
+    # gives inf either way)
+    ok = in_front & np.isfinite(total)
+    rms = np.where(ok, np.sqrt(np.where(ok, total, 0.0) / n), np.inf)
+    return [
+        (float(rms[k]), bool(in_front[k]), bool(facing[k]), poses[k], r2[k])
+        for k in range(len(poses))
     ]
-    return list(zip(rms, in_front, facing, poses, r2.tolist(), strict=True))
 
 
 #: Reprojection RMS (pixels) within which the better of IPPE's two refined poses is taken as
@@ -212,16 +189,12 @@ def _choose(
     best = valid[0][3]
     alt = (np.nan, None, None, None, None)
     if len(valid) > 1:
-        at = best.position.tolist()
-        scale = math.dist(at, (np.add.reduce(obj, axis=0) / obj.shape[0]).tolist())  # (the mean)
+        scale = np.linalg.norm(best.position - obj.mean(axis=0))
         for s in valid[1:]:
             # the turn between the two: trace(R1^T R2) = sum of the elementwise products
-            cos_turn = (
-                float(np.add.reduce(s[3].world_from_camera * best.world_from_camera, axis=None))
-                - 1.0
-            ) / 2.0
+            cos_turn = (np.sum(s[3].world_from_camera * best.world_from_camera) - 1.0) / 2.0
             turn_deg = math.degrees(math.acos(min(max(cos_turn, -1.0), 1.0)))
-            if math.dist(s[3].position.tolist(), at) > 1e-3 * scale or turn_deg > 0.1:
+            if np.linalg.norm(s[3].position - best.position) > 1e-3 * scale or turn_deg > 0.1:
                 alt = s
                 break
     return best, valid[0][0], alt[3], float(alt[0]), mirrored, _distances(valid[0][4])
@@ -303,60 +276,100 @@ def estimate_pose(
         Falsy, with a reason, when no pose can be trusted.
     """
     check_solver(solver)
-    img = np.asarray(image_points, dtype=float).reshape(-1, 2)
-    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
-    if img.shape[0] != obj.shape[0]:
-        raise ValueError("image_points and object_points must have the same length")
-    nrm = None if normals is None else np.asarray(normals, dtype=float).reshape(-1, 3)
+    img, obj, nrm = _points(image_points, object_points, normals)
     n = obj.shape[0]
     if n < 4:
         return _failure(n, f"{n} identified fixture{'s' if n != 1 else ''}, at least 4 are needed")
     if not all_finite(img, obj):
         raise ValueError("image_points and object_points must be finite")
-    sw, si = _object_spread(obj.tobytes(), n), _spread(img)
-    if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
-        return _failure(n, "the fixtures are (nearly) on one line: the pose is not determined")
-    if len(set(map(tuple, img.round(3).tolist()))) < n:
-        return _failure(n, "two fixtures were detected at the same pixel")
+    undetermined = _undetermined(img, obj)
+    if undetermined:
+        return _failure(n, undetermined)
 
     def solve(idx: np.ndarray):
-        if idx.size == n:  # every fixture, in order: the arrays as they are
-            return _choose(camera, obj, img, nrm, solver, sw[2] <= 1e-4 * sw[0])
-        spread = _object_spread(obj[idx].tobytes(), idx.size)
-        planar = spread[2] <= 1e-4 * spread[0]
-        return _choose(
-            camera, obj[idx], img[idx], None if nrm is None else nrm[idx], solver, planar
-        )
+        sub_normals = None if nrm is None else nrm[idx]
+        return _choose(camera, obj[idx], img[idx], sub_normals, solver, _planar(obj[idx]))
 
     idx = np.arange(n)
-    pose, rms, alt, alt_rms, mirrored, fit = solve(idx)  # fit: the errors of those in idx
+    pose, rms, alt, alt_rms, mirrored, errors = solve(idx)
     if pose is None:
-        if mirrored:
-            return _failure(
-                n,
-                "the only pose that fits puts the camera behind the lights: the photo looks "
-                "mirrored (try --mirrored)",
-                mirrored=True,
-            )
-        return _failure(n, "no pose puts every fixture in front of the camera")
-    # leave-one-out while a fixture does not fit (needs at least five)
-    while idx.size >= 5 and np.max(fit) > outlier_px:
+        reason = MIRRORED if mirrored else "no pose puts every fixture in front of the camera"
+        return _failure(n, reason, mirrored=mirrored)
+    fit = _leave_one_out(solve, _Fit(idx, pose, rms, alt, alt_rms, errors), outlier_px)
+    return _judged(camera, obj, img, fit, outlier_px, centre_sigma_px)
+
+
+#: Why there is no pose when the only poses that fit put the camera behind the lights.
+MIRRORED = (
+    "the only pose that fits puts the camera behind the lights: the photo looks mirrored "
+    "(try --mirrored)"
+)
+
+
+class _Fit(NamedTuple):
+    """A pose fitted to some of the fixtures."""
+
+    idx: np.ndarray  # the fixtures it uses, indices
+    pose: Pose
+    rms: float  # reprojection RMS over them, pixels
+    alt: Pose | None  # the runner-up
+    alt_rms: float
+    errors: np.ndarray  # reprojection errors of those in idx, pixels
+
+
+def _points(image_points, object_points, normals):
+    """The image points (N, 2), map points (N, 3) and normals ((N, 3) or None) as float
+    arrays; ValueError when there are not as many image points as map points."""
+    img = np.asarray(image_points, dtype=float).reshape(-1, 2)
+    obj = np.asarray(object_points, dtype=float).reshape(-1, 3)
+    if img.shape[0] != obj.shape[0]:
+        raise ValueError("image_points and object_points must have the same length")
+    nrm = None if normals is None else np.asarray(normals, dtype=float).reshape(-1, 3)
+    return img, obj, nrm
+
+
+def _undetermined(img: np.ndarray, obj: np.ndarray) -> str:
+    """Why the fixtures (four or more, finite) cannot determine a pose, "" when they can."""
+    sw, si = _spread(obj), _spread(img)
+    if sw[1] <= 1e-3 * sw[0] or si[1] <= 1e-3 * si[0]:
+        return "the fixtures are (nearly) on one line: the pose is not determined"
+    if len(set(map(tuple, img.round(3).tolist()))) < img.shape[0]:
+        return "two fixtures were detected at the same pixel"
+    return ""
+
+
+def _planar(obj: np.ndarray) -> bool:
+    """Whether map points (N, 3) are (nearly) coplanar."""
+    spread = _spread(obj)
+    return bool(spread[2] <= 1e-4 * spread[0])
+
+
+def _leave_one_out(solve, fit: _Fit, outlier_px: float) -> _Fit:
+    """While a fixture does not fit (an error over ``outlier_px`` pixels) and five or more are
+    used, the best fit of all but one (``solve(idx)``: :func:`_choose` on those fixtures)."""
+    while fit.idx.size >= 5 and np.max(fit.errors) > outlier_px:
         best = None
-        for subset in combinations(range(idx.size), idx.size - 1):
-            sub = idx[list(subset)]
+        for subset in combinations(range(fit.idx.size), fit.idx.size - 1):
+            sub = fit.idx[list(subset)]
             p, r, a, ar, _, e = solve(sub)
-            if p is not None and (best is None or r < best[1]):
-                best = (sub, r, p, a, ar, e)
+            if p is not None and (best is None or r < best.rms):
+                best = _Fit(sub, p, r, a, ar, e)
         if best is None:
             break
-        idx, rms, pose, alt, alt_rms, fit = best
-    if idx.size == n:  # every fixture used: the chosen candidate's own errors
-        residuals, used = fit, np.ones(n, bool)
-        worst = float(np.maximum.reduce(residuals))
+        fit = best
+    return fit
+
+
+def _judged(camera: Camera, obj, img, fit: _Fit, outlier_px: float, centre_sigma_px):
+    """The :class:`PoseEstimate` of a fit: refused when a fixture it uses does not fit, or
+    when its runner-up fits about as well with the camera elsewhere."""
+    n = obj.shape[0]
+    if fit.idx.size == n:  # every fixture used: the chosen candidate's own errors
+        residuals, used = fit.errors, np.ones(n, bool)
     else:
-        residuals, used = _residuals(camera, pose, obj, img), np.zeros(n, bool)
-        used[idx] = True
-        worst = float(np.maximum.reduce(residuals[used]))
+        residuals, used = _residuals(camera, fit.pose, obj, img), np.zeros(n, bool)
+        used[fit.idx] = True
+    worst = float(residuals[used].max())
     if worst > outlier_px:
         return PoseEstimate(
             None,
@@ -366,6 +379,7 @@ def estimate_pose(
             reason=f"the fixtures do not fit one pose (reprojection error up to "
             f"{worst:.1f} px): a wrong ID, map or camera file",
         )
+    pose, rms, alt, alt_rms = fit.pose, fit.rms, fit.alt, fit.alt_rms
     n_used = int(used.sum())
     ssr, alt_ssr = n_used * rms * rms, n_used * alt_rms * alt_rms
     margin = 1.0 - ssr / alt_ssr if alt is not None and alt_ssr > 0 else 1.0
