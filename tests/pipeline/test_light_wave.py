@@ -11,7 +11,9 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave, stripes_period
 from camvlp.pipeline.decode.frequency import decode_frequencies
-from camvlp.pipeline.detect.candidates import detect_fixtures, light_support, to_gray
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.detect.disc import light_support
+from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 from camvlp.sim.render import RenderSettings, render
 

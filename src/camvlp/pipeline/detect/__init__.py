@@ -8,7 +8,7 @@ lights whose glows join (:mod:`~camvlp.pipeline.detect.touching`,
 (:mod:`~camvlp.pipeline.detect.refine`).
 """
 
+from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.candidates import Detection, detect_fixtures
-from camvlp.pipeline.detect.refine import Blob
 
 __all__ = ["Blob", "Detection", "detect_fixtures"]
