@@ -167,7 +167,16 @@ def detect_fixtures(
     if any(several):
         high = cv2.threshold(small, background + 0.6 * (peak - background), 255, 0)[1]
         high = _close_lit(high, k)[0]
-    search = CandidateSearch(img, small, s, thr, readout, raw, binary, high)
+    search = CandidateSearch(
+        image=img,
+        small=small,
+        scale=s,
+        threshold=thr,
+        readout=readout,
+        raw=raw,
+        binary=binary,
+        high=high,
+    )
     lights = one_per_light(search, boxes, several)
     regions = _full_resolution(lights, s, pad=kernel_px + 6 + 2 * s, shape=img.shape[:2])
     blobs = refine_regions(

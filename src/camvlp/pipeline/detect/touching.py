@@ -164,8 +164,8 @@ class JoinedRegion:
     @functools.cached_property
     def axis(self) -> str:
         """The readout axis: the search's, or the one the region's stripes show."""
-        inside = self.inside
-        return self.search.readout or axis_contrast(self.part(self.search.small), inside)[0]
+        small = self.part(self.search.small)
+        return self.search.readout or axis_contrast(small, self.inside)[0]
 
     @functools.cached_property
     def gray(self) -> np.ndarray:
