@@ -84,7 +84,7 @@ def _blurred_peak(gray: np.ndarray) -> float:
 
 
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
-    """:func:`to_gray` of the photo reduced ``s`` times by OpenCV's nearest-neighbour resize,
+    """:func:`~camvlp.pipeline.detect.gray.to_gray` of the photo reduced ``s`` times by OpenCV's nearest-neighbour resize,
     shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]`` when ``s`` divides both sides.
 
     Then a BGR uint8 photo's sampled pixels are gathered as 4 bytes each, one ``uint32``
@@ -198,7 +198,8 @@ def _candidate_regions(
 ) -> tuple[list[tuple[int, int, int, int]], list[bool]]:
     """The candidate regions' boxes ``(x, y, w, h)``, the largest first (at most
     ``max_blobs``; each one's area plus its box's sides at least ``min_area``, reduced
-    pixels), and whether each may hold lights whose glows join (:func:`not_convex`)."""
+    pixels), and whether each may hold lights whose glows join
+    (:func:`~camvlp.pipeline.detect.touching.not_convex`)."""
     rects = [cv2.boundingRect(c) for c in contours]
     areas = [cv2.contourArea(c) for c in contours]
     kept = [

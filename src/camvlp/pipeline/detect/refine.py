@@ -83,7 +83,8 @@ def refine_regions(
     bridged by :func:`~camvlp.pipeline.detect.disc.disc_mask`; the centre is an ellipse fitted to
     sub-pixel edge points of the lit sensor rows (:func:`_edge_points`), or the mask's centroid when
     fewer than 12 edge points are found.  Of two regions whose discs are the same fixture the larger
-    is kept; each ellipse's centre comes with its covariance (:class:`EllipseFit`).
+    is kept; each ellipse's centre comes with its covariance
+    (:class:`~camvlp.pipeline.detect.blob.EllipseFit`).
 
     Parameters
     ----------
@@ -99,7 +100,7 @@ def refine_regions(
         Smallest disc kept, pixels.
     cells : list of (ndarray of bool or None), optional
         Per region, the part of it that is its light's when lights' glows join
-        (:func:`~camvlp.pipeline.detect.touching.power_cell`; None: all of it): the disc is found
+        (:func:`~camvlp.pipeline.detect.peaks.power_cell`; None: all of it): the disc is found
         within it, and no edge point is taken where it cuts the light off from another.
     guesses : tuple of float, optional
         Gray levels near the regions' background and peak (the photo's): the two levels are
@@ -107,9 +108,9 @@ def refine_regions(
         from each region's histogram (the same levels).
     seeds : list of (ndarray or None), optional
         Per region with a cell, its light's ``[x, y, r]`` in the region's pixels
-        (:func:`~camvlp.pipeline.detect.touching.light_seeds`, at full resolution): the disc is
+        (:func:`~camvlp.pipeline.detect.peaks.light_seeds`, at full resolution): the disc is
         then its face in the dark stripes, when they show one that holds the seed's centre
-        (:func:`~camvlp.pipeline.detect.touching.own_face`; its edge points on the dark-stripe
+        (:func:`~camvlp.pipeline.detect.faces.own_face`; its edge points on the dark-stripe
         levels), else its lit pixels as above.
 
     Returns
