@@ -84,8 +84,9 @@ def _blurred_peak(gray: np.ndarray) -> float:
 
 
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
-    """:func:`~camvlp.pipeline.detect.gray.to_gray` of the photo reduced ``s`` times by OpenCV's nearest-neighbour resize,
-    shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]`` when ``s`` divides both sides.
+    """:func:`~camvlp.pipeline.detect.gray.to_gray` of the photo reduced ``s`` times by
+    OpenCV's nearest-neighbour resize, shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]``
+    when ``s`` divides both sides.
 
     Then a BGR uint8 photo's sampled pixels are gathered as 4 bytes each, one ``uint32``
     (the pixel and the next one's first byte), which NumPy copies faster than OpenCV
