@@ -25,9 +25,10 @@ from camvlp.pipeline.detect.candidates import (
     _median_u8,
     _outlines,
     detect_fixtures,
-    to_gray,
 )
-from camvlp.pipeline.detect.refine import _bridged, _drop_duplicates
+from camvlp.pipeline.detect.disc import _bridged
+from camvlp.pipeline.detect.duplicates import drop_duplicates
+from camvlp.pipeline.detect.gray import to_gray
 from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -381,7 +382,7 @@ def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
 
 
 def _candidate(box, centre, axes, radii, cell=True, pixel=None):
-    """A refined candidate's fields for ``_drop_duplicates``: an elliptical mask of ``radii``
+    """A refined candidate's fields for ``drop_duplicates``: an elliptical mask of ``radii``
     (x, y) about ``centre`` (photo px) in ``box`` ``(x0, y0, x1, y1)``, its outline ``axes``
     about ``pixel`` (default ``centre``)."""
     x0, y0, x1, y1 = box
@@ -398,7 +399,7 @@ def _candidate(box, centre, axes, radii, cell=True, pixel=None):
 
 
 def _areas(found) -> list[float]:
-    """The candidates' discs' pixels, as ``_drop_duplicates`` is given them."""
+    """The candidates' discs' pixels, as ``drop_duplicates`` is given them."""
     return [float(np.count_nonzero(fields["mask"])) for fields, _ in found]
 
 
@@ -408,11 +409,11 @@ def test_a_split_regions_round_light_is_not_a_wild_neighbours_duplicate():
     # within half that outline's smaller axis and was dropped
     wild = _candidate((0, 0, 240, 400), (120, 200), (544, 229), (110, 160), pixel=(230, 200))
     round_ = _candidate((200, 60, 460, 340), (330, 200), (106, 96), (50, 48))
-    kept = _drop_duplicates([wild, round_], _areas([wild, round_]))
+    kept = drop_duplicates([wild, round_], _areas([wild, round_]))
     assert len(kept) == 2
     # the same two without cells (two regions of one lamp, or glow): as before, one
     alone = [(dict(c[0], cell=None), None) for c in (wild, round_)]
-    assert len(_drop_duplicates(alone, _areas(alone))) == 1
+    assert len(drop_duplicates(alone, _areas(alone))) == 1
 
 
 def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
@@ -421,7 +422,7 @@ def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
     # off the lamp
     lamp = _candidate((300, 300, 800, 700), (550, 515), (458, 347), (220, 170))
     sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
-    kept = _drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
+    kept = drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
     assert len(kept) == 1 and kept[0][0] is lamp[0]
 
 

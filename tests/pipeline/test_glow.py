@@ -326,12 +326,14 @@ def test_centring_glowing_lights_leaves_the_centres_covariances_unread(monkeypat
     """The glowing lights moved to their shapes' centres keep their ellipse fits, whose
     covariances are still to be worked out: ``locate`` works none out, and the first read
     gives the detector's values, once per light."""
-    import camvlp.pipeline.detect.refine as refine
+    import camvlp.pipeline.detect.blob as blob_module
 
     photo, _ = _photo(1, halo=0.4, brightness=1.0)
     calls = []
-    real = refine.ellipse_centre_covariance
-    monkeypatch.setattr(refine, "ellipse_centre_covariance", lambda *a: calls.append(1) or real(*a))
+    real = blob_module.ellipse_centre_covariance
+    monkeypatch.setattr(
+        blob_module, "ellipse_centre_covariance", lambda *a: calls.append(1) or real(*a)
+    )
     blobs = detect_fixtures(photo.image).blobs
     moved = centred_on_glow(photo.image, blobs, "rows")
     assert all(a is not b for a, b in zip(blobs, moved, strict=True))  # every light moved

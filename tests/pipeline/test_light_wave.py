@@ -11,7 +11,9 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave, stripes_period
 from camvlp.pipeline.decode.frequency import decode_frequencies
-from camvlp.pipeline.detect.candidates import detect_fixtures, light_support, to_gray
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.detect.disc import light_support
+from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 from camvlp.sim.render import RenderSettings, render
 
@@ -289,16 +291,16 @@ def test_the_shape_fit_is_the_same_on_the_cells_that_hold_pixels(monkeypatch, it
     rho = rng.uniform(0.0, 400.0, n)
     value = 50.0 * np.exp(-rho / 150.0) * (1.0 + 0.5 * (line % 7 > 3)) + rng.normal(0, 1, n)
     monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 10**9)
-    dense = light_wave_module._aggregate(rho, line, value, 400, 0.5)
+    dense = light_wave_module.aggregate(rho, line, value, 400, 0.5)
     monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 0)
-    cells = light_wave_module._aggregate(rho, line, value, 400, 0.5)
-    assert isinstance(cells[1], light_wave_module._Cells) and not isinstance(
-        dense[1], light_wave_module._Cells
+    cells = light_wave_module.aggregate(rho, line, value, 400, 0.5)
+    assert isinstance(cells[1], light_wave_module.Cells) and not isinstance(
+        dense[1], light_wave_module.Cells
     )
     assert cells[0] == dense[0]  # the same knots
     for a, b in zip(
-        light_wave_module._shape_fit(dense, None, iters),
-        light_wave_module._shape_fit(cells, None, iters),
+        light_wave_module.shape_fit(dense, None, iters),
+        light_wave_module.shape_fit(cells, None, iters),
         strict=True,
     ):
         np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(a))))

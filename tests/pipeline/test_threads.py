@@ -36,15 +36,15 @@ def two_threads():
 
 def test_a_glowing_lights_fit_runs_on_one_blas_thread(monkeypatch, two_threads):
     seen = []
-    real = light_wave._shape_fit
+    real = light_wave.shape_fit
 
     def spy(*args, **kwargs):
         if len(seen) < 3:  # (threadpool_info costs a millisecond)
             seen.append(_blas_threads())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(radial, "_shape_fit", spy)
-    monkeypatch.setattr(light_wave, "_shape_fit", spy)
+    monkeypatch.setattr(radial, "shape_fit", spy)
+    monkeypatch.setattr(light_wave, "shape_fit", spy)
     photo, _ = _photo(0, halo=0.4, brightness=1.0)
     blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
     moved = centred_on_glow(photo.image, blobs, "rows")

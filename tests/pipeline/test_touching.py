@@ -13,13 +13,10 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.pipeline.detect.chords import chord_seeds
-from camvlp.pipeline.detect.touching import (
-    _run_modes,
-    codes_differ,
-    light_seeds,
-    one_disc,
-    power_cell,
-)
+from camvlp.pipeline.detect.codes import codes_differ
+from camvlp.pipeline.detect.faces import _run_modes
+from camvlp.pipeline.detect.peaks import light_seeds, power_cell
+from camvlp.pipeline.detect.touching import one_disc
 from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings

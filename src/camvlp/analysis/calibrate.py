@@ -34,7 +34,7 @@ from camvlp.analysis.row_time import (
 from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
 from camvlp.io import InputError, load_image
 from camvlp.model.camera import Camera
-from camvlp.pipeline.detect.candidates import to_gray
+from camvlp.pipeline.detect.gray import to_gray
 from camvlp.sim.chessboard import board_object_points, parse_board, render_chessboard
 
 __all__ = [

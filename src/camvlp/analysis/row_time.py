@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
-from camvlp.pipeline.detect.candidates import gray_float
+from camvlp.pipeline.detect.gray import gray_float
 
 __all__ = ["RowTimeEstimate", "bright_blob_mask", "bright_blob_masks", "estimate_row_time"]
 

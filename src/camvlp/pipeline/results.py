@@ -13,8 +13,8 @@ from camvlp.geometry.disc import centre_sigma
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.result import StripeDecode
+from camvlp.pipeline.detect.blob import EllipseFit
 from camvlp.pipeline.detect.candidates import Detection
-from camvlp.pipeline.detect.refine import EllipseFit
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 
@@ -55,7 +55,7 @@ class FixtureResult:
     centre_sigma_px : float
         Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
         axis; NaN when the disc was too small to fit).  Worked out when first read, from
-        ``edge_fit`` (:class:`~camvlp.pipeline.detect.refine.EllipseFit`).
+        ``edge_fit`` (:class:`~camvlp.pipeline.detect.blob.EllipseFit`).
     look_alikes : tuple of int
         When the stripes fit two or more IDs of the map almost equally and the pose told
         them apart (:mod:`camvlp.pipeline.identify.by_pose`): those IDs, ``id`` among them (the one

@@ -17,7 +17,7 @@ from camvlp.geometry.gravity import GravityPose, solve_pose_gravity
 from camvlp.geometry.pose import PoseEstimate, estimate_pose
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.detect.refine import Blob
+from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.identify.by_pose import position_sigma
 from camvlp.pipeline.identify.identified import Identified
 from camvlp.pipeline.settings import LocateSettings

@@ -207,7 +207,7 @@ def solve_pose_gravity(
         reprojection residuals.
     pixel_sigma_px : float or array_like, shape (N,)
         The centres' uncertainty, pixels (1-sigma per axis): one for all, or one per fixture
-        (e.g. :attr:`camvlp.pipeline.detect.candidates.Blob.centre_sigma_px`), which weighs each
+        (e.g. :attr:`camvlp.pipeline.detect.blob.Blob.centre_sigma_px`), which weighs each
         fixture's reprojection residual.
     outlier_px : float
         A fixture whose reprojection error exceeds this (pixels) does not fit, nor does a

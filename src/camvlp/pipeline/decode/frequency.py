@@ -10,7 +10,7 @@ periods is matched to the set of map frequencies by their ratios first: the row 
 one that makes the most periods land on distinct map frequencies.
 
 A light's stripes are measured over its whole striped area, down to the background
-(:func:`camvlp.pipeline.detect.candidates.light_support`), not only over the bright disc detection
+(:func:`camvlp.pipeline.detect.disc.light_support`), not only over the bright disc detection
 outlines: a real light with a hot core and a glow shows its stripes well beyond it, and every
 period more tells the frequency better.
 """
@@ -26,7 +26,7 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode.beacon import BeaconProfile, hold_against, light_profile, stripes_period
 from camvlp.pipeline.decode.result import StripeDecode
-from camvlp.pipeline.detect.candidates import light_support
+from camvlp.pipeline.detect.disc import light_support
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 
 __all__ = [
@@ -240,7 +240,7 @@ def _disc_support(blob) -> np.ndarray:
 def _support(blob, gray: np.ndarray, axis: str) -> tuple[np.ndarray, bool]:
     """A light's striped area, and whether it glows: down to the background for a light that
     glows (its support covers :data:`_GLOW_RATIO` times the disc or more,
-    :func:`~camvlp.pipeline.detect.candidates.light_support`), the disc's own outline otherwise."""
+    :func:`~camvlp.pipeline.detect.disc.light_support`), the disc's own outline otherwise."""
     support = light_support(gray, blob.mask, axis, cell=blob.cell)
     if support.sum() >= _GLOW_RATIO * blob.mask.sum():
         return support, True

@@ -15,8 +15,8 @@ from camvlp.pipeline.decode.frequency import decode_frequencies
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.decode.result import StripeDecode
-from camvlp.pipeline.detect.candidates import to_gray
-from camvlp.pipeline.detect.refine import Blob
+from camvlp.pipeline.detect.blob import Blob
+from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.detect.stage import STRIPE_SHARE, STRIPED, UNCLEAR_AXIS, Lights, spread_out
 from camvlp.pipeline.lamp.glow_split import decode_from_glows
 from camvlp.pipeline.prepare import Prepared

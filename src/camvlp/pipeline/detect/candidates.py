@@ -10,43 +10,20 @@ points of the lit rows, so it comes from the disc and not from the stripes.
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
 from camvlp.imaging.levels import counted_percentiles, percentiles_u8
-from camvlp.pipeline.detect.chords import chord_seeds
-from camvlp.pipeline.detect.refine import (
-    Blob,
-    axis_contrast,
-    find_readout_axis,
-    gray_float,
-    light_support,
-    refine_regions,
-    structuring_element,
-    to_gray,
-)
-from camvlp.pipeline.detect.touching import (
-    codes_differ,
-    dark_level,
-    not_convex,
-    one_per_light,
-    power_cell,
-)
+from camvlp.pipeline.detect.blob import Blob
+from camvlp.pipeline.detect.gray import to_gray
+from camvlp.pipeline.detect.peaks import power_cell
+from camvlp.pipeline.detect.refine import refine_regions
+from camvlp.pipeline.detect.touching import CandidateSearch, not_convex, one_per_light
 
-__all__ = [
-    "MIN_SIDE_PX",
-    "Blob",
-    "Detection",
-    "detect_fixtures",
-    "find_readout_axis",
-    "gray_float",
-    "light_support",
-    "to_gray",
-]
+__all__ = ["MIN_SIDE_PX", "Detection", "detect_fixtures"]
 
 
 #: Smallest image side, pixels, the detector works on.
@@ -106,36 +83,10 @@ def _blurred_peak(gray: np.ndarray) -> float:
     return float(cv2.GaussianBlur(gray, (3, 3), 0).max())
 
 
-def _region_chords(
-    img: np.ndarray,
-    reduced: tuple[int, int],
-    s: int,
-    box: tuple[int, int, int, int],
-    inside: np.ndarray,
-    axis: str,
-) -> np.ndarray:
-    """A region's lights from its clipped chords (:func:`chord_seeds`, at full resolution),
-    ``[x, y, r]`` in its box ``(x, y, w, h)`` of the photo reduced ``s`` times (of shape
-    ``reduced``), worked on the box grown by two reduced pixels: a chord the box cut is left
-    out, where a light's clipped disc may reach past its region's reduced pixels."""
-    x, y, w, h = box
-    x0, y0 = max(0, x - 2), max(0, y - 2)
-    x1, y1 = min(reduced[1], x + w + 2), min(reduced[0], y + h + 2)
-    grown = np.pad(inside, ((y - y0, y1 - y - h), (x - x0, x1 - x - w)))
-    got = chord_seeds(_full_gray(img, (x0, y0, x1 - x0, y1 - y0), s), grown, axis, s, 3.0)
-    return got - [x - x0, y - y0, 0.0]
-
-
-def _full_gray(img: np.ndarray, box: tuple[int, int, int, int], s: int) -> np.ndarray:
-    """:func:`to_gray` of the photo's pixels under a box ``(x, y, w, h)`` of its copy
-    reduced ``s`` times."""
-    x, y, w, h = box
-    return to_gray(img[y * s : (y + h) * s, x * s : (x + w) * s])
-
-
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
-    """:func:`to_gray` of the photo reduced ``s`` times by OpenCV's nearest-neighbour resize,
-    shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]`` when ``s`` divides both sides.
+    """:func:`~camvlp.pipeline.detect.gray.to_gray` of the photo reduced ``s`` times by
+    OpenCV's nearest-neighbour resize, shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]``
+    when ``s`` divides both sides.
 
     Then a BGR uint8 photo's sampled pixels are gathered as 4 bytes each, one ``uint32``
     (the pixel and the next one's first byte), which NumPy copies faster than OpenCV
@@ -196,7 +147,6 @@ def detect_fixtures(
     img = np.asarray(image)
     if img.ndim not in (2, 3) or min(img.shape[:2]) < MIN_SIDE_PX:
         raise ValueError(f"image must be {MIN_SIDE_PX} x {MIN_SIDE_PX} px or more, got {img.shape}")
-    height, width = img.shape[:2]
     s = _reduction(img.shape)
     # Candidates on every s-th pixel: a decimated view costs nothing, where averaging a
     # 20-megapixel photo down costs more than the rest of the pipeline.  A striped disc
@@ -211,8 +161,46 @@ def detect_fixtures(
     raw = cv2.threshold(small, thr, 255, cv2.THRESH_BINARY)[1]
     k = max(3, int(np.ceil(2.0 * kernel_px / s)) | 1)
     binary, lit_boxes = _close_lit(raw, k)
-    contours = _outlines(binary, lit_boxes)
-    min_area = 0.5 * (min_diameter_px / s) ** 2
+    boxes, several = _candidate_regions(
+        _outlines(binary, lit_boxes), 0.5 * (min_diameter_px / s) ** 2, max_blobs
+    )
+    high = None  # the lights' brighter parts, where glows that join at ``thr`` stay apart
+    if any(several):
+        high = cv2.threshold(small, background + 0.6 * (peak - background), 255, 0)[1]
+        high = _close_lit(high, k)[0]
+    search = CandidateSearch(
+        image=img,
+        small=small,
+        scale=s,
+        threshold=thr,
+        readout=readout,
+        raw=raw,
+        binary=binary,
+        high=high,
+    )
+    lights = one_per_light(search, boxes, several)
+    regions = _full_resolution(lights, s, pad=kernel_px + 6 + 2 * s, shape=img.shape[:2])
+    blobs = refine_regions(
+        img,
+        [box for box, _, _ in regions],
+        readout,
+        kernel_px,
+        min_diameter_px,
+        cells=[cell for _, cell, _ in regions],
+        guesses=(background, peak),
+        seeds=[seed for _, _, seed in regions],
+    )
+    blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
+    return Detection(tuple(blobs), s, binary, thr)
+
+
+def _candidate_regions(
+    contours: list, min_area: float, max_blobs: int
+) -> tuple[list[tuple[int, int, int, int]], list[bool]]:
+    """The candidate regions' boxes ``(x, y, w, h)``, the largest first (at most
+    ``max_blobs``; each one's area plus its box's sides at least ``min_area``, reduced
+    pixels), and whether each may hold lights whose glows join
+    (:func:`~camvlp.pipeline.detect.touching.not_convex`)."""
     rects = [cv2.boundingRect(c) for c in contours]
     areas = [cv2.contourArea(c) for c in contours]
     kept = [
@@ -222,52 +210,30 @@ def detect_fixtures(
     ]
     kept.sort(key=lambda rca: -rca[0][2] * rca[0][3])
     kept = kept[:max_blobs]
-    comps = [r for r, _, _ in kept]
-    several = [not_convex(c, a) for _, c, a in kept]  # may hold lights whose glows join
-    pad = kernel_px + 6 + 2 * s
-    high = None  # the lights' brighter parts, where glows that join at ``thr`` stay apart
-    if any(several):
-        high = cv2.threshold(small, background + 0.6 * (peak - background), 255, 0)[1]
-        high = _close_lit(high, k)[0]
+    return [r for r, _, _ in kept], [not_convex(c, a) for _, c, a in kept]
 
-    def axis_of(inside: np.ndarray, box: tuple[int, int, int, int]) -> str:
-        x, y, w, h = box
-        return readout or axis_contrast(small[y : y + h, x : x + w], inside)[0]
 
-    def dark_of(box: tuple[int, int, int, int], axis: str) -> tuple[np.ndarray, float] | None:
-        """A region's dark-stripe levels and the level its faces must reach
-        (:func:`dark_level`), worked at full resolution (the decimated image does not
-        resolve the stripes), the levels averaged down to the region."""
-        gray = _full_gray(img, box, s)
-        lit = cv2.threshold(gray, thr, 1, cv2.THRESH_BINARY)[1]
-        got = dark_level(gray, lit, axis)  # None, or the levels and the level to reach
-        return got and (cv2.resize(got[0], box[2:], interpolation=cv2.INTER_AREA), got[1])
-
-    def differ_of(box: tuple[int, int, int, int], inside: np.ndarray, axis) -> Callable:
-        """Whether two peaks of a region spell different codes (:func:`codes_differ`),
-        worked at full resolution (its gray levels taken once, when first asked)."""
-        gray = functools.cache(lambda: _full_gray(img, box, s))
-        return lambda a, b: codes_differ(gray(), inside, a, b, axis(), s)
-
-    chords_of = functools.partial(_region_chords, img, small.shape, s)
-
-    # lights of 3 reduced pixels' radius at least: smaller ones the decimation cannot split
-    lights = one_per_light(
-        comps, several, binary, high, 3.0, axis_of, raw, dark_of, differ_of, chords_of
-    )
-    boxes, cells, seeds_in = [], [], []
+def _full_resolution(
+    lights: Iterable[tuple[tuple[int, int, int, int], tuple[np.ndarray, int] | None]],
+    s: int,
+    pad: int,
+    shape: tuple[int, int],
+) -> list[tuple[tuple[int, int, int, int], np.ndarray | None, np.ndarray | None]]:
+    """Each light's region of interest at full resolution: its box ``(x0, y0, x1, y1)`` (its
+    reduced box scaled ``s`` times, grown by ``pad`` pixels, within the photo's ``shape``),
+    its cell there (:func:`~camvlp.pipeline.detect.peaks.power_cell`; None when the region
+    is all its own) and its seed ``[x, y, r]`` in the box's pixels (None likewise)."""
+    height, width = shape
+    regions = []
     for (x, y, w, h), cell in lights:
         box = (max(0, x * s - pad), max(0, y * s - pad))
         box += (min(width, (x + w) * s + pad), min(height, (y + h) * s + pad))
-        seeds = None if cell is None else cell[0] * float(s)  # [x, y, r, reach], full res.
-        boxes.append(box)
-        cells.append(None if seeds is None else power_cell(box, seeds, cell[1]))
-        seeds_in.append(None if seeds is None else seeds[cell[1], :3] - [box[0], box[1], 0.0])
-    blobs = refine_regions(
-        img, boxes, readout, kernel_px, min_diameter_px, cells, (background, peak), seeds_in
-    )
-    blobs.sort(key=lambda b: (round(float(b.pixel[1])), float(b.pixel[0])))
-    return Detection(tuple(blobs), s, binary, thr)
+        if cell is None:
+            regions.append((box, None, None))
+            continue
+        seeds, i = cell[0] * float(s), cell[1]  # [x, y, r, reach], full resolution
+        regions.append((box, power_cell(box, seeds, i), seeds[i, :3] - [box[0], box[1], 0.0]))
+    return regions
 
 
 def _spans(flags: np.ndarray, gap: int) -> list[tuple[int, int]]:
@@ -300,7 +266,7 @@ def _close_lit(
     and the closing is 0 on each box's outer line but where the image's edge is.  A photo
     with many groups (noise) or large ones is closed whole.
     """
-    kernel = structuring_element(cv2.MORPH_ELLIPSE, (k, k))
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
     h, w = binary.shape
     r = k // 2
     margin, gap = r + 1, 4 * r + 1

@@ -9,8 +9,8 @@ import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.candidates import Detection, detect_fixtures
-from camvlp.pipeline.detect.refine import Blob
 from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.settings import LocateSettings

@@ -25,8 +25,10 @@ import dataclasses
 
 import numpy as np
 
-from camvlp.pipeline.detect.candidates import Blob, light_support, to_gray
-from camvlp.pipeline.detect.touching import power_cell
+from camvlp.pipeline.detect.blob import Blob
+from camvlp.pipeline.detect.disc import light_support
+from camvlp.pipeline.detect.gray import to_gray
+from camvlp.pipeline.detect.peaks import power_cell
 from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.lamp.radial import radial_fit
 
@@ -74,40 +76,28 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     if not len(blobs):
         return np.zeros(0)
     h, w = img.shape[:2]
-    # per light (a few): its centre, semi-axes, and the cosine and sine of its angle (NumPy's,
-    # for all at once), worked in Python floats (the same operations as NumPy's)
-    centres = [b.pixel.tolist() for b in blobs]
-    semi = [(0.5 * max(a, 1.0), 0.5 * max(b, 1.0)) for a, b in (b.axes_px.tolist() for b in blobs)]
+    centre = np.array([b.pixel for b in blobs], dtype=np.float64)  # (n, 2)
+    semi = 0.5 * np.maximum(np.array([b.axes_px for b in blobs], dtype=np.float64), 1.0)
     t = np.deg2rad(np.array([float(b.angle_deg) for b in blobs]))
-    cs = zip(np.cos(t).tolist(), np.sin(t).tolist(), strict=True)
+    ct, st = np.cos(t), np.sin(t)
     # x and y as one array (n, 2, radii, angles): the centre plus each radius times
     # (a cos t cos - b sin t sin, a sin t cos + b cos t sin)
-    geo = np.array(
-        [
-            (centre, (a * ct, a * st), (-(b * st), b * ct))
-            for centre, (a, b), (ct, st) in zip(centres, semi, cs, strict=True)
-        ]
-    )[:, :, :, None, None]  # (n, 3: centre, on cos, on sin, 2: x and y, 1, 1)
-    xy = geo[:, 0] + _RADII * (geo[:, 1] * _COS + geo[:, 2] * _SIN)
-    ok = np.logical_and.reduce((xy > -0.5) & (xy < _column(w - 0.5, h - 0.5)), axis=1)
-    xi, yi = (
-        np.minimum(np.maximum(np.rint(xy), 0.0), _column(w - 1.0, h - 1.0))
-        .astype(np.intp)
-        .transpose(1, 0, 2, 3)
+    on_cos = np.stack([semi[:, 0] * ct, semi[:, 0] * st], axis=1)  # (n, 2)
+    on_sin = np.stack([-(semi[:, 1] * st), semi[:, 1] * ct], axis=1)
+    xy = centre[:, :, None, None] + _RADII * (
+        on_cos[:, :, None, None] * _COS + on_sin[:, :, None, None] * _SIN
     )
-    if img.flags.c_contiguous:  # img[yi, xi], by one index into its rows of channels
-        px = img.reshape(h * w, -1).take(yi * w + xi, axis=0).reshape(*yi.shape, -1)
-        px = (px[..., 0] if img.ndim == 2 else px).astype(np.float64)
-    else:
-        px = img[yi, xi].astype(np.float64)
+    ok = ((xy > -0.5) & (xy < _column(w - 0.5, h - 0.5))).all(axis=1)
+    xi, yi = (
+        np.clip(np.rint(xy), 0.0, _column(w - 1.0, h - 1.0)).astype(np.intp).transpose(1, 0, 2, 3)
+    )
+    px = img[yi, xi].astype(np.float64)
     if px.ndim == 4:  # BGR(A): OpenCV's luma weights
         px = px[..., :3] @ _LUMA
     # samples within the photo, per light: inside, in the ring, and further out
-    # (the reductions by the ufuncs' own methods: ndarray.sum wraps them in Python)
-    n_in, n_ring, n_out = np.add.reduceat(
-        np.add.reduce(ok, axis=2), [_IN.start, _RING.start, _OUT.start], axis=1
-    ).T
-    inside = np.add.reduce(np.where(ok[:, _IN], px[:, _IN], 0.0), axis=(1, 2)) / np.maximum(n_in, 1)
+    per_radius = ok.sum(axis=2)  # (n, radii)
+    n_in, n_ring, n_out = (per_radius[:, part].sum(axis=1) for part in (_IN, _RING, _OUT))
+    inside = np.where(ok[:, _IN], px[:, _IN], 0.0).sum(axis=(1, 2)) / np.maximum(n_in, 1)
     # (a new array: the ring's and the background's samples are sorted in place below, each
     # light's a view of its own contiguous values)
     px = np.where(ok, px, np.nan)
@@ -117,7 +107,7 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     ranked.sort(axis=1)  # NaNs last
     n_kept = n_ring - n_ring // 10  # (at most the ring's 96 samples)
     kept = np.arange(ranked.shape[1]) < n_kept[:, None]
-    ring = np.add.reduce(np.where(kept, ranked, 0.0), axis=1) / np.maximum(n_kept, 1)
+    ring = np.where(kept, ranked, 0.0).sum(axis=1) / np.maximum(n_kept, 1)
     out = px[:, _OUT].reshape(len(blobs), -1)
     out.sort(axis=1)  # NaNs last
     background = out[np.arange(len(blobs)), np.maximum(n_out - 1, 0) // 2]
@@ -275,7 +265,7 @@ def _rim_inside(centre: np.ndarray, radius, shape) -> bool:
 def _own_cell(blobs, k: int) -> np.ndarray | None:
     """The part of light ``k``'s region of interest that is its own among the photo's other
     lights whose regions overlap it: its cell of their power diagram (each light its outline's
-    centre and half its smaller axis, :func:`~camvlp.pipeline.detect.touching.power_cell`) and its
+    centre and half its smaller axis, :func:`~camvlp.pipeline.detect.peaks.power_cell`) and its
     own disc (:attr:`Blob.mask`: lit in a region of its own, whatever an outline that is off
     puts in another's cell); None when no other light's region overlaps its own, or when it
     has a cell from detection (:attr:`Blob.cell`, drawn from its joined region's shape, which

@@ -33,7 +33,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
 from camvlp.pipeline.decode.model import decode_profile_model
-from camvlp.pipeline.detect.refine import luma
+from camvlp.pipeline.detect.gray import luma
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
 

@@ -136,7 +136,7 @@ def radial_fit(
     gray : ndarray, shape (h, w)
         The light's region of interest, gray levels 0-255 (any real dtype).
     support : ndarray of bool, shape (h, w)
-        The light's whole striped area (:func:`camvlp.pipeline.detect.candidates.light_support`).
+        The light's whole striped area (:func:`camvlp.pipeline.detect.disc.light_support`).
     ellipse : tuple
         A first outline of the light in the region, as :func:`cv2.fitEllipse` gives it:
         ``((cx, cy), (width, height), angle_deg)``.
