@@ -1,7 +1,7 @@
 """Manchester IDs of a photo's fixtures, and the readout direction when it is not known.
 
-First the run-length decoder (:func:`camvlp.pipeline.decode.runs.decode_profiles`, a few
-milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
+First the run-length decoder (:func:`camvlp.pipeline.decode.run_decode.decode_profiles`, a
+few milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
 agreeing, a clear run margin, and a chip length that agrees with the other fixtures' (and with
 the camera's row time and the map's chip rate when both are known) is taken as it is.  The
 model fit (:mod:`camvlp.pipeline.decode.model`) runs only for the fixtures it refuses, with the
@@ -34,7 +34,7 @@ from camvlp.pipeline.decode.model import (
     estimate_photo_model,
 )
 from camvlp.pipeline.decode.result import StripeDecode
-from camvlp.pipeline.decode.runs import decode_profiles
+from camvlp.pipeline.decode.run_decode import decode_profiles
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
 

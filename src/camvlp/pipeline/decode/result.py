@@ -17,8 +17,8 @@ class StripeDecode:
     """What the stripes of one light say, as one of the decoders read them.
 
     ``method`` says which: ``"runs"`` the run-length decoder
-    (:mod:`camvlp.pipeline.decode.runs`), ``"model"`` the forward model fitted to every ID
-    (:mod:`camvlp.pipeline.decode.model`), ``"frequency"`` a beacon's square wave held against
+    (:mod:`camvlp.pipeline.decode.run_decode`), ``"model"`` the forward model fitted to every
+    ID (:mod:`camvlp.pipeline.decode.model`), ``"frequency"`` a beacon's square wave held against
     each map frequency (:mod:`camvlp.pipeline.decode.frequency`), ``""`` not read.
 
     Attributes
