@@ -84,7 +84,7 @@ def test_every_id_decodes_under_bleeding_blur_and_noise(fid):
         assert bool(dec)
         assert dec.reason == ""
         assert dec.rows_per_chip == pytest.approx(case["rows_per_chip"], rel=0.02)
-        assert 0.0 <= dec.margin <= 1.0
+        assert 0.0 <= dec.run_margin <= 1.0
         assert dec.frames >= 1.0
 
 
@@ -112,7 +112,7 @@ def test_exact_chip_length_and_no_bleeding_on_a_clean_profile():
     assert dec.hamming == 0
     assert dec.rows_per_chip == pytest.approx(5.0, rel=1e-3)
     assert abs(dec.bleed_rows) < 0.3  # the threshold above half trims bright runs a little
-    assert dec.margin > 0.9
+    assert dec.run_margin > 0.9
 
 
 def test_bleeding_is_measured():

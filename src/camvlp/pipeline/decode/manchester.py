@@ -27,12 +27,12 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import (
-    MIN_MARGIN,
     PhotoDecode,
     SensorModel,
     decode_photo,
     estimate_photo_model,
 )
+from camvlp.pipeline.decode.model_choice import MIN_MARGIN
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.run_decode import decode_profiles
 
