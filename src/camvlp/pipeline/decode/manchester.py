@@ -111,21 +111,11 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     return out, lengths
 
 
-def _median(values) -> float:
-    """``np.median`` of a few chip lengths (at least one; a sequence or an array), in Python
-    floats: the middle value, or the mean of the middle two; NaN when one is NaN."""
-    v = sorted(values.tolist() if isinstance(values, np.ndarray) else map(float, values))
-    if any(math.isnan(x) for x in v):
-        return float("nan")
-    n = len(v)
-    return v[n // 2] if n % 2 else (v[n // 2 - 1] + v[n // 2]) / 2
-
-
 def _measured(lengths: np.ndarray) -> float | None:
     """The chip length of the IDs the run-length decoder read when two of them agree."""
     t = lengths[np.isfinite(lengths)]
     if t.size >= 2:
-        med = _median(t)
+        med = float(np.median(t))
         if np.sum(np.abs(t / med - 1) < CHIP_AGREEMENT) >= 2:
             return med
     return None
@@ -133,15 +123,14 @@ def _measured(lengths: np.ndarray) -> float | None:
 
 def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     """The photo's chip length from the run-length decodes, and the decodes that agree with
-    it (the others set to None).  With no seed, two fixtures must agree.  (A few values:
-    worked in Python floats, the same operations as NumPy's.)"""
+    it (the others set to None).  With no seed, two fixtures must agree."""
     t = [d.rows_per_chip for ds in decodes for d in ds if d is not None]
-    ref = seed if seed else (_median(t) if t else math.nan)
+    ref = seed if seed else (float(np.median(t)) if t else math.nan)
     ok = [x for x in t if abs(x / ref - 1) <= CHIP_AGREEMENT]
     if not seed and len(ok) < 2:
         ref = math.nan
     if math.isfinite(ref) and ok and not seed:
-        ref = _median(ok)
+        ref = float(np.median(ok))
 
     def agrees(d: StripeDecode | None) -> bool:
         return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT

@@ -57,9 +57,11 @@ def _level_list(profiles: list[np.ndarray]) -> list[float]:
     """:func:`stripe_levels` of several non-empty 1-D profiles, one after another in a list
     of Python floats (dark, bright, dark, ...).
 
-    NumPy's default (linear) percentiles, each profile sorted in a row of its own (NaN
-    after its values, where NaN sorts); the few values each needs gathered at once and
-    worked in Python floats (the same operations as NumPy's)."""
+    Linear percentiles (NumPy's default method), each profile sorted in a row of its own
+    (NaN after its values, where NaN sorts); the few values each needs gathered at once and
+    interpolated up from the lower one.  (``np.percentile`` interpolates down from the upper
+    one past half-way, so the two can differ in the last bit; one ``np.percentile`` call per
+    profile would cost about half again the whole run-length decode.)"""
     sizes = [p.size for p in profiles]
     v = np.full((len(sizes), max(sizes)), np.nan)
     for row, p in zip(v, profiles, strict=True):
