@@ -139,12 +139,14 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     for f in d["fixtures"]:
         assert {"id", "pixel", "used", "margin", "reason"} <= set(f)
         assert len(f["pixel"]) == 2
-        assert f["margin"] >= 0.0
+        assert f["margin"] is None or f["margin"] >= 0.0
         if f["id"] is not None and f["used"] and f["hamming"] == -1:
             assert f["margin"] >= 4.0  # the likelihood ratio the model fit needs
+            assert f["run_margin"] is None
         elif f["id"] is not None and f["used"]:  # read by the run-length decoder
             assert f["hamming"] == 0
-            assert 0.3 <= f["margin"] <= 1.0
+            assert f["margin"] is None  # it weighs no likelihoods
+            assert 0.3 <= f["run_margin"] <= 1.0
     assert sorted(f["id"] for f in d["fixtures"]) == sorted(small_room.ids)
     assert "error" not in d
     # how sure the position is: the pixels' rounding at most, so well under MAX_ERROR_M
