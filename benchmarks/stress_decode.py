@@ -63,7 +63,7 @@ import cv2
 import numpy as np
 
 from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
-from camvlp.pipeline.decode.model import FIXTURE_KNEES, MIN_MARGIN
+from camvlp.pipeline.decode.model_choice import FIXTURE_KNEES, MIN_MARGIN
 from camvlp.pipeline.decode.stripe_model import direct_fit, prepared_profile, templates_batch
 from camvlp.sim.oracle import id_separation
 from camvlp.sim.sensor import camera_date

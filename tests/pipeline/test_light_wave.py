@@ -9,7 +9,8 @@ import camvlp.pipeline.lamp.light_wave as light_wave_module
 from camvlp.imaging.stripe_period import estimate_stripe_period
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave, stripes_period
+from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave
+from camvlp.pipeline.decode.beacon_match import stripes_period
 from camvlp.pipeline.decode.frequency import decode_frequencies
 from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.pipeline.detect.disc import light_support
@@ -238,7 +239,7 @@ def test_a_disc_clipped_all_over_fails_instead_of_fitting_the_background():
 
 
 def test_a_steady_light_is_refused_instead_of_fitted_with_a_long_period():
-    from camvlp.pipeline.decode.beacon import hold_against
+    from camvlp.pipeline.decode.beacon_match import hold_against
 
     gray, support, ellipse = _striped_disc(period=1e9)
     got = separated_wave(gray, support, ellipse, "rows")

@@ -137,14 +137,15 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     assert all(v >= 0 for v in d["timing_ms"].values())
     assert len(d["fixtures"]) == 5
     for f in d["fixtures"]:
-        assert {"id", "pixel", "used", "margin", "run_margin", "reason"} <= set(f)
+        assert {"id", "pixel", "used", "margin", "reason"} <= set(f)
         assert len(f["pixel"]) == 2
+        assert f["margin"] is None or f["margin"] >= 0.0
         if f["id"] is not None and f["used"] and f["hamming"] == -1:
             assert f["margin"] >= 4.0  # the likelihood ratio the model fit needs
             assert f["run_margin"] is None
         elif f["id"] is not None and f["used"]:  # read by the run-length decoder
             assert f["hamming"] == 0
-            assert f["margin"] is None  # no likelihood ratio: its run margin says
+            assert f["margin"] is None  # it weighs no likelihoods
             assert 0.3 <= f["run_margin"] <= 1.0
     assert sorted(f["id"] for f in d["fixtures"]) == sorted(small_room.ids)
     assert "error" not in d
@@ -348,17 +349,17 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     blob gives, and the result pickles unread."""
     import pickle
 
-    import camvlp.pipeline.detect.blob as blob_module
+    import camvlp.pipeline.detect.refine as refine
     from camvlp.pipeline.detect.candidates import detect_fixtures
 
     calls = []
-    real = blob_module.ellipse_centre_covariance
+    real = refine.ellipse_centre_covariance
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(blob_module, "ellipse_centre_covariance", counted)
+    monkeypatch.setattr(refine, "ellipse_centre_covariance", counted)
     res = locate(small_render.image, small_camera, small_room)
     assert res and calls == []
     unread = pickle.loads(pickle.dumps(res))

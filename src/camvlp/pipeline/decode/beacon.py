@@ -1,4 +1,4 @@
-"""A frequency-coded light's stripes held against the forward model of a beacon.
+"""The forward model of a beacon's stripes, fitted to a light's profile line by line.
 
 A beacon's LED blinks a 50 % square wave at its frequency ``f``; the rolling shutter exposes
 each sensor line over its own window of time, so the light's mean level on line ``y`` (along
@@ -16,16 +16,11 @@ off the disc's centre); smooth envelopes absorb it, and only the stripes' edges 
 
 :class:`BeaconProfile` fits that model to a light's profile for many waves at once (the
 envelopes' least squares per wave from moments of the wave against the profile: one matrix
-product for thousands of waves), and :func:`hold_against` decides which of a map's
-frequencies, if any, the stripes are: the one that explains them best, by a margin over
-every other map frequency, nearly as well as any frequency at all, and explaining most of
-them, line by line as well as in the residual's sum.  Data sent by a light, flicker and text
-fail one of those tests and are refused with the reason.
+product for thousands of waves).  Which of a map's frequencies the stripes are is decided in
+:mod:`camvlp.pipeline.decode.beacon_match`.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.polynomial import legendre
@@ -34,12 +29,10 @@ from camvlp.imaging.levels import CLIP_LEVEL
 
 __all__ = [
     "DEGREE",
+    "MIN_PERIOD",
     "BeaconProfile",
-    "FrequencyTest",
-    "hold_against",
     "light_profile",
     "square_wave",
-    "stripes_period",
 ]
 
 #: Degree of the envelopes ``a`` and ``b``: a light's shape over its span (a chord, a hot core
@@ -53,9 +46,6 @@ FLOOR_DEGREE = 2
 #: Weight of the ridge on the envelopes' variation, per unit of the profile's weight: how
 #: much a change of the on level or floor by the profile's scale costs against the residual.
 SMOOTH = 0.01
-#: The period is refined with flat envelopes when they leave the residual within this F
-#: ratio (per extra envelope term, against the residual per line) of the full ones'.
-FLAT_F = 3.0
 #: Phases tried per period, windows (fractions of the shorter part of the period) per phase,
 #: and duties (the high part's share of the period: a driver's own, or a clipped light's
 #: bright stripes widened by their ramps reaching the full scale early).
@@ -132,6 +122,14 @@ def light_profile(gray: np.ndarray, support: np.ndarray, axis: str) -> tuple[np.
     return y[~bound], level[~bound], n[~bound], y[bound], level[bound], n[bound]
 
 
+def _kept(lines, level, weight) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The lines, levels and weights (flattened, float) of the lines with a weight and a
+    finite level."""
+    y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, level, weight))
+    keep = (w > 0) & np.isfinite(s)
+    return y[keep], s[keep], w[keep]
+
+
 class BeaconProfile:
     """One light's profile, ready for the beacon model's fits.
 
@@ -169,14 +167,8 @@ class BeaconProfile:
     ) -> None:
         self._data = (lines, level, weight, bound_lines, bounds, bound_weight)
         self.degrees = (degree, floor_degree)
-        y, s, w = (np.asarray(v, dtype=float).reshape(-1) for v in (lines, level, weight))
-        keep = (w > 0) & np.isfinite(s)
-        y, s, w = y[keep], s[keep], w[keep]
-        yb, sb, wb = (
-            np.asarray(v, dtype=float).reshape(-1) for v in (bound_lines, bounds, bound_weight)
-        )
-        kb = (wb > 0) & np.isfinite(sb)
-        yb, sb, wb = yb[kb], sb[kb], wb[kb]
+        y, s, w = _kept(lines, level, weight)
+        yb, sb, wb = _kept(bound_lines, bounds, bound_weight)
         every = np.concatenate([y, yb])
         self.span = float(every.max() - every.min() + 1) if every.size else 0.0
         self.lines, self.bound_lines = y, yb
@@ -188,28 +180,43 @@ class BeaconProfile:
         self.usable = y.size >= MIN_LINES and self.span >= 2 * MIN_PERIOD
         if not self.usable:
             return
-        s_all = np.concatenate([s, sb])
-        bound = np.r_[np.zeros(y.size, bool), np.ones(yb.size, bool)]
-        y_all = every
-        ref = np.median(s)
+        clipped = np.r_[np.zeros(y.size, bool), np.ones(yb.size, bool)]  # of every line
+        self._set_levels(np.concatenate([s, sb]), clipped)
+        self._set_bases(every, clipped, degree, floor_degree)
+        self._set_moments()
+        self._eliminate_floor()
+
+    def _set_levels(self, s_all: np.ndarray, clipped: np.ndarray) -> None:
+        """:attr:`level` and :attr:`bounds` from the levels of every line (``clipped`` ones
+        the bounds): less the unclipped lines' median, over the 95th percentile of the
+        distance from it (costs of order 1 per line)."""
+        ref = np.median(s_all[~clipped])
         scale = float(np.percentile(np.abs(s_all - ref), 95)) or 1.0
-        s_all = (s_all - ref) / scale  # costs of order 1 per line
-        self.level, self.bounds = s_all[~bound], s_all[bound]
-        centre = 0.5 * (y_all.max() + y_all.min())
-        half = max(0.5 * (y_all.max() - y_all.min()), 1.0)
-        u = (y_all - centre) / half
+        s_all = (s_all - ref) / scale
+        self.level, self.bounds = s_all[~clipped], s_all[clipped]
+
+    def _set_bases(
+        self, every: np.ndarray, clipped: np.ndarray, degree: int, floor_degree: int
+    ) -> None:
+        """The envelopes' Legendre bases over the span of ``every`` line: the floor's and
+        the on level's, on the unclipped lines and on the ``clipped`` ones."""
+        centre = 0.5 * (every.max() + every.min())
+        half = max(0.5 * (every.max() - every.min()), 1.0)
+        u = (every - centre) / half
         fa, fb = legendre.legvander(u, floor_degree), legendre.legvander(u, degree)
-        self._fa, self._fb = fa[~bound], fb[~bound]
-        self._fa_bound, self._fb_bound = fa[bound], fb[bound]
-        fa, fb = self._fa, self._fb
-        s, w = self.level, self.weight
-        w = self.weight
+        self._fa, self._fb = fa[~clipped], fb[~clipped]
+        self._fa_bound, self._fb_bound = fa[clipped], fb[clipped]
+
+    def _set_moments(self) -> None:
+        """The columns whose product with a wave ``t`` gives its moments against the profile:
+        ``t @ [cross, pairs, s]`` (the floor's terms times the on level's, the on level's
+        pairs, the levels times the on level's terms) and ``t^2 @ [pairs]``."""
+        fa, fb, s, w = self._fa, self._fb, self.level, self.weight
         ma, mb = fa.shape[1], fb.shape[1]
         self._cross = [(i, j) for i in range(ma) for j in range(mb)]
         self._pairs = [(i, j) for i in range(mb) for j in range(i, mb)]
         ci, cj = np.array(self._cross).T
         pi, pj = np.array(self._pairs).T
-        # moments of a wave t against the profile: t @ [cross, pairs, s] and t^2 @ [pairs]
         self._moments = np.concatenate(
             [
                 w[:, None] * fa[:, ci] * fb[:, cj],
@@ -218,6 +225,13 @@ class BeaconProfile:
             ],
             axis=1,
         )
+
+    def _eliminate_floor(self) -> None:
+        """The floor's least squares, the same for every wave (its Gram matrix's inverse and
+        its fit alone), the ridges on the envelopes' variation, and the residuals of the
+        floor alone (:attr:`null_cost`) and of no stripes at all (:attr:`steady_cost`)."""
+        fa, s, w = self._fa, self.level, self.weight
+        ma, mb = fa.shape[1], self._fb.shape[1]
         # a ridge on the envelopes' variation (each Legendre term's mean square is 1 / (2k + 1)):
         # a few lines at a disc's end cannot bend them into a stripe's edge
         total = float(w.sum())
@@ -358,268 +372,3 @@ class BeaconProfile:
             return 0.0
         on = (self.level - a) > 0.5 * b
         return float(np.mean(on[clear] == (t[clear] >= 0.5)))
-
-
-@dataclass(frozen=True)
-class FrequencyTest:
-    """A light's stripes held against a map's frequencies (:func:`hold_against`).
-
-    Attributes
-    ----------
-    index : int or None
-        The map frequency the stripes are (index into the periods given), None when refused.
-    reason : str
-        Why no frequency was chosen ("" when one was).
-    period_px : float
-        The stripes' own period, lines (the best fit over every period; NaN if none).
-    periods_seen : float
-        The profile's span over that period.
-    explained : float
-        The share of the profile's variation (about its envelopes) the chosen frequency's
-        wave explains, 0 to 1 (the best map frequency's when refused).
-    margin : float
-        ``1 - cost / next cost``: how much better the chosen frequency explains the stripes
-        than the next map frequency (0: as well, 1: the next explains nothing).
-    agreement : float
-        The share of clearly lit or dark lines the chosen wave agrees with.
-    costs : ndarray, shape (K,)
-        Each map frequency's least residual (the profile's scale), inf where not searched.
-    waves : tuple of (ndarray or None)
-        Each map frequency's best wave ``[period, phase, window, duty]`` (None where not
-        searched), for :meth:`BeaconProfile.envelopes` and the debug pictures.
-    crowded : bool
-        Refused because another map frequency lies within twice the tolerance of the one
-        that fits: a tighter tolerance (the row time rescaled by the photo's other lights)
-        may tell them apart.
-    evidence : float
-        The next map frequency's excess residual over the chosen one's, in units of the
-        residual per free line: twice the natural log of their likelihood ratio
-        (:attr:`log_ratio` is its decimal log).
-    """
-
-    index: int | None
-    reason: str
-    period_px: float
-    periods_seen: float
-    explained: float
-    margin: float
-    agreement: float
-    costs: np.ndarray
-    waves: tuple = ()
-    crowded: bool = False
-    evidence: float = float("nan")
-
-    @property
-    def log_ratio(self) -> float:
-        """The decimal log of the likelihood ratio of the chosen frequency over the next map
-        frequency (:attr:`evidence` / (2 ln 10)): the scale of a Manchester ID's margin."""
-        return float(self.evidence) / (2.0 * np.log(10.0))
-
-    def __bool__(self) -> bool:
-        return self.index is not None
-
-
-#: A map frequency is chosen only when it explains this share of the stripes' variation...
-MIN_EXPLAINED = 0.6
-#: ...leaves every other map frequency this much more residual, in units of its own residual
-#: per free line (a likelihood ratio: 25 is five standard deviations where the residual is
-#: noise, more where it is the model's misfit)...
-MIN_EVIDENCE = 25.0
-#: ...is within this factor of the best residual of any frequency at all...
-OFF_MAP_RATIO = 1.5
-#: ...and agrees with this share of the clearly lit or dark lines.
-MIN_AGREEMENT = 0.9
-#: Fewest periods a profile must show to be tested: under one a light is steady or too small.
-MIN_PERIODS_SEEN = 0.75
-#: Each map frequency's period is searched within this relative distance: how well the
-#: camera file's row time is known (and the drivers' frequencies: the real photos' LEDs are
-#: up to 1.5 % off their nominal ones).
-TOLERANCE = 0.03
-
-
-def _search_periods(target: float, lo: float, hi: float, step: float = 0.005) -> np.ndarray:
-    """Periods around ``target`` from ``lo`` to ``hi`` lines, ``step`` apart (relative)."""
-    n = max(1, int(np.ceil(np.log(hi / lo) / step)))
-    return np.exp(np.linspace(np.log(lo), np.log(hi), n + 1))
-
-
-def _window(periods: np.ndarray, k: int, tolerance: float) -> tuple[float, float]:
-    """The periods (lines) searched for map period ``k``: within ``tolerance`` of it.  Two
-    map frequencies closer than the row time is known overlap: a light whose period falls
-    where both reach fits both alike, and is refused."""
-    p = float(periods[k])
-    return p * (1 - tolerance), p * (1 + tolerance)
-
-
-def _search(profile: BeaconProfile, periods) -> tuple[float, np.ndarray]:
-    """:func:`stripes_period`'s search with one model: every period the profile spans 0.75
-    of or more (4 % apart, 12 phases, 3 windows); the best, and each of ``periods`` (lines),
-    searched finer and refined (:meth:`BeaconProfile.refine`); the best of those."""
-    longest = profile.span / MIN_PERIODS_SEEN
-    coarse = np.exp(np.arange(np.log(MIN_PERIOD), np.log(longest), 0.04))
-    grid = profile.grid(coarse, 12, (0.2, 0.6, 1.0)).reshape(coarse.size, -1).min(1)
-    seeds = [float(coarse[int(np.argmin(grid))])]
-    seeds += [float(p) for p in np.asarray(periods, dtype=float) if MIN_PERIOD <= p <= longest]
-    best = (np.inf, np.full(4, np.nan))
-    for p in seeds:  # each refined: a grid's best phase may lie in another period's valley
-        got = profile.refine(
-            profile.best(_search_periods(p, p * 0.97, p * 1.03))[1], MIN_PERIOD, longest
-        )
-        if got[0] < best[0]:
-            best = got
-    return best
-
-
-def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
-    """The square wave that best fits a light's stripes, any period: (its residual under the
-    profile's own envelopes, its ``[period, phase, window, duty]``, lines); (inf, NaNs) for
-    a profile too short.
-
-    Searched with the profile's envelopes and with flat ones (:func:`_search`, ``periods``
-    the map's, lines, searched too); the flat envelopes' wave is taken where they explain
-    the stripes about as well (an F ratio of :data:`FLAT_F` per extra envelope term): a light
-    whose waveform is free of its shape has fewer unknowns, a sharper period.
-    """
-    if not profile.usable:
-        return np.inf, np.full(4, np.nan)
-    cost, wave = _search(profile, periods)
-    flat = profile.with_degrees(0, 0)
-    if flat.usable and np.isfinite(cost):
-        flat_cost, flat_wave = _search(flat, [*np.atleast_1d(periods), wave[0]])
-        extra = sum(profile.degrees)  # the envelopes' terms beyond the flat ones
-        dof = max(profile.lines.size - 6 - extra, 1)
-        if (flat_cost - cost) * dof <= FLAT_F * extra * max(cost, 1e-12):
-            # the flat envelopes' wave, costed with the full ones
-            return float(profile.costs(*profile.wave(*flat_wave))), flat_wave
-    return cost, wave
-
-
-def hold_against(
-    profile: BeaconProfile,
-    periods,
-    free: tuple[float, np.ndarray] | None = None,
-    tolerance: float = TOLERANCE,
-    row_time_s: float | None = None,
-) -> FrequencyTest:
-    """Which of a map's frequencies a light's stripes are, or why none.
-
-    The map frequency whose wave (its period within ``tolerance``) leaves the least residual
-    is chosen when it explains :data:`MIN_EXPLAINED` of the stripes' variation, leaves the
-    next map frequency :data:`MIN_EVIDENCE` residuals per line more, is within
-    :data:`OFF_MAP_RATIO` of the best residual of any period, and agrees with
-    :data:`MIN_AGREEMENT` of the clearly lit or dark lines.
-
-    Parameters
-    ----------
-    profile : BeaconProfile
-        The light's profile.
-    periods : array_like, shape (K,)
-        The map's frequencies as periods, lines (``1 / (f row_time)``).
-    free : tuple, optional
-        :func:`stripes_period`'s result when already known.
-    tolerance : float
-        Relative distance around each period searched (the row time's uncertainty).
-    row_time_s : float, optional
-        Seconds per line, to give periods as frequencies in the reasons.
-
-    Returns
-    -------
-    FrequencyTest
-    """
-    target = np.asarray(periods, dtype=float).reshape(-1)
-    nan = float("nan")
-    costs = np.full(target.size, np.inf)
-    if not profile.usable:
-        why = "too few lines with signal to measure stripes"
-        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs, (None,) * target.size)
-    null = profile.steady_cost
-    free_cost, free_wave = free if free is not None else stripes_period(profile, target)
-    period = float(free_wave[0])
-    seen = profile.span / period
-    longest = profile.span / MIN_PERIODS_SEEN
-    # each map frequency within its tolerance, never past half-way to its neighbours
-    waves: list[np.ndarray | None] = [None] * target.size
-    for k, p in enumerate(target):
-        if MIN_PERIOD <= p <= longest * 1.5:
-            costs[k], waves[k] = profile.best(_search_periods(p, *_window(target, k, tolerance)))
-    for k in range(target.size):  # the stripes' own wave, where its period is in the window
-        lo, hi = _window(target, k, tolerance)
-        if lo <= period <= hi and free_cost < costs[k]:
-            costs[k], waves[k] = free_cost, free_wave
-    j = int(np.argmin(costs))
-    if waves[j] is not None:  # refined as the stripes' own period was, within its window
-        refined = profile.refine(waves[j], *_window(target, j, tolerance))
-        if refined[0] < costs[j]:
-            costs[j], waves[j] = refined
-    free_cost = min(free_cost, float(costs[j]))
-    ranked = np.sort(costs)
-
-    def share(cost: float) -> float:
-        return float(1.0 - cost / null) if null > 0 and np.isfinite(cost) else 0.0
-
-    explained = share(costs[j])
-    nxt = ranked[1] if ranked.size > 1 else np.inf
-    margin = float(1.0 - costs[j] / nxt) if np.isfinite(nxt) and nxt > 0 else 1.0
-    # the next map frequency's excess residual, in units of the residual per free line
-    evidence = (nxt - costs[j]) / max(costs[j] / profile.free_lines, 1e-12)
-    agreement = profile.agreement(waves[j]) if waves[j] is not None else 0.0
-    own = f"{1.0 / (period * row_time_s):.0f} Hz" if row_time_s else f"a period of {period:.1f} px"
-
-    def refused(why: str) -> FrequencyTest:
-        return FrequencyTest(
-            None,
-            why,
-            period,
-            seen,
-            explained,
-            margin,
-            agreement,
-            costs,
-            tuple(waves),
-            evidence=evidence,
-        )
-
-    if not np.isfinite(period) or seen < MIN_PERIODS_SEEN:
-        return refused(f"the light shows {seen:.2f} stripe periods, too few (steady, or too small)")
-    off_map = not np.isfinite(costs[j]) or costs[j] > OFF_MAP_RATIO * free_cost
-    if off_map and share(free_cost) >= MIN_EXPLAINED:
-        return refused(f"its stripes are a square wave of {own}, which is no map frequency")
-    if explained < MIN_EXPLAINED:
-        return refused(
-            f"its stripes are not a square wave of any map frequency (the best explains "
-            f"{100 * explained:.0f} % of them): data, flicker or not a beacon"
-        )
-    if off_map:
-        return refused(f"its stripes fit {own} better than any map frequency")
-    near = target[(np.abs(np.log(target / target[j])) < 2.0 * tolerance) & (target != target[j])]
-    if near.size:
-        other = 1.0 / (near[0] * row_time_s) if row_time_s else float("nan")
-        mine = 1.0 / (target[j] * row_time_s) if row_time_s else float("nan")
-        return FrequencyTest(
-            None,
-            f"its stripes fit {mine:.0f} Hz, but the map's {other:.0f} Hz is too near it to tell "
-            f"apart (closer than twice the {100 * tolerance:.1f} % the row time and drivers "
-            "are known to)",
-            period,
-            seen,
-            explained,
-            margin,
-            agreement,
-            costs,
-            tuple(waves),
-            crowded=True,
-            evidence=evidence,
-        )
-    if evidence < MIN_EVIDENCE:
-        return refused(
-            f"two map frequencies fit its stripes about equally (margin {margin:.2f}): too "
-            "few periods, or too little between them, to tell them apart"
-        )
-    if agreement < MIN_AGREEMENT:
-        return refused(
-            f"its stripes are not a regular square wave ({100 * agreement:.0f} % of its lines "
-            "agree with the best map frequency's): data, flicker or not a beacon"
-        )
-    return FrequencyTest(
-        j, "", period, seen, explained, margin, agreement, costs, tuple(waves), evidence=evidence
-    )

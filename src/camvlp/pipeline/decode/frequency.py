@@ -2,10 +2,11 @@
 
 A rolling shutter turns a light blinking at ``f`` Hz into stripes with a period of
 ``1 / (f * row_time)`` sensor rows.  Each light's stripes are held against the forward model
-of a beacon at each of the map's frequencies (:mod:`camvlp.pipeline.decode.beacon`: a 50 % square
-wave integrated over the exposure, times and above smooth envelopes that take the light's
-shape, a hot core or a glow); the light gets the frequency that explains them, by a margin
-over every other, or none, with the reason.  Without the row time, the set of the stripes'
+of a beacon at each of the map's frequencies (:mod:`camvlp.pipeline.decode.beacon`: a 50 %
+square wave integrated over the exposure, times and above smooth envelopes that take the
+light's shape, a hot core or a glow); the light gets the frequency that explains them, by a
+margin over every other, or none, with the reason
+(:mod:`camvlp.pipeline.decode.beacon_match`).  Without the row time, the set of the stripes'
 periods is matched to the set of map frequencies by their ratios first: the row time is the
 one that makes the most periods land on distinct map frequencies.
 
@@ -24,7 +25,8 @@ import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.decode.beacon import BeaconProfile, hold_against, light_profile, stripes_period
+from camvlp.pipeline.decode.beacon import BeaconProfile, light_profile
+from camvlp.pipeline.decode.beacon_match import hold_against, stripes_period
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.disc import light_support
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
@@ -328,10 +330,11 @@ def decode_frequencies(
     a 50 % square wave integrated over a window, times and above smooth envelopes (the
     light's shape).  A light gets the map frequency whose wave explains its stripes best, by
     a margin over every other map frequency, nearly as well as any frequency at all and line
-    by line (:func:`~camvlp.pipeline.decode.beacon.hold_against`); a light that sends data, text, or
-    a light at no map frequency is refused with the reason.  Two lights that choose the same
-    frequency are both refused.  Without the camera's row time, the stripes' own periods are
-    matched to the map's frequencies by their ratios first (:func:`assign_frequencies`).
+    by line (:func:`~camvlp.pipeline.decode.beacon_match.hold_against`); a light that sends
+    data, text, or a light at no map frequency is refused with the reason.  Two lights that
+    choose the same frequency are both refused.  Without the camera's row time, the stripes'
+    own periods are matched to the map's frequencies by their ratios first
+    (:func:`assign_frequencies`).
 
     Parameters
     ----------
@@ -350,8 +353,11 @@ def decode_frequencies(
     -------
     decodes : list of StripeDecode
         Per blob: the map ID or None with the reason; ``margin`` how much better its
-        frequency explains the stripes than the next map frequency (0 to 1),
-        ``rows_per_chip`` half the stripes' period (rows), ``frames`` the periods shown.
+        frequency explains the stripes than the next map frequency: the decimal log of
+        their likelihood ratio
+        (:attr:`~camvlp.pipeline.decode.beacon_match.FrequencyTest.log_ratio`; inf when the
+        map has one frequency, NaN when not weighed); ``rows_per_chip`` half the stripes'
+        period (rows), ``frames`` the periods shown.
     frequencies_hz : ndarray, shape (N,)
         Measured frequency per blob (the stripes' own period), Hz; NaN where unknown.
     centres : ndarray, shape (N, 2)
@@ -360,8 +366,8 @@ def decode_frequencies(
         A remark on a row time fitted from the ratios ("" otherwise).
     beacons : list of tuple
         Per blob, its :class:`~camvlp.pipeline.decode.beacon.BeaconProfile`, its
-        :class:`~camvlp.pipeline.decode.beacon.FrequencyTest` (None where the row time is unknown)
-        and the map's periods it was held against (lines): what the debug pictures draw.
+        :class:`~camvlp.pipeline.decode.beacon_match.FrequencyTest` (None where the row time
+        is unknown) and the map's periods it was held against (lines): what the debug pictures draw.
     """
     n = len(blobs)
     map_freqs = np.array([f.frequency_hz for f in fixture_map.fixtures], dtype=float)

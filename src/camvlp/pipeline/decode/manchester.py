@@ -1,7 +1,7 @@
 """Manchester IDs of a photo's fixtures, and the readout direction when it is not known.
 
-First the run-length decoder (:func:`camvlp.pipeline.decode.runs.decode_profiles`, a few
-milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
+First the run-length decoder (:func:`camvlp.pipeline.decode.run_decode.decode_profiles`, a
+few milliseconds per photo): an ID it reads with no chip in error, every whole copy of the frame
 agreeing, a clear run margin, and a chip length that agrees with the other fixtures' (and with
 the camera's row time and the map's chip rate when both are known) is taken as it is.  The
 model fit (:mod:`camvlp.pipeline.decode.model`) runs only for the fixtures it refuses, with the
@@ -27,14 +27,14 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.linecode import FrameFormat
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import (
-    MIN_MARGIN,
     PhotoDecode,
     SensorModel,
     decode_photo,
     estimate_photo_model,
 )
+from camvlp.pipeline.decode.model_choice import MIN_MARGIN
 from camvlp.pipeline.decode.result import StripeDecode
-from camvlp.pipeline.decode.runs import decode_profiles
+from camvlp.pipeline.decode.run_decode import decode_profiles
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
 
@@ -111,21 +111,11 @@ def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
     return out, lengths
 
 
-def _median(values) -> float:
-    """``np.median`` of a few chip lengths (at least one; a sequence or an array), in Python
-    floats: the middle value, or the mean of the middle two; NaN when one is NaN."""
-    v = sorted(values.tolist() if isinstance(values, np.ndarray) else map(float, values))
-    if any(math.isnan(x) for x in v):
-        return float("nan")
-    n = len(v)
-    return v[n // 2] if n % 2 else (v[n // 2 - 1] + v[n // 2]) / 2
-
-
 def _measured(lengths: np.ndarray) -> float | None:
     """The chip length of the IDs the run-length decoder read when two of them agree."""
     t = lengths[np.isfinite(lengths)]
     if t.size >= 2:
-        med = _median(t)
+        med = float(np.median(t))
         if np.sum(np.abs(t / med - 1) < CHIP_AGREEMENT) >= 2:
             return med
     return None
@@ -133,15 +123,14 @@ def _measured(lengths: np.ndarray) -> float | None:
 
 def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     """The photo's chip length from the run-length decodes, and the decodes that agree with
-    it (the others set to None).  With no seed, two fixtures must agree.  (A few values:
-    worked in Python floats, the same operations as NumPy's.)"""
+    it (the others set to None).  With no seed, two fixtures must agree."""
     t = [d.rows_per_chip for ds in decodes for d in ds if d is not None]
-    ref = seed if seed else (_median(t) if t else math.nan)
+    ref = seed if seed else (float(np.median(t)) if t else math.nan)
     ok = [x for x in t if abs(x / ref - 1) <= CHIP_AGREEMENT]
     if not seed and len(ok) < 2:
         ref = math.nan
     if math.isfinite(ref) and ok and not seed:
-        ref = _median(ok)
+        ref = float(np.median(ok))
 
     def agrees(d: StripeDecode | None) -> bool:
         return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT

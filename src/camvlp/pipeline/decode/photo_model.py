@@ -9,6 +9,7 @@ too, as a start: each fixture is then judged at its own (:mod:`camvlp.pipeline.d
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -196,11 +197,7 @@ def estimate_photo_model(
     """
     ps = [np.asarray(p, dtype=np.float64) for p in profiles]
     ws = [None] * len(ps) if weights is None else list(weights)
-    if rank is None:
-        order = np.argsort([-p.size for p in ps], kind="stable")
-    else:  # the most striped first, then the longest
-        order = np.lexsort(([-p.size for p in ps], -np.asarray(rank, dtype=float)))
-    use = [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
+    use = _fitted_profiles(ps, rank, max_fixtures)
     if not use:
         raise ValueError("no profile long enough to fit the sensor model")
     data = [prepared_profile(ps[k], ws[k]) for k in use]
@@ -208,6 +205,8 @@ def estimate_photo_model(
     chips = frame.codebook[cand]
     n = frame.n_chips
     start = SensorModel(1.0, 0.5, 0.4, 1.0 if gamma is None else float(gamma), 0.5)
+    # a fitter on s samples per chip with each profile's `keep` best IDs under a model
+    own_fitter = functools.partial(_own_fitter, data, chips, n)
 
     # 1. the chip length: seeded, or searched with a middling exposure and knee
     if rows_per_chip is None:
@@ -215,17 +214,9 @@ def estimate_photo_model(
     else:
         t0 = float(rows_per_chip)
     model = replace(start, rows_per_chip=t0)
-
     # 2. exposure and knee on a joint grid (they trade off), coarsely, with each profile's
     #    two best IDs
-    def own_fitter(s: int, m: SensorModel, keep: int) -> _PhotoFitter:
-        return _own_fitter(data, chips, n, s, m, keep)
-
-    coarse = own_fitter(16, model, 2)
-    ee, kk = (a.ravel() for a in np.meshgrid(_EXPOSURES, _KNEES))
-    costs = coarse.costs(
-        t0, ee, kk, np.full(ee.size, model.gamma), np.full(ee.size, model.blur_rows)
-    )
+    starts = _exposure_knee_starts(own_fitter(16, model, 2), model)
     # 3. finely, with each profile's best ID, from the two best starts of the grid (exposure
     #    and knee trade off: one start can stall): one parameter at a time
     grids: dict[str, tuple[float, ...]] = {
@@ -235,25 +226,62 @@ def estimate_photo_model(
     }
     if gamma is None:
         grids["gamma"] = _GAMMAS
-    starts = np.argsort(costs)[:2]
-    results = []
-    for k in starts:
-        m = replace(model, exposure_chips=float(ee[k]), knee=float(kk[k]))
-        fitter = own_fitter(samples // 2, m, 1)
-        best = float("inf")
-        for _ in range(2):
-            before = best
-            for name, values in grids.items():
-                m, best = fitter.sweep(m, name, values)
-            if best >= 0.95 * before:
-                break
-        results.append((best, m, fitter))
-    best, model, _ = min(results, key=lambda r: r[0])
+    results = [_swept(own_fitter(samples // 2, m, 1), m, grids) for m in starts]
+    _, model = min(results, key=lambda r: r[0])
     # 4. on the full grid: the chip length, then the exposure, knee and blur between their
     #    grid points
-    fitter = own_fitter(samples, model, 1)
     span = 0.01 if rows_per_chip is not None else 0.006
-    model, best = fitter.sweep(model, "rows_per_chip", t0 * (1 + np.linspace(-span, span, 5)))
+    return _polished(own_fitter(samples, model, 1), model, t0 * (1 + np.linspace(-span, span, 5)))
+
+
+def _fitted_profiles(ps: list[np.ndarray], rank, max_fixtures: int) -> list[int]:
+    """The profiles the photo-wide parameters are fitted to: the first ``max_fixtures`` by
+    ``rank`` (the most striped first, then the longest), or the longest; 8 rows at least."""
+    if rank is None:
+        order = np.argsort([-p.size for p in ps], kind="stable")
+    else:  # the most striped first, then the longest
+        order = np.lexsort(([-p.size for p in ps], -np.asarray(rank, dtype=float)))
+    return [int(k) for k in order[:max_fixtures] if ps[k].size >= 8]
+
+
+def _exposure_knee_starts(coarse: _PhotoFitter, model: SensorModel) -> list[SensorModel]:
+    """``model`` at the two best exposures and knees of their joint grid
+    (:data:`_EXPOSURES` x :data:`_KNEES`), its other parameters kept."""
+    ee, kk = (a.ravel() for a in np.meshgrid(_EXPOSURES, _KNEES))
+    costs = coarse.costs(
+        model.rows_per_chip,
+        ee,
+        kk,
+        np.full(ee.size, model.gamma),
+        np.full(ee.size, model.blur_rows),
+    )
+    return [
+        replace(model, exposure_chips=float(ee[k]), knee=float(kk[k]))
+        for k in np.argsort(costs)[:2]
+    ]
+
+
+def _swept(
+    fitter: _PhotoFitter, m: SensorModel, grids: dict[str, tuple[float, ...]]
+) -> tuple[float, SensorModel]:
+    """``m``'s parameters swept over their ``grids`` one at a time, twice at most (once when
+    the second round would gain less than 5 %): the cost and the model."""
+    best = float("inf")
+    for _ in range(2):
+        before = best
+        for name, values in grids.items():
+            m, best = fitter.sweep(m, name, values)
+        if best >= 0.95 * before:
+            break
+    return best, m
+
+
+def _polished(
+    fitter: _PhotoFitter, model: SensorModel, chip_lengths: np.ndarray
+) -> tuple[SensorModel, float]:
+    """``model`` refined on the full grid: its chip length over ``chip_lengths`` (rows),
+    then its exposure, knee and blur between their grid points; the model and its cost."""
+    model, best = fitter.sweep(model, "rows_per_chip", chip_lengths)
     for name, step in (("exposure_chips", 0.03), ("knee", 0.02), ("blur_rows", 0.15)):
         v = getattr(model, name) + step * np.arange(-2, 3)
         v = (

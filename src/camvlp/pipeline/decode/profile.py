@@ -272,7 +272,7 @@ def shape_profiles(
         [rho for _, _, rho in sampled],
     )
     for k, (middle, level) in zip(live, envelopes, strict=True):
-        lowest, highest = np.minimum.reduce(level), np.maximum.reduce(level)
+        lowest, highest = level.min(), level.max()
         if lowest >= (1.0 - _FLAT) * highest:  # a flat light: its row mean
             out[k] = _mean_profile(grays[k], trimmed[k], axis)
         else:

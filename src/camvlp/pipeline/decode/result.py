@@ -17,8 +17,8 @@ class StripeDecode:
     """What the stripes of one light say, as one of the decoders read them.
 
     ``method`` says which: ``"runs"`` the run-length decoder
-    (:mod:`camvlp.pipeline.decode.runs`), ``"model"`` the forward model fitted to every ID
-    (:mod:`camvlp.pipeline.decode.model`), ``"frequency"`` a beacon's square wave held against
+    (:mod:`camvlp.pipeline.decode.run_decode`), ``"model"`` the forward model fitted to every
+    ID (:mod:`camvlp.pipeline.decode.model`), ``"frequency"`` a beacon's square wave held against
     each map frequency (:mod:`camvlp.pipeline.decode.frequency`), ``""`` not read.
 
     Attributes
@@ -33,8 +33,11 @@ class StripeDecode:
         How sure the ID is, on one scale for every decoder that weighs likelihoods: the
         decimal log of the likelihood ratio of the ID over the best other ID (or frequency)
         of the map, from the fit's residuals and its noise (4 means 10,000 times likelier;
-        the model fit needs 4, a frequency 5.4).  NaN when not weighed (the run-length
-        decoder: see ``run_margin``).
+        the model fit needs 4, a frequency 5.4).  The model fit takes its noise from the
+        best fit's residual per degree of freedom, inflated for residuals correlated from
+        line to line, and caps the margin at 99; a frequency takes it from the chosen
+        wave's residual per free line, and its margin is inf when the map has one
+        frequency.  NaN when not weighed (the run-length decoder: see ``run_margin``).
     run_margin : float
         The run-length decoder's confidence, 0 to 1: how far the worst run length is from a
         decision boundary (1: every run exactly one or two chips long); NaN for the others.

@@ -3,7 +3,7 @@
 Where the stripes cannot say an ID (at an exposure of a whole chip a single dark chip between
 bright ones leaves no trace, and IDs whose frames differ only there read alike), the model
 fit refuses the fixture and lists the IDs of the map that fit it almost equally
-(:attr:`camvlp.pipeline.decode.model.StripeDecode.candidates`).  Once the pose is solved from
+(:attr:`camvlp.pipeline.decode.result.StripeDecode.candidates`).  Once the pose is solved from
 the fixtures that were decoded, each of those IDs' map positions projects to one place in the
 photo: the fixture is the one that projects onto it, when exactly one does and every other
 projects far away.  The stripes narrow the fixture to a few IDs and the geometry picks one;
