@@ -16,9 +16,10 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture(scope="module")
 def structure():
     """scripts/structure.py, loaded as a module."""
-    spec = importlib.util.spec_from_file_location("structure", REPO / "scripts" / "structure.py")
+    name = "camvlp_scripts_structure"
+    spec = importlib.util.spec_from_file_location(name, REPO / "scripts" / "structure.py")
     module = importlib.util.module_from_spec(spec)
-    sys.modules.setdefault("structure", module)
+    sys.modules[name] = module  # the dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 
