@@ -81,55 +81,98 @@ def _owner(name: str, known: dict[str, Module]) -> str | None:
     return None
 
 
-def _same_package(a: str, b: str) -> bool:
-    return a.rpartition(".")[0] == b.rpartition(".")[0]
+def _private_module_outside(target: str, importer: str) -> bool:
+    """Whether ``target`` is, or lies in, a private module (``pkg._app``) and ``importer`` is
+    outside that module's package (``pkg`` and everything in it may import it)."""
+    parts = target.split(".")
+    for k in range(1, len(parts)):
+        if _private(parts[k]):
+            parent = ".".join(parts[:k])
+            if not (importer == parent or importer.startswith(parent + ".")):
+                return True
+    return False
+
+
+def _dotted(node: ast.expr) -> list[str] | None:
+    """``a.b.c`` as ``["a", "b", "c"]``; None for anything but names and attributes."""
+    if isinstance(node, ast.Name):
+        return [node.id]
+    if isinstance(node, ast.Attribute):
+        head = _dotted(node.value)
+        return None if head is None else [*head, node.attr]
+    return None
+
+
+def _imports(mod: Module, mods: dict[str, Module], found: list[str]) -> dict[str, str]:
+    """Fill ``mod.imports`` with the package modules it imports; add its imports of private
+    names and modules to ``found``; return its local names bound to package modules."""
+    aliases: dict[str, str] = {}  # local name -> package module
+    for node in ast.walk(mod.tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                target = _owner(a.name, mods)
+                if not target:
+                    continue
+                mod.imports.add(target)
+                if a.asname:
+                    aliases[a.asname] = target
+                else:  # ``import camvlp.x`` binds ``camvlp``
+                    aliases[a.name.partition(".")[0]] = _owner(a.name.partition(".")[0], mods)
+                if _private_module_outside(a.name, mod.name):
+                    found.append(f"{mod.path}:{node.lineno}: import {a.name}")
+        elif isinstance(node, ast.ImportFrom):
+            source = _resolve(mod, node)
+            if source.partition(".")[0] != PACKAGE:
+                continue
+            for a in node.names:
+                full = f"{source}.{a.name}"
+                target = _owner(full, mods) if full in mods else _owner(source, mods)
+                if target is None:
+                    continue
+                mod.imports.add(target)
+                if full in mods:  # a module
+                    aliases[a.asname or a.name] = full
+                    private = _private_module_outside(full, mod.name)
+                else:
+                    private = _private_module_outside(source, mod.name) or (
+                        _private(a.name) and target != mod.name
+                    )
+                if private:
+                    found.append(f"{mod.path}:{node.lineno}: from {source} import {a.name}")
+    return {k: v for k, v in aliases.items() if v}
 
 
 def imports_and_private_uses(mods: dict[str, Module]) -> list[str]:
     """Fill each module's ``imports`` (package modules only); return every use of another
-    module's private name, as ``file:line: what``."""
-    found = []
+    module's private name, as ``file:line: what``: ``from camvlp.x import _y``, ``m._y`` of a
+    module imported as ``m`` (``camvlp.x._y`` after ``import camvlp.x``), and the import of a
+    private module (``camvlp.cli._app``) from outside its package."""
+    found: list[str] = []
     for mod in mods.values():
-        aliases: dict[str, str] = {}  # local name -> package module
+        aliases = _imports(mod, mods, found)
         for node in ast.walk(mod.tree):
-            if isinstance(node, ast.Import):
-                for a in node.names:
-                    target = _owner(a.name, mods)
-                    if target:
-                        mod.imports.add(target)
-                        if a.asname:
-                            aliases[a.asname] = target
-                        if _private(a.name.rpartition(".")[2]) and not _same_package(
-                            a.name, mod.name
-                        ):
-                            found.append(f"{mod.path}:{node.lineno}: import {a.name}")
-            elif isinstance(node, ast.ImportFrom):
-                source = _resolve(mod, node)
-                if not source.startswith(PACKAGE):
-                    continue
-                for a in node.names:
-                    full = f"{source}.{a.name}"
-                    target = _owner(full, mods) if full in mods else _owner(source, mods)
-                    if target is None:
-                        continue
-                    mod.imports.add(target)
-                    if full in mods:  # a module
-                        aliases[a.asname or a.name] = full
-                        private = _private(a.name) and not _same_package(full, mod.name)
-                    else:
-                        private = _private(a.name) and target != mod.name
-                    if private:
-                        found.append(f"{mod.path}:{node.lineno}: from {source} import {a.name}")
-        for node in ast.walk(mod.tree):
-            if (
-                isinstance(node, ast.Attribute)
-                and isinstance(node.value, ast.Name)
-                and node.value.id in aliases
-                and _private(node.attr)
-                and aliases[node.value.id] != mod.name
-            ):
-                found.append(f"{mod.path}:{node.lineno}: {node.value.id}.{node.attr}")
+            if not (isinstance(node, ast.Attribute) and _private(node.attr)):
+                continue
+            chain = _dotted(node.value)
+            if not chain or chain[0] not in aliases:
+                continue
+            owner = ".".join([aliases[chain[0]], *chain[1:]])
+            if owner in mods and owner != mod.name:
+                found.append(f"{mod.path}:{node.lineno}: {'.'.join(chain)}.{node.attr}")
     return found
+
+
+def private_uses(root: Path = ROOT) -> list[str]:
+    """Every use of another module's private name in the package under ``root`` (see
+    ``imports_and_private_uses``), as ``file:line: what``."""
+    return imports_and_private_uses(modules(root))
+
+
+def import_cycles(root: Path = ROOT) -> list[list[str]]:
+    """The import cycles between the modules of the package under ``root`` (see ``cycles``)."""
+    mods = modules(root)
+    imports_and_private_uses(mods)
+    return cycles(mods)
 
 
 def cycles(mods: dict[str, Module]) -> list[list[str]]:

@@ -298,7 +298,7 @@ _SIX = (
 CHIP_RATE = 1e5 / 9  # Hz: 6 rows of 15 us per chip
 
 
-@pytest.mark.parametrize("seed", [745061531, 4])
+@pytest.mark.parametrize("seed", [745061531, pytest.param(4, marks=pytest.mark.slow)])
 def test_a_radial_fit_whose_disc_leaves_the_outline_is_not_taken(seed):
     # lamp 6's radial fit ran 98 and 73 px off (onto lamp 10's glow, a rim of 240 px
     # where the outline is 210 px across): a disc wider than its light's outline, or

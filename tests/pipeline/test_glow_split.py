@@ -72,7 +72,9 @@ _SEVEN = (
 )
 
 
-@pytest.mark.parametrize(("seed", "alone"), [(958737899, False), (5, None)])
+@pytest.mark.parametrize(
+    ("seed", "alone"), [(958737899, False), pytest.param(5, None, marks=pytest.mark.slow)]
+)
 def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
     seed, alone, monkeypatch
 ):
