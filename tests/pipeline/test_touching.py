@@ -444,7 +444,10 @@ def test_lamps_whose_halos_fill_a_phone_photo_are_centred_from_their_faces():
     placed = {f.id: np.linalg.norm(f.pixel - truth[f.id]) for f in res.fixtures if f.id in truth}
     assert placed[4] < 3.0 and placed[6] < 3.0, placed
     assert {f.id for f in res.fixtures if f.used} >= {4, 6}
-    assert 14 in placed  # read (its light seed, drawn by its glow, lies off its face)
+    # lamp 14 is read (its light seed, drawn by its glow, lies off its face, so the pose does
+    # not take it): its ID is withheld, the reason saying what its stripes read
+    near = min(res.fixtures, key=lambda f: np.linalg.norm(f.pixel - truth[14]))
+    assert near.id == 14 or (near.id is None and "read as ID 14," in near.reason), near
 
 
 def _stripes(rng, n_lines: int, length: int, rows_per_chip: int, exposure: float):
