@@ -14,9 +14,17 @@ from numbers import Integral
 
 import numpy as np
 
-from camvlp.model.fixtures import UNITS_TO_M
+__all__ = [
+    "UNITS_TO_M",
+    "format_length",
+    "format_number",
+    "format_vector",
+    "length_unit",
+    "mm_per_unit",
+]
 
-__all__ = ["format_length", "format_number", "format_vector", "length_unit", "mm_per_unit"]
+#: Length units a map may use, and their size in metres.
+UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 #: (smallest value in metres, factor from metres, unit name), largest first.
 _UNITS = ((0.5, 1.0, "m"), (0.01, 100.0, "cm"), (0.0, 1000.0, "mm"))

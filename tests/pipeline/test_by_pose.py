@@ -17,19 +17,13 @@ from tests.conftest import (
 )
 
 import camvlp.pipeline.decode.stage as decode_stage
-import camvlp.pipeline.detect.stage as detect_stage
+import camvlp.pipeline.lights as detect_stage
 from camvlp import locate
 from camvlp.geometry.pose import estimate_pose
+from camvlp.geometry.pose_sigma import pose_covariance, position_sigma
 from camvlp.model.camera import Pose, project_points
 from camvlp.pipeline.decode.result import StripeDecode
-from camvlp.pipeline.identify.by_pose import (
-    TOLD_APART,
-    Spread,
-    assigned_by_pose,
-    pose_covariance,
-    position_sigma,
-    told_by_pose,
-)
+from camvlp.pipeline.identify.by_pose import TOLD_APART, Spread, assigned_by_pose, told_by_pose
 from camvlp.sim.render import render
 
 POSE = Pose.from_euler([0, 0, 0], LOOK_UP)
@@ -124,9 +118,9 @@ def test_the_pose_covariance_predicts_how_far_off_a_projection_comes(small_camer
     res = np.zeros_like(exact)
     res[:2] = [[2.0, 2.0], [-2.0, -2.0]]
     cov = pose_covariance(small_camera, POSE, obj, exact + res)
-    from camvlp.pipeline.identify.by_pose import _jacobian
+    from camvlp.geometry.pose_sigma import pose_jacobian
 
-    jac = _jacobian(small_camera, POSE, far)[0]
+    jac = pose_jacobian(small_camera, POSE, far)[0]
     said = float(np.sqrt(np.trace(jac @ cov @ jac.T) / 2))
     assert seen > 5.0  # (a test that tells: far from the fixtures, several pixels)
     assert abs(said / seen - 1) < 0.2
@@ -136,13 +130,13 @@ def test_the_jacobian_is_that_of_the_moved_poses_one_by_one(small_camera, small_
     # the twelve moved poses projected at once: each column, bit for bit, as the pose
     # turned about the camera's own axis (radians), or its centre moved (map units),
     # projected alone
-    from camvlp.pipeline.identify.by_pose import _STEP, _jacobian
+    from camvlp.geometry.pose_sigma import JACOBIAN_STEP, pose_jacobian
 
     obj = np.array([f.position for f in small_room.fixtures])
-    got = _jacobian(small_camera, POSE, obj)
+    got = pose_jacobian(small_camera, POSE, obj)
     scale = float(np.median(np.linalg.norm(obj - POSE.position, axis=1)))
     for j in range(6):
-        h = _STEP if j < 3 else _STEP * scale
+        h = JACOBIAN_STEP if j < 3 else JACOBIAN_STEP * scale
         ends = []
         for sign in (1.0, -1.0):
             e = np.zeros(3)

@@ -11,11 +11,11 @@ import pytest
 import camvlp.pipeline.lamp.crowded as crowded
 import camvlp.pipeline.lamp.glow as glow
 from camvlp import locate
+from camvlp.imaging.gray import to_gray
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.pipeline.detect.disc import light_support
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.pipeline.lamp.radial import radial_fit, radial_model
 from camvlp.sim.render import RenderSettings, render

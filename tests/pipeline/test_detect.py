@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from camvlp import locate
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -28,7 +29,6 @@ from camvlp.pipeline.detect.candidates import (
 )
 from camvlp.pipeline.detect.disc import _bridged
 from camvlp.pipeline.detect.duplicates import drop_duplicates
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 

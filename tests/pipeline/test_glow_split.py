@@ -1,4 +1,4 @@
-"""Lights read from their glows taken apart (camvlp.pipeline.lamp.glow_split)."""
+"""Lights read from their glows taken apart (camvlp.pipeline.decode.glow_split)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 import camvlp.pipeline.decode.stage as decode_stage
 from camvlp import locate
-from camvlp.pipeline.lamp.glow_split import separated_waveforms
+from camvlp.pipeline.decode.glow_split import separated_waveforms
 from conftest import stress_scene, stress_settings
 
 
@@ -109,7 +109,7 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
 def test_a_photo_of_more_lights_than_the_cap_is_not_taken_apart(monkeypatch):
     """The normal equations grow with the square of the lights: past MAX_LIGHTS the decodes
     stay as they are, and nothing is fitted."""
-    import camvlp.pipeline.lamp.glow_split as gs
+    import camvlp.pipeline.decode.glow_split as gs
 
     look = dict(brightness=7.18, off_level=0.082, core=1.34, halo=0.35, blur_px=1.18)
     cam, room, _, image = stress_scene(

@@ -7,8 +7,8 @@ import types
 import numpy as np
 
 from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.pipeline.identified import identified_as
 from camvlp.pipeline.identify.decide import DIRECTION_HYPOTHESES, Decided, unread_hypotheses
-from camvlp.pipeline.identify.identified import identified_as
 from camvlp.pipeline.solve import PoseProblem
 
 

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import camvlp.pipeline.lamp.light_wave as light_wave_module
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.stripe_period import estimate_stripe_period
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
@@ -14,7 +15,6 @@ from camvlp.pipeline.decode.beacon_match import stripes_period
 from camvlp.pipeline.decode.frequency import decode_frequencies
 from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.pipeline.detect.disc import light_support
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 from camvlp.sim.render import RenderSettings, render
 

@@ -396,16 +396,16 @@ def test_a_position_less_sure_than_asked_is_not_reported(small_render, small_cam
 def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
     small_render, small_camera, small_room, monkeypatch
 ):
-    import camvlp.pipeline.identify.by_pose as by_pose
+    import camvlp.geometry.pose_sigma as pose_sigma
 
     calls = []
-    real = by_pose.position_sigma
+    real = pose_sigma.position_sigma
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(by_pose, "position_sigma", counted)
+    monkeypatch.setattr(pose_sigma, "position_sigma", counted)
     monkeypatch.setattr(solve_module, "position_sigma", counted)
     limited = LocateSettings(max_position_sigma=1.0)
     res = locate(small_render.image, small_camera, small_room, limited)

@@ -31,10 +31,10 @@ from camvlp.analysis.row_time import (
     bright_blob_masks,
     estimate_row_time,
 )
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
 from camvlp.io import InputError, load_image
 from camvlp.model.camera import Camera
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.sim.chessboard import board_object_points, parse_board, render_chessboard
 
 __all__ = [

@@ -13,7 +13,8 @@ photo that cannot be read or located is counted and listed with its reason.  The
 (:meth:`Evaluation.summary`), and the thesis' two figures, drawn by
 :mod:`camvlp.viz.evaluate_plots`: the error over the floor (figure 5.9, ``plot_error_map``)
 and true versus estimated positions seen from the top and both sides (figure 5.11,
-``plot_positions``).  :func:`write_evaluation` writes all four files.  The results' types
+``plot_positions``); :func:`camvlp.viz.evaluate_plots.write_evaluation` writes all four
+files.  The results' types
 are :mod:`camvlp.analysis.evaluation`'s (importable from here as well).
 """
 
@@ -31,12 +32,11 @@ import numpy as np
 from camvlp.analysis.evaluation import Evaluation, PhotoResult, floor_axes
 from camvlp.io import InputError, load_image, load_sidecar
 from camvlp.io.survey_csv import ANGLE_COLUMNS, AXES, REQUIRED_COLUMNS, Survey, read_survey
-from camvlp.io.writers import write_json, write_results_csv
+from camvlp.io.writers import write_results_csv
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.sim.survey import default_jobs, worker_context
-from camvlp.viz.evaluate_plots import plot_error_map, plot_positions
 
 __all__ = [
     "ANGLE_COLUMNS",
@@ -48,7 +48,6 @@ __all__ = [
     "evaluate_survey",
     "floor_axes",
     "read_survey",
-    "write_evaluation",
     "write_results_csv",
 ]
 
@@ -237,42 +236,3 @@ def _locate_in_pool(
 
 # --------------------------------------------------------------------------------------------
 # Files
-
-
-def write_evaluation(
-    evaluation: Evaluation,
-    out_dir: str | Path,
-    *,
-    fixture_map: FixtureMap | None = None,
-    magnify: float | None = None,
-) -> dict[str, Path]:
-    """Write ``results.csv``, ``summary.json``, ``error_map.png`` and ``positions.png``.
-
-    The table by :func:`camvlp.io.writers.write_results_csv`, the figures by
-    :func:`camvlp.viz.evaluate_plots.plot_error_map` and ``plot_positions``.
-
-    Returns
-    -------
-    dict
-        The written paths under the keys ``results``, ``summary``, ``error_map``,
-        ``positions``.
-
-    Raises
-    ------
-    InputError
-        The folder cannot be created or written (naming it).
-    """
-    out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        paths = {
-            "results": write_results_csv(evaluation, out / "results.csv"),
-            "summary": write_json(out / "summary.json", evaluation.summary()),
-        }
-        paths["error_map"] = plot_error_map(evaluation, out / "error_map.png")
-        paths["positions"] = plot_positions(
-            evaluation, out / "positions.png", fixture_map=fixture_map, magnify=magnify
-        )
-    except OSError as exc:
-        raise InputError(f"cannot write the results: {exc.strerror or exc}", out) from None
-    return paths

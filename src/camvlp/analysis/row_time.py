@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.imaging.gray import gray_float
 from camvlp.imaging.stripe_period import StripePeriod, estimate_stripe_period
-from camvlp.pipeline.detect.gray import gray_float
 
 __all__ = ["RowTimeEstimate", "bright_blob_mask", "bright_blob_masks", "estimate_row_time"]
 

@@ -12,13 +12,13 @@ from camvlp.analysis.evaluate import (
     Evaluation,
     evaluate_survey,
     read_survey,
-    write_evaluation,
 )
 from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
+from camvlp.viz.evaluate_plots import write_evaluation
 
 from ._app import (
     GravitySigmaOption,

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camvlp.pipeline.detect.gray import gray_float
+from camvlp.imaging.gray import gray_float
 
 __all__ = ["AXES", "StripePeriod", "estimate_stripe_period", "spectral_peak"]
 

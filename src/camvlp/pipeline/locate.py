@@ -5,7 +5,7 @@ with the same stages as the video tracker (:mod:`camvlp.pipeline.track`) and the
 
 0. :func:`~camvlp.pipeline.prepare.prepare`: the photo checked against its camera, its levels
    mapped back to light, flipped back when mirrored;
-1. :func:`~camvlp.pipeline.detect.stage.find_lights`: the lights, the readout axis their
+1. :func:`~camvlp.pipeline.lights.find_lights`: the lights, the readout axis their
    stripes show, each readable light centred as its look asks;
 2. :func:`~camvlp.pipeline.decode.stage.read_profiles`: each light's level per sensor line;
 3. :func:`~camvlp.pipeline.decode.stage.decode`: the ID or frequency each light's stripes say;
@@ -25,8 +25,8 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.stage import decode, read_profiles
-from camvlp.pipeline.detect.stage import find_lights
 from camvlp.pipeline.identify.stage import identify_and_solve
+from camvlp.pipeline.lights import find_lights
 from camvlp.pipeline.prepare import prepare
 from camvlp.pipeline.report import report
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages

@@ -14,8 +14,7 @@ from camvlp.imaging.tone import linear_light
 from camvlp.io.images import as_image
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.detect.candidates import MIN_SIDE_PX
-from camvlp.pipeline.settings import LocateSettings
+from camvlp.pipeline.settings import MIN_SIDE_PX, LocateSettings
 
 __all__ = ["Prepared", "fitted_camera", "prepare"]
 

@@ -9,9 +9,9 @@ from camvlp.geometry.gravity import GravityPose
 from camvlp.geometry.pose import PoseEstimate
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.decode.stage import Decoded, Profiles
-from camvlp.pipeline.detect.stage import Lights
-from camvlp.pipeline.identify.identified import Identified
+from camvlp.pipeline.identified import Identified
 from camvlp.pipeline.identify.stage import Solved
+from camvlp.pipeline.lights import Lights
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
 from camvlp.pipeline.settings import LocateSettings

@@ -162,7 +162,7 @@ class LocateResult:
     position_sigma : ndarray, shape (3,), or None
         How sure the position is: its standard deviation along the map's x, y and z, map
         units, from the fixtures' reprojection errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.identify.by_pose.position_sigma`), for the pose located;
+        (:func:`camvlp.geometry.pose_sigma.position_sigma`), for the pose located;
         worked out when first read (``sigma_of``, a function of no arguments that gives it).
         None when not located, when the pose was solved with gravity, or when it is not
         finite.

@@ -12,7 +12,10 @@ from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 
-__all__ = ["DEFAULT_SETTINGS", "LocateSettings", "check_arguments"]
+__all__ = ["DEFAULT_SETTINGS", "MIN_SIDE_PX", "LocateSettings", "check_arguments"]
+
+#: Smallest image side, pixels, the detector works on.
+MIN_SIDE_PX = 8
 
 
 @dataclass(frozen=True)

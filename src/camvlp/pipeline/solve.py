@@ -15,11 +15,11 @@ import numpy as np
 from camvlp.geometry.disc import disc_normals, perspective_offsets
 from camvlp.geometry.gravity import GravityPose, solve_pose_gravity
 from camvlp.geometry.pose import PoseEstimate, estimate_pose
+from camvlp.geometry.pose_sigma import position_sigma
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.detect.blob import Blob
-from camvlp.pipeline.identify.by_pose import position_sigma
-from camvlp.pipeline.identify.identified import Identified
+from camvlp.pipeline.identified import Identified
 from camvlp.pipeline.settings import LocateSettings
 
 __all__ = [
@@ -154,7 +154,7 @@ def sigma_inputs(camera, fixture_map, est, found: Identified, down):
 
 
 def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
-    """:func:`~camvlp.pipeline.identify.by_pose.position_sigma`, at least as large along each axis
+    """:func:`~camvlp.geometry.pose_sigma.position_sigma`, at least as large along each axis
     as ``close`` (how far an alternative pose that fits about as well lies)."""
     return np.maximum(position_sigma(camera, pose, points, residuals_px), close)
 
@@ -169,7 +169,7 @@ def sure_enough(
     est: PoseEstimate, sigma_inputs, limit: float
 ) -> tuple[PoseEstimate, str, np.ndarray | None]:
     """The pose, or no pose and why when its position's standard deviation
-    (:func:`~camvlp.pipeline.identify.by_pose.position_sigma`, map units) exceeds ``limit`` along an
+    (:func:`~camvlp.geometry.pose_sigma.position_sigma`, map units) exceeds ``limit`` along an
     axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
     sigma = _position_sigma(*sigma_inputs)
     finite = np.isfinite(sigma)

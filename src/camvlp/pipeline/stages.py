@@ -2,7 +2,7 @@
 service run, in this order, each stage a function of the results before it.
 
 - 0, prepare: :func:`~camvlp.pipeline.prepare.prepare` -> :class:`Prepared`;
-- 1, detect: :func:`~camvlp.pipeline.detect.stage.find_lights` -> :class:`Lights`;
+- 1, detect: :func:`~camvlp.pipeline.lights.find_lights` -> :class:`Lights`;
 - 2, profile: :func:`~camvlp.pipeline.decode.stage.read_profiles` -> :class:`Profiles`;
 - 3, decode: :func:`~camvlp.pipeline.decode.stage.decode` -> :class:`Decoded`;
 - 4 and 5, identify and solve: :func:`~camvlp.pipeline.identify.stage.identify_and_solve` ->
@@ -12,8 +12,8 @@ service run, in this order, each stage a function of the results before it.
 """
 
 from camvlp.pipeline.decode.stage import Decoded, Profiles, decode, read_profiles
-from camvlp.pipeline.detect.stage import Lights, find_lights
 from camvlp.pipeline.identify.stage import Solved, identify_and_solve, readout_direction
+from camvlp.pipeline.lights import Lights, find_lights
 from camvlp.pipeline.prepare import Prepared, prepare
 from camvlp.pipeline.report import report
 from camvlp.pipeline.solve import PoseProblem, solve_pose

@@ -28,10 +28,10 @@ from typing import Any
 import numpy as np
 
 from camvlp.errors import InputError
+from camvlp.geometry.pose_sigma import position_sigma
 from camvlp.io import decode_image
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.identify.by_pose import position_sigma
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.track.tracker import Tracker, TrackFrame
 from camvlp.service.imagesize import read_image_header

@@ -9,16 +9,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.imaging.gray import to_gray
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.decode.glow_split import decode_from_glows
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.blob import Blob
-from camvlp.pipeline.detect.gray import to_gray
-from camvlp.pipeline.detect.stage import STRIPE_SHARE, STRIPED, UNCLEAR_AXIS, Lights, spread_out
-from camvlp.pipeline.lamp.glow_split import decode_from_glows
+from camvlp.pipeline.lights import STRIPE_SHARE, STRIPED, UNCLEAR_AXIS, Lights, spread_out
 from camvlp.pipeline.prepare import Prepared
 
 __all__ = ["CLEAR", "Decoded", "Profiles", "decode", "no_stripes", "read_profiles", "unread"]
@@ -190,7 +190,7 @@ CLEAR = 2.0
 def _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per_chip) -> Decoded:
     """:func:`decode` on a Manchester map: :func:`decode_manchester` of the readable lights,
     then those it refused read from their glows
-    (:func:`~camvlp.pipeline.lamp.glow_split.decode_from_glows`), whose waveforms become
+    (:func:`~camvlp.pipeline.decode.glow_split.decode_from_glows`), whose waveforms become
     their profiles."""
     blobs = list(lights.blobs)
     sub_p = [profiles.profiles[k] for k in keep]
@@ -230,7 +230,7 @@ def _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per
 
 def no_stripes(blob) -> StripeDecode:
     """The decode of a blob that shows no stripes to read
-    (:func:`~camvlp.pipeline.detect.stage.striped`), with why."""
+    (:func:`~camvlp.pipeline.lights.striped`), with why."""
     share = float(blob.stripe_share)
     if not np.isfinite(share):
         why = "no stripes to read"

@@ -51,7 +51,7 @@ class Blob:
         when the centroid was used or the fit cannot tell.
     gray : ndarray of uint8, shape (y1 - y0, x1 - x0), or None
         The region of interest in gray levels
-        (:func:`~camvlp.pipeline.detect.gray.to_gray`), kept so that later stages need not
+        (:func:`~camvlp.imaging.gray.to_gray`), kept so that later stages need not
         convert it again.
     cell : ndarray of bool, shape (y1 - y0, x1 - x0), or None
         The part of the region that is this light's when its glow joins other lights'

@@ -16,18 +16,15 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.pipeline.detect.blob import Blob
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.detect.peaks import power_cell
 from camvlp.pipeline.detect.refine import refine_regions
 from camvlp.pipeline.detect.touching import CandidateSearch, not_convex, one_per_light
+from camvlp.pipeline.settings import MIN_SIDE_PX
 
-__all__ = ["MIN_SIDE_PX", "Detection", "detect_fixtures"]
-
-
-#: Smallest image side, pixels, the detector works on.
-MIN_SIDE_PX = 8
+__all__ = ["Detection", "detect_fixtures"]
 
 
 @dataclass(frozen=True)
@@ -84,7 +81,7 @@ def _blurred_peak(gray: np.ndarray) -> float:
 
 
 def _decimated_gray(img: np.ndarray, s: int) -> np.ndarray:
-    """:func:`~camvlp.pipeline.detect.gray.to_gray` of the photo reduced ``s`` times by
+    """:func:`~camvlp.imaging.gray.to_gray` of the photo reduced ``s`` times by
     OpenCV's nearest-neighbour resize, shape (ceil(H / s), ceil(W / s)): ``img[::s, ::s]``
     when ``s`` divides both sides.
 

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.levels import counted_percentiles, hist_percentiles, percentiles_u8
 from camvlp.pipeline.detect.blob import Blob, EllipseFit
 from camvlp.pipeline.detect.disc import disc_mask
 from camvlp.pipeline.detect.duplicates import drop_duplicates
 from camvlp.pipeline.detect.faces import own_face
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.detect.readout import axis_contrast, stripe_share
 
 __all__ = ["refine_regions"]

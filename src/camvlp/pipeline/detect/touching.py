@@ -29,10 +29,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.imaging.gray import to_gray
 from camvlp.pipeline.detect.chords import chord_seeds
 from camvlp.pipeline.detect.codes import codes_differ
 from camvlp.pipeline.detect.faces import dark_level, dark_seeds
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.detect.peaks import distances, lamp_sized, light_seeds, power_cell
 from camvlp.pipeline.detect.readout import axis_contrast
 

@@ -29,15 +29,12 @@ import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from camvlp.geometry.disc import CENTRE_SIGMA_FLOOR_PX
+from camvlp.geometry.pose_sigma import pose_jacobian
 from camvlp.model.camera import (
     Camera,
     Pose,
-    in_front,
-    project_camera_points,
     project_points,
 )
 from camvlp.model.fixtures import FixtureMap
@@ -48,8 +45,6 @@ __all__ = [
     "TOLD_APART",
     "Spread",
     "assigned_by_pose",
-    "pose_covariance",
-    "position_sigma",
     "told_by_pose",
 ]
 
@@ -62,10 +57,6 @@ TOLD_APART = 4.0
 #: fixture's centre and its map position projected by the pose.
 SPREAD_SIGMAS = 3.0
 
-#: Steps of the numerical Jacobian of a projection: radians, and map units per unit of the
-#: camera's distance to the points.
-_STEP = 1e-6
-
 
 @dataclass(frozen=True)
 class Spread:
@@ -74,8 +65,9 @@ class Spread:
     Attributes
     ----------
     pose_cov : ndarray, shape (6, 6)
-        The pose's covariance (:func:`pose_covariance`): a rotation of the camera about its
-        own axes (radians), then its centre (map units), as :func:`_jacobian` takes them.
+        The pose's covariance (:func:`~camvlp.geometry.pose_sigma.pose_covariance`): a
+        rotation of the camera about its own axes (radians), then its centre (map units), as
+        :func:`~camvlp.geometry.pose_sigma.pose_jacobian` takes them.
     centre_sigma_px : ndarray, shape (n,)
         Each fixture's centre uncertainty, pixels (1-sigma per axis; 0 when unknown).
     radius_px : ndarray, shape (n,)
@@ -88,92 +80,6 @@ class Spread:
     radius_px: np.ndarray
 
 
-def _jacobian(camera: Camera, pose: Pose, points: np.ndarray) -> np.ndarray:
-    """The projections' derivatives by the pose's six parameters, shape (m, 2, 6), pixels
-    per radian and per map unit (central differences): a turn of the camera about its own
-    axes (radians), then a move of its centre (map units).  The twelve moved poses' points
-    are projected at once."""
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    r, c = pose.world_from_camera, pose.position
-    scale = max(float(np.median(np.linalg.norm(points - c, axis=1))), 1e-9)
-    steps = np.concatenate([np.full(3, _STEP), np.full(3, _STEP * scale)])
-    rel = points - c
-    cams = []
-    for sign in (1.0, -1.0):
-        for j in range(3):  # turned: R @ Rodrigues(step)
-            e = np.zeros((3, 1))
-            e[j] = sign * steps[j]
-            cams.append(rel @ (r @ cv2.Rodrigues(e)[0]))
-        for j in range(3):  # moved
-            e = np.zeros(3)
-            e[j] = sign * steps[3 + j]
-            cams.append((points - (c + e)) @ r)
-    cam = np.concatenate(cams)
-    uv = project_camera_points(camera, cam)
-    uv[~in_front(cam)] = np.nan
-    plus, minus = uv.reshape(2, 6, -1, 2)
-    return ((plus - minus) / (2 * steps)[:, None, None]).transpose(1, 2, 0)
-
-
-def pose_covariance(
-    camera: Camera, pose: Pose, points: np.ndarray, pixels: np.ndarray
-) -> np.ndarray:
-    """The covariance of a pose solved from these fixtures, shape (6, 6).
-
-    Gauss-Newton's ``s^2 (J^T J)^-1``, ``J`` the projections' Jacobian (:func:`_jacobian`)
-    and ``s^2`` the residuals' variance per coordinate over the degrees of freedom left (at
-    least 1 px^2; a pose that fits its fixtures exactly is not known better than that).
-
-    Parameters
-    ----------
-    camera, pose
-        The camera and the solved pose.
-    points : ndarray, shape (m, 3)
-        The map positions the pose was solved from (m >= 3).
-    pixels : ndarray, shape (m, 2)
-        Their centres in the photo, pixels.
-    """
-    res = np.asarray(pixels, dtype=float).reshape(-1, 2) - project_points(camera, pose, points)
-    return _covariance(camera, pose, points, float(np.sum(res**2)), 1.0)
-
-
-def _covariance(
-    camera: Camera, pose: Pose, points: np.ndarray, squares_px2: float, floor_px2: float
-) -> np.ndarray:
-    """:func:`pose_covariance` from the residuals' sum of squares (pixels squared), with
-    ``floor_px2`` the least variance per coordinate (pixels squared)."""
-    jac = _jacobian(camera, pose, points).reshape(-1, 6)
-    s2 = max(squares_px2 / max(jac.shape[0] - 6, 1), floor_px2)
-    return s2 * np.linalg.pinv(jac.T @ jac)
-
-
-def position_sigma(
-    camera: Camera, pose: Pose, points: np.ndarray, residuals_px: np.ndarray
-) -> np.ndarray:
-    """How sure a pose's position is: the standard deviation of the camera centre along the
-    map's x, y and z, map units, shape (3,).
-
-    From :func:`pose_covariance` with the residuals' variance per coordinate over the
-    degrees of freedom left (2 m - 6: a rough figure from four fixtures, whose two are
-    little to judge by), at least :data:`~camvlp.geometry.disc.CENTRE_SIGMA_FLOOR_PX`
-    squared: the position is as unsure as the fixtures' fit says, times what their layout
-    makes of a pixel (four fixtures on a narrow band of the photo leave a tilt and a shift
-    almost alike: tens of millimetres a pixel at 2 m).
-
-    Parameters
-    ----------
-    camera, pose
-        The camera and the solved pose.
-    points : ndarray, shape (m, 3)
-        The map positions of the fixtures the pose uses (m >= 4).
-    residuals_px : ndarray, shape (m,)
-        Their reprojection errors with the pose, pixels.
-    """
-    r = np.asarray(residuals_px, dtype=float)
-    cov = _covariance(camera, pose, points, float(r @ r), CENTRE_SIGMA_FLOOR_PX**2)
-    return np.sqrt(np.maximum(np.diag(cov)[3:], 0.0))
-
-
 def _tolerance(
     camera: Camera, pose: Pose, where: np.ndarray, k: int, spread: Spread | None, outlier_px: float
 ) -> float:
@@ -182,7 +88,7 @@ def _tolerance(
     distance (its centre's and the projection's) when that is more, up to half its radius."""
     if spread is None:
         return outlier_px
-    jac = _jacobian(camera, pose, where[None])[0]
+    jac = pose_jacobian(camera, pose, where[None])[0]
     var_p = float(np.trace(jac @ spread.pose_cov @ jac.T)) / 2
     sigma_c = float(spread.centre_sigma_px[k])
     sigma = np.sqrt(max(var_p, 0.0) + (sigma_c**2 if np.isfinite(sigma_c) else 0.0))

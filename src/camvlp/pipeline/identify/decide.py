@@ -15,11 +15,12 @@ import numpy as np
 
 from camvlp.geometry.gravity import GravityPose
 from camvlp.geometry.pose import PoseEstimate
+from camvlp.geometry.pose_sigma import pose_covariance
 from camvlp.model.camera import project_points
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
-from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, pose_covariance, told_by_pose
-from camvlp.pipeline.identify.identified import TWICE, Identified, identified_as, identify
+from camvlp.pipeline.identified import TWICE, Identified, identified_as, identify
+from camvlp.pipeline.identify.by_pose import Spread, assigned_by_pose, told_by_pose
 from camvlp.pipeline.solve import PoseProblem
 
 __all__ = ["Decided", "decided", "identified", "with_told"]

@@ -17,9 +17,9 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.stage import Decoded, read_profiles
-from camvlp.pipeline.detect.stage import UNCLEAR_AXIS, Lights, striped
+from camvlp.pipeline.identified import Identified, identify
 from camvlp.pipeline.identify.decide import decided
-from camvlp.pipeline.identify.identified import Identified, identify
+from camvlp.pipeline.lights import UNCLEAR_AXIS, Lights, striped
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.settings import LocateSettings
 from camvlp.pipeline.solve import PoseProblem, finite_sigma, sigma_inputs, sure_enough

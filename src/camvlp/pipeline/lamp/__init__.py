@@ -6,5 +6,5 @@ waveform, through the sensor's clipping (:mod:`~camvlp.pipeline.lamp.light_wave`
 light is centred on its shape (:mod:`~camvlp.pipeline.lamp.glow`,
 :mod:`~camvlp.pipeline.lamp.radial`), lights whose glows join are fitted together
 (:mod:`~camvlp.pipeline.lamp.crowded`), and a light whose disc clips in its dark chips too is
-read from its glow (:mod:`~camvlp.pipeline.lamp.glow_split`).
+read from its glow (:mod:`~camvlp.pipeline.decode.glow_split`).
 """

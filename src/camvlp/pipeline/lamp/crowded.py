@@ -40,10 +40,10 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import sampson_distances
+from camvlp.imaging.gray import to_gray
 from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.disc import light_support
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
 
 __all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]

@@ -25,9 +25,9 @@ import dataclasses
 
 import numpy as np
 
+from camvlp.imaging.gray import to_gray
 from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.disc import light_support
-from camvlp.pipeline.detect.gray import to_gray
 from camvlp.pipeline.detect.peaks import power_cell
 from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
 from camvlp.pipeline.lamp.radial import radial_fit

@@ -17,7 +17,7 @@ import numpy as np
 from camvlp.geometry.pnp import PriorSolve, refine_pose
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.identify.identified import Identified
+from camvlp.pipeline.identified import Identified
 from camvlp.pipeline.stages import PoseProblem, solve_pose
 from camvlp.pipeline.track.motion import Motion, MotionState, pose_at
 from camvlp.pipeline.track.offsets import PerspectiveOffsets

@@ -41,7 +41,7 @@ from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.identify.identified import Identified, identify
+from camvlp.pipeline.identified import Identified, identify
 from camvlp.pipeline.locate import StageClock
 from camvlp.pipeline.stages import (
     Prepared,

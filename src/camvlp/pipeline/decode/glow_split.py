@@ -29,11 +29,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from camvlp.imaging.gray import luma
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
 from camvlp.pipeline.decode.model import decode_profile_model
-from camvlp.pipeline.detect.gray import luma
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
 
