@@ -349,17 +349,17 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     blob gives, and the result pickles unread."""
     import pickle
 
-    import camvlp.pipeline.detect.refine as refine
+    import camvlp.pipeline.detect.blob as blob_module
     from camvlp.pipeline.detect.candidates import detect_fixtures
 
     calls = []
-    real = refine.ellipse_centre_covariance
+    real = blob_module.ellipse_centre_covariance
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(refine, "ellipse_centre_covariance", counted)
+    monkeypatch.setattr(blob_module, "ellipse_centre_covariance", counted)
     res = locate(small_render.image, small_camera, small_room)
     assert res and calls == []
     unread = pickle.loads(pickle.dumps(res))
