@@ -11,9 +11,9 @@ previous frames established and uses it in the next one:
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
   no other prediction is nearly as close; a decoded ID that lands far from where the track
   predicts that fixture is refused (IDs are never swapped between fixtures);
-* **each fixture's glow**: told once (:func:`camvlp.pipeline.lamp.glow.glowing`); a glowing lamp is
-  centred on its radial shape in every frame that uses it, as :func:`camvlp.locate` centres
-  it, and a plain one is left as detected;
+* **the lights as locate finds them**: every frame runs locate's stages in its order
+  (:mod:`camvlp.pipeline.stages`), a glowing lamp centred on its radial shape as
+  :func:`camvlp.locate` centres it;
 * **the pose**: with a pose prior, two or three identified fixtures give a ``tracked`` pose
   (:func:`camvlp.geometry.pnp.refine_pose`); four or more give a ``fix`` as in
   :func:`camvlp.locate`;
