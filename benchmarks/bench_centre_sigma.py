@@ -21,7 +21,7 @@ import numpy as np
 
 import camvlp
 from camvlp.geometry.disc import perspective_offset
-from camvlp.pipeline.detect import detect_fixtures
+from camvlp.pipeline.detect.candidates import detect_fixtures
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,7 +40,7 @@ def sample(camera, room, rng, height: float, tilt_max: float = 20.0):
         settings = camvlp.RenderSettings(
             exposure_s=rng.uniform(0.1, 1.0) / 10_000.0, seed=int(rng.integers(1 << 30))
         )
-        truths = camvlp.sim.render.fixture_truths(camera, room, pose, settings)
+        truths = camvlp.fixture_truths(camera, room, pose, settings)
         if any(t.fully_inside for t in truths):
             return pose, settings
 

@@ -34,7 +34,7 @@ stripes; left out of the map ``locate`` gets), and a camera's date and time burn
 bottom-right corner.  The run ends with how often ``locate`` detected them and the IDs it gave
 them: "IDs given to data lights" and "IDs given to text", which must be 0.
 
-Run: ``python benchmarks/bench_frequency.py [--quick] [--plot docs/frequency/errors.png]``
+Run: ``python benchmarks/bench_frequency.py [--quick] [--plot out/frequency/errors.png]``
 (about ten minutes; ``--quick``, one exposure and one readout, takes a sixth of that;
 ``--plot`` draws each light's error against the periods it shows; ``--styles``,
 ``--periods`` and ``--exposures`` measure a part of the sweep with the same seeds, ``--seed
@@ -52,8 +52,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.bound import frequency_bounds, frequency_intervals, share_within
@@ -212,7 +212,7 @@ def main(argv=None) -> None:
     parser.add_argument("--periods", nargs="+", type=float, help="only these periods shown")
     parser.add_argument("--exposures", nargs="+", type=float, help="only these exposures")
     parser.add_argument(
-        "--seed", type=int, default=0, help="first seed of the sweep (0: the seeds of the README)"
+        "--seed", type=int, default=0, help="first seed of the sweep (0: the documented seeds)"
     )
     parser.add_argument(
         "--worst", type=int, default=0, help="print the N worst lights (their sweep's settings)"

@@ -12,7 +12,7 @@ degrees, exactly that angle in a random direction) for 2, 3 and 4 fixtures, fixt
 with ``--noise-px`` (0.1) Gaussian noise; a table, and a CSV and PNG with ``--out``.
 
     python benchmarks/bench_gravity.py --n 20
-    python benchmarks/bench_gravity.py --sweep --trials 300 --out docs/study
+    python benchmarks/bench_gravity.py --sweep --trials 300 --out out/gravity
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 import camvlp
 from camvlp.geometry.gravity import map_up, solve_pose_gravity
-from camvlp.pipeline.pose import estimate_pose
+from camvlp.geometry.pose import estimate_pose
 from camvlp.sim.render import fixture_truths
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -29,9 +29,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from camvlp.locate import locate
 
 import camvlp
+from camvlp import locate
 from camvlp.model.camera import Camera
 from camvlp.sim.render import RenderSettings, render
 
@@ -42,7 +42,7 @@ def _peak_child(jpeg: Path, src: Path | None = None) -> dict:
     """Peak resident memory of a fresh process: imports, then decode, then locate."""
     code = f"""
 import json, re, cv2, numpy as np, camvlp
-from camvlp.locate import locate
+from camvlp import locate
 def rss():  # high-water mark of resident memory, MB (VmHWM is reset by exec, ru_maxrss is not)
     status = open("/proc/self/status").read()
     return int(re.search(r"VmHWM:\\s+(\\d+) kB", status).group(1)) / 1024
@@ -79,7 +79,7 @@ def _worker_env(src: Path | None) -> dict:
 
 _WORKER = """
 import json, sys, time, cv2, numpy as np, camvlp
-from camvlp.locate import locate
+from camvlp import locate
 cv2.setNumThreads(1)
 _x = np.ones(20_000_000, np.uint8); del _x  # glibc's heap as after the 20 MP photo's decode
 fmap = camvlp.load_map(sys.argv[1])

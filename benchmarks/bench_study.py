@@ -26,7 +26,8 @@ import cv2
 import numpy as np
 
 from camvlp.analysis.study import round_pixels, rounding_study
-from camvlp.geometry.pnp import SOLVERS, project_batch, solve_pnp_batch
+from camvlp.geometry.pnp import SOLVERS, solve_pnp_batch
+from camvlp.geometry.projection import project_batch
 from camvlp.io import load_camera, load_map
 from camvlp.model.camera import euler_to_matrix
 

@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 import camvlp  # noqa: E402
 from camvlp.analysis.track import read_truths, run_track, summarize  # noqa: E402
 from camvlp.io.video import open_frames, read_truth  # noqa: E402
-from camvlp.pipeline.track import Tracker, TrackSettings  # noqa: E402
+from camvlp.pipeline.track.tracker import Tracker, TrackSettings  # noqa: E402
 from camvlp.sim.render import RenderSettings  # noqa: E402
 from camvlp.sim.video import load_trajectory, render_video  # noqa: E402
 
@@ -150,7 +150,7 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
 
 def _reference_cpu_ms(runs: int = 15) -> float:
     """CPU time of ``camvlp.locate`` on ``bench_locate.py``'s 1080p photo (median, ms): the
-    same call the README times on an idle machine, to tell how loaded this one is."""
+    same call docs/speed.md times on an idle machine, to tell how loaded this one is."""
     from camvlp.model.camera import Camera
     from camvlp.sim.render import render
 
@@ -243,6 +243,7 @@ def main() -> None:
         "time here (bench_locate.py, idle machine: 10.4 ms)"
     )
     if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2, default=float) + "\n")
 
 

@@ -6,8 +6,8 @@ in half the cases, blur 0.5 to 2 px, stripes of 2 to 8 rows per chip) on a 1080p
 photo read along rows or columns, twice: once in the middle of the photo, once with its disc's
 edge at a distance from one border (drawn at random) of -0.5 to 1 disc radius (below 0: the
 border cuts the disc).  The lamp is detected and centred as :func:`camvlp.locate` does
-(:func:`camvlp.pipeline.detect.detect_fixtures` then
-:func:`camvlp.pipeline.glow.centred_on_glow`); it is used when it does not count as touching
+(:func:`camvlp.pipeline.detect.candidates.detect_fixtures` then
+:func:`camvlp.pipeline.lamp.glow.centred_on_glow`); it is used when it does not count as touching
 the border.  Prints, for lamps whose disc is inside, how many are used and their centre
 errors (px, from the renderer's truth) next to the same lamps' in the middle; and how many
 lamps whose disc the border cuts are used (should be none).  Run::
@@ -22,8 +22,8 @@ import argparse
 import numpy as np
 
 from camvlp import Camera, Fixture, FixtureMap, Pose, RenderSettings, render
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import centred_on_glow
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.lamp.glow import centred_on_glow
 
 W, H, F, ROW_TIME = 1920, 1080, 1400.0, 15e-6
 CEILING_M = 2.0

@@ -13,8 +13,8 @@ distance, extent, chip length, reprojection error, centre sigma and look-alikes.
 
 Run::
 
-    python benchmarks/golden.py record before.json [--per-look 12 --seed 5]
-    python benchmarks/golden.py compare before.json after.json [--tol 0]
+    python benchmarks/golden.py record out/golden/before.json [--per-look 12 --seed 5]
+    python benchmarks/golden.py compare out/golden/before.json out/golden/after.json [--tol 0]
 
 ``compare`` prints every value that differs by more than ``--tol`` (absolute, on numbers;
 exact on everything else) and exits 1 when any does.
@@ -31,9 +31,9 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from camvlp.locate import locate
 
 import camvlp
+from camvlp import locate
 from camvlp.model.camera import Camera
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -141,6 +141,7 @@ def record(path: Path, per_look: int, seed: int) -> int:
             f"{results[name]['located']}",
             file=sys.stderr,
         )
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(results, indent=1))
     print(f"{len(results)} photos recorded in {time.perf_counter() - t0:.0f} s: {path}")
     return 0

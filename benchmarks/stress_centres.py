@@ -7,7 +7,7 @@ median, percentiles and counts over 1, 2 and 5 px (all lamps and the glowing one
 position errors, how often each coordinate's error is within 1, 2 and 3 of the result's own
 ``position_sigma``, and the lamps over 2 px.
 
-Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out.json]``;
+Run: ``python benchmarks/stress_centres.py [--per-cell 4] [--seed 3] [--json out/centres.json]``;
 ``--phone`` (with ``--tone-given`` or ``--tone-gamma G``) takes the photos of
 ``stress_decode.py --phone``, processed as a phone does.
 """
@@ -113,6 +113,7 @@ def main() -> int:
             f"{x['rows_per_chip']} rows per chip, photo {x['k']}, ID {x['id']}"
         )
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(dict(lamps=lamps, photos=photos)))
     return 0
 

@@ -39,7 +39,7 @@ decoder of its profile could tell its ID (:func:`separation`, plain discs) and w
 photo holds it at all (``camvlp.sim.oracle.id_separation``: the renderer's own model, all
 else in the photo known, on the plain sensor).  Run::
 
-    python benchmarks/stress_decode.py --per-cell 4 --plot docs/stress/decode_map.png
+    python benchmarks/stress_decode.py --per-cell 4 --plot out/stress/decode_map.png
 
 To look at one photo of a run (a miss it reported): ``--photo E R K`` renders and locates only
 photo K of the cell of E chips and R rows per chip (the same photo as in the run of the same
@@ -63,8 +63,8 @@ import cv2
 import numpy as np
 
 from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
-from camvlp.pipeline.model_decode import FIXTURE_KNEES, MIN_MARGIN
-from camvlp.pipeline.stripe_model import _direct_fit, _prepare, _templates_batch
+from camvlp.pipeline.decode.model_choice import FIXTURE_KNEES, MIN_MARGIN
+from camvlp.pipeline.decode.stripe_model import direct_fit, prepared_profile, templates_batch
 from camvlp.sim.oracle import id_separation
 from camvlp.sim.sensor import camera_date
 from camvlp.viz.annotate import annotate, write_debug_pictures
@@ -384,13 +384,13 @@ def separation(
     book = fmap.frame.codebook[ids]
     kn = np.asarray(FIXTURE_KNEES)
     one = np.ones(kn.size)
-    t = _templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
-    p, w = _prepare(profile, weights)
+    t = templates_batch(book, rpc, one * exposure, kn, one, one * blur, s)  # (K, I, P)
+    p, w = prepared_profile(profile, weights)
     x = np.arange(p.size) / rpc * s
     phases = np.arange(t.shape[2], dtype=float)
 
     def best_fit(target, k):
-        fits = [_direct_fit(target, w, t[v, k], x, phases) for v in range(kn.size)]
+        fits = [direct_fit(target, w, t[v, k], x, phases) for v in range(kn.size)]
         v = int(np.argmin([f[0].min() for f in fits]))
         j = int(np.argmin(fits[v][0]))
         return fits[v][0][j], fits[v][1][j], fits[v][2][j], v, j
@@ -643,6 +643,7 @@ def main() -> int:
         print("  ", r)
     print(_timing_lines(slow))
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(
             json.dumps(
                 dict(

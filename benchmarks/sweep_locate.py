@@ -24,9 +24,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from camvlp.locate import locate
 
 import camvlp
+from camvlp import locate
 from camvlp.sim.render import RenderSettings, render
 from camvlp.sim.sensor import PHONE
 
@@ -194,6 +194,7 @@ def main() -> int:
     for f in failures[:20]:
         print("  not decoded:", f)
     if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(rows, indent=1))
     return 0
 

@@ -1,13 +1,14 @@
-"""Render the thesis' chapter 3 poses (figures 3.8 to 3.10) into docs/gallery/.
+"""Render the thesis' chapter 3 poses (figures 3.8 to 3.10), with the gallery's page.
 
 Each photo is rendered at the thesis camera's full 5184 x 3880, then saved about 1000 px
 wide with its pose as a caption and, in the corner, a full-resolution crop of one fixture
-so that the stripes can be seen.  Also writes docs/gallery/README.md and prints the render
-time of each full-size photo.
+so that the stripes can be seen.  Also writes the page that shows them, ``index.md``, and
+prints the render time of each full-size photo.  The documentation's gallery is this
+script's output with ``--out docs/gallery``.
 
 Usage::
 
-    python examples/make_gallery.py [--out docs/gallery]
+    python examples/make_gallery.py [--out out/gallery]
 """
 
 from __future__ import annotations
@@ -93,7 +94,7 @@ def _picture(result, caption: str) -> np.ndarray:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "gallery")
+    parser.add_argument("--out", type=Path, default=ROOT / "out" / "gallery")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     camera = load_camera(ROOT / "examples" / "thesis_camera.yaml")
@@ -130,10 +131,10 @@ def main() -> None:
         for axis in (0, 1)
         for d in (1, -1)
     }
-    _write_readme(args.out, rows, limits)
+    _write_page(args.out, rows, limits)
 
 
-def _write_readme(out: Path, rows, limits) -> None:
+def _write_page(out: Path, rows, limits) -> None:
     lines = [
         "# Simulated photographs of the thesis' room (figures 3.8 to 3.10)",
         "",
@@ -176,7 +177,7 @@ def _write_readme(out: Path, rows, limits) -> None:
             f"| {_fmt(c)} | {limits[(c, 0, 1)]:.2f} / {limits[(c, 0, -1)]:.2f} | "
             f"{limits[(c, 1, 1)]:.2f} / {limits[(c, 1, -1)]:.2f} |"
         )
-    (out / "README.md").write_text("\n".join(lines) + "\n")
+    (out / "index.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Draw docs/stress/looks.png: one lamp as a linear sensor stores it and as a phone does.
+"""Draw one lamp as a linear sensor stores it and as a phone does (docs/stress/looks.png).
 
 Rows: a plain lamp, one with a hot core, one whose core lies 0.4 of the radius off its
 centre, one with a halo; columns: the plain sensor, and the
@@ -9,7 +9,7 @@ off; each crop is shown at twice its size.
 
 Usage::
 
-    python examples/make_looks.py [--out docs/stress/looks.png]
+    python examples/make_looks.py [--out out/looks.png]
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ SENSORS = [("linear sensor", {}), ("phone", PHONE)]
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=ROOT / "docs/stress/looks.png")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "looks.png")
     args = ap.parse_args()
     fmap = load_map(ROOT / "examples/thesis_room.yaml")
     camera = Camera.from_focal(1280, 960, 1250.0, row_time_s=20e-6)

@@ -5,9 +5,9 @@ grid on the floor, camera looking up at the ceiling.  Example (the thesis' room,
 
     python examples/make_survey.py --camera examples/thesis_camera.yaml \\
         --map examples/thesis_room.yaml --grid=-0.4:0.4:0.1,-0.4:0.4:0.1 \\
-        --euler 90,0,0 --jitter-deg 2 --out /tmp/survey
-    camvlp evaluate /tmp/survey/survey.csv --camera examples/thesis_camera.yaml \\
-        --map examples/thesis_room.yaml --out docs/evaluate
+        --euler 90,0,0 --jitter-deg 2 --seed 1 --quality 90 --out out/survey
+    camvlp evaluate out/survey/survey.csv --camera examples/thesis_camera.yaml \\
+        --map examples/thesis_room.yaml --out out/evaluate
 
 The grid is over the map's ``x`` and ``z`` axes; ``y`` is ``-height`` (the thesis' room has
 ``y`` pointing down, with the floor at ``y = 0`` and the ceiling at ``y = -2.7 m``).

@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
-# Set up (if needed) and run the test suite and the linter.
+# Set up (if needed) and run the linters and the test suite, on every core (pytest-xdist).
+# Usage: bash scripts/test.sh [pytest arguments], e.g. `bash scripts/test.sh -m "not slow"` for
+# the fast suite (the tests marked slow re-run end to end what faster tests already check) or
+# `bash scripts/test.sh tests/model -x`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/ruff check src tests benchmarks examples
 .venv/bin/ruff format --check src tests benchmarks examples
-.venv/bin/python -m pytest -q "$@"
+.venv/bin/lint-imports --no-cache  # the layers and the stages' order ([tool.importlinter])
+.venv/bin/python -m pytest -q -n auto "$@"

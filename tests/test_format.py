@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from camvlp.format import format_length, format_number, length_unit, mm_per_unit
+from camvlp.format import format_length, format_number, format_vector, length_unit, mm_per_unit
 
 
 @pytest.mark.parametrize(
@@ -56,3 +56,8 @@ def test_a_figure_that_rounds_to_zero_has_no_minus_sign(value, spec, text):
 def test_lengths_show_no_negative_zero():
     assert format_length(-1e-7) == "0.00 mm"
     assert format_length(-0.0, "m") == "0.000 m"
+
+
+def test_a_vector_is_shown_flat_in_g_format():
+    assert format_vector([0.59, -2.88, -9.36]) == "(0.59, -2.88, -9.36)"
+    assert format_vector(np.array([[1e-7], [2.0]])) == "(1e-07, 2)"

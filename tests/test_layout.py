@@ -1,51 +1,72 @@
-"""The package's layout: old module paths still import, the locator stays light."""
+"""The package's layout: ``import camvlp`` stays light, its public names load on first use."""
 
+import json
 import subprocess
 import sys
-import warnings
 
 import pytest
 
+import camvlp
 
-@pytest.mark.parametrize(
-    ("old", "new"),
-    [
-        ("camvlp.study", "camvlp.analysis.study"),
-        ("camvlp.simulate", "camvlp.sim.render"),
-        ("camvlp.pnp", "camvlp.geometry.pnp"),
-        ("camvlp.camera", "camvlp.model.camera"),
-    ],
+#: What ``import camvlp`` alone must not load: the stages, the simulator, the analyses, the
+#: plots, the service, the command line, and the heavy libraries they use.
+HEAVY = (
+    "camvlp.pipeline",
+    "camvlp.sim",
+    "camvlp.analysis",
+    "camvlp.viz",
+    "camvlp.service",
+    "camvlp.cli",
+    "cv2",
+    "scipy",
+    "matplotlib",
+    "fastapi",
+    "sqlalchemy",
 )
-def test_old_module_paths_import_with_a_warning(old, new):
-    code = (
-        "import warnings, importlib\n"
-        "with warnings.catch_warnings(record=True) as w:\n"
-        "    warnings.simplefilter('always')\n"
-        f"    old = importlib.import_module({old!r})\n"
-        f"new = importlib.import_module({new!r})\n"
-        "assert old is new, (old, new)\n"
-        "assert any(issubclass(x.category, DeprecationWarning) for x in w), w\n"
-        f"assert {new!r} in str(w[0].message)\n"
-    )
-    subprocess.run([sys.executable, "-c", code], check=True)
 
 
-def test_locate_function_survives_importing_its_module_path():
-    code = (
-        "import camvlp, camvlp.locate\n"
-        "from camvlp.locate import LocateResult\n"
-        "assert callable(camvlp.locate) and camvlp.locate.__name__ == 'locate'\n"
+def _modules_after(code: str) -> list[str]:
+    """The modules loaded by ``code`` in a fresh interpreter."""
+    out = subprocess.run(
+        [sys.executable, "-c", f"{code}\nimport json, sys\nprint(json.dumps(sorted(sys.modules)))"],
+        check=True,
+        capture_output=True,
+        text=True,
     )
-    subprocess.run([sys.executable, "-c", code], check=True)
+    return json.loads(out.stdout.splitlines()[-1])
+
+
+def test_importing_camvlp_loads_none_of_the_heavy_parts():
+    loaded = _modules_after("import camvlp")
+    heavy = [m for m in loaded if any(m == h or m.startswith(h + ".") for h in HEAVY)]
+    assert heavy == []
+    assert [m for m in loaded if m.startswith("camvlp")] == ["camvlp"]
+
+
+def test_a_public_name_loads_its_module_on_first_use():
+    loaded = _modules_after("import camvlp\ncamvlp.Camera")
+    assert "camvlp.model.camera" in loaded
+    assert "camvlp.pipeline.locate" not in loaded and "camvlp.sim.render" not in loaded
+
+
+@pytest.mark.parametrize("name", camvlp.__all__)
+def test_every_public_name_resolves_from_its_module(name):
+    value = getattr(camvlp, name)
+    assert value is not None
+    assert name in dir(camvlp)
+
+
+def test_an_unknown_name_is_an_attribute_error():
+    with pytest.raises(AttributeError, match="no_such_name"):
+        _ = camvlp.no_such_name
+
+
+def test_locate_is_the_function():
+    from camvlp import locate
+
+    assert callable(camvlp.locate) and camvlp.locate is locate and locate.__name__ == "locate"
 
 
 def test_locating_does_not_import_matplotlib():
-    code = "import sys, camvlp.locate\nassert 'matplotlib' not in sys.modules\n"
-    subprocess.run([sys.executable, "-c", code], check=True)
-
-
-def test_no_warning_from_the_new_paths():
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")
-        import camvlp.analysis.study
-        import camvlp.pipeline.locate  # noqa: F401
+    loaded = _modules_after("import camvlp.pipeline.locate")
+    assert "matplotlib" not in loaded

@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
+from camvlp import LocateSettings, locate
 from camvlp.io import load_camera, load_image, load_map
 
 REPO = Path(__file__).resolve().parents[1]

@@ -12,9 +12,19 @@ from __future__ import annotations
 import math
 from numbers import Integral
 
-from camvlp.model.fixtures import UNITS_TO_M
+import numpy as np
 
-__all__ = ["format_length", "format_number", "length_unit", "mm_per_unit"]
+__all__ = [
+    "UNITS_TO_M",
+    "format_length",
+    "format_number",
+    "format_vector",
+    "length_unit",
+    "mm_per_unit",
+]
+
+#: Length units a map may use, and their size in metres.
+UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 #: (smallest value in metres, factor from metres, unit name), largest first.
 _UNITS = ((0.5, 1.0, "m"), (0.01, 100.0, "cm"), (0.0, 1000.0, "mm"))
@@ -33,6 +43,17 @@ def format_number(value: float, spec: str = "") -> str:
         return format(value, spec)
     zero = format(0.0, spec)
     return zero if format(-value, spec) == zero else format(value, spec)
+
+
+def format_vector(values) -> str:
+    """A vector as text for a message, each number in ``g`` format: ``"(0.59, -2.88, -9.36)"``.
+
+    Parameters
+    ----------
+    values : array_like
+        Any shape (flattened), any units.
+    """
+    return "(" + ", ".join(f"{x:g}" for x in np.asarray(values, float).reshape(-1)) + ")"
 
 
 def length_unit(largest_m: float) -> tuple[float, str]:

@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
+import io
 import json
+import re
+import sys
 
 import cv2
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from camvlp.cli import app
-from camvlp.io import save_camera, save_map
+from camvlp.cli import app, main
+from camvlp.cli.progress import progress_bar
+from camvlp.io import load_map, save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from conftest import one_error_line
@@ -100,6 +105,65 @@ def test_bad_frames_become_lost_rows(scene, tmp_path):
     assert [r["status"] for r in rows] == ["fix", "fix", "fix", "lost"]
     assert "camera file says" in rows[3]["reason"]
     assert "warning: skipped 1 file(s) that are not images: readme.txt" in result.stderr
+    # the frame not located is counted by its reason on stderr
+    assert "note: 1 of 4 frames not located:" in result.stderr.splitlines()
+    assert "  1  image is 100 x 100 but the camera file says 640 x 360" in result.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["not_located"] == [
+        {"reason": "image is 100 x 100 but the camera file says 640 x 360", "frames": 1}
+    ]
+
+
+def test_a_wrong_camera_file_is_named_in_the_error(scene, tmp_path):
+    """Nothing located for one reason: the error line gives it, with its count of frames."""
+    save_camera(Camera.from_focal(1280, 720, 966.0, row_time_s=40e-6), tmp_path / "big.yaml")
+    result = runner.invoke(
+        app,
+        [
+            "track",
+            str(scene / "frames"),
+            *("--camera", str(tmp_path / "big.yaml"), "--map", str(scene / "room.yaml")),
+            *("--out", str(tmp_path / "out")),
+        ],
+    )
+    assert result.exit_code == 1
+    line = one_error_line(result)
+    assert line.startswith(
+        "error: no frame could be located: image is 640 x 360 but the camera file says "
+        "1280 x 720 (5 of 5 frames; "
+    ), line
+
+
+def test_the_reasons_frames_failed_are_counted_most_frequent_first(scene, tmp_path):
+    """Nothing located for two reasons (a map without the lights' IDs, two frames of another
+    size): both counted on stderr, the most frequent first, and named in the error line."""
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    names = sorted(p.name for p in (scene / "frames").glob("*.png"))
+    for n in names[:3]:
+        (folder / n).write_bytes((scene / "frames" / n).read_bytes())
+    for n in names[3:]:
+        cv2.imwrite(str(folder / n), np.zeros((100, 100), np.uint8))
+    room = load_map(scene / "room.yaml")
+    others = [dataclasses.replace(f, id=f.id - 4) for f in room.fixtures]  # 1, 2, 5, 6
+    save_map(dataclasses.replace(room, fixtures=tuple(others)), tmp_path / "other.yaml")
+    result = runner.invoke(
+        app,
+        [
+            "track",
+            str(folder),
+            *("--camera", str(scene / "cam.yaml"), "--map", str(tmp_path / "other.yaml")),
+            *("--out", str(tmp_path / "out"), "--fps", "15"),
+        ],
+    )
+    assert result.exit_code == 1
+    lines = result.stderr.splitlines()
+    assert lines[0] == "note: 5 of 5 frames not located:"
+    first, second = lines[1].split(maxsplit=1), lines[2].split(maxsplit=1)
+    assert first[0] == "3" and "identified" in first[1]
+    assert second == ["2", "image is 100 x 100 but the camera file says 640 x 360"]
+    assert lines[3] == f"error: no frame could be located: {first[1]} (3 of 5 frames; {folder})"
+    assert len(lines) == 4
 
 
 def test_a_start_after_the_last_frame_says_so(scene, tmp_path):
@@ -198,3 +262,81 @@ def test_an_interrupted_render_says_where_its_frames_are(scene, tmp_path, monkey
     assert f"interrupted: the frames so far are in {tmp_path / 'v.partial.mp4'}" in one_error_line(
         result
     )
+
+
+# --------------------------------------------------------------------------------------------
+# The progress bar: drawn on stderr when it is a terminal, else nothing
+
+_CONTROL = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
+
+
+class Terminal(io.StringIO):
+    """A stderr that says it is a terminal, and keeps what is drawn on it."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def as_terminal(monkeypatch) -> Terminal:
+    """stderr replaced by a :class:`Terminal` (an ordinary one: not TERM=dumb), from within
+    the test itself (pytest sets its own stderr again after the fixtures)."""
+    for name in ("TTY_COMPATIBLE", "TTY_INTERACTIVE", "NO_COLOR"):
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("TERM", "xterm")
+    stderr = Terminal()
+    monkeypatch.setattr(sys, "stderr", stderr)
+    return stderr
+
+
+def _drawn(stderr: Terminal) -> str:
+    return _CONTROL.sub("", stderr.getvalue())
+
+
+def _render_frames(scene, out) -> int:
+    return main(
+        [
+            "render-video",
+            *("--camera", str(scene / "cam.yaml"), "--map", str(scene / "room.yaml")),
+            *("--trajectory", str(scene / "traj.csv"), "--frames", "3", "--out", str(out)),
+        ]
+    )
+
+
+def test_render_video_and_track_draw_their_progress_on_a_terminal(scene, tmp_path, monkeypatch):
+    terminal = as_terminal(monkeypatch)
+    assert _render_frames(scene, tmp_path / "frames") == 0
+    drawn = _drawn(terminal)
+    assert "rendering" in drawn and "3/3" in drawn, drawn
+    terminal.seek(0)
+    terminal.truncate()
+    code = main(
+        [
+            "track",
+            str(tmp_path / "frames"),
+            *("--camera", str(scene / "cam.yaml"), "--map", str(scene / "room.yaml")),
+            *("--out", str(tmp_path / "track")),
+        ]
+    )
+    assert code == 0
+    drawn = _drawn(terminal)
+    assert "tracking" in drawn and "3/3" in drawn, drawn
+
+
+def test_no_bar_is_drawn_when_stderr_is_not_a_terminal(scene, tmp_path, capsys):
+    assert _render_frames(scene, tmp_path / "frames") == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert captured.out.startswith("wrote 3 frames to")
+
+
+def test_the_bar_counts_what_it_is_told(monkeypatch):
+    terminal = as_terminal(monkeypatch)
+    with progress_bar(None, "working") as update:
+        assert update is not None
+        update(2, total=5)
+    assert "working" in _drawn(terminal) and "2/5" in _drawn(terminal)
+    terminal.seek(0)
+    terminal.truncate()
+    with progress_bar(5, "quiet", show=False) as update:
+        assert update is None  # the caller's choice: no bar, nothing to call
+    assert terminal.getvalue() == ""

@@ -10,6 +10,7 @@ from camvlp.geometry.disc import (
     CENTRE_SIGMA_FLOOR_PX,
     centre_sigma,
     ellipse_centre_covariance,
+    sampson_distances,
 )
 
 CENTRE = np.array([60.3, 55.7])
@@ -89,3 +90,25 @@ def test_fits_at_once_as_each_alone_whatever_the_labels() -> None:
     for k in (1, 3, 4, 5):  # the same groups as the ranks
         np.testing.assert_allclose(got[k], got[0], rtol=1e-9, atol=1e-15)
     assert np.all(np.isfinite(got[-1])) and not np.allclose(got[-1], got[0])
+
+
+def test_sampson_distances_are_nil_on_the_rim_about_the_offset_off_it_and_differentiated():
+    t = np.radians(ANGLE)
+    p = np.array([[*CENTRE, A, B, t]])
+    phi = np.linspace(0.0, 2.0 * np.pi, 12, endpoint=False)
+    axes = np.stack([A * np.cos(phi), B * np.sin(phi)])  # the rim in the ellipse's axes
+    rot = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    rim = (rot @ axes).T + CENTRE
+    normal = (rot @ (axes / np.array([[A**2], [B**2]]))).T
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    d, _ = sampson_distances(p, rim[None, :, 0], rim[None, :, 1])
+    np.testing.assert_allclose(d, 0.0, atol=1e-12)
+    out = rim + 0.5 * normal  # half a pixel outside, along the normal
+    d, jac = sampson_distances(p, out[None, :, 0], out[None, :, 1])
+    np.testing.assert_allclose(d, 0.5, rtol=0.02)
+    for k in range(5):
+        step = np.zeros(5)
+        step[k] = 1e-6
+        hi = sampson_distances(p + step, out[None, :, 0], out[None, :, 1])[0]
+        lo = sampson_distances(p - step, out[None, :, 0], out[None, :, 1])[0]
+        np.testing.assert_allclose(jac[..., k], (hi - lo) / 2e-6, rtol=1e-5, atol=1e-8)

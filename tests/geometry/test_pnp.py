@@ -1,4 +1,4 @@
-"""Tests for camvlp.pnp: solve_pnp, solve_pnp_batch, project_batch."""
+"""Tests for camvlp.geometry.pnp (solve_pnp, solve_pnp_batch) and project_batch."""
 
 from __future__ import annotations
 
@@ -6,7 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-from camvlp.geometry.pnp import project_batch, rodrigues_batch, solve_pnp, solve_pnp_batch
+from camvlp.geometry.pnp import rodrigues_batch, solve_pnp, solve_pnp_batch
+from camvlp.geometry.projection import project_batch
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 
 CAM = Camera.from_focal(640, 480, 500.0)

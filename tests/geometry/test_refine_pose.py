@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camvlp.geometry.pnp import project_moving, refine_pose
+from camvlp.geometry.pose_prior import refine_pose
+from camvlp.geometry.projection import project_moving
 from camvlp.model.camera import Camera, Pose
 
 CAM = Camera.from_focal(1920, 1080, 1450.0, distortion=[0.05, -0.02, 0.0, 0.0, 0.0])

@@ -851,7 +851,7 @@ def api_cases(root: Path) -> list[tuple[str, Callable[[], object]]]:
         ),
     ]
     # the second round: a JPEG's scans, the tracker's times, a render's size
-    from camvlp.pipeline.track import Tracker
+    from camvlp.pipeline.track.tracker import Tracker
 
     calls.append(("decode_image(20,000 scans)", lambda: decode_image(scan_bomb(20_000, 512))))
     for t in (1e300, float("nan"), -1.0):

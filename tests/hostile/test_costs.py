@@ -11,7 +11,7 @@ from bad_inputs import scan_bomb
 
 import camvlp
 from camvlp.io.images import decode_image
-from camvlp.pipeline.track import Tracker
+from camvlp.pipeline.track.tracker import Tracker
 
 
 def test_a_jpeg_of_many_scans_is_refused_before_decoding():

@@ -14,7 +14,8 @@ from bad_inputs import jpeg_header_only, png_header_only, tiff_header_only
 
 from camvlp.errors import InputError, one_line
 from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
-from camvlp.io.images import as_image, decode_image, image_header
+from camvlp.io.image_header import image_header
+from camvlp.io.images import as_image, decode_image
 from camvlp.io.limits import limit, read_regular_file
 from camvlp.model.linecode import FrameFormat
 

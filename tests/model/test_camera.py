@@ -6,7 +6,14 @@ import cv2
 import numpy as np
 import pytest
 
-from camvlp.model.camera import Camera, Pose, euler_to_matrix, matrix_to_euler
+from camvlp.model.camera import (
+    Camera,
+    Pose,
+    euler_to_matrix,
+    matrix_to_euler,
+    rotation_from_vector,
+    rotation_z,
+)
 
 
 def _rx(t: float) -> np.ndarray:
@@ -128,6 +135,11 @@ def test_pose_rvec_tvec_is_opencv_camera_from_world():
     r_cw, _ = cv2.Rodrigues(rvec)
     np.testing.assert_allclose((r_cw @ pts.T).T + tvec, pose.to_camera(pts), atol=1e-9)
     np.testing.assert_allclose(pose.camera_from_world, r_cw, atol=1e-9)
+
+
+def test_a_rotation_vector_turns_about_its_axis_by_its_length():
+    np.testing.assert_allclose(rotation_from_vector([0.0, 0.0, np.radians(30.0)]), rotation_z(30.0))
+    np.testing.assert_array_equal(rotation_from_vector(np.zeros(3)), np.eye(3))
 
 
 def test_pose_rejects_non_rotations():

@@ -1,4 +1,5 @@
-"""Look-alike IDs told apart by the pose (camvlp.pipeline.by_pose and its use in locate)."""
+"""Look-alike IDs told apart by the pose (camvlp.pipeline.identify.by_pose, and its use in
+locate)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,6 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 from tests.conftest import (
     CEILING_Y,
     LOOK_UP,
@@ -16,18 +16,14 @@ from tests.conftest import (
     small_settings,
 )
 
-import camvlp.pipeline.locate as locate_module
+import camvlp.pipeline.decode.stage as decode_stage
+import camvlp.pipeline.lights as detect_stage
+from camvlp import locate
+from camvlp.geometry.pose import estimate_pose
+from camvlp.geometry.pose_sigma import pose_covariance, position_sigma
 from camvlp.model.camera import Pose, project_points
-from camvlp.pipeline.by_pose import (
-    TOLD_APART,
-    Spread,
-    assigned_by_pose,
-    pose_covariance,
-    position_sigma,
-    told_by_pose,
-)
-from camvlp.pipeline.model_decode import ModelDecode
-from camvlp.pipeline.pose import estimate_pose
+from camvlp.pipeline.decode.result import StripeDecode
+from camvlp.pipeline.identify.by_pose import TOLD_APART, Spread, assigned_by_pose, told_by_pose
 from camvlp.sim.render import render
 
 POSE = Pose.from_euler([0, 0, 0], LOOK_UP)
@@ -122,9 +118,9 @@ def test_the_pose_covariance_predicts_how_far_off_a_projection_comes(small_camer
     res = np.zeros_like(exact)
     res[:2] = [[2.0, 2.0], [-2.0, -2.0]]
     cov = pose_covariance(small_camera, POSE, obj, exact + res)
-    from camvlp.pipeline.by_pose import _jacobian
+    from camvlp.geometry.pose_sigma import pose_jacobian
 
-    jac = _jacobian(small_camera, POSE, far)[0]
+    jac = pose_jacobian(small_camera, POSE, far)[0]
     said = float(np.sqrt(np.trace(jac @ cov @ jac.T) / 2))
     assert seen > 5.0  # (a test that tells: far from the fixtures, several pixels)
     assert abs(said / seen - 1) < 0.2
@@ -134,13 +130,13 @@ def test_the_jacobian_is_that_of_the_moved_poses_one_by_one(small_camera, small_
     # the twelve moved poses projected at once: each column, bit for bit, as the pose
     # turned about the camera's own axis (radians), or its centre moved (map units),
     # projected alone
-    from camvlp.pipeline.by_pose import _STEP, _jacobian
+    from camvlp.geometry.pose_sigma import JACOBIAN_STEP, pose_jacobian
 
     obj = np.array([f.position for f in small_room.fixtures])
-    got = _jacobian(small_camera, POSE, obj)
+    got = pose_jacobian(small_camera, POSE, obj)
     scale = float(np.median(np.linalg.norm(obj - POSE.position, axis=1)))
     for j in range(6):
-        h = _STEP if j < 3 else _STEP * scale
+        h = JACOBIAN_STEP if j < 3 else JACOBIAN_STEP * scale
         ends = []
         for sign in (1.0, -1.0):
             e = np.zeros(3)
@@ -216,7 +212,7 @@ def test_look_alikes_are_assigned_only_from_every_way_for_the_fixtures_tried(
     # the first four fixtures (IDs 5, 6, 9, 10, each beside the next ID round the room) have
     # 5 ways with no ID twice; a cap below that tries none of them (a part of the ways could
     # miss the one that contradicts an assignment)
-    import camvlp.pipeline.by_pose as by_pose
+    import camvlp.pipeline.identify.by_pose as by_pose
 
     monkeypatch.setattr(by_pose, "HYPOTHESES", 4)
     assert _assigned(small_camera, small_room, NEXT, 0) == {}
@@ -269,7 +265,7 @@ def test_a_witness_does_not_settle_look_alikes_that_two_assignments_fit(small_ca
         assert _with_unread(small_camera, small_room, TURNED, unread, 1, witnesses=True) == {}
 
 
-_DECODE_MANCHESTER = locate_module.decode_manchester
+_DECODE_MANCHESTER = decode_stage.decode_manchester
 
 
 def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[int, int]):
@@ -291,21 +287,22 @@ def _refused(true_id: int | tuple[int, ...], candidates: tuple[int, ...] | dict[
     return fake
 
 
-def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> ModelDecode:
+def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> StripeDecode:
     """A model decode refused between look-alike ``candidates``."""
-    return ModelDecode(
+    return StripeDecode(
         None,
         f"IDs {candidates[0]} and {candidates[1]} fit almost equally (margin 0.5, at least 4 "
         "needed)",
-        0.5,
-        candidates[1],
-        0.0,
-        1.0,
-        0.0,
-        0.01,
-        0.01,
-        rows_per_chip,
-        1.5,
+        "model",
+        margin=0.5,
+        runner_up=candidates[1],
+        phase_chips=0.0,
+        gain=1.0,
+        offset=0.0,
+        residual_rms=0.01,
+        unexplained=0.01,
+        rows_per_chip=rows_per_chip,
+        frames=1.5,
         candidates=candidates,
     )
 
@@ -314,7 +311,7 @@ def _refusal(candidates: tuple[int, ...], rows_per_chip: float) -> ModelDecode:
 def test_locate_tells_a_refused_fixture_by_the_pose(
     monkeypatch, small_camera, small_room, small_render, candidates
 ):
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, candidates))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, candidates))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(
@@ -330,7 +327,7 @@ def test_locate_tells_a_refused_fixture_by_the_pose(
 def test_locate_does_not_tell_a_fixture_whose_true_id_is_not_a_candidate(
     monkeypatch, small_camera, small_room, small_render
 ):
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 12)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 12)))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(
@@ -344,7 +341,7 @@ def test_locate_assigns_look_alikes_when_no_fixture_is_identified(
     monkeypatch, small_camera, small_room, small_render
 ):
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, NEXT))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     for f in res.fixtures:
@@ -371,7 +368,7 @@ def test_locate_assigns_four_look_alikes_that_an_unread_fixture_witnesses(
         )
         return dataclasses.replace(man, decodes=tuple(decodes))
 
-    monkeypatch.setattr(locate_module, "decode_manchester", fake)
+    monkeypatch.setattr(decode_stage, "decode_manchester", fake)
     res = locate(small_render.image, small_camera, small_room)
     assert res
     for f in res.fixtures:
@@ -389,13 +386,13 @@ def test_locate_refuses_look_alikes_that_two_assignments_fit(
     monkeypatch, small_camera, small_room, small_render
 ):
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, TURNED))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, TURNED))
     res = locate(small_render.image, small_camera, small_room)
     assert not res and "at least 4 are needed" in res.reason
     assert all(f.id is None and "almost equally" in f.reason for f in res.fixtures)
 
 
-_CENTRED_ON_GLOW = locate_module.centred_on_glow
+_CENTRED_ON_GLOW = detect_stage.centred_on_glow
 
 
 def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=False):
@@ -410,7 +407,7 @@ def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=
             if np.hypot(*(b.pixel - near)) < 5:
                 cov = np.eye(2) * sigma_px**2
                 b = dataclasses.replace(
-                    b, pixel=b.pixel + shift_px, centre_cov_px2=cov, touches_border=border
+                    b, pixel=b.pixel + shift_px, centre_cov=cov, touches_border=border
                 )
             out.append(b)
         return out
@@ -433,15 +430,15 @@ def test_locate_tells_an_off_centre_look_alike_and_leaves_it_out_of_the_pose(
     # fixture 9 refused between 5 and 9, its centre 14 px off (the outlier distance is 10 px)
     # and known to 6 px: told, but not used by the pose
     nine = where(small_camera, small_room, 9)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 9)))
     shift = np.array([0.0, 14.0])
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 6.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 6.0, nine))
     res = locate(small_render.image, small_camera, small_room)
     _told_nine_not_used(res, nine + shift)
     assert sum(f.used for f in res.fixtures) == 4
     assert np.linalg.norm(res.position - POSE.position) < 0.01
     # known to 3 px, it is not told
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 3.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 3.0, nine))
     res = locate(small_render.image, small_camera, small_room)
     f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine - shift)) < 5)
     assert f.id is None and "almost equally" in f.reason
@@ -453,9 +450,9 @@ def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_po
     # fixture 9 refused between 5 and 9 and taken as cut by the border: told by the pose of
     # the others (no other fixture of the ceiling is centred within its disc), not used
     nine = where(small_camera, small_room, 9)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(9, (5, 9)))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(9, (5, 9)))
     still = np.zeros(2)
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(still, 1.0, nine, True))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(still, 1.0, nine, True))
     res = locate(small_render.image, small_camera, small_room)
     assert res
     f = next(f for f in res.fixtures if np.hypot(*(f.pixel - nine)) < 5)
@@ -465,7 +462,7 @@ def test_locate_tells_a_look_alike_cut_by_the_border_and_leaves_it_out_of_the_po
     # it seeds no joint assignment of look-alikes: the four others are one too few (a
     # fixture beyond the seeds must confirm them)
     ids = tuple(f.id for f in small_room.fixtures)
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(ids, NEXT))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(ids, NEXT))
     res = locate(small_render.image, small_camera, small_room)
     assert not res and all(f.id is None for f in res.fixtures)
 
@@ -478,10 +475,10 @@ def test_the_pose_of_assigned_look_alikes_tells_an_off_centre_one(monkeypatch, s
     room = make_small_room((*SMALL_ROOM_IDS, 3), (*SMALL_ROOM_XZ, (0.0, 0.9)))
     photo = render(small_camera, room, POSE, small_settings(seed=1))
     ring = {5: 6, 6: 10, 10: 12, 12: 3, 3: 5, 9: 5}
-    monkeypatch.setattr(locate_module, "decode_manchester", _refused(tuple(ring), ring))
+    monkeypatch.setattr(decode_stage, "decode_manchester", _refused(tuple(ring), ring))
     nine = where(small_camera, room, 9)
     shift = np.array([0.0, 30.0])
-    monkeypatch.setattr(locate_module, "centred_on_glow", _off_centre(shift, 12.0, nine))
+    monkeypatch.setattr(detect_stage, "centred_on_glow", _off_centre(shift, 12.0, nine))
     res = locate(photo.image, small_camera, room)
     _told_nine_not_used(res, nine + shift)
     assert sorted(f.id for f in res.fixtures if f.used) == [3, 5, 6, 10, 12]

@@ -1,11 +1,11 @@
-"""The clipped chords of a region's lines (camvlp.pipeline.chords)."""
+"""The clipped chords of a region's lines (camvlp.pipeline.detect.chords)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from camvlp.pipeline.chords import _clipped_chords, chord_seeds
+from camvlp.pipeline.detect.chords import _clipped_chords, chord_seeds
 
 
 def _clipped_disc(holes: float, seed: int = 0) -> tuple[np.ndarray, int, int, int]:

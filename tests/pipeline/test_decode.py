@@ -13,15 +13,11 @@ import pytest
 from scipy.ndimage import gaussian_filter1d, maximum_filter1d
 
 from camvlp.model.linecode import FrameFormat
-from camvlp.pipeline import decode as decode_mod
-from camvlp.pipeline.decode import (
-    decode_profile,
-    decode_profiles,
-    find_runs,
-    row_profile,
-    shape_profile,
-)
-from camvlp.pipeline.profile import _nonzero
+from camvlp.pipeline.decode import chips as chips_mod
+from camvlp.pipeline.decode.chips import bleeds, chip_lengths
+from camvlp.pipeline.decode.profile import _nonzero, row_profile, shape_profile
+from camvlp.pipeline.decode.run_decode import decode_profile, decode_profiles
+from camvlp.pipeline.decode.runs import find_runs, flat_runs, stripe_levels_many
 
 FRAME = FrameFormat()  # preamble 111, 4 ID bits, postamble 00: 18 chips
 SUB = 20  # time samples per row
@@ -88,7 +84,7 @@ def test_every_id_decodes_under_bleeding_blur_and_noise(fid):
         assert bool(dec)
         assert dec.reason == ""
         assert dec.rows_per_chip == pytest.approx(case["rows_per_chip"], rel=0.02)
-        assert 0.0 <= dec.margin <= 1.0
+        assert 0.0 <= dec.run_margin <= 1.0
         assert dec.frames >= 1.0
 
 
@@ -116,7 +112,7 @@ def test_exact_chip_length_and_no_bleeding_on_a_clean_profile():
     assert dec.hamming == 0
     assert dec.rows_per_chip == pytest.approx(5.0, rel=1e-3)
     assert abs(dec.bleed_rows) < 0.3  # the threshold above half trims bright runs a little
-    assert dec.margin > 0.9
+    assert dec.run_margin > 0.9
 
 
 def test_bleeding_is_measured():
@@ -334,17 +330,17 @@ def test_grid_searches_pick_what_a_direct_search_picks():
         case = random_case(rng)
         case["noise"] = rng.uniform(0.0, 20.0)
         profiles.append(synth_profile(FRAME.chips(int(rng.integers(16))), rng=rng, **case))
-    lo, hi = decode_mod._levels(profiles)
-    r = decode_mod._flat_runs(profiles, lo + 0.6 * (hi - lo))
-    t = decode_mod._chip_lengths(r, 64.0)
-    d, p = decode_mod._spacings(r)
+    lo, hi = stripe_levels_many(profiles)
+    r = flat_runs(profiles, lo + 0.6 * (hi - lo))
+    t = chip_lengths(r, 64.0)
+    d, p = chips_mod._spacings(r)
     told = 0
     for k in range(len(profiles)):
         if np.count_nonzero(p == k) >= 2 and np.isfinite(t[k]):
             assert t[k] == _direct_chip_length(d[p == k])
             told += 1
     which = np.flatnonzero((r.n_edges >= 4) & np.isfinite(t))
-    b = decode_mod._bleeds(r, t, which)
+    b = bleeds(r, t, which)
     ties = 0
     for k, bleed in zip(which.tolist(), b.tolist(), strict=True):
         runs = slice(r.run_starts[k] + 1, r.run_starts[k] + r.n_edges[k])  # the interior ones

@@ -13,21 +13,22 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
+from camvlp.imaging.gray import to_gray
+from camvlp.imaging.levels import counted_percentiles, percentiles_u8
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.detect import (
+from camvlp.pipeline.detect.candidates import (
     _blurred_peak,
     _close_lit,
     _decimated_gray,
     _median_u8,
     _outlines,
     detect_fixtures,
-    to_gray,
 )
-from camvlp.pipeline.levels import _counted_percentiles, _percentiles_u8
-from camvlp.pipeline.refine import _bridged, _drop_duplicates
+from camvlp.pipeline.detect.disc import _bridged
+from camvlp.pipeline.detect.duplicates import drop_duplicates
 from camvlp.sim.render import RenderSettings, render
 from conftest import LOOK_UP, SMALL_DIAMETER, small_settings
 
@@ -259,7 +260,7 @@ def test_median_by_counting_is_the_histograms():
             g = rng.integers(100, 140, (h, w)).astype(float)
             g[::16] = rng.integers(0, 20)
         g = g.astype(np.uint8)
-        assert _median_u8(g) == _percentiles_u8(g, [50])[0]
+        assert _median_u8(g) == percentiles_u8(g, [50])[0]
 
 
 def test_blurred_peak_is_the_blurs_maximum():
@@ -304,8 +305,8 @@ def test_percentiles_by_counting_are_the_histograms():
         g = g.astype(np.uint8)[:, :: int(rng.integers(1, 3))]
         qs = [float(rng.choice([0.0, 10.0, 50.0, 99.5, 100.0, rng.uniform(0, 100)])), 99.5]
         guesses = [int(v) for v in rng.integers(-10, 300, 2)]
-        expected = _percentiles_u8(np.ascontiguousarray(g), qs)
-        assert _counted_percentiles(g, qs, guesses) == expected
+        expected = percentiles_u8(np.ascontiguousarray(g), qs)
+        assert counted_percentiles(g, qs, guesses) == expected
 
 
 @pytest.mark.parametrize("s", [1, 2, 3, 8])
@@ -381,7 +382,7 @@ def test_disc_closing_of_the_lit_box_equals_the_whole_regions():
 
 
 def _candidate(box, centre, axes, radii, cell=True, pixel=None):
-    """A refined candidate's fields for ``_drop_duplicates``: an elliptical mask of ``radii``
+    """A refined candidate's fields for ``drop_duplicates``: an elliptical mask of ``radii``
     (x, y) about ``centre`` (photo px) in ``box`` ``(x0, y0, x1, y1)``, its outline ``axes``
     about ``pixel`` (default ``centre``)."""
     x0, y0, x1, y1 = box
@@ -398,7 +399,7 @@ def _candidate(box, centre, axes, radii, cell=True, pixel=None):
 
 
 def _areas(found) -> list[float]:
-    """The candidates' discs' pixels, as ``_drop_duplicates`` is given them."""
+    """The candidates' discs' pixels, as ``drop_duplicates`` is given them."""
     return [float(np.count_nonzero(fields["mask"])) for fields, _ in found]
 
 
@@ -408,11 +409,11 @@ def test_a_split_regions_round_light_is_not_a_wild_neighbours_duplicate():
     # within half that outline's smaller axis and was dropped
     wild = _candidate((0, 0, 240, 400), (120, 200), (544, 229), (110, 160), pixel=(230, 200))
     round_ = _candidate((200, 60, 460, 340), (330, 200), (106, 96), (50, 48))
-    kept = _drop_duplicates([wild, round_], _areas([wild, round_]))
+    kept = drop_duplicates([wild, round_], _areas([wild, round_]))
     assert len(kept) == 2
     # the same two without cells (two regions of one lamp, or glow): as before, one
     alone = [(dict(c[0], cell=None), None) for c in (wild, round_)]
-    assert len(_drop_duplicates(alone, _areas(alone))) == 1
+    assert len(drop_duplicates(alone, _areas(alone))) == 1
 
 
 def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
@@ -421,7 +422,7 @@ def test_a_sliver_of_glow_a_split_took_for_a_light_stays_a_duplicate():
     # off the lamp
     lamp = _candidate((300, 300, 800, 700), (550, 515), (458, 347), (220, 170))
     sliver = _candidate((340, 650, 680, 720), (505, 682), (315, 76), (150, 30))
-    kept = _drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
+    kept = drop_duplicates([lamp, sliver], _areas([lamp, sliver]))
     assert len(kept) == 1 and kept[0][0] is lamp[0]
 
 

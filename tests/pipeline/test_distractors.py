@@ -8,8 +8,8 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.model.camera import Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.render import render

@@ -6,12 +6,13 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
+from camvlp import LocateSettings, locate
+from camvlp.imaging.gray import to_gray
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.detect import detect_fixtures, to_gray
-from camvlp.pipeline.frequency import assign_frequencies, decode_frequencies
+from camvlp.pipeline.decode.frequency import assign_frequencies, decode_frequencies
+from camvlp.pipeline.detect.candidates import detect_fixtures
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 26.5e-6

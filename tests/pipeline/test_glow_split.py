@@ -1,13 +1,13 @@
-"""Lights read from their glows taken apart (camvlp.pipeline.glow_split)."""
+"""Lights read from their glows taken apart (camvlp.pipeline.decode.glow_split)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-import camvlp.pipeline.locate as locate_module
+import camvlp.pipeline.decode.stage as decode_stage
 from camvlp import locate
-from camvlp.pipeline.glow_split import separated_waveforms
+from camvlp.pipeline.decode.glow_split import separated_waveforms
 from conftest import stress_scene, stress_settings
 
 
@@ -72,7 +72,9 @@ _SEVEN = (
 )
 
 
-@pytest.mark.parametrize(("seed", "alone"), [(958737899, False), (5, None)])
+@pytest.mark.parametrize(
+    ("seed", "alone"), [(958737899, False), pytest.param(5, None, marks=pytest.mark.slow)]
+)
 def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
     seed, alone, monkeypatch
 ):
@@ -97,7 +99,7 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
 
     got = read(locate(image, cam, room))
     assert got == {i: i for i, *_ in _SEVEN}, got
-    monkeypatch.setattr(locate_module, "decode_from_glows", lambda img, b, man, fm: (man, {}))
+    monkeypatch.setattr(decode_stage, "decode_from_glows", lambda img, b, man, fm: (man, {}))
     before = read(locate(image, cam, room))
     if alone is not None:
         assert (before.get(9) is not None) == alone, before  # the disc alone does not tell it
@@ -107,7 +109,7 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
 def test_a_photo_of_more_lights_than_the_cap_is_not_taken_apart(monkeypatch):
     """The normal equations grow with the square of the lights: past MAX_LIGHTS the decodes
     stay as they are, and nothing is fitted."""
-    import camvlp.pipeline.glow_split as gs
+    import camvlp.pipeline.decode.glow_split as gs
 
     look = dict(brightness=7.18, off_level=0.082, core=1.34, halo=0.35, blur_px=1.18)
     cam, room, _, image = stress_scene(

@@ -5,14 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import camvlp.pipeline.light_wave as light_wave_module
+import camvlp.pipeline.lamp.light_wave as light_wave_module
+from camvlp.imaging.gray import to_gray
+from camvlp.imaging.stripe_period import estimate_stripe_period
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.beacon import BeaconProfile, square_wave, stripes_period
-from camvlp.pipeline.detect import detect_fixtures, light_support, to_gray
-from camvlp.pipeline.frequency import decode_frequencies
-from camvlp.pipeline.light_wave import LightWave, separated_wave
-from camvlp.pipeline.stripes import estimate_stripe_period
+from camvlp.pipeline.decode.beacon import BeaconProfile, square_wave
+from camvlp.pipeline.decode.beacon_match import stripes_period
+from camvlp.pipeline.decode.frequency import decode_frequencies
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.detect.disc import light_support
+from camvlp.pipeline.lamp.light_wave import LightWave, separated_wave
 from camvlp.sim.render import RenderSettings, render
 
 ROW_TIME_S = 1 / 47_540.0
@@ -236,7 +239,7 @@ def test_a_disc_clipped_all_over_fails_instead_of_fitting_the_background():
 
 
 def test_a_steady_light_is_refused_instead_of_fitted_with_a_long_period():
-    from camvlp.pipeline.beacon import hold_against
+    from camvlp.pipeline.decode.beacon_match import hold_against
 
     gray, support, ellipse = _striped_disc(period=1e9)
     got = separated_wave(gray, support, ellipse, "rows")
@@ -289,16 +292,16 @@ def test_the_shape_fit_is_the_same_on_the_cells_that_hold_pixels(monkeypatch, it
     rho = rng.uniform(0.0, 400.0, n)
     value = 50.0 * np.exp(-rho / 150.0) * (1.0 + 0.5 * (line % 7 > 3)) + rng.normal(0, 1, n)
     monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 10**9)
-    dense = light_wave_module._aggregate(rho, line, value, 400, 0.5)
+    dense = light_wave_module.aggregate(rho, line, value, 400, 0.5)
     monkeypatch.setattr(light_wave_module, "_DENSE_CELLS_PER_PIXEL", 0)
-    cells = light_wave_module._aggregate(rho, line, value, 400, 0.5)
-    assert isinstance(cells[1], light_wave_module._Cells) and not isinstance(
-        dense[1], light_wave_module._Cells
+    cells = light_wave_module.aggregate(rho, line, value, 400, 0.5)
+    assert isinstance(cells[1], light_wave_module.Cells) and not isinstance(
+        dense[1], light_wave_module.Cells
     )
     assert cells[0] == dense[0]  # the same knots
     for a, b in zip(
-        light_wave_module._shape_fit(dense, None, iters),
-        light_wave_module._shape_fit(cells, None, iters),
+        light_wave_module.shape_fit(dense, None, iters),
+        light_wave_module.shape_fit(cells, None, iters),
         strict=True,
     ):
         np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * float(np.max(np.abs(a))))

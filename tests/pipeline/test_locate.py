@@ -15,11 +15,12 @@ import json
 import numpy as np
 import pytest
 
+import camvlp.pipeline.solve as solve_module
+from camvlp.geometry.pose import estimate_pose
 from camvlp.io import InputError
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.locate import LocateSettings, locate
-from camvlp.pipeline.pose import estimate_pose
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
 
@@ -132,18 +133,20 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     assert np.array(d["rotation"]).shape == (3, 3)
     assert d["euler_deg"] == pytest.approx(list(small_render.pose.euler_deg), abs=0.05)
     assert d["position"] == pytest.approx(list(small_render.pose.position), abs=MAX_ERROR_M)
-    assert {"detect", "decode", "pose"} <= set(d["timing_ms"])
+    assert {"prepare", "detect", "profile", "decode", "pose", "total"} == set(d["timing_ms"])
     assert all(v >= 0 for v in d["timing_ms"].values())
     assert len(d["fixtures"]) == 5
     for f in d["fixtures"]:
         assert {"id", "pixel", "used", "margin", "reason"} <= set(f)
         assert len(f["pixel"]) == 2
-        assert f["margin"] >= 0.0
+        assert f["margin"] is None or f["margin"] >= 0.0
         if f["id"] is not None and f["used"] and f["hamming"] == -1:
             assert f["margin"] >= 4.0  # the likelihood ratio the model fit needs
+            assert f["run_margin"] is None
         elif f["id"] is not None and f["used"]:  # read by the run-length decoder
             assert f["hamming"] == 0
-            assert 0.3 <= f["margin"] <= 1.0
+            assert f["margin"] is None  # it weighs no likelihoods
+            assert 0.3 <= f["run_margin"] <= 1.0
     assert sorted(f["id"] for f in d["fixtures"]) == sorted(small_room.ids)
     assert "error" not in d
     # how sure the position is: the pixels' rounding at most, so well under MAX_ERROR_M
@@ -342,26 +345,27 @@ def test_the_centres_covariances_are_worked_out_when_first_read(
     small_render, small_camera, small_room, monkeypatch
 ):
     """A plain photo's ``locate`` does not work out the centres' covariances (a tenth of a
-    1080p photo's time); reading one works them all out at once, the same values as the
-    detector's blobs give, and the result pickles unread."""
+    1080p photo's time); reading one works it out, once, the same value as the detector's
+    blob gives, and the result pickles unread."""
     import pickle
 
-    import camvlp.pipeline.refine as refine
-    from camvlp.pipeline.detect import detect_fixtures
+    import camvlp.pipeline.detect.blob as blob_module
+    from camvlp.pipeline.detect.candidates import detect_fixtures
 
     calls = []
-    real = refine.ellipse_centre_covariances
+    real = blob_module.ellipse_centre_covariance
 
-    def counted(fits):
-        calls.append(len(fits))
-        return real(fits)
+    def counted(*args):
+        calls.append(1)
+        return real(*args)
 
-    monkeypatch.setattr(refine, "ellipse_centre_covariances", counted)
+    monkeypatch.setattr(blob_module, "ellipse_centre_covariance", counted)
     res = locate(small_render.image, small_camera, small_room)
     assert res and calls == []
     unread = pickle.loads(pickle.dumps(res))
     sigmas = [f.centre_sigma_px for f in res.fixtures]
-    assert calls == [len(res.fixtures)]  # one batch for the photo
+    assert [f.centre_sigma_px for f in res.fixtures] == sigmas
+    assert len(calls) == len(res.fixtures)  # one each, once
     assert [f.centre_sigma_px for f in unread.fixtures] == sigmas
     blobs = detect_fixtures(small_render.image).blobs
     by_pixel = {tuple(np.round(b.pixel, 6)): b.centre_sigma_px for b in blobs}
@@ -392,25 +396,24 @@ def test_a_position_less_sure_than_asked_is_not_reported(small_render, small_cam
 def test_a_position_sigma_checked_against_a_limit_is_worked_out_once(
     small_render, small_camera, small_room, monkeypatch
 ):
-    import camvlp.pipeline.by_pose as by_pose
-    import camvlp.pipeline.locate as locate_module
+    import camvlp.geometry.pose_sigma as pose_sigma
 
     calls = []
-    real = by_pose.position_sigma
+    real = pose_sigma.position_sigma
 
     def counted(*args):
         calls.append(1)
         return real(*args)
 
-    monkeypatch.setattr(by_pose, "position_sigma", counted)
-    monkeypatch.setattr(locate_module, "position_sigma", counted)
+    monkeypatch.setattr(pose_sigma, "position_sigma", counted)
+    monkeypatch.setattr(solve_module, "position_sigma", counted)
     limited = LocateSettings(max_position_sigma=1.0)
     res = locate(small_render.image, small_camera, small_room, limited)
     assert res and calls == [1]
     assert res.to_dict()["position_sigma"] == np.round(res.position_sigma, 6).tolist()
     assert calls == [1]
     # a sigma that is not finite is refused, and said so
-    monkeypatch.setattr(locate_module, "position_sigma", lambda *a: np.array([1e-6, np.nan, 0.0]))
+    monkeypatch.setattr(solve_module, "position_sigma", lambda *a: np.array([1e-6, np.nan, 0.0]))
     res = locate(small_render.image, small_camera, small_room, limited)
     assert not res and "along y is not finite, for the limit of 1" in res.reason
 

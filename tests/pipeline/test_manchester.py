@@ -1,4 +1,4 @@
-"""The run-length fast path before the model fit (camvlp.pipeline.manchester)."""
+"""The run-length fast path before the model fit (camvlp.pipeline.decode.manchester)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,7 @@ from tests.pipeline.test_model_decode import FRAME, synth
 
 from camvlp import Camera, Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.manchester import _reversed_ids, decode_manchester
-from camvlp.pipeline.model_decode import ModelDecode
+from camvlp.pipeline.decode.manchester import _reversed_ids, decode_manchester
 
 CAMERA = Camera.from_focal(1920, 1080, 1400.0)  # no row time: the chip length is measured
 RPC = 5.0
@@ -40,7 +38,7 @@ def test_clean_stripes_need_no_model_fit():
     ids = [1, 3, 5, 6, 9]
     man = decode_manchester(profiles(ids, rng), Readout.ROWS, True, CAMERA, fmap(ids))
     assert [d.id for d in man.decodes] == ids
-    assert all(isinstance(d, StripeDecode) and d.hamming == 0 for d in man.decodes)
+    assert all(d.method == "runs" and d.hamming == 0 for d in man.decodes)
     assert man.model is None and np.isnan(man.exposure_chips)
     assert abs(man.rows_per_chip / RPC - 1) < 0.02
 
@@ -51,8 +49,8 @@ def test_only_the_refused_fixture_goes_to_the_model():
     ps = profiles(ids, rng)
     ps[2] = ps[2][: int(0.9 * FRAME.n_chips * RPC)]  # under one frame: the fast path refuses
     man = decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))
-    assert isinstance(man.decodes[2], ModelDecode)
-    assert all(isinstance(man.decodes[k], StripeDecode) for k in (0, 1, 3, 4))
+    assert man.decodes[2].method == "model"
+    assert all(man.decodes[k].method == "runs" for k in (0, 1, 3, 4))
     assert man.model is not None
     assert man.decodes[2].id in (None, 5)  # never another ID
 

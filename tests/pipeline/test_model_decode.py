@@ -12,7 +12,7 @@ import pytest
 from scipy.ndimage import gaussian_filter1d
 
 from camvlp import FrameFormat
-from camvlp.pipeline.model_decode import (
+from camvlp.pipeline.decode.model import (
     SensorModel,
     decode_photo,
     decode_profile_model,

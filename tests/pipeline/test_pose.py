@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
+from camvlp.geometry.pose import estimate_pose
 from camvlp.model.camera import Camera, Pose
-from camvlp.pipeline.pose import estimate_pose
 
 CAMERA = Camera.from_focal(1280, 960, 1000.0)
 UP = np.array([0.0, 1.0, 0.0])  # ceiling fixtures face down into the room (+y)
@@ -259,7 +259,7 @@ def test_clear_ippe_fit_gives_the_pose_of_every_candidate(monkeypatch):
     """Coplanar fixtures: when IPPE's better pose reprojects within CLEAR_FIT_PX, the other
     solvers are not tried, and the pose and its alternative are those of every candidate;
     when IPPE gives none (three of four fixtures on a line), every solver is tried."""
-    import camvlp.pipeline.pose as pose_mod
+    import camvlp.geometry.pose as pose_mod
 
     calls: list[tuple[int, ...]] = []
     real = pose_mod.pnp_candidates

@@ -1,10 +1,10 @@
-"""Row profiles' weights (camvlp.pipeline.profile): each line's inverse variance."""
+"""Row profiles' weights (camvlp.pipeline.decode.profile): each line's inverse variance."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from camvlp.pipeline.profile import _trimmed, row_profile, shape_profiles
+from camvlp.pipeline.decode.profile import _trimmed, row_profile, shape_profiles
 
 
 def _disc(radius: float, size: int = 120) -> np.ndarray:

@@ -10,10 +10,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from camvlp.locate import LocateSettings, locate
 
+import camvlp.pipeline.decode.stage as decode_stage
+from camvlp import LocateSettings, locate
 from camvlp.model.camera import Pose
 from camvlp.model.linecode import FrameFormat
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.sim.render import render
 from conftest import LOOK_UP, make_small_camera, make_small_room, small_settings
 
@@ -121,17 +123,14 @@ def test_swapped_pairs_in_the_map_are_read_the_way_that_fits_the_map():
 def _unread(true_pixel: np.ndarray):
     """locate's Manchester decode with the fixture at ``true_pixel`` unread both ways (as
     one whose stripes span too little of the code)."""
-    import camvlp.pipeline.locate as locate_module
-    from camvlp.pipeline.model_decode import ModelDecode
+    real = decode_stage.decode_manchester
 
-    real = locate_module.decode_manchester
-
-    def fake(profiles, readout, direction_known, camera, fixture_map, *weights):
-        man = real(profiles, readout, direction_known, camera, fixture_map, *weights)
+    def fake(profiles, readout, direction_known, camera, fixture_map, *more, **kw):
+        man = real(profiles, readout, direction_known, camera, fixture_map, *more, **kw)
         assert man.other is not None  # (the stripes alone leave the direction open)
         k = int(np.argmin([np.hypot(*(p - true_pixel)) for p in _PIXELS]))
-        nothing = ModelDecode(
-            None, "spans 0.5 frames of the code", 0.0, None, 0.0, 1.0, 0.0, 0.01, 0.01, 4.0, 0.5
+        nothing = StripeDecode(
+            None, "spans 0.5 frames of the code", "model", margin=0.0, rows_per_chip=4.0, frames=0.5
         )
 
         def without(decodes):
@@ -156,14 +155,14 @@ def _located_with_unread(monkeypatch, xz, readout: str, seed: int):
     pose = Pose.from_euler([0.02, 0.0, -0.03], [LOOK_UP[0] + 1.0, -1.0, 25.0])
     photo = render(camera, room, pose, small_settings(readout=readout, seed=seed))
     truth = {t.id: t.pixel for t in photo.fixtures}
-    real_profiles = locate_module._profiles
+    real_profiles = locate_module.read_profiles
 
     def profiles(img, blobs, ro):
         _PIXELS[:] = [b.pixel for b in blobs]
         return real_profiles(img, blobs, ro)
 
-    monkeypatch.setattr(locate_module, "_profiles", profiles)
-    monkeypatch.setattr(locate_module, "decode_manchester", _unread(truth[6]))
+    monkeypatch.setattr(locate_module, "read_profiles", profiles)
+    monkeypatch.setattr(decode_stage, "decode_manchester", _unread(truth[6]))
     return truth, locate(photo.image, camera, room)
 
 

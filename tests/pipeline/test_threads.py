@@ -7,11 +7,11 @@ import pytest
 from tests.pipeline.test_glow import _photo
 from threadpoolctl import threadpool_info, threadpool_limits
 
-import camvlp.pipeline.light_wave as light_wave
-import camvlp.pipeline.radial as radial
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.threads import one_blas_thread
+import camvlp.pipeline.lamp.light_wave as light_wave
+import camvlp.pipeline.lamp.radial as radial
+from camvlp.imaging.threads import one_blas_thread
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.lamp.glow import centred_on_glow
 
 
 def _blas_threads() -> set[int]:
@@ -36,15 +36,15 @@ def two_threads():
 
 def test_a_glowing_lights_fit_runs_on_one_blas_thread(monkeypatch, two_threads):
     seen = []
-    real = light_wave._shape_fit
+    real = light_wave.shape_fit
 
     def spy(*args, **kwargs):
         if len(seen) < 3:  # (threadpool_info costs a millisecond)
             seen.append(_blas_threads())
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(radial, "_shape_fit", spy)
-    monkeypatch.setattr(light_wave, "_shape_fit", spy)
+    monkeypatch.setattr(radial, "shape_fit", spy)
+    monkeypatch.setattr(light_wave, "shape_fit", spy)
     photo, _ = _photo(0, halo=0.4, brightness=1.0)
     blobs = [b for b in detect_fixtures(photo.image).blobs if not b.touches_border]
     moved = centred_on_glow(photo.image, blobs, "rows")

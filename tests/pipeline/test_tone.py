@@ -1,4 +1,4 @@
-"""Tests of undoing a camera's tone curve (camvlp.pipeline.tone and the camera's tone_gamma)."""
+"""Tests of undoing a camera's tone curve (camvlp.imaging.tone and the camera's tone_gamma)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from camvlp import LocateSettings, locate
+from camvlp.imaging.tone import linear_light
 from camvlp.io import load_map
 from camvlp.model.camera import Camera, Pose
-from camvlp.pipeline.tone import linear_light
 from camvlp.sim.render import RenderSettings, render
 
 

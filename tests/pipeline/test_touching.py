@@ -7,20 +7,17 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
-from camvlp.locate import locate
 
+from camvlp import locate
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.chords import chord_seeds
-from camvlp.pipeline.detect import detect_fixtures
-from camvlp.pipeline.glow import centred_on_glow
-from camvlp.pipeline.touching import (
-    _run_modes,
-    codes_differ,
-    light_seeds,
-    one_disc,
-    power_cell,
-)
+from camvlp.pipeline.detect.candidates import detect_fixtures
+from camvlp.pipeline.detect.chords import chord_seeds
+from camvlp.pipeline.detect.codes import codes_differ
+from camvlp.pipeline.detect.faces import _run_modes
+from camvlp.pipeline.detect.peaks import light_seeds, power_cell
+from camvlp.pipeline.detect.touching import one_disc
+from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 
@@ -160,7 +157,7 @@ def _glowing(seed: int, exposure_chips: float, **look: float) -> RenderSettings:
 POSE = Pose.from_euler([0.01, 0.0, 0.02], [90.0, 0.0, 0.0])
 
 
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow)])
 def test_lamps_whose_glows_clip_together_are_found_by_their_dark_stripes(seed):
     # halos of 0.37 at 3.3 times full scale clip together across the gaps in every bright
     # stripe, so no threshold of the bright stripes parts the lamps (one lit region, or a
@@ -226,7 +223,7 @@ _FIFTEEN = (
 )
 
 
-@pytest.mark.parametrize("seed", [773888642, 1])
+@pytest.mark.parametrize("seed", [773888642, pytest.param(1, marks=pytest.mark.slow)])
 def test_lamps_whose_glows_join_without_a_neck_are_told_apart_by_their_codes(seed):
     # hot cores (1.9) and halos (0.32) at 5.7 times full scale, read along the columns of a
     # portrait photo: lamps 3 and 6 (and 14 and 8), apart along the stripes, join into one
@@ -263,7 +260,7 @@ _SEVEN = (
 )
 
 
-@pytest.mark.parametrize("seed", [555841730, 1])
+@pytest.mark.parametrize("seed", [555841730, pytest.param(1, marks=pytest.mark.slow)])
 def test_lamps_whose_glows_fill_the_ceiling_are_found_by_their_faces_at_long_exposures(seed):
     # hot cores (2.6) and halos (0.29) at 6.9 times full scale, exposure 0.85 chip: the
     # glows' stripes fill the ceiling between the lamps and clip together into one region

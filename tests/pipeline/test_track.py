@@ -9,14 +9,15 @@ import cv2
 import numpy as np
 import pytest
 
-import camvlp.pipeline.glow
-import camvlp.pipeline.track
+import camvlp.pipeline.decode.stage as decode_stage
 from camvlp.errors import InputError
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
-from camvlp.pipeline.track import ConstantVelocityFilter, Tracker, TrackSettings
+from camvlp.pipeline.locate import locate
+from camvlp.pipeline.track.tracker import ConstantVelocityFilter, Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.video import Trajectory, iter_frames
+from camvlp.sim.trajectory import Trajectory
+from camvlp.sim.video import iter_frames
 
 FPS = 15.0
 
@@ -102,25 +103,20 @@ def test_glowing_lamps_are_centred_on_their_shape():
     assert len(px) == 12 and np.median(px) < 0.2 and max(px) < 0.4, px
 
 
-def test_plain_lamps_cost_one_glow_check(video, monkeypatch):
-    # a lamp's glow is told once (a ring of samples); a plain one is never fitted
-    cam, room, frames = video
-    told = []
-
-    def glowing(img, blobs):
-        told.extend(blobs)
-        return real(img, blobs)
-
-    def no_fit(*args):
-        raise AssertionError("a plain lamp was centred on its radial shape")
-
-    real = camvlp.pipeline.track.glowing
-    monkeypatch.setattr(camvlp.pipeline.track, "glowing", glowing)
-    monkeypatch.setattr(camvlp.pipeline.glow, "radial_fit", no_fit)
-    tracker = Tracker(cam, room)
-    results = [tracker.update(f.image, f.t) for f in frames]
-    used = {i for r in results for i in r.fixtures_used}
-    assert len(told) == len(used) == 4
+@pytest.mark.parametrize("halo", [0.0, 0.4])
+def test_the_tracker_reads_a_first_frame_as_locate_does(halo):
+    # the same stages in the same order: the same lights, centred alike (a glowing lamp on
+    # its radial shape), with the same IDs
+    cam, room, traj = small_scene()
+    frame = next(iter(iter_frames(cam, room, traj, FPS, RenderSettings(seed=3, halo=halo))))
+    alone = locate(frame.image, cam, room)
+    tracked = Tracker(cam, room, TrackSettings(rolling_shutter=False)).update(frame.image, 0.0)
+    assert alone and tracked.status == "fix"
+    got = {f.id: f.pixel for f in tracked.fixtures if f.id is not None}
+    want = {f.id: f.pixel for f in alone.fixtures if f.id is not None}
+    assert got.keys() == want.keys() and len(got) >= 4
+    for i, pixel in want.items():
+        np.testing.assert_allclose(got[i], pixel, atol=1e-9)
 
 
 def smear(image: np.ndarray, centre, radius: int) -> np.ndarray:
@@ -252,17 +248,15 @@ def test_the_readout_direction_is_found_never_guessed(readout):
 def test_the_tracker_weighs_the_rows_as_locate_does(video, monkeypatch):
     # the model fit weighs each profile line by its inverse variance (its pixels): the
     # tracker decodes the stripes it must with the same weights as camvlp.locate
-    import camvlp.pipeline.locate as loc
-
     cam, room, frames = video
     seen = []
-    real = loc.decode_manchester
+    real = decode_stage.decode_manchester
 
-    def spy(profiles, readout, known, camera, fixture_map, weights=None):
+    def spy(profiles, readout, known, camera, fixture_map, weights=None, *more, **kw):
         seen.append((len(profiles), None if weights is None else len(weights)))
-        return real(profiles, readout, known, camera, fixture_map, weights)
+        return real(profiles, readout, known, camera, fixture_map, weights, *more, **kw)
 
-    monkeypatch.setattr(loc, "decode_manchester", spy)
+    monkeypatch.setattr(decode_stage, "decode_manchester", spy)
     tracker = Tracker(cam, room, TrackSettings(carry_chip_length=False))
     tracker.update(frames[0].image, 0.0)
     assert seen and all(n == w for n, w in seen)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import cv2
@@ -74,12 +75,26 @@ def photo_png() -> bytes:
 TEST_DB_URL = os.environ.get("CAMVLP_TEST_DB_URL")
 
 
+def drop_all(url: str) -> None:
+    """Drop the service's tables and Alembic's version table from the database at ``url``."""
+    import sqlalchemy as sa
+
+    from camvlp.service.db import make_engine, metadata
+
+    engine = make_engine(url)
+    try:
+        metadata.drop_all(engine)
+        with engine.begin() as conn:
+            conn.execute(sa.text("DROP TABLE IF EXISTS alembic_version"))
+    finally:
+        engine.dispose()
+
+
 def make_client(tmp_path: Path, **settings):
     """A TestClient of a fresh service on a SQLite file in ``tmp_path`` (or ``TEST_DB_URL``)."""
     from fastapi.testclient import TestClient
 
     from camvlp.service import ServiceSettings, create_app
-    from camvlp.service.db import make_engine, metadata
 
     settings.setdefault("stream_max_s", 0.5)
     settings.setdefault("admin_key", ADMIN_KEY)
@@ -87,9 +102,7 @@ def make_client(tmp_path: Path, **settings):
     url = f"sqlite:///{tmp_path / 'service.db'}"
     if TEST_DB_URL:
         url = TEST_DB_URL
-        engine = make_engine(url)
-        metadata.drop_all(engine)
-        engine.dispose()
+        drop_all(url)
     return TestClient(create_app(ServiceSettings(db=url, **settings)))
 
 
@@ -124,10 +137,17 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
+def start_server(
+    db_path: Path,
+    port: int,
+    *args: str,
+    timeout_s: float = 30.0,
+    tls: tuple[Path, Path] | None = None,
+):
     """Start ``camvlp serve`` on 127.0.0.1:port with a SQLite file; wait until it answers.
 
-    Returns the ``subprocess.Popen``; stop it with :func:`stop_server`.
+    With ``tls`` (a certificate and its key), it serves HTTPS, checked against that
+    certificate.  Returns the ``subprocess.Popen``; stop it with :func:`stop_server`.
     """
     import os
     import subprocess
@@ -144,6 +164,10 @@ def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
     env["PYTHONPATH"] = os.pathsep.join([src, env.get("PYTHONPATH", "")])
     cmd = [sys.executable, "-m", "camvlp", "serve", "--db", f"sqlite:///{db_path}"]
     cmd += ["--host", "127.0.0.1", "--port", str(port), "--log-level", "warning", *args]
+    health, verify = f"http://127.0.0.1:{port}/api/v1/health", True
+    if tls is not None:
+        cmd += ["--tls-cert", str(tls[0]), "--tls-key", str(tls[1])]
+        health, verify = health.replace("http:", "https:"), tls_context(tls[0])
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
@@ -151,13 +175,37 @@ def start_server(db_path: Path, port: int, *args: str, timeout_s: float = 30.0):
             _, err = proc.communicate()
             raise RuntimeError(f"camvlp serve exited {proc.returncode}: {err.decode()[-2000:]}")
         try:
-            if httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=1.0).status_code == 200:
+            if httpx.get(health, timeout=1.0, verify=verify).status_code == 200:
                 return proc
         except httpx.HTTPError:
             pass
         time.sleep(0.1)
     stop_server(proc)
     raise RuntimeError(f"camvlp serve did not answer within {timeout_s} s")
+
+
+def tls_context(cert: Path):
+    """An SSL context that trusts ``cert`` alone (a self-signed certificate)."""
+    import ssl
+
+    return ssl.create_default_context(cafile=str(cert))
+
+
+def self_signed(folder: Path) -> tuple[Path, Path] | None:
+    """A certificate for 127.0.0.1 and its key (openssl, 2 days), or None without openssl."""
+    import subprocess
+
+    openssl = shutil.which("openssl")
+    if openssl is None:
+        return None
+    cert, key = folder / "cert.pem", folder / "key.pem"
+    subprocess.run(
+        [openssl, "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-days", "2", "-subj",
+         "/CN=127.0.0.1", "-addext", "subjectAltName=IP:127.0.0.1", "-keyout", str(key),
+         "-out", str(cert)],
+        check=True, capture_output=True,
+    )  # fmt: skip
+    return cert, key
 
 
 def stop_server(proc) -> tuple[str, str]:
@@ -171,3 +219,24 @@ def stop_server(proc) -> tuple[str, str]:
         proc.kill()
         out, err = proc.communicate()
     return out.decode(errors="replace"), err.decode(errors="replace")
+
+
+# --- a real browser --------------------------------------------------------------------------
+
+#: Debian's Chromium, driven by playwright (its own browser downloads are not used).
+CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
+#: Headless, and quiet: no connection of its own to anywhere.
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+#: Skips a test when there is no Chromium to drive.
+needs_chromium = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="no chromium installed")
+#: When set, the browser tests also save their screenshots into this folder (docs/serve).
+SCREENSHOTS = os.environ.get("CAMVLP_SCREENSHOTS")

@@ -511,8 +511,10 @@ def test_the_stream_delivers_a_fix_made_while_it_is_open(tmp_path, photo_png):
 def test_the_page_and_the_docs_are_served(client):
     r = client.get("/sites/1")
     assert r.status_code == 200 and "text/html" in r.headers["content-type"]
-    assert '<script src="/static/site.js">' in r.text
-    for asset in ("site.js", "site.css"):
+    assert '<script type="module" src="/static/site.js">' in r.text
+    r = client.get("/sites/1/capture")
+    assert r.status_code == 200 and '<script type="module" src="/static/capture.js">' in r.text
+    for asset in ("site.js", "site.css", "common.js", "capture.js"):
         assert client.get(f"/static/{asset}").status_code == 200
     assert client.get("/static/nope.js").status_code == 404
     spec = client.get("/openapi.json").json()
@@ -526,6 +528,7 @@ def test_the_page_and_the_docs_are_served(client):
         "/api/v1/sites/{site_id}/fixes/stream",
         "/api/v1/sites/{site_id}/fixes/{fix_id}",
         "/api/v1/sites/{site_id}/fixes/{fix_id}/picture",
+        "/api/v1/sites/{site_id}/frames",
     ):
         assert path in spec["paths"], path
     assert client.get("/docs").status_code == 200

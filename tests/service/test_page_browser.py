@@ -1,4 +1,5 @@
-"""The site's page in headless Chromium: it draws the plan, uploads a photo, shows the fix.
+"""The site's page and the API's documentation in headless Chromium: the page draws the plan,
+uploads a photo, shows the fix; Swagger UI and ReDoc render with nothing from other hosts.
 
 Skipped when no Chromium (Debian's package) or no playwright is installed.
 """
@@ -14,26 +15,18 @@ import pytest
 from service_helpers import (
     ADMIN,
     CAMERA_JSON,
+    CHROMIUM,
+    CHROMIUM_ARGS,
     MAP_JSON,
+    SCREENSHOTS,
     free_port,
+    needs_chromium,
     photo_png,  # noqa: F401  (fixture)
     start_server,
     stop_server,
 )
 
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMIUM_ARGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-]
-
-pytestmark = pytest.mark.skipif(not Path(CHROMIUM).exists(), reason="no chromium installed")
+pytestmark = needs_chromium
 
 
 def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
@@ -104,3 +97,57 @@ def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):
                 browser.close()
     finally:
         stop_server(proc)
+
+
+def test_the_api_documentation_renders_offline(tmp_path: Path):
+    """Swagger UI and ReDoc render from the service's own files: every request the pages
+    make goes to the service (any other is refused and counted), and the operations show."""
+    sync_api = pytest.importorskip("playwright.sync_api")
+    port = free_port()
+    base = f"http://127.0.0.1:{port}"
+    proc = start_server(tmp_path / "docs.db", port)
+    elsewhere: list[str] = []
+
+    def only_here(route) -> None:
+        if route.request.url.startswith(base + "/"):
+            route.continue_()
+        else:
+            elsewhere.append(route.request.url)
+            route.abort()
+
+    try:
+        with sync_api.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1200, "height": 900})
+                page.route("**/*", only_here)
+                page.goto(f"{base}/docs")
+                page.wait_for_selector(".opblock-summary-path", timeout=30_000)
+                paths = page.eval_on_selector_all(
+                    ".opblock-summary-path", "els => els.map(e => e.dataset.path)"
+                )
+                assert "/api/v1/sites/{site_id}/frames" in paths
+                assert "/api/v1/sites/{site_id}/locate" in paths and len(paths) >= 11
+                assert page.locator(".opblock-summary-path").first.is_visible()
+                _screenshot(page, tmp_path / "docs.png")
+                redoc = browser.new_page(viewport={"width": 1200, "height": 900})
+                redoc.route("**/*", only_here)
+                redoc.goto(f"{base}/redoc")
+                # every operation has its section, with its heading, in the page
+                operation = redoc.get_by_role("heading", name="Post Frame").first
+                operation.wait_for(state="visible", timeout=30_000)
+                assert redoc.get_by_role("heading", name="Locate Photo").first.is_visible()
+                _screenshot(redoc, tmp_path / "redoc.png")
+            finally:
+                browser.close()
+    finally:
+        stop_server(proc)
+    assert elsewhere == []
+
+
+def _screenshot(page, shot: Path) -> None:
+    """Take ``page``'s screenshot into ``shot``, and a copy into ``CAMVLP_SCREENSHOTS``."""
+    page.screenshot(path=str(shot))
+    assert shot.stat().st_size > 0
+    if SCREENSHOTS:
+        shutil.copy(shot, Path(SCREENSHOTS) / shot.name)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import httpx
 import numpy as np
+import pytest
 from service_helpers import (
     ADMIN,
     CAMERA_JSON,
@@ -13,10 +15,13 @@ from service_helpers import (
     PHOTO_POSITION,
     free_port,
     photo_png,  # noqa: F401  (fixture)
+    self_signed,
     start_server,
     stop_server,
+    tls_context,
 )
 
+from camvlp.cli import main
 from conftest import one_error_line
 
 
@@ -65,12 +70,13 @@ def test_serve_refuses_bad_options_in_one_line(tmp_path: Path, capsys):
     from camvlp.cli import main
 
     db = f"sqlite:///{tmp_path / 'x.db'}"
+    (tmp_path / "x.db").write_bytes(b"")  # a file: no folder can be made in its place
     for args, words in (
         (["--port", "0"], "--port must be 1 to 65535"),
         (["--workers", "0"], "--workers must be a positive number"),
         (["--max-upload-mb", "-1"], "--max-upload-mb must be a positive number"),
         (["--db", "nosuchdb://x"], "cannot open the database"),
-        (["--db", f"sqlite:///{tmp_path / 'no' / 'such' / 'dir.db'}"], "cannot open the database"),
+        (["--db", f"sqlite:///{tmp_path / 'x.db' / 'dir.db'}"], "the database's folder"),
         (["--log-level", "loud"], "--log-level must be one of critical, error"),
         (["--host", "256.1.1.1"], "cannot listen on 256.1.1.1:8000"),
     ):
@@ -144,3 +150,41 @@ def test_the_stream_carries_fixes_of_every_worker(tmp_path: Path, photo_png):
         assert seen == made
     finally:
         stop_server(proc)
+
+
+def test_serve_https_with_a_self_signed_certificate(tmp_path: Path, capsys):
+    tls = self_signed(tmp_path)
+    if tls is None:
+        pytest.skip("no openssl to make a certificate")
+    port = free_port()
+    proc = start_server(tmp_path / "tls.db", port, "--log-level", "info", tls=tls)
+    try:
+        base = f"https://127.0.0.1:{port}"
+        trust = tls_context(tls[0])
+        r = httpx.get(f"{base}/sites/1/capture?device=phone-3", verify=trust)
+        assert r.status_code == 200 and "capture.js" in r.text
+        with pytest.raises(httpx.ConnectError):  # a client that does not trust it stops
+            httpx.get(f"{base}/api/v1/health")
+        with pytest.raises(httpx.HTTPError):  # and plain HTTP gets no answer
+            httpx.get(f"http://127.0.0.1:{port}/api/v1/health", timeout=3)
+    finally:
+        _, err = stop_server(proc)
+    # every line of the log is one JSON object; each request one line, without its query
+    lines = [json.loads(line) for line in err.splitlines() if line.strip()]
+    requests = [line for line in lines if line["logger"] == "camvlp.access"]
+    page = [line for line in requests if line["path"] == "/sites/1/capture"]
+    assert len(page) == 1 and page[0]["status"] == 200 and page[0]["device"] == "phone-3"
+    assert page[0]["route"] == "/sites/{site_id}/capture" and page[0]["site"] == 1
+    assert any(line["logger"].startswith("uvicorn") for line in lines)
+    # a key without its certificate, a file that is not a key, a key of another certificate
+    (tmp_path / "other").mkdir()
+    other = self_signed(tmp_path / "other")
+    cases = [
+        (["--tls-cert", str(tls[0])], "--tls-cert and --tls-key go together"),
+        (["--tls-cert", str(tls[0]), "--tls-key", str(tmp_path / "tls.db")], "cannot use"),
+        (["--tls-cert", str(tls[0]), "--tls-key", str(other[1])], "cannot use"),
+        (["--tls-cert", str(tmp_path / "none.pem"), "--tls-key", str(tls[1])], "is not a file"),
+    ]
+    for args, words in cases:
+        assert main(["serve", "--db", f"sqlite:///{tmp_path / 'x.db'}", *args]) == 2
+        assert words in one_error_line(capsys.readouterr().err), args

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from camvlp.pipeline.model_decode import MIN_MARGIN
+from camvlp.pipeline.decode.model_choice import MIN_MARGIN
 from camvlp.sim.oracle import id_separation
 from conftest import stress_scene, stress_settings
 

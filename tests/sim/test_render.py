@@ -414,6 +414,28 @@ def test_bad_settings_name_the_argument(kwargs, name):
         RenderSettings(**kwargs)
 
 
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"row_time_s": 1.0}, "row_time_s must be below 1 s, got 1.0"),
+        ({"halo": "a"}, "halo must be a non-negative number, got 'a'"),
+        ({"sharpen": float("inf")}, "sharpen must be finite, got inf"),
+        ({"blur_px": 101.0}, "blur_px must be at most 100 px"),
+        ({"off_level": True}, "off_level must be a number from 0 to 1, got True"),
+        ({"vignetting": 1.0}, "vignetting must be a number from 0 to below 1, got 1.0"),
+        ({"black_point": "x"}, "black_point must be a number from 0 to below 1, got 'x'"),
+        ({"core_offset": 2}, r"core_offset must be a number from 0 to 1 \(radii\), got 2"),
+        ({"gamma": 0}, "gamma must be a positive number, got 0"),
+        ({"bayer": 1}, "bayer must be true or false, got 1"),
+        ({"data_lights": (1, 1)}, "an ID twice"),
+        ({"colours": "red"}, "colours must be BGR triples"),
+    ],
+)
+def test_each_bad_setting_gets_its_own_message(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        RenderSettings(**kwargs)
+
+
 def test_fixture_without_diameter_cannot_be_rendered():
     fmap = FixtureMap((Fixture(5, np.array([0, -1.0, 0])),))
     with pytest.raises(ValueError, match="fixture 5 has no diameter"):

@@ -14,7 +14,9 @@ from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim import video
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.video import Trajectory, load_trajectory, render_frame, render_video
+from camvlp.sim.trajectory import Trajectory, load_trajectory
+from camvlp.sim.video import render_video
+from camvlp.sim.video_frame import render_frame
 
 CAM = Camera.from_focal(320, 240, 250.0, row_time_s=100e-6)
 ROOM = FixtureMap(

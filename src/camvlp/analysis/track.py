@@ -21,6 +21,7 @@ import csv
 import io
 import math
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,11 +29,20 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import read_text_file
+from camvlp.io.textfiles import read_text_file
 from camvlp.io.video import FrameSource, read_truth
-from camvlp.pipeline.track import STATUSES, Tracker, TrackFrame
+from camvlp.pipeline.track.tracker import STATUSES, Tracker, TrackFrame
 
-__all__ = ["TRAJECTORY_CSV_COLUMNS", "TrackRun", "Truths", "read_truths", "run_track", "summarize"]
+__all__ = [
+    "LOCATED",
+    "TRAJECTORY_CSV_COLUMNS",
+    "TrackRun",
+    "Truths",
+    "not_located_reasons",
+    "read_truths",
+    "run_track",
+    "summarize",
+]
 
 #: Columns of ``trajectory.csv``.
 TRAJECTORY_CSV_COLUMNS = (
@@ -241,7 +251,9 @@ def summarize(run: TrackRun, truths: Truths | None = None) -> dict:
 
     Keys: ``frames``, one count per status (``fix``, ``tracked``, ``predicted``, ``lost``),
     ``fix_rate`` and ``fix_or_tracked_rate`` (fractions of the frames), ``frames_per_second``
-    (reading included), ``reading_share``, ``warnings``; with the truth, ``errors``:
+    (reading included), ``reading_share``, ``warnings``, ``not_located`` (why the frames that
+    were neither a fix nor tracked were not located: ``{"reason", "frames"}`` per reason,
+    the most frequent first, a tie in the order met); with the truth, ``errors``:
     ``position_rmse`` (filtered, over frames with a position), ``raw_position_rmse`` (the
     frames' own solves), ``position_max``, ``angle_rmse_deg`` (map units, degrees), per status;
     with the fixtures' truth, ``wrong_ids`` (blobs given an ID whose nearest true fixture
@@ -260,6 +272,7 @@ def summarize(run: TrackRun, truths: Truths | None = None) -> dict:
         "frames_per_second": n / run.seconds if run.seconds > 0 else None,
         "reading_share": run.read_seconds / run.seconds if run.seconds > 0 else None,
         "warnings": list(run.warnings),
+        "not_located": not_located_reasons(frames),
     }
     truths = truths or Truths()
     if truths.poses is not None:
@@ -267,6 +280,18 @@ def summarize(run: TrackRun, truths: Truths | None = None) -> dict:
     if truths.fixtures is not None:
         out.update(_id_checks(run, truths.fixtures))
     return out
+
+
+#: The statuses of a located frame (its own fix, or tracked from its fixtures).
+LOCATED = ("fix", "tracked")
+
+
+def not_located_reasons(frames: list[TrackFrame]) -> list[dict]:
+    """Why the frames that were not located (neither ``fix`` nor ``tracked``) were not:
+    ``[{"reason": text, "frames": count}, ...]``, the most frequent reason first (a tie in
+    the order the reasons were met); a frame without a reason counts as "no reason given"."""
+    counts = Counter(f.reason or "no reason given" for f in frames if f.status not in LOCATED)
+    return [{"reason": reason, "frames": n} for reason, n in counts.most_common()]
 
 
 def _rmse(e: np.ndarray) -> float | None:

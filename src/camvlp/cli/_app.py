@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import inspect
 import math
 import os
+import re
 import sys
 import warnings
 from collections.abc import Callable
@@ -12,14 +14,66 @@ from typing import Annotated, Any, NoReturn, TypeVar
 
 import numpy as np
 import typer
+from typer.core import TyperGroup
 
 from camvlp.errors import one_line
 from camvlp.geometry import pnp
 from camvlp.io import InputError
 from camvlp.model.readout import Readout
 
+#: A line that starts a list item in a help text: ``- item``, ``* item``, ``1. item``, ``2) item``.
+_LIST_ITEM = re.compile(r"([-*]|\d+[.)])\s")
+
+
+def reflow(text: str | None) -> str | None:
+    """A help text with each paragraph's lines joined into one line, which the terminal then
+    wraps to its width; paragraph breaks (a blank line), list items (lines that start with
+    ``- ``, ``* ``, ``1. `` or ``1) ``, their continuation lines joined to them) and
+    paragraphs that start with ``\\b`` (click's "keep as written") are kept."""
+    if not text:
+        return text
+    paragraphs = []
+    for paragraph in re.split(r"\n[ \t]*\n", inspect.cleandoc(text)):
+        if paragraph.startswith("\b"):
+            paragraphs.append(paragraph)
+            continue
+        lines: list[str] = []
+        for line in paragraph.splitlines():
+            line = line.strip()
+            if lines and line and not _LIST_ITEM.match(line):
+                lines[-1] += " " + line
+            elif line:
+                lines.append(line)
+        paragraphs.append("\n".join(lines))
+    return "\n\n".join(p for p in paragraphs if p)
+
+
+def reflow_help(command: Any) -> None:
+    """:func:`reflow` the help of ``command``, of its options and arguments, and of its
+    subcommands, all the way down (in place); flags are shown without a value's type."""
+    command.help = reflow(command.help)
+    for param in command.params:
+        if getattr(param, "help", None):
+            param.help = reflow(param.help)
+        if getattr(param, "is_flag", False) and param.metavar is None:
+            param.metavar = ""  # a flag takes no value: no "<bool>" after its name
+    for sub in getattr(command, "commands", {}).values():
+        reflow_help(sub)
+
+
+class ReflowedHelpGroup(TyperGroup):
+    """The command group of ``camvlp``: every help text reflowed (:func:`reflow`) once, when
+    the group is built, so that docstrings written across several lines wrap cleanly at any
+    terminal width."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        reflow_help(self)
+
+
 app = typer.Typer(
     name="camvlp",
+    cls=ReflowedHelpGroup,
     help="Visible light positioning with a rolling-shutter camera.",
     no_args_is_help=True,
     add_completion=False,
@@ -27,7 +81,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
-#: Exit codes (docs/cli.md): located / not located / bad input or usage.
+#: Exit codes (docs/reliability.md): located / not located / bad input or usage.
 EXIT_OK, EXIT_NOT_LOCATED, EXIT_BAD_INPUT = 0, 1, 2
 #: Exit code when stdout was closed early (``camvlp ... | head -1``): 128 + SIGPIPE, what a
 #: shell shows for a tool that SIGPIPE ended (as 130 = 128 + SIGINT after Ctrl-C).

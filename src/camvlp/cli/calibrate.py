@@ -1,22 +1,27 @@
-"""``camvlp calibrate`` and ``camvlp calibrate-rows``: make a camera file."""
+"""``camvlp calibrate`` and ``camvlp calibrate-rows``: make a camera file;
+``camvlp render-chessboard``: photos to try calibrate on."""
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import re
 import sys
 from pathlib import Path
 from typing import Annotated, NoReturn
 
+import cv2
 import typer
 
 from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
 from camvlp.format import format_number
 from camvlp.io import InputError, load_camera, load_image, save_camera
-from camvlp.io.atomic import check_output_file, strict_json
-from camvlp.sim.chessboard import MIN_BOARD_SIDE
+from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
+from camvlp.sim.chessboard import MIN_BOARD_SIDE, chessboard_views
+from camvlp.sim.render import check_render_size
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
+from .progress import progress_bar
 
 #: Image files taken from a directory given as an argument.
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}
@@ -144,13 +149,8 @@ def _calibrate_with_progress(
     zero_tangent: bool,
 ) -> CalibrationResult:
     """:func:`calibrate_camera` with a progress bar on stderr (a terminal, 5 photos or more)."""
-    from rich.console import Console
-    from rich.progress import Progress
-
-    console = Console(stderr=True)
-    show = len(paths) >= PROGRESS_FROM and console.is_terminal
-    with Progress(console=console, transient=True, disable=not show) as progress:
-        task = progress.add_task("finding the board", total=len(paths))
+    with progress_bar(len(paths), "finding the board", show=len(paths) >= PROGRESS_FROM) as update:
+        done = itertools.count(1)
         return calibrate_camera(
             paths,
             board,
@@ -158,7 +158,7 @@ def _calibrate_with_progress(
             row_time_s=row_time_s,
             fix_aspect=fix_aspect,
             zero_tangent=zero_tangent,
-            on_image=lambda _name: progress.advance(task),
+            on_image=None if update is None else lambda _name: update(next(done)),
         )
 
 
@@ -313,3 +313,106 @@ def calibrate_rows(
         )
     if out is not None:
         print(f"written    {out}")
+
+
+#: Most views ``camvlp render-chessboard`` renders in one run.
+MAX_VIEWS = 500
+
+
+@app.command("render-chessboard")
+@handle_errors
+def render_chessboard_command(
+    camera_path: Annotated[
+        Path, typer.Option("--camera", "-c", help="Camera file (YAML/JSON) to take the photos.")
+    ],
+    out: Annotated[
+        Path, typer.Option("--out", "-o", metavar="DIR", help="Folder for the photos and truth.")
+    ],
+    views: Annotated[
+        int, typer.Option("--views", "-n", metavar="N", help="Photos to render.")
+    ] = 12,
+    board: Annotated[
+        str,
+        typer.Option(
+            "--board",
+            metavar="COLSxROWS",
+            help="Inner corners of the board, e.g. 9x6 for 10 x 7 squares.",
+        ),
+    ] = "9x6",
+    square: Annotated[
+        float, typer.Option("--square", metavar="SIZE_M", help="Side of one square, metres.")
+    ] = 0.025,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the poses and the noise.")] = 0,
+    blur: Annotated[
+        float, typer.Option("--blur", metavar="PX", help="Optical blur sigma, pixels.")
+    ] = 0.7,
+    noise: Annotated[
+        float,
+        typer.Option("--noise", metavar="GREY", help="Sensor noise sigma, grey levels (of 255)."),
+    ] = 2.0,
+) -> None:
+    """Render chessboard photos as a camera file's camera would take them, to try calibrate on.
+
+    Each view sees the whole board from a random pose (tilted 20 to 40 degrees, filling 55 to
+    80 % of the picture), through the camera's lens distortion, blurred and with noise.
+    Writes DIR/board_01.png ... and DIR/truth.json (the camera, the board, each view's pose
+    in the board's frame and its inner corners' true pixels), all or none; `camvlp calibrate
+    DIR --board COLSxROWS --square SIZE_M` should then find the camera file's intrinsics.
+    """
+    cols_rows = _parse_board(board)
+    if not square > 0 or square > 100:
+        fail(f"--square must be a positive size in metres, at most 100, got {square}")
+    if not 1 <= views <= MAX_VIEWS:
+        fail(f"--views must be from 1 to {MAX_VIEWS}, got {views}")
+    if seed < 0:
+        fail(f"--seed must be a non-negative integer, got {seed}")
+    if not 0 <= blur <= 100:
+        fail(f"--blur must be from 0 to 100 pixels, got {blur}")
+    if not 0 <= noise <= 255:
+        fail(f"--noise must be from 0 to 255 grey levels, got {noise}")
+    check_output_dir(out, "--out")
+    names = [f"board_{k:0{max(2, len(str(views)))}d}.png" for k in range(1, views + 1)]
+    for name in (*names, "truth.json") if out.is_dir() else ():
+        check_output_file(out / name, "--out")
+    camera = load_camera(camera_path)
+    check_render_size(camera, camera_path)
+    rendered = chessboard_views(
+        camera, cols_rows, square, views, seed=seed, blur_px=blur, noise=noise
+    )
+    truth = _chessboard_truth(camera, cols_rows, square, seed, blur, noise)
+    with StagedOutputs() as outputs, progress_bar(views, "rendering") as update:
+        staged = outputs.folder(out)
+        for k, (name, view) in enumerate(zip(names, rendered, strict=True), 1):
+            if not cv2.imwrite(str(staged / name), view.image):
+                fail(f"cannot write {out / name}")
+            truth["views"].append(
+                {
+                    "photo": name,
+                    "position_m": view.pose.position.tolist(),
+                    "world_from_camera": view.pose.world_from_camera.tolist(),
+                    "corners_px": view.corners_px.round(4).tolist(),
+                }
+            )
+            if update is not None:
+                update(k)
+        (staged / "truth.json").write_text(strict_json(truth, indent=1) + "\n")
+    print(f"wrote {views} photos of a {board} board and truth.json to {out}")
+    print(f"calibrate with: camvlp calibrate {out} --board {board} --square {square:g}")
+
+
+def _chessboard_truth(camera, board: tuple[int, int], square: float, seed, blur, noise) -> dict:
+    """The head of render-chessboard's truth.json: the camera and how the photos were made."""
+    return {
+        "camera": {
+            "image_width": camera.width,
+            "image_height": camera.height,
+            "camera_matrix": camera.matrix.tolist(),
+            "distortion_coefficients": camera.distortion.tolist(),
+        },
+        "board": list(board),
+        "square_m": square,
+        "seed": seed,
+        "blur_px": blur,
+        "noise_grey": noise,
+        "views": [],
+    }

@@ -12,13 +12,13 @@ from camvlp.analysis.evaluate import (
     Evaluation,
     evaluate_survey,
     read_survey,
-    write_evaluation,
 )
 from camvlp.format import mm_per_unit
 from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.sim.survey import default_jobs
+from camvlp.viz.evaluate_plots import write_evaluation
 
 from ._app import (
     GravitySigmaOption,
@@ -32,6 +32,7 @@ from ._app import (
     fail,
     handle_errors,
 )
+from .progress import progress_bar
 
 
 @app.command("evaluate")
@@ -48,7 +49,10 @@ def evaluate_command(
         Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
     ],
     out: Annotated[
-        Path, typer.Option("--out", "-o", help="Folder for results.csv, summary.json, plots.")
+        Path,
+        typer.Option(
+            "--out", "-o", metavar="OUT", help="Folder for results.csv, summary.json, plots."
+        ),
     ],
     jobs: Annotated[
         int | None, typer.Option("--jobs", "-j", help="Worker processes (default: all cores).")
@@ -68,9 +72,12 @@ def evaluate_command(
 ) -> None:
     """Locate every photo of SURVEY and compare with the true positions.
 
-    Writes OUT/results.csv (one row per photo), OUT/summary.json and two plots:
+    Writes into the folder OUT:
 
-    OUT/error_map.png (the error over the floor) and OUT/positions.png (true and estimated).
+    - results.csv, one row per photo;
+    - summary.json, the figures;
+    - error_map.png, the error over the floor;
+    - positions.png, the true and estimated positions.
 
     Photos that cannot be read or located are counted and listed; the run goes on. A photo
     with a sidecar PHOTO.json giving gravity is located with it (two fixtures are enough).
@@ -112,36 +119,8 @@ def evaluate_command(
 
 def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
     """Evaluate with a progress bar on stderr (shown only on a terminal)."""
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
-    console = Console(stderr=True)
-    with Progress(
-        TextColumn("locating"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-        transient=True,
-        disable=not console.is_terminal,
-    ) as bar:
-        task = bar.add_task("locate", total=len(survey))
-        return evaluate_survey(
-            survey,
-            camera,
-            fixture_map,
-            settings,
-            jobs=jobs,
-            progress=lambda done, total: bar.update(task, completed=done),
-        )
+    with progress_bar(len(survey), "locating") as update:
+        return evaluate_survey(survey, camera, fixture_map, settings, jobs=jobs, progress=update)
 
 
 def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Annotated
 
 import cv2
+import numpy as np
 import typer
 
 from camvlp.format import format_number
@@ -187,11 +188,14 @@ def _print_human(result, units: str, photo: Path) -> None:
         ident = f"ID {f.id:>3}" if f.id is not None else "ID   ?"
         state = "used" if f.used else f"not used: {f.reason}"
         u, v = (format_number(c, "7.1f") for c in f.pixel)
-        print(f"  {ident}  at ({u}, {v})  margin {format_number(f.margin, '.2f')}  {state}")
+        sure = (
+            f"run margin {format_number(f.run_margin, '.2f')}"
+            if np.isfinite(f.run_margin)
+            else f"margin {format_number(f.margin, '.1f')}"
+        )
+        print(f"  {ident}  at ({u}, {v})  {sure}  {state}")
     t = result.timing_ms
-    print(
-        f"time          {t['total']:.0f} ms (detect {t['detect']:.0f}, decode {t['decode']:.0f}, "
-        f"pose {t['pose']:.0f})"
-    )
+    stages = ", ".join(f"{k} {v:.0f}" for k, v in t.items() if k != "total")
+    print(f"time          {t['total']:.0f} ms ({stages})")
     for note in result.notes:
         print(f"note          {note}")

@@ -18,13 +18,16 @@ from ._app import app, check_positive, fail, handle_errors
 @handle_errors
 def serve_command(
     db: Annotated[
-        str,
+        str | None,
         typer.Option(
             "--db",
-            help="Database URL: sqlite:///FILE (default camvlp.db here) or e.g. "
-            "postgresql+psycopg://USER@HOST/NAME.",
+            envvar="CAMVLP_DB",
+            metavar="URL|FILE",
+            help="The database: a SQLite file (a path, or sqlite:///FILE; its folder is "
+            "created) or a URL such as postgresql+psycopg://USER@HOST/NAME. Default: camvlp.db "
+            "in the user's data folder ($XDG_DATA_HOME/camvlp, else ~/.local/share/camvlp).",
         ),
-    ] = "sqlite:///camvlp.db",
+    ] = None,
     host: Annotated[str, typer.Option("--host", help="Address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="TCP port.")] = 8000,
     workers: Annotated[int, typer.Option("--workers", help="Service processes.")] = 1,
@@ -38,21 +41,46 @@ def serve_command(
         float, typer.Option("--max-megapixels", help="Largest photo (megapixels); larger: 413.")
     ] = 50.0,
     log_level: Annotated[
-        str, typer.Option("--log-level", help="uvicorn's: critical, error, warning, info, debug.")
+        str,
+        typer.Option(
+            "--log-level",
+            help="Lowest level logged (JSON lines on stderr, one per request at info): "
+            "critical, error, warning, info, debug.",
+        ),
     ] = "info",
+    tls_cert: Annotated[
+        Path | None,
+        typer.Option("--tls-cert", help="Serve HTTPS with this certificate (PEM; with --tls-key)."),
+    ] = None,
+    tls_key: Annotated[
+        Path | None, typer.Option("--tls-key", help="The certificate's private key (PEM).")
+    ] = None,
+    migrate: Annotated[
+        bool,
+        typer.Option(
+            "--migrate",
+            help="Upgrade the database's schema to this version's (back it up first), then "
+            "exit without serving.",
+        ),
+    ] = False,
 ) -> None:
-    """Serve the HTTP API (/api/v1, docs at /docs) and each site's live page (/sites/ID).
+    """Serve the HTTP API (/api/v1, docs at /docs) and each site's pages (/sites/ID).
 
-    Sites, cameras, maps and fixes are kept in the database; several processes share it
+    /sites/ID/capture is the page that locates a phone from its camera's frames.
+    Sites, cameras, maps and fixes are kept in the database (--db; by default camvlp.db in
+    the user's data folder; the start line says where it is); several processes share it
     (--workers, or several machines with one PostgreSQL database). Sites are created with
     the admin key set in the environment variable CAMVLP_ADMIN_KEY (at least 16 characters).
+    A database made by an older version is upgraded by --migrate (the service refuses to
+    start on it until then); phones give their camera only to HTTPS pages: --tls-cert and
+    --tls-key, or a reverse proxy (docs/service.md).
     """
-    import sqlalchemy as sa
     import uvicorn
-    from uvicorn.config import LOG_LEVELS
 
     from camvlp.service import ServiceSettings
     from camvlp.service.connections import TimedH11Protocol
+    from camvlp.service.logs import log_config
+    from camvlp.service.settings import LOG_LEVELS
 
     for value, option in ((workers, "--workers"), (threads, "--threads")):
         check_positive(value, option)
@@ -62,6 +90,11 @@ def serve_command(
         fail(f"--port must be 1 to 65535, got {port}")
     if log_level not in LOG_LEVELS:
         fail(f"--log-level must be one of {', '.join(LOG_LEVELS)}, got {log_level!r}")
+    db = _database(db)
+    if migrate:
+        _migrate(db)
+        return
+    ssl = _tls_files(tls_cert, tls_key)
     _check_listen(host, port)
     try:  # the options, and the rest (the admin key, the timeouts) from CAMVLP_* variables
         settings = dataclasses.replace(
@@ -70,20 +103,21 @@ def serve_command(
             max_upload_bytes=round(max_upload_mb * 1024 * 1024),
             max_pixels=round(max_megapixels * 1e6),
             locate_threads=threads,
+            log_level=log_level,
         )
     except ValueError as exc:
         fail(f"{exc} (environment)")
     admin_key = settings.admin_key
     _open_database(db)
     os.environ.update(settings.to_env())  # the workers build their app from these
-    shown = sa.engine.make_url(db).render_as_string(hide_password=True)
     if not admin_key:
         print(
-            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see "
-            "docs/serve/README.md)",
+            "note: CAMVLP_ADMIN_KEY is not set: the service creates no sites (see docs/service.md)",
             file=sys.stderr,
         )
-    print(f"camvlp serve: http://{host}:{port}/docs  (database {shown}, {workers} worker(s))")
+    scheme = "https" if ssl else "http"
+    print(f"camvlp serve: {scheme}://{host}:{port}/docs  ({workers} worker(s))")
+    print(f"database      {_shown(db)}")
     uvicorn.run(
         "camvlp.service:app_from_env",
         factory=True,
@@ -91,10 +125,13 @@ def serve_command(
         port=port,
         workers=workers,
         log_level=log_level,
+        log_config=log_config(log_level),  # JSON lines; the service writes the request lines
+        access_log=False,
         http=TimedH11Protocol,  # uvicorn's h11, with header and body timeouts
         timeout_keep_alive=KEEP_ALIVE_S,
         limit_concurrency=settings.max_connections,
         h11_max_incomplete_event_size=MAX_HEADER_BYTES,
+        **ssl,
     )
 
 
@@ -105,27 +142,104 @@ MAX_HEADER_BYTES = 16 * 1024
 
 
 def _open_database(db: str) -> None:
-    """Create the tables (once, before the workers start), or fail in one line: a URL that is
-    not one, a driver that is missing, a file that is not a database (or not a file)."""
-    import sqlalchemy as sa
+    """Create the tables of an empty database (once, before the workers start) and check that
+    any other one is at this version's schema, or fail in one line: a URL that is not one, a
+    driver that is missing, a file that is not a database (or not a file), a schema of
+    another version."""
+    from camvlp.service.migrate import prepare
 
-    from camvlp.service.db import Store, make_engine
+    _with_database(db, prepare)
+
+
+def _migrate(db: str) -> None:
+    """``--migrate``: upgrade the database's schema and say from which revision to which."""
+    from camvlp.service.migrate import upgrade
+
+    before, after = _with_database(db, upgrade)
+    if before == after:
+        print(f"camvlp serve --migrate: the database is at revision {after} already")
+    else:
+        print(
+            f"camvlp serve --migrate: upgraded the database from revision "
+            f"{before or '(empty)'} to {after}"
+        )
+    print(f"database      {_shown(db)}")
+
+
+def _database(db: str | None) -> str:
+    """The database URL of ``--db`` (or CAMVLP_DB): a URL, or a path to a SQLite file;
+    None, the default (:func:`camvlp.service.settings.default_db_url`). Empty: a usage
+    error."""
+    from camvlp.service.settings import database_url, default_db_url
 
     try:
-        url = sa.engine.make_url(db)
-        if url.get_backend_name() == "sqlite" and url.database not in (None, "", ":memory:"):
-            path = Path(url.database)
-            if path.exists() and not path.is_file():
-                fail(f"cannot open the database: {path} is not a file (--db {db})")
-        engine = make_engine(db)
+        return database_url(db) if db is not None else default_db_url()
+    except ValueError as exc:
+        fail(str(exc))
+
+
+def _shown(db: str) -> str:
+    """Where the database is, as the start line says it: a SQLite database's file (absolute),
+    another's URL without its password."""
+    import sqlalchemy as sa
+
+    from camvlp.service.settings import sqlite_file
+
+    path = sqlite_file(db)
+    if path is not None:
+        return str(path.absolute())
+    return sa.engine.make_url(db).render_as_string(hide_password=True)
+
+
+def _with_database(db: str, work):
+    """``work(engine)`` on the database of ``--db``; any failure is one error line."""
+    import sqlalchemy as sa
+
+    from camvlp.service.db import make_engine
+    from camvlp.service.migrate import SchemaError
+    from camvlp.service.settings import sqlite_file
+
+    try:
+        path = sqlite_file(db)
+        if path is not None and path.exists() and not path.is_file():
+            fail(f"cannot open the database: {path} is not a file (--db {db})")
         try:
-            Store(engine).create_tables()
+            engine = make_engine(db)
+        except OSError as exc:
+            where = path.parent if path is not None else db
+            reason = "a file is there" if isinstance(exc, FileExistsError) else exc.strerror
+            fail(f"cannot create the database's folder {where}: {reason or exc} (--db {db})")
+        try:
+            return work(engine)
         finally:
             engine.dispose()
+    except SchemaError as exc:
+        fail(f"{exc} (--db {db})")
     except (sa.exc.SQLAlchemyError, ModuleNotFoundError, OSError, ValueError) as exc:
         text = str(getattr(exc, "orig", None) or exc).strip()
         first = text.splitlines()[0] if text else type(exc).__name__
         fail(f"cannot open the database: {first} (--db {db})")
+
+
+def _tls_files(cert: Path | None, key: Path | None) -> dict[str, str]:
+    """uvicorn's ``ssl_certfile`` and ``ssl_keyfile``, once Python's ssl module has loaded
+    them; empty without --tls-cert; a usage error (one line) for one without the other, a
+    file that cannot be read, or a key that does not match its certificate."""
+    import ssl
+
+    if cert is None and key is None:
+        return {}
+    if cert is None or key is None:
+        fail("--tls-cert and --tls-key go together (a certificate and its private key)")
+    for path, option in ((cert, "--tls-cert"), (key, "--tls-key")):
+        if not path.is_file():
+            fail(f"{option}: {path} is not a file")
+    try:
+        ssl.create_default_context(ssl.Purpose.CLIENT_AUTH).load_cert_chain(cert, key)
+    except (ssl.SSLError, OSError, ValueError) as exc:
+        reason = getattr(exc, "reason", None) or getattr(exc, "strerror", None) or exc
+        fail(f"cannot use --tls-cert {cert} with --tls-key {key}: {reason}")
+    return {"ssl_certfile": str(cert), "ssl_keyfile": str(key)}
 
 
 def _check_listen(host: str, port: int) -> None:

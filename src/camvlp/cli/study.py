@@ -1,26 +1,53 @@
-"""``camvlp study``: the thesis' error study (chapter 4) and a coverage planner."""
+"""``camvlp study``: the thesis' error study (chapter 4) and a coverage planner.
+
+The commands' options and their checks are in :mod:`camvlp.cli._study_options`; running a
+study (its budget, progress bar, files and summary) in :mod:`camvlp.cli._study_run`.
+"""
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from camvlp.analysis import study as st
 from camvlp.format import format_length
-from camvlp.io import InputError, load_camera, load_map
-from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
-from camvlp.io.writers import write_outputs
-from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
-from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.grid import plane_axes, up_sign
+from camvlp.model.camera import DEFAULT_ROW_TIME_S
 from camvlp.viz import study_plots
 
-from ._app import app, check_solver, fail, handle_errors, parse_floats
+from ._app import app, fail, handle_errors, parse_floats
+from ._study_options import (
+    FIGURES,
+    CameraOpt,
+    EulersOpt,
+    FigureOpt,
+    FixtureOpt,
+    ForcedHeightOpt,
+    HeightOpt,
+    JsonOpt,
+    MapOpt,
+    NoiseOpt,
+    OutOpt,
+    PlaneOpt,
+    PositionsOpt,
+    RangeX,
+    RangeY,
+    RangeZ,
+    RoundOpt,
+    SeedOpt,
+    SolverOpt,
+    StepOpt,
+    SurveyOpt,
+    TrialsOpt,
+    check_study_options,
+    gravity_options,
+    grid_options,
+    grid_point_count,
+    load_inputs,
+    noise_options,
+    parse_triples,
+)
+from ._study_run import finish_study, run_study, usage_errors
 
 study_app = typer.Typer(
     name="study",
@@ -30,195 +57,7 @@ study_app = typer.Typer(
 app.add_typer(study_app, name="study")
 
 
-#: Thesis figure presets for image-error / world-error: positions (m), angles (deg), height.
-FIGURES = {
-    "4.3": ("-1,0,0;-0.5,0,0;0,0,0;0.5,0,0;1,0,0", "90,0,0", 0.0),
-    "4.4": ("0,0,0", "80,0,0;85,0,0;90,0,0;95,0,0", 0.0),
-    "4.5": ("0,0,0", "80,0,0;85,0,0;90,0,0;95,0,0", 1.0),
-}
-
-# ------------------------------------------------------------------ shared option types
-
-CameraOpt = Annotated[
-    Path | None,
-    typer.Option("--camera", help="Camera file (default: examples/thesis_camera.yaml)."),
-]
-MapOpt = Annotated[
-    Path | None, typer.Option("--map", help="Map file (default: examples/thesis_room.yaml).")
-]
-SolverOpt = Annotated[
-    str,
-    typer.Option(
-        "--solver",
-        help="PnP solver: iterative, sqpnp, ippe, epnp, or locate (the locator's own pose "
-        "stage: several solvers' candidates, refined, the best in front of the camera).",
-    ),
-]
-NoiseOpt = Annotated[
-    float,
-    typer.Option("--noise-px", help="Monte Carlo: Gaussian sigma on every image point (px)."),
-]
-SurveyOpt = Annotated[
-    float,
-    typer.Option(
-        "--survey-error-m", help="Monte Carlo: Gaussian sigma on every fixture's map position (m)."
-    ),
-]
-SeedOpt = Annotated[int, typer.Option("--seed", help="Seed of the Monte Carlo noise.")]
-RoundOpt = Annotated[
-    bool, typer.Option("--round/--no-round", help="Round image points to whole pixels (thesis).")
-]
-OutOpt = Annotated[
-    Path | None, typer.Option("--out", help="Write CSV, PNG and summary.json into this directory.")
-]
-JsonOpt = Annotated[bool, typer.Option("--json", help="Print the summary as JSON on stdout.")]
-PlaneOpt = Annotated[
-    str,
-    typer.Option("--plane", help="The two world axes spanning the floor (xz: thesis, y down)."),
-]
-RangeX = Annotated[str, typer.Option("--x-range", help="Grid extent along x, 'lo,hi' (m).")]
-RangeY = Annotated[str | None, typer.Option("--y-range", help="Grid extent along y (m).")]
-RangeZ = Annotated[str | None, typer.Option("--z-range", help="Grid extent along z (m).")]
-StepOpt = Annotated[float, typer.Option("--step", help="Grid spacing (m).")]
-HeightOpt = Annotated[
-    float, typer.Option("--height", help="Camera height above the floor (m), towards the lights.")
-]
-
-
 # --------------------------------------------------------------------------- helpers
-
-
-def _default_file(path: Path | None, name: str) -> Path:
-    """The given path, or the thesis example (cwd's examples/, else the source tree's)."""
-    if path is not None:
-        return path
-    for base in (Path.cwd(), Path(__file__).resolve().parents[3]):
-        candidate = base / "examples" / name
-        if candidate.exists():
-            return candidate
-    return Path("examples") / name  # the loader reports it missing
-
-
-def _check(
-    solver: str, noise_px: float, survey_error_m: float, trials: int, **positive: float
-) -> None:
-    """Usage checks shared by the commands, naming the option at fault."""
-    check_solver(solver, allow_locate=True)
-    for name, value in (("--noise-px", noise_px), ("--survey-error-m", survey_error_m)):
-        if not value >= 0:
-            fail(f"{name} must be a non-negative number, got {value}")
-    if trials < 1:
-        fail(f"--trials must be a positive integer, got {trials}")
-    for name, value in positive.items():
-        if not value > 0:
-            fail(f"--{name.replace('_', '-')} must be positive, got {value}")
-
-
-def _inputs(
-    camera: Path | None, fmap: Path | None, plane: str | None = None
-) -> tuple[Camera, FixtureMap]:
-    """The camera and the map (the thesis' by default), refused naming the file when the
-    studies cannot use them; with ``plane`` (``--plane``, for a floor or a height), the
-    fixtures must lie off the floor's level, on the side that is up."""
-    camera_path = _default_file(camera, "thesis_camera.yaml")
-    cam = load_camera(camera_path)
-    if cam.distortion.size > 12:  # the studies' batched projection has no tilted sensor
-        raise InputError(
-            "the studies do not model a tilted sensor (a camera file with 14 distortion "
-            "coefficients)",
-            camera_path,
-        )
-    map_path = _default_file(fmap, "thesis_room.yaml")
-    fixture_map = load_map(map_path)
-    if plane is not None:
-        try:
-            up_sign(fixture_map.positions, plane_axes(plane)[2])
-        except ValueError as exc:
-            what = str(exc).removeprefix("plane: ")  # the library names its argument
-            raise InputError(f"--plane {plane}: {what}", map_path) from None
-    return cam, fixture_map
-
-
-def _triples(text: str, name: str) -> list[list[float]]:
-    """``"x,y,z;x,y,z"`` -> list of triples, or a usage error naming ``name``."""
-    parts = [p for p in text.split(";") if p.strip()]
-    if not parts:
-        fail(f"{name} needs at least one 'a,b,c' triple, got {text!r}")
-    return [parse_floats(p, 3, name) for p in parts]
-
-
-def _grid_options(
-    plane: str, x: str, y: str | None, z: str | None, step: float, height: float
-) -> dict:
-    """The floor grid's keyword arguments (see :func:`camvlp.sim.grid.floor_grid`) from the
-    options --plane, --x-range/--y-range/--z-range (the plane's two), --step and --height."""
-    given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
-    if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
-        fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
-    return {
-        "plane": plane,
-        "u_range_m": parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),
-        "v_range_m": parse_floats(given[plane[1]], 2, f"--{plane[1]}-range"),
-        "step_m": step,
-        "height_m": height,
-    }
-
-
-@contextmanager
-def _progress(total_hint: int, label: str) -> Iterator[Callable[[int, int], None] | None]:
-    """A rich progress bar on stderr, for long runs (about > 1 s) on a terminal only."""
-    if total_hint < 5000 or not sys.stderr.isatty():
-        yield None
-        return
-    from rich.console import Console
-    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        TextColumn("{task.percentage:>3.0f}%"),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(label, total=None)
-
-        def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
-
-        yield update
-
-
-def _finish(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
-    """Write the files (with --out), then print the summary as JSON or as ``lines``."""
-    summary = study.summary()
-    if out is not None:
-        check_output_dir(out, "--out")
-        with StagedOutputs() as outputs:  # the CSV, the figure and the summary: all or none
-            summary = write_outputs(outputs.folder(out), name, study, plot)  # InputError: exit 2
-        print(f"wrote {out}/{name}.csv, {name}.png, summary.json", file=sys.stderr)
-    if as_json:
-        print(strict_json(summary))
-    else:
-        for line in lines:
-            print(line)
-
-
-def _noise_options(noise_px: float, survey_error_m: float, trials: int, seed: int) -> dict:
-    """The Monte Carlo noise's keyword arguments of the study functions."""
-    return {"noise_px": noise_px, "survey_error_m": survey_error_m, "trials": trials, "seed": seed}
-
-
-def _gravity_options(gravity: bool, sigma_deg: float, min_fixtures: int | None) -> dict:
-    """The coverage study's gravity keyword arguments from --gravity, --gravity-sigma-deg and
-    --min-fixtures, or a usage error naming the option at fault."""
-    if min_fixtures is not None and not gravity and min_fixtures != 4:
-        fail(f"--min-fixtures {min_fixtures} needs --gravity (without it a fix needs 4)")
-    if min_fixtures is not None and min_fixtures not in (2, 3, 4):
-        fail(f"--min-fixtures must be 2, 3 or 4, got {min_fixtures}")
-    if not sigma_deg > 0:
-        fail(f"--gravity-sigma-deg must be a positive number, got {sigma_deg}")
-    return {"gravity": gravity, "gravity_sigma_deg": sigma_deg, "min_fixtures": min_fixtures}
 
 
 def _coverage_lines(s: dict, tilt_max: float, height: float, noise_px: float) -> list[str]:
@@ -249,42 +88,10 @@ def _mm(v: float | None) -> str:
 _len = format_length
 
 
-def _run(func, *args, **kwargs):
-    """``func(*args, **kwargs)``; a ValueError (bad value) becomes a usage error, exit 2."""
-    try:
-        return func(*args, **kwargs)
-    except ValueError as exc:
-        fail(str(exc))
-
-
-#: Most pose solves one study may ask for (each keeps about 0.5 KB until the end: ~1 GB).
-MAX_SOLVES = 2_000_000
-
-
-def _grid_points(grid: dict) -> float:
-    """Points of the floor grid that :func:`_grid_options` describes."""
-    (u0, u1), (v0, v1), step = grid["u_range_m"], grid["v_range_m"], grid["step_m"]
-    return ((u1 - u0) / step + 1) * ((v1 - v0) / step + 1)
-
-
-def _study(func, label: str, total_hint: float, *args, **kwargs):
-    """Run a study function with a progress bar (long runs on a terminal) and :func:`_run`;
-    fail (exit 2) first when it would solve more than MAX_SOLVES poses (``total_hint``)."""
-    if total_hint > MAX_SOLVES:
-        fail(
-            f"this study would solve {total_hint:,.0f} poses, over the budget of {MAX_SOLVES:,} "
-            "(about 1 GB of memory); lower --trials, raise --step or --tilt-step, narrow the "
-            "ranges or give fewer poses"
-        )
-    total_hint = int(total_hint)
-    with _progress(total_hint, label) as progress:
-        return _run(func, *args, progress=progress, **kwargs)
-
-
 def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, out, as_json) -> None:
     """The Monte Carlo study of the image-error and world-error commands given noise."""
     n = max(len(positions), len(eulers)) * noise["trials"]
-    res = _study(
+    res = run_study(
         st.monte_carlo_study,
         "Monte Carlo",
         n,
@@ -309,7 +116,7 @@ def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, ou
             f"{_len(p['mean_error_m'])}, median {_len(p['median_error_m'])}, "
             f"95% {_len(p['p95_error_m'])}"
         )
-    _finish(res, "monte-carlo", study_plots.plot_monte_carlo, out, as_json, lines)
+    finish_study(res, "monte-carlo", study_plots.plot_monte_carlo, out, as_json, lines)
 
 
 # -------------------------------------------------------------------------- commands
@@ -341,13 +148,13 @@ def rounding(
     as_json: JsonOpt = False,
 ) -> None:
     """Position error from pixel rounding over a grid on the floor (thesis fig. 4.2)."""
-    _check(solver, noise_px, survey_error_m, trials, step=step)
+    check_study_options(solver, noise_px, survey_error_m, trials, step=step)
     angles = parse_floats(euler, 3, "--euler")
-    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
-    cam, fmap = _inputs(camera, map_path, plane)
-    noise = _noise_options(noise_px, survey_error_m, trials, seed)
-    est = _grid_points(grid) * (trials if noise_px > 0 or survey_error_m > 0 else 1)
-    res = _study(
+    grid = grid_options(plane, x_range, y_range, z_range, step, height)
+    cam, fmap = load_inputs(camera, map_path, plane)
+    noise = noise_options(noise_px, survey_error_m, trials, seed)
+    est = grid_point_count(grid) * (trials if noise_px > 0 or survey_error_m > 0 else 1)
+    res = run_study(
         st.rounding_study,
         "rounding study",
         est,
@@ -367,7 +174,7 @@ def rounding(
         f"95% {_mm(s['p95_error_m'])}, max {_mm(s['max_error_m'])}, "
         f"{s['poses']} poses, {s['failures']} failures",
     ]
-    _finish(res, "rounding", study_plots.plot_rounding, out, as_json, lines)
+    finish_study(res, "rounding", study_plots.plot_rounding, out, as_json, lines)
 
 
 def _forced(
@@ -397,15 +204,15 @@ def _forced(
 
     With noise (--noise-px or --survey-error-m) the Monte Carlo study runs instead.
     """
-    _check(solver, noise_px, survey_error_m, trials, step=step)
+    check_study_options(solver, noise_px, survey_error_m, trials, step=step)
     axes = "xy" if kind == "image" else "xyz"
     if axis not in axes:
         fail(f"--axis must be one of {', '.join(axes)} for {kind} errors, got {axis!r}")
     if figure is not None and figure not in FIGURES:
         fail(f"--figure must be one of {', '.join(FIGURES)}, got {figure!r}")
     fig_pos, fig_eul, fig_h = FIGURES[figure or "4.3"]
-    pos = _triples(positions if positions is not None else fig_pos, "--positions")
-    eul = _triples(eulers if eulers is not None else fig_eul, "--eulers")
+    pos = parse_triples(positions if positions is not None else fig_pos, "--positions")
+    eul = parse_triples(eulers if eulers is not None else fig_eul, "--eulers")
     if len(pos) > 1 and len(eul) > 1 and len(pos) != len(eul):
         fail(
             f"--positions has {len(pos)} poses and --eulers {len(eul)}: give one of them once "
@@ -413,18 +220,18 @@ def _forced(
         )
     if height is None and figure is not None:
         height = fig_h
-    cam, fmap = _inputs(camera, map_path, plane if height is not None else None)
+    cam, fmap = load_inputs(camera, map_path, plane if height is not None else None)
     if height is not None:
-        pos = _run(
+        pos = usage_errors(
             st.set_height, pos, fmap.positions * fmap.unit_m, plane=plane, height_m=height
         ).tolist()
     if noise_px > 0 or survey_error_m > 0:
-        noise = _noise_options(noise_px, survey_error_m, trials, seed)
+        noise = noise_options(noise_px, survey_error_m, trials, seed)
         _monte_carlo(cam, fmap, pos, eul, solver, rounding, noise, out, as_json)
         return
     lo, hi = parse_floats(value_range, 2, "--range")
-    offsets = _run(st.axis_values, (lo, hi), step, "--range")
-    res = _study(
+    offsets = usage_errors(st.axis_values, (lo, hi), step, "--range")
+    res = run_study(
         st.forced_error_study,
         f"{kind}-error study",
         len(offsets) * max(len(pos), len(eul)),
@@ -453,22 +260,7 @@ def _forced(
             f"{_len(ser['error_at_max_offset_m'])}, linear R^2 "
             + ("n/a" if r2 is None else f"{r2:.3f}")
         )
-    _finish(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
-
-
-_POS_HELP = "Camera centres 'x,y,z;x,y,z' (m) (default: thesis fig. 4.3, five along x)."
-_EUL_HELP = "Camera orientations 'tx,ty,tz;...' (deg) (default: 90,0,0); one or as many."
-_FIG_HELP = "Thesis figure preset for poses and height: 4.3, 4.4 or 4.5."
-_HGT_HELP = "Put every camera at this height above the floor (m), towards the lights."
-
-FixtureOpt = Annotated[
-    int | None, typer.Option("--fixture", help="ID of the fixture to move (default: first).")
-]
-PositionsOpt = Annotated[str | None, typer.Option("--positions", help=_POS_HELP)]
-EulersOpt = Annotated[str | None, typer.Option("--eulers", help=_EUL_HELP)]
-ForcedHeightOpt = Annotated[float | None, typer.Option("--height", help=_HGT_HELP)]
-FigureOpt = Annotated[str | None, typer.Option("--figure", help=_FIG_HELP)]
-TrialsOpt = Annotated[int, typer.Option("--trials", help="Monte Carlo draws per pose.")]
+    finish_study(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
 
 
 def _forced_command(
@@ -612,8 +404,8 @@ def coverage(
     ] = None,
 ) -> None:
     """Where on the floor a fix is possible over a range of tilts, and its expected error."""
-    grav = _gravity_options(gravity, gravity_sigma_deg, min_fixtures)
-    _check(
+    grav = gravity_options(gravity, gravity_sigma_deg, min_fixtures)
+    check_study_options(
         solver,
         noise_px,
         0.0,
@@ -624,13 +416,13 @@ def coverage(
         **({"row_time": row_time} if row_time is not None else {}),
     )
     base = parse_floats(euler, 3, "--euler")
-    grid = _grid_options(plane, x_range, y_range, z_range, step, height)
-    cam, fmap = _inputs(camera, map_path, plane)
+    grid = grid_options(plane, x_range, y_range, z_range, step, height)
+    cam, fmap = load_inputs(camera, map_path, plane)
     n_tilts = (2 * int(tilt_max / tilt_step) + 1) ** 2 if tilt_step > 0 else 1
-    res = _study(
+    res = run_study(
         st.coverage_study,
         "coverage study",
-        _grid_points(grid) * n_tilts * (trials if noise_px > 0 else 1),
+        grid_point_count(grid) * n_tilts * (trials if noise_px > 0 else 1),
         cam,
         fmap,
         base_euler_deg=base,
@@ -649,4 +441,4 @@ def coverage(
         **grav,
     )
     lines = _coverage_lines(res.summary(), tilt_max, height, noise_px)
-    _finish(res, "coverage", study_plots.plot_coverage, out, as_json, lines)
+    finish_study(res, "coverage", study_plots.plot_coverage, out, as_json, lines)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
@@ -15,7 +14,7 @@ from camvlp.io import load_camera, load_map
 from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
 from camvlp.io.video import open_frames
 from camvlp.pipeline.locate import LocateSettings
-from camvlp.pipeline.track import Tracker, TrackSettings
+from camvlp.pipeline.track.tracker import Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings, check_render_size
 from camvlp.sim.video import (
     VIDEO_SUFFIXES,
@@ -39,37 +38,11 @@ from ._app import (
     handle_errors,
     parse_readout,
 )
+from .progress import progress_bar
 from .render import option_names
 
 #: The files ``camvlp track`` writes into its --out folder.
 TRACK_FILES = ("trajectory.csv", "fixtures.csv", "summary.json", "trajectory.png")
-
-
-@contextmanager
-def _progress(total: int | None, what: str):
-    """A rich progress bar on stderr when it is a terminal; yields ``advance(done)``."""
-    if not sys.stderr.isatty():
-        yield lambda done: None
-        return
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-
-    with Progress(
-        TextColumn(what),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    ) as bar:
-        task = bar.add_task(what, total=total)
-        yield lambda done: bar.update(task, completed=done)
 
 
 @app.command("track")
@@ -82,7 +55,7 @@ def track_command(
     map_path: Annotated[
         Path, typer.Option("--map", "-m", help="Map file of the room (YAML/JSON).")
     ],
-    out: Annotated[Path, typer.Option("--out", help="Output folder.")],
+    out: Annotated[Path, typer.Option("--out", metavar="DIR", help="Output folder.")],
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
     fps: Annotated[
         float | None,
@@ -116,7 +89,9 @@ def track_command(
     """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
     Writes DIR/trajectory.csv, fixtures.csv, summary.json and trajectory.png, all four or
-    none. Exit code 0 when at least one frame was located, 1 when none was, 2 on bad input.
+    none. The frames that could not be located are counted by reason on stderr (every
+    frame's reason is in trajectory.csv). Exit code 0 when at least one frame was located, 1
+    when none was (the most frequent reason in the error line), 2 on bad input.
     """
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
@@ -139,27 +114,56 @@ def track_command(
     total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
     with StagedOutputs() as outputs:  # the four files: all or none
         staged = outputs.folder(out)
-        with _progress(total, "tracking") as advance:
-            run = run_track(frames_src, tracker, staged, progress=advance)
+        with progress_bar(total, "tracking") as update:
+            run = run_track(frames_src, tracker, staged, progress=update)
         summary = summarize(run, truths)
         summary["input"] = str(source)
         (staged / "summary.json").write_text(strict_json(summary, indent=2) + "\n")
         _plot(staged / "trajectory.png", fixture_map, run, truths)
     located = summary["fix"] + summary["tracked"]
-    if not located:  # the error line only: the warnings are in summary.json
-        why = "no frame could be located"
+    reasons = summary["not_located"]
+    if not located:  # the warnings are in summary.json; the reasons, unless one says all
+        why, where = "no frame could be located", str(source)
         if not summary["frames"]:  # nothing was read: say why rather than "not located"
             why = f"no frame at or after --start {start:g} s" if start else "no frame was read"
             if run.warnings:
                 why += f": {run.warnings[0]}"
-        print(f"error: {why} ({source})", file=sys.stderr)
+        elif reasons:
+            if len(reasons) > 1:
+                _print_reasons(reasons, summary["frames"], out)
+            why += f": {reasons[0]['reason']}"
+            where = f"{reasons[0]['frames']} of {summary['frames']} frames; {source}"
+        print(f"error: {why} ({where})", file=sys.stderr)
         raise typer.Exit(EXIT_NOT_LOCATED)
     for w in run.warnings:
         print(f"warning: {w} ({source})", file=sys.stderr)
+    if reasons:
+        _print_reasons(reasons, summary["frames"], out)
     if as_json:
         print(strict_json(summary))
     else:
         _print_human(summary, fixture_map.units, out)
+
+
+#: Reasons that track's note on the frames not located lists one by one (the rest counted).
+SHOWN_REASONS = 5
+
+
+def _print_reasons(reasons: list[dict], frames: int, out: Path) -> None:
+    """The frames not located and why, on stderr: a line per reason with its count of frames,
+    the most frequent first (``reasons`` as :func:`camvlp.analysis.track.summarize` gives
+    them), at most :data:`SHOWN_REASONS`, the others counted in a last line."""
+    missed = sum(r["frames"] for r in reasons)
+    width = len(str(reasons[0]["frames"]))
+    lines = [f"note: {missed} of {frames} frames not located:"]
+    lines += [f"  {r['frames']:>{width}}  {r['reason']}" for r in reasons[:SHOWN_REASONS]]
+    rest = reasons[SHOWN_REASONS:]
+    if rest:
+        lines.append(
+            f"  {sum(r['frames'] for r in rest):>{width}}  for {len(rest)} other reasons "
+            f"(the column reason of {out / 'trajectory.csv'})"
+        )
+    print("\n".join(lines), file=sys.stderr)
 
 
 def _plot(path: Path, fixture_map, run, truths: Truths) -> None:
@@ -280,6 +284,56 @@ def render_video_command(
     Each sensor row is seen from the pose at its own time, and the true trajectory is
     written beside the video; the lights look as in `camvlp render` (off level, hot core,
     halo, soft stripes, blur, a phone's processing, readout)."""
+    _check_render_options(fps, chip_rate, row_time, exposure, crf, frames, seed)
+    _check_video_out(out)
+    camera = load_camera(camera_path)
+    check_render_size(camera, camera_path)
+    fixture_map = load_map(map_path)
+    trajectory = load_trajectory(trajectory_path)
+    look = dict(
+        brightness=brightness,
+        off_level=off_level,
+        core=core,
+        halo=halo,
+        soft=soft,
+        blur_px=blur,
+        vignetting=vignetting,
+        bayer=bayer,
+        gamma=gamma,
+        sharpen=sharpen,
+        black_point=black_point,
+    )
+    try:
+        settings = RenderSettings(
+            chip_rate_hz=chip_rate,
+            row_time_s=row_time,
+            exposure_s=exposure,
+            seed=seed,
+            readout=parse_readout(readout) or camera.readout or "rows",
+            **look,
+        )
+    except ValueError as exc:
+        fail(option_names(str(exc)))
+    if any(f.diameter is None for f in fixture_map.fixtures):
+        fail(f"every fixture needs a diameter to be rendered ({map_path})")
+    total = frame_count(trajectory, fps, frames)
+    check_frame_budget(total, trajectory_path)
+    if out.suffix:
+        check_video_size(camera, camera_path)
+    n = _render(camera, fixture_map, trajectory, out, fps, settings, crf, frames, total)
+    print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")
+
+
+def _check_render_options(
+    fps: float,
+    chip_rate: float,
+    row_time: float | None,
+    exposure: float | None,
+    crf: int,
+    frames: int | None,
+    seed: int,
+) -> None:
+    """render-video's numbers in range, else one line of error (exit 2)."""
     check_positive(fps, "--fps")
     check_positive(chip_rate, "--chip-rate")
     check_positive(row_time, "--row-time")
@@ -290,6 +344,11 @@ def render_video_command(
         fail(f"--frames must be at least 1, got {frames}")
     if seed < 0:
         fail(f"--seed must be a non-negative integer, got {seed}")
+
+
+def _check_video_out(out: Path) -> None:
+    """render-video's --out: a video (its truth files beside it) or a folder, where each of
+    those files can be written; else one line of error (exit 2)."""
     if out.suffix and out.suffix.lower() not in VIDEO_SUFFIXES:
         fail(f"--out must be a .mp4, .mov or .mkv video or a folder ({out})")
     if out.suffix:  # the video and its truth beside it
@@ -299,40 +358,14 @@ def render_video_command(
         check_output_dir(out, "--out")
         for path in (out / "timestamps.csv", *truth_paths(out)) if out.is_dir() else ():
             check_output_file(path, "--out")
-    camera = load_camera(camera_path)
-    check_render_size(camera, camera_path)
-    fixture_map = load_map(map_path)
-    trajectory = load_trajectory(trajectory_path)
+
+
+def _render(camera, fixture_map, trajectory, out: Path, fps, settings, crf, frames, total) -> int:
+    """Render the video (or frames) with a progress bar; the number of frames written.  On
+    Ctrl-C, where the frames so far were kept."""
     try:
-        settings = RenderSettings(
-            chip_rate_hz=chip_rate,
-            row_time_s=row_time,
-            exposure_s=exposure,
-            seed=seed,
-            brightness=brightness,
-            off_level=off_level,
-            core=core,
-            halo=halo,
-            soft=soft,
-            blur_px=blur,
-            vignetting=vignetting,
-            bayer=bayer,
-            gamma=gamma,
-            sharpen=sharpen,
-            black_point=black_point,
-            readout=parse_readout(readout) or camera.readout or "rows",
-        )
-    except ValueError as exc:
-        fail(option_names(str(exc)))
-    if any(f.diameter is None for f in fixture_map.fixtures):
-        fail(f"every fixture needs a diameter to be rendered ({map_path})")
-    total = frame_count(trajectory, fps, frames)
-    check_frame_budget(total, trajectory_path)
-    if out.suffix:
-        check_video_size(camera, camera_path)
-    try:
-        with _progress(total, "rendering") as advance:
-            n = render_video(
+        with progress_bar(total, "rendering") as update:
+            return render_video(
                 camera,
                 fixture_map,
                 trajectory,
@@ -341,11 +374,10 @@ def render_video_command(
                 settings=settings,
                 crf=crf,
                 max_frames=frames,
-                progress=lambda done, _total: advance(done),
+                progress=update,
             )
     except KeyboardInterrupt:
         kept = partial_path(out)  # (a video's: a folder of frames has none)
         if kept.is_file():
             fail(f"interrupted: the frames so far are in {kept}", 130)
         raise
-    print(f"wrote {n} frames to {out} ({n / fps:.2f} s at {fps:g} frames/s)")

@@ -23,6 +23,7 @@ __all__ = [
     "perspective_offsets",
     "plane_basis",
     "rim_points",
+    "sampson_distances",
 ]
 
 
@@ -44,20 +45,10 @@ def plane_basis(normals) -> tuple[np.ndarray, np.ndarray]:
     n = np.atleast_2d(n)
     n = n / np.linalg.norm(n, axis=1, keepdims=True)
     helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]  # the axis least aligned with n
-    a = _cross(n, helper)
+    a = np.cross(n, helper)
     a /= np.linalg.norm(a, axis=1, keepdims=True)
-    b = _cross(n, a)
+    b = np.cross(n, a)
     return (a[0], b[0]) if flat else (a, b)
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of (N, 3) arrays: ``np.cross``'s arithmetic, without its
-    general-purpose set-up (which costs more than the product for a few discs)."""
-    out = np.empty_like(u)
-    out[:, 0] = u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1]
-    out[:, 1] = u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2]
-    out[:, 2] = u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
-    return out
 
 
 def rim_points(centres, diameters, normals, n_rim: int) -> np.ndarray:
@@ -113,7 +104,7 @@ def disc_normals(centres, normals, toward) -> np.ndarray:
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     out = np.full_like(c, np.nan) if normals is None else np.array(normals, float).reshape(-1, 3)
     known = finite_rows(out)
-    out /= np.sqrt(np.add.reduce(out * out, axis=1, keepdims=True))  # (NaN rows stay NaN)
+    out /= np.linalg.norm(out, axis=1, keepdims=True)  # (NaN rows stay NaN)
     if all(known):
         return out
     known = np.array(known)
@@ -213,25 +204,20 @@ def _pinhole_offsets(camera: Camera, pose: Pose, centres, diameters, normals) ->
     """
     c = np.asarray(centres, dtype=float).reshape(-1, 3)
     n = np.asarray(normals, dtype=float).reshape(-1, 3)
-    n = n / np.sqrt(np.add.reduce(n * n, axis=1, keepdims=True))  # (np.linalg.norm's)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
     r = 0.5 * np.asarray(diameters, dtype=float).reshape(-1)
     cc = pose.to_camera(c)
     nc = n @ pose.world_from_camera  # normals in the camera frame
     w = -nc[:, 2:3] * nc
     w[:, 2] += 1.0  # z - n_z n: the optical axis' part in the disc's plane
     e = cc[:, 2:3] * cc - (r * r)[:, None] * w
-    # rims in front, in Python floats (NumPy's arithmetic: a NaN normal's rim is not in front)
-    front = [
-        z > rad * math.sqrt(v if not v < 0.0 else 0.0)
-        for z, rad, v in zip(
-            cc[:, 2].tolist(), r.tolist(), (1.0 - nc[:, 2] * nc[:, 2]).tolist(), strict=True
-        )
-    ]
+    # rims in front (a NaN normal's rim is not)
+    front = cc[:, 2] > r * np.sqrt(np.maximum(1.0 - nc[:, 2] * nc[:, 2], 0.0))
     k = camera.matrix
-    if all(front):  # (as usual: every disc, no rows picked)
+    if front.all():  # (as usual: every disc, no rows picked)
         return _centre_shifts(e, cc, k)
     out = np.zeros((c.shape[0], 2))
-    if any(front):
+    if front.any():
         out[front] = _centre_shifts(e[front], cc[front], k)
     return out
 
@@ -333,7 +319,8 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     sizes_k = np.array([sizes[i] for i in k], dtype=float)
     groups_k = np.array([n_groups[i] for i in k], dtype=float)
     real = np.arange(m_max)[None, :] < sizes_k[:, None]  # (K, M): not padding
-    d, jac = _sampson(np.array([p0[i] for i in k]), xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
+    ellipses = np.array([p0[i] for i in k])
+    d, jac = sampson_distances(ellipses, xy[:, :, 0], xy[:, :, 1])  # (K, M), (K, M, 5)
     d *= real
     jac *= real[:, :, None]
     jtj = jac.transpose(0, 2, 1) @ jac
@@ -362,14 +349,28 @@ def ellipse_centre_covariances(fits) -> np.ndarray:
     return out
 
 
-def _sampson(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sampson distances of points ``(x, y)`` (K, M) from ellipses ``p`` (K, 5) as (centre,
-    semi-axes, angle in radians), (K, M), and their derivatives in the five parameters,
-    (K, M, 5).
+def sampson_distances(p: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sampson distances of points from ellipses, and their derivatives in the ellipses'
+    parameters: a first-order approximation of each point's distance from its ellipse.
 
     With ``(u, v)`` a point in the ellipse's axes, ``P = u / a^2``, ``Q = v / b^2``, the
     distance is ``d = (u P + v Q - 1) / (2 g)``, ``g = hypot(P, Q)``; moving the centre or
     the angle changes ``(u, v)`` only, by which ``d`` changes by ``alpha du + beta dv``.
+
+    Parameters
+    ----------
+    p : ndarray, shape (K, 5)
+        Each ellipse's centre ``(cx, cy)`` and semi-axes ``(a, b)``, pixels, and the angle of
+        its ``a`` axis, radians.
+    x, y : ndarray, shape (K, M)
+        The points' coordinates, pixels: ``M`` points for each ellipse.
+
+    Returns
+    -------
+    d : ndarray, shape (K, M)
+        Signed distances (positive outside), pixels.
+    jac : ndarray, shape (K, M, 5)
+        Their derivatives with respect to ``(cx, cy, a, b, angle)``.
     """
     c, s = np.cos(p[:, 4:5]), np.sin(p[:, 4:5])
     dx, dy = x - p[:, 0:1], y - p[:, 1:2]
@@ -434,8 +435,7 @@ def centre_sigma(cov) -> float:
     cov : array_like, shape (2, 2)
         Covariance of the centre, pixels squared.
     """
-    (c00, _), (_, c11) = np.asarray(cov, dtype=float).reshape(2, 2).tolist()
-    var = 0.5 * (c00 + c11)  # half the trace, in Python floats (the same values as NumPy's)
+    var = 0.5 * float(np.trace(np.asarray(cov, dtype=float).reshape(2, 2)))  # (half the trace)
     if not math.isfinite(var):
         return float("nan")
     return max(CENTRE_SIGMA_FLOOR_PX, math.sqrt(max(var, 0.0)))

@@ -21,17 +21,22 @@ Solvers (:data:`SOLVERS`):
     moved by at most :data:`IPPE_JITTER_PX`.
 ``epnp``
     Efficient PnP; fast but poorly conditioned with four coplanar points (metres off).
+
+Projection for many poses at once is :mod:`camvlp.geometry.projection`'s, and the pose from a
+few points and a prior (a track's) :mod:`camvlp.geometry.pose_prior`'s; :func:`refine_pose`,
+:class:`PriorSolve` and :func:`project_moving` are importable from here as well.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
 
-from camvlp.model.camera import Camera, Pose, all_finite, in_front
+from camvlp.geometry.pose_prior import PriorSolve, refine_pose
+from camvlp.geometry.projection import project_moving
+from camvlp.model.camera import Camera, Pose, all_finite
 
 __all__ = [
     "IPPE_JITTER_PX",
@@ -42,7 +47,7 @@ __all__ = [
     "check_solver",
     "other_minima",
     "pnp_candidates",
-    "project_batch",
+    "project_moving",
     "refine_pose",
     "rodrigues_batch",
     "solve_pnp",
@@ -64,7 +69,7 @@ IPPE_JITTER_PX = 1e-6
 _JITTER = IPPE_JITTER_PX * np.array([[1.0, 0.3], [-0.7, 0.9], [0.2, -1.0], [-0.4, -0.6]])
 
 
-#: The locator's own pose path (:func:`camvlp.pipeline.pose.estimate_pose`), which the error
+#: The locator's own pose path (:func:`camvlp.geometry.pose.estimate_pose`), which the error
 #: study can run beside OpenCV's methods to measure what ``locate`` gives.
 LOCATE_SOLVER = "locate"
 
@@ -381,360 +386,3 @@ def solve_pnp_batch(
     r_cw = rodrigues_batch(np.nan_to_num(rvecs))
     centres = -np.einsum("bji,bj->bi", r_cw, tvecs)  # C = -R_cw^T t
     return centres
-
-
-def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """OpenCV's lens model on normalised coordinates (up to 12 coefficients)."""
-    c = np.zeros(12)
-    c[: d.size] = d
-    k1, k2, p1, p2, k3, k4, k5, k6, s1, s2, s3, s4 = c
-    r2 = x * x + y * y
-    radial = (1 + r2 * (k1 + r2 * (k2 + r2 * k3))) / (1 + r2 * (k4 + r2 * (k5 + r2 * k6)))
-    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x) + r2 * (s1 + s2 * r2)
-    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y + r2 * (s3 + s4 * r2)
-    return xd, yd
-
-
-def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.ndarray:
-    """Project the same world points for many camera poses at once.
-
-    Pinhole projection ``K R^T (X - C)``; lens distortion is ignored unless ``distort`` is
-    set (the error study uses a distortion-free camera, as the thesis does).  The image
-    plane is infinite: points outside the sensor still get coordinates.
-
-    Parameters
-    ----------
-    camera : Camera
-        Intrinsics (and distortion, with ``distort=True``; up to 12 coefficients).
-    R : array_like, shape (B, 3, 3) or (3, 3)
-        ``world_from_camera`` rotations (camera axes as columns).
-    C : array_like, shape (B, 3) or (3,)
-        Camera centres, world coordinates (map units).
-    points : array_like, shape (N, 3)
-        World points (map units).
-    distort : bool
-        Apply the camera's OpenCV distortion model.
-
-    Returns
-    -------
-    ndarray, shape (B, N, 2)
-        Pixel coordinates ``[u, v]``; NaN for points on or behind the camera plane.
-
-    Raises
-    ------
-    ValueError
-        Bad shapes, or ``distort`` with a 14-coefficient (tilted sensor) model.
-    """
-    r = np.asarray(R, dtype=np.float64)
-    c = np.asarray(C, dtype=np.float64)
-    if r.ndim == 2:
-        r = r[None]
-    if c.ndim == 1:
-        c = c[None]
-    if r.ndim != 3 or r.shape[1:] != (3, 3):
-        raise ValueError(f"R must have shape (B, 3, 3), got {np.shape(R)}")
-    if c.ndim != 2 or c.shape[1] != 3:
-        raise ValueError(f"C must have shape (B, 3), got {np.shape(C)}")
-    if r.shape[0] != c.shape[0]:
-        raise ValueError(f"R has {r.shape[0]} poses but C has {c.shape[0]}")
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ValueError(f"points must have shape (N, 3), got {p.shape}")
-    # camera coordinates: X_c = R^T (X - C), for every pose and point
-    xc = np.einsum("bji,bnj->bni", r, p[None, :, :] - c[:, None, :])
-    z = xc[..., 2]
-    on_plane = ~in_front(xc)  # (within float64 rounding of the camera's plane: not imaged)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z_safe = np.where(on_plane, np.nan, z)
-        x = xc[..., 0] / z_safe
-        y = xc[..., 1] / z_safe
-    if distort and camera.distortion.size and np.any(camera.distortion):
-        if camera.distortion.size > 12:
-            raise ValueError("project_batch supports at most 12 distortion coefficients")
-        x, y = _distort(x, y, camera.distortion)
-    k = camera.matrix
-    u = k[0, 0] * x + k[0, 1] * y + k[0, 2]
-    v = k[1, 1] * y + k[1, 2]
-    return np.stack([u, v], axis=-1)
-
-
-def _euler_matrices(euler_deg: np.ndarray) -> np.ndarray:
-    """``Rx Ry Rz`` for many sets of the thesis' angles: (N, 3) degrees -> (N, 3, 3)."""
-    a = np.deg2rad(np.asarray(euler_deg, dtype=np.float64).reshape(-1, 3))
-    c, s = np.cos(a), np.sin(a)
-    n = a.shape[0]
-    one, zero = np.ones(n), np.zeros(n)
-    rx = np.stack([one, zero, zero, zero, c[:, 0], -s[:, 0], zero, s[:, 0], c[:, 0]], 1)
-    ry = np.stack([c[:, 1], zero, s[:, 1], zero, one, zero, -s[:, 1], zero, c[:, 1]], 1)
-    rz = np.stack([c[:, 2], -s[:, 2], zero, s[:, 2], c[:, 2], zero, zero, zero, one], 1)
-    return rx.reshape(n, 3, 3) @ ry.reshape(n, 3, 3) @ rz.reshape(n, 3, 3)
-
-
-def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:
-    """Project points, each seen from the pose the camera has at its own time.
-
-    The pose at time ``dt`` is ``values + dt * rates`` in (camera centre, thesis angles):
-    a camera moving at constant velocity, as a rolling shutter sees it row by row.
-
-    Parameters
-    ----------
-    camera : Camera
-        Intrinsics and distortion (up to 12 coefficients).
-    values : array_like, shape (6,) or (B, 6)
-        ``(x, y, z, theta_x, theta_y, theta_z)`` at ``dt = 0``, map units and degrees; or B
-        such poses at once.
-    rates : array_like, shape (6,) or (B, 6)
-        Their rates, per s.
-    points : array_like, shape (N, 3)
-        World points, map units.
-    dt_s : array_like, shape (N,)
-        Each point's time, s.
-
-    Returns
-    -------
-    ndarray, shape (N, 2) or (B, N, 2)
-        Pixels; NaN for points behind the camera.
-    """
-    v = np.asarray(values, dtype=np.float64)
-    single = v.ndim == 1
-    v = v.reshape(-1, 6)
-    r = np.broadcast_to(np.asarray(rates, dtype=np.float64).reshape(-1, 6), v.shape)
-    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    dt = np.asarray(dt_s, dtype=np.float64).reshape(1, -1, 1)
-    pose = v[:, None, :] + dt * r[:, None, :]  # (B, N, 6)
-    b, n = pose.shape[:2]
-    rot = _euler_matrices(pose[..., 3:].reshape(-1, 3)).reshape(b, n, 3, 3)
-    xc = np.einsum("bnji,bnj->bni", rot, p[None] - pose[..., :3])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(xc[..., 2] > 0, xc[..., 2], np.nan)
-        x, y = xc[..., 0] / z, xc[..., 1] / z
-    if camera.distortion.size and np.any(camera.distortion):
-        x, y = _distort(x, y, camera.distortion)
-    k = camera.matrix
-    uv = np.stack([k[0, 0] * x + k[0, 1] * y + k[0, 2], k[1, 1] * y + k[1, 2]], axis=-1)
-    return uv[0] if single else uv
-
-
-@dataclass(frozen=True)
-class PriorSolve:
-    """A pose fitted to a few points and a prior (:func:`refine_pose`).
-
-    Attributes
-    ----------
-    pose : Pose
-        The fitted pose (at ``dt = 0``).
-    values : ndarray, shape (6,)
-        The same as ``(x, y, z, theta_x, theta_y, theta_z)``, map units and degrees.
-    rates : ndarray, shape (6,)
-        Their fitted rates per s (the prior's when no times were given).
-    residuals_px : ndarray, shape (N,)
-        Each point's reprojection error with it, pixels.
-    jacobian_px : ndarray, shape (2N, 6) or (2N, 12)
-        Derivative of the points' pixels (u0, v0, u1, ...) with respect to the values (and
-        the rates, when times were given) at the fit.
-    """
-
-    pose: Pose
-    values: np.ndarray
-    rates: np.ndarray
-    residuals_px: np.ndarray
-    jacobian_px: np.ndarray
-
-    @property
-    def reprojection_rms_px(self) -> float:
-        """RMS of :attr:`residuals_px`, pixels."""
-        return float(np.sqrt(np.mean(self.residuals_px**2)))
-
-
-def refine_pose(
-    object_points,
-    image_points,
-    camera: Camera,
-    prior_position,
-    prior_euler_deg,
-    *,
-    sigma_position=0.05,
-    sigma_euler_deg=1.0,
-    sigma_px: float = 1.0,
-    dt_s=None,
-    prior_rates=None,
-    sigma_rates=None,
-    prior_covariance=None,
-) -> PriorSolve | None:
-    """The pose that best fits a few points (one or more) and a Gaussian prior on the pose.
-
-    With fewer than four points (or points on a line) PnP alone has no unique answer; a
-    prior (a track's prediction) fills in what the points leave open.  Least squares
-    (Levenberg-Marquardt, from the prior) over the camera centre and the thesis' angles of
-    ``[reprojection / sigma_px, (C - C0) / sigma_position, (theta - theta0) / sigma_euler]``.
-    With ``dt_s`` (each point's time, a rolling shutter's rows), the camera moves at constant
-    rates (:func:`project_moving`) and the rates are fitted too, with their own prior.
-
-    Parameters
-    ----------
-    object_points, image_points, camera
-        As in :func:`solve_pnp`, but N >= 1.
-    prior_position : array_like, shape (3,)
-        The prior camera centre, map units.
-    prior_euler_deg : array_like, shape (3,)
-        The prior's thesis angles, degrees.
-    sigma_position : float or array_like, shape (3,)
-        The prior's standard deviation per axis, map units.
-    sigma_euler_deg : float or array_like, shape (3,)
-        The prior's standard deviation per angle, degrees.
-    sigma_px : float
-        Standard deviation of an image point, pixels.
-    dt_s : array_like, shape (N,), optional
-        Each point's time relative to the pose's, s.
-    prior_rates, sigma_rates : array_like, shape (6,), optional
-        The rates' prior (map units and degrees per s) and its standard deviation; needed
-        with ``dt_s``.
-    prior_covariance : array_like, shape (6, 6) or (12, 12), optional
-        The prior's full covariance (values, then rates with ``dt_s``), used instead of the
-        standard deviations (which then only scale the steps).
-
-    Returns
-    -------
-    PriorSolve or None
-        None when the fit does not converge to a finite pose with the points in front.
-    """
-    obj = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
-    img = np.asarray(image_points, dtype=np.float64).reshape(-1, 2)
-    n = obj.shape[0]
-    if img.shape[0] != n or n < 1:
-        raise ValueError("object_points and image_points need the same number (>= 1) of points")
-    moving = dt_s is not None
-    dt = np.zeros(n) if not moving else np.asarray(dt_s, dtype=np.float64).reshape(n)
-    x0, sig, r0 = _prior_vector(
-        (prior_position, prior_euler_deg),
-        (sigma_position, sigma_euler_deg),
-        (prior_rates, sigma_rates),
-        moving=moving,
-    )
-    if not (np.all(sig > 0) and np.all(np.isfinite(sig)) and sigma_px > 0):
-        raise ValueError("the prior's standard deviations and sigma_px must be positive")
-    whiten = _prior_whitening(sig, prior_covariance)
-    steps = 1e-6 * np.maximum(np.abs(x0), 1.0)
-
-    def pixel_terms(x: np.ndarray, with_jacobian: bool):
-        """Whitened pixel residuals (2N,) and, optionally, their Jacobian (2N, P)."""
-        xs = x[None, :]
-        if with_jacobian:
-            xs = np.vstack([x, x + np.diag(steps)])
-        rates = xs[:, 6:] if moving else np.broadcast_to(r0, (xs.shape[0], 6))
-        uv = project_moving(camera, xs[:, :6], rates, obj, dt).reshape(xs.shape[0], -1)
-        res = (uv[0] - img.ravel()) / sigma_px
-        if not with_jacobian:
-            return res, None
-        return res, ((uv[1:] - uv[0]) / steps[:, None]).T / sigma_px
-
-    x = _levenberg_marquardt(pixel_terms, x0, whiten, sig)
-    if x is None:
-        return None
-    try:
-        pose = Pose.from_euler(x[:3], x[3:6])
-    except ValueError:
-        return None
-    if np.any(pose.to_camera(obj)[:, 2] <= 0):
-        return None
-    res_w, jac = pixel_terms(x, True)
-    res = np.hypot(*(res_w.reshape(-1, 2) * sigma_px).T)
-    if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
-        return None
-    jac = jac * sigma_px
-    return PriorSolve(pose, x[:6].copy(), x[6:].copy() if moving else r0, res, jac)
-
-
-def _prior_vector(
-    values: tuple, sigmas: tuple, rates: tuple, *, moving: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The prior's mean (6,) or (12,), its standard deviations (same) and the rates (6,).
-
-    ``values`` is ``(prior_position, prior_euler_deg)``, ``sigmas`` their standard deviations
-    and ``rates`` ``(prior_rates, sigma_rates)`` as :func:`refine_pose` takes them.  The mean
-    is ``(x, y, z, theta_x, theta_y, theta_z)`` (map units, degrees), followed by the rates
-    per s when the camera is ``moving`` (which needs both of ``rates``).
-    """
-    prior_position, prior_euler_deg = values
-    sigma_position, sigma_euler_deg = sigmas
-    prior_rates, sigma_rates = rates
-    x0 = np.concatenate(
-        [
-            np.asarray(prior_position, dtype=float).reshape(3),
-            np.asarray(prior_euler_deg, dtype=float).reshape(3),
-        ]
-    )
-    sig = np.concatenate(
-        [
-            np.broadcast_to(np.asarray(sigma_position, dtype=np.float64), (3,)),
-            np.broadcast_to(np.asarray(sigma_euler_deg, dtype=np.float64), (3,)),
-        ]
-    )
-    if moving:
-        if prior_rates is None or sigma_rates is None:
-            raise ValueError("dt_s needs prior_rates and sigma_rates")
-        r0 = np.asarray(prior_rates, dtype=np.float64).reshape(6)
-        x0 = np.concatenate([x0, r0])
-        sig = np.concatenate([sig, np.broadcast_to(np.asarray(sigma_rates, dtype=float), (6,))])
-    else:
-        r0 = np.zeros(6) if prior_rates is None else np.asarray(prior_rates, dtype=float)
-    return x0, sig, r0
-
-
-def _prior_whitening(sig: np.ndarray, prior_covariance) -> np.ndarray:
-    """The matrix W (P, P) with ``|W (x - x0)|^2`` the prior's cost: ``diag(1 / sig)``, or
-    ``L^T`` with ``L L^T`` the inverse of ``prior_covariance`` (P, P) when given."""
-    if prior_covariance is None:
-        return np.diag(1.0 / sig)
-    cov = np.asarray(prior_covariance, dtype=np.float64)
-    if cov.shape != (sig.size, sig.size) or not np.all(np.isfinite(cov)):
-        raise ValueError(f"prior_covariance must be a finite {sig.size} x {sig.size} matrix")
-    try:
-        return np.linalg.cholesky(np.linalg.inv(cov)).T
-    except np.linalg.LinAlgError:
-        raise ValueError("prior_covariance must be positive definite") from None
-
-
-def _levenberg_marquardt(pixel_terms, x0: np.ndarray, whiten: np.ndarray, sig: np.ndarray):
-    """Minimise the pixel terms plus the prior's (linear) terms from the prior ``x0`` (P,).
-
-    ``pixel_terms(x, with_jacobian)`` gives the whitened pixel residuals (2N,) and their
-    Jacobian (2N, P); ``whiten`` (P, P) the prior's; ``sig`` (P,) scales the step that counts
-    as converged.  Returns the fitted values (P,), or None when a cost is not finite or a
-    step cannot be solved.
-    """
-
-    def cost(x: np.ndarray) -> float:
-        res, _ = pixel_terms(x, False)
-        return float(res @ res + np.sum((whiten @ (x - x0)) ** 2))
-
-    x = x0.copy()
-    current = cost(x)
-    if not np.isfinite(current):
-        return None
-    damping = 1e-3
-    for _ in range(30):
-        res, jac = pixel_terms(x, True)
-        if not (np.all(np.isfinite(res)) and np.all(np.isfinite(jac))):
-            return None
-        prior = whiten @ (x - x0)
-        h = jac.T @ jac + whiten.T @ whiten
-        g = jac.T @ res + whiten.T @ prior
-        improved = False
-        while damping < 1e10:
-            try:
-                step = np.linalg.solve(h + damping * np.diag(np.diag(h)), -g)
-            except np.linalg.LinAlgError:
-                return None
-            trial = x + step
-            new = cost(trial)
-            if np.isfinite(new) and new <= current:
-                x, damping, improved = trial, max(damping / 10, 1e-9), True
-                break
-            damping *= 10
-        if not improved or abs(current - new) <= 1e-6 * max(current, 1e-12):
-            break
-        current = new
-        if np.all(np.abs(step) <= 1e-3 * np.maximum(sig, 1e-12)):
-            break
-    return x

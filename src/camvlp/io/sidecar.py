@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import read_mapping
+from camvlp.io.textfiles import read_mapping
 
 __all__ = ["PhotoSidecar", "load_sidecar", "sidecar_path"]
 

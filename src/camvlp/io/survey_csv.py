@@ -102,49 +102,14 @@ def read_survey(path: str | Path) -> Survey:
         line number).
     """
     p = Path(path)
-    data = read_regular_file(p, "survey file", limit("CAMVLP_MAX_FILE_BYTES"))
-    try:
-        text = data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"cannot read survey file: {exc.__class__.__name__}", p) from None
-    lines = [
-        (k, ln)
-        for k, ln in enumerate(text.splitlines(), 1)
-        if ln.strip() and not ln.lstrip().startswith("#")
-    ]
-    if not lines:
-        raise InputError("survey file is empty (it needs the columns photo,x,y,z)", p)
-    try:
-        rows = list(csv.reader([ln for _, ln in lines]))
-    except csv.Error as exc:
-        raise InputError(f"malformed survey file: {exc}", p) from None
+    line_numbers, rows = _survey_rows(p)
     header = [h.strip() for h in rows[0]]
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
-    if missing:
-        raise InputError(
-            f"survey file lacks the column{'s' if len(missing) > 1 else ''} "
-            f"{', '.join(missing)} (needs photo,x,y,z)",
-            p,
-        )
-    if len(set(header)) != len(header):
-        dup = next(h for h in header if header.count(h) > 1)
-        raise InputError(f"survey file has the column {dup!r} twice", p)
-    if len(rows) < 2:
-        raise InputError("survey file has no photos, only a header", p)
-    col = {h: i for i, h in enumerate(header)}
-    has_angles = all(c in col for c in ANGLE_COLUMNS)
-    some = [c for c in ANGLE_COLUMNS if c in col]
-    if some and not has_angles:  # the orientation error would be left out without a word
-        missing = ", ".join(c for c in ANGLE_COLUMNS if c not in col)
-        raise InputError(
-            f"survey file has {', '.join(some)} but not {missing}: give all three angles or none",
-            p,
-        )
+    col, has_angles = _columns(header, len(rows), p)
     extra_columns = tuple(
         h for h in header if h not in REQUIRED_COLUMNS and not (has_angles and h in ANGLE_COLUMNS)
     )
     photos, positions, angles, extra = [], [], [], []
-    for (line_no, _), row in zip(lines[1:], rows[1:], strict=True):
+    for line_no, row in zip(line_numbers[1:], rows[1:], strict=True):
         if len(row) != len(header):
             raise InputError(
                 f"line {line_no} has {len(row)} values, the header has {len(header)}", p
@@ -165,6 +130,56 @@ def read_survey(path: str | Path) -> Survey:
         extra_columns=extra_columns,
         extra=tuple(extra),
     )
+
+
+def _survey_rows(p: Path) -> tuple[list[int], list[list[str]]]:
+    """The survey file's rows (its header first) and their line numbers in the file, blank
+    lines and ``#`` comments left out."""
+    data = read_regular_file(p, "survey file", limit("CAMVLP_MAX_FILE_BYTES"))
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"cannot read survey file: {exc.__class__.__name__}", p) from None
+    lines = [
+        (k, ln)
+        for k, ln in enumerate(text.splitlines(), 1)
+        if ln.strip() and not ln.lstrip().startswith("#")
+    ]
+    if not lines:
+        raise InputError("survey file is empty (it needs the columns photo,x,y,z)", p)
+    try:
+        rows = list(csv.reader([ln for _, ln in lines]))
+    except csv.Error as exc:
+        raise InputError(f"malformed survey file: {exc}", p) from None
+    return [k for k, _ in lines], rows
+
+
+def _columns(header: list[str], n_rows: int, p: Path) -> tuple[dict[str, int], bool]:
+    """Each column's index, and whether the survey gives the true angles; refused when a
+    column is missing or given twice, when there is no photo (``n_rows`` counts the header),
+    or when only some of the angles are given."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
+    if missing:
+        raise InputError(
+            f"survey file lacks the column{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing)} (needs photo,x,y,z)",
+            p,
+        )
+    if len(set(header)) != len(header):
+        dup = next(h for h in header if header.count(h) > 1)
+        raise InputError(f"survey file has the column {dup!r} twice", p)
+    if n_rows < 2:
+        raise InputError("survey file has no photos, only a header", p)
+    col = {h: i for i, h in enumerate(header)}
+    has_angles = all(c in col for c in ANGLE_COLUMNS)
+    some = [c for c in ANGLE_COLUMNS if c in col]
+    if some and not has_angles:  # the orientation error would be left out without a word
+        missing = ", ".join(c for c in ANGLE_COLUMNS if c not in col)
+        raise InputError(
+            f"survey file has {', '.join(some)} but not {missing}: give all three angles or none",
+            p,
+        )
+    return col, has_angles
 
 
 def _cell(text: str, column: str, line_no: int, path: Path) -> float:

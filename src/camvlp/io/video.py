@@ -31,9 +31,10 @@ import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.io.files import MAX_MAGNITUDE, read_text_file
+from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.io.images import load_image
 from camvlp.io.limits import check_pixels, limit, open_regular_file
+from camvlp.io.textfiles import read_text_file
 
 __all__ = ["IMAGE_SUFFIXES", "MIN_FPS", "Frame", "FrameSource", "open_frames", "read_truth"]
 

@@ -33,6 +33,7 @@ __all__ = [
     "in_front",
     "matrix_to_euler",
     "project_points",
+    "rotation_from_vector",
     "rotation_x",
     "rotation_y",
     "rotation_z",
@@ -67,6 +68,12 @@ def rotation_z(theta_deg: float) -> np.ndarray:
     t = np.deg2rad(theta_deg)
     c, s = np.cos(t), np.sin(t)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rotation_from_vector(rotvec) -> np.ndarray:
+    """Rotation matrix, shape (3, 3), of a rotation vector (shape (3,): the axis times the
+    angle, radians), as OpenCV's ``cv2.Rodrigues`` gives it."""
+    return cv2.Rodrigues(np.asarray(rotvec, dtype=np.float64).reshape(3, 1))[0]
 
 
 def euler_to_matrix(euler_deg) -> np.ndarray:
@@ -107,30 +114,23 @@ def matrix_to_euler(rotation) -> np.ndarray:
     if r.shape != (3, 3):
         raise ValueError(f"rotation must have shape (3, 3), got {r.shape}")
     # R = Rx Ry Rz: R[0,2] = sin(ty); R[0,0] = cy cz; R[0,1] = -cy sz;
-    # R[1,2] = -sx cy; R[2,2] = cx cy.  The entries as Python floats, the angles by NumPy's
-    # own arcsin and arctan2 (whose last bits may differ from the math module's)
-    (r00, r01, r02), (_, r11, r12), (_, r21, r22) = r.tolist()
-    sy = min(max(r02, -1.0), 1.0)
+    # R[1,2] = -sx cy; R[2,2] = cx cy.
+    sy = np.clip(r[0, 2], -1.0, 1.0)
     if abs(sy) < 1.0 - 1e-12:
-        tx, tz = np.arctan2([-r12, -r01], [r22, r00]).tolist()
+        tx, tz = np.arctan2(-r[1, 2], r[2, 2]), np.arctan2(-r[0, 1], r[0, 0])
     else:  # gimbal lock: only tx + sign*tz is defined; put it all in tx
-        tx, tz = float(np.arctan2(r21, r11)), 0.0
-    return np.rad2deg(np.array([tx, float(np.arcsin(sy)), tz]))
+        tx, tz = np.arctan2(r[2, 1], r[1, 1]), 0.0
+    return np.rad2deg(np.array([tx, np.arcsin(sy), tz], dtype=float))
 
 
 def all_finite(*arrays: np.ndarray) -> bool:
-    """Whether every value of these (small) float arrays is finite: ``np.isfinite(a).all()``
-    of each, in Python floats (for a few values cheaper than NumPy's two calls)."""
-    for a in arrays:
-        if not all(map(math.isfinite, a.ravel().tolist())):
-            return False
-    return True
+    """Whether every value of these float arrays is finite."""
+    return all(bool(np.isfinite(a).all()) for a in arrays)
 
 
 def finite_rows(a: np.ndarray) -> list[bool]:
-    """Whether each row of a small 2-D float array is finite throughout:
-    ``np.isfinite(a).all(axis=1)`` as a list, in Python floats."""
-    return [all(map(math.isfinite, row)) for row in a.tolist()]
+    """Whether each row of a 2-D float array is finite throughout, as a list of bool."""
+    return np.isfinite(a).all(axis=1).tolist()
 
 
 def _vector(value, n: int, name: str) -> np.ndarray:
@@ -141,17 +141,9 @@ def _vector(value, n: int, name: str) -> np.ndarray:
 
 
 def _is_rotation(r: np.ndarray) -> bool:
-    """``r.T @ r`` within ``np.allclose(..., atol=1e-6)`` of the identity and ``det r >= 0``,
-    for a finite (3, 3) matrix: with Python floats, as a pose is built for every candidate."""
-    (a, b, c), (d, e, f), (g, h, i) = r.tolist()
-    cols = ((a, d, g), (b, e, h), (c, f, i))
-    for j in range(3):
-        for k in range(j, 3):
-            u, v = cols[j], cols[k]
-            dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
-            if abs(dot - (j == k)) > 1e-6 + 1e-5 * (j == k):  # allclose's atol + rtol * |1|
-                return False
-    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g) >= 0
+    """Whether a finite (3, 3) matrix is a rotation: orthonormal columns (``r.T @ r`` the
+    identity within 1e-6) and no reflection (``det r >= 0``)."""
+    return bool(np.allclose(r.T @ r, np.eye(3), atol=1e-6) and np.linalg.det(r) >= 0)
 
 
 @dataclass(frozen=True)
@@ -186,7 +178,7 @@ class Pose:
     @classmethod
     def from_rvec_tvec(cls, rvec, tvec) -> Pose:
         """Pose from OpenCV's ``camera_from_world`` Rodrigues vector and translation."""
-        r_cw, _ = cv2.Rodrigues(np.asarray(rvec, dtype=float).reshape(3, 1))
+        r_cw = rotation_from_vector(rvec)
         t = np.asarray(tvec, dtype=float).reshape(3)
         if not all_finite(r_cw, t):
             raise ValueError("rvec and tvec must be finite")
@@ -436,7 +428,7 @@ def in_front(points_camera) -> np.ndarray:
     """Whether points in camera coordinates, shape (..., 3), lie in front of the camera,
     beyond float64 rounding of its plane (:data:`PLANE_ROUNDING`): bool, shape (...)."""
     p = np.asarray(points_camera, dtype=float)
-    return p[..., 2] > PLANE_ROUNDING * np.sqrt(np.add.reduce(p * p, axis=-1))  # (its norm)
+    return p[..., 2] > PLANE_ROUNDING * np.linalg.norm(p, axis=-1)
 
 
 def project_points(camera: Camera, pose: Pose, points_world) -> np.ndarray:

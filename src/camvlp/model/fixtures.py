@@ -7,12 +7,10 @@ from functools import cached_property
 
 import numpy as np
 
+from camvlp.format import UNITS_TO_M
 from camvlp.model.linecode import FrameFormat
 
 __all__ = ["UNITS_TO_M", "Fixture", "FixtureMap"]
-
-#: Length units a map may use, and their size in metres.
-UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
 @dataclass(frozen=True)

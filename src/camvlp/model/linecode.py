@@ -280,10 +280,9 @@ class FrameFormat:
             on_row[: ch.size] = ch
         on &= k
         # per stretch and frame position: known chips, and known ones
-        # (the reductions by the ufuncs' own methods: ndarray.sum and .min wrap them in Python)
-        seen = np.add.reduce(k.reshape(m, -1, n), axis=1, dtype=np.intp)  # (m, n)
-        ones = np.add.reduce(on.reshape(m, -1, n), axis=1, dtype=np.intp)
-        coverage = np.minimum.reduce(seen, axis=1)
+        seen = k.reshape(m, -1, n).sum(axis=1, dtype=np.intp)  # (m, n)
+        ones = on.reshape(m, -1, n).sum(axis=1, dtype=np.intp)
+        coverage = seen.min(axis=1)
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = np.minimum(limit, int(max_errors))
@@ -292,17 +291,17 @@ class FrameFormat:
         # a whole number below 2**24
         weight = (seen - 2 * ones).astype(np.float32)
         dist = (weight @ self._rotations_by_chip).astype(np.int64)
-        dist += np.add.reduce(ones, axis=1)[:, None]
+        dist += ones.sum(axis=1)[:, None]
         dist = dist.reshape(m, n_ids, n)
-        per_id = np.minimum.reduce(dist, axis=2)
+        per_id = dist.min(axis=2)
         best = per_id.argmin(axis=1)  # the first of the nearest, as a stable sort's
         rows = np.arange(m)
         offset = dist[rows, best].argmin(axis=1)
-        n_seen = np.add.reduce(seen, axis=1)
+        n_seen = seen.sum(axis=1)
         d_best = per_id[rows, best]
         if n_ids > 1:  # the next: an ID as near, or the nearest other
             per_id[rows, best] = _INT64_MAX  # (the nearest left out)
-            d_second = np.minimum.reduce(per_id, axis=1)
+            d_second = per_id.min(axis=1)
         else:
             d_second = n_seen + 1
         return [

@@ -2,17 +2,19 @@
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from camvlp.geometry.disc import centre_sigma
 from camvlp.model.camera import Pose
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode import StripeDecode
-from camvlp.pipeline.detect import Detection
-from camvlp.pipeline.later import LaterField
-from camvlp.pipeline.model_decode import ModelDecode
+from camvlp.pipeline.decode.result import StripeDecode
+from camvlp.pipeline.detect.blob import EllipseFit
+from camvlp.pipeline.detect.candidates import Detection
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 
@@ -30,12 +32,13 @@ class FixtureResult:
     used : bool
         Whether the pose uses it.
     margin : float
-        Decoding confidence.  Manchester IDs the model fit read (``hamming`` -1): the decimal
-        log of the likelihood ratio of the ID over the best other ID of the map (see
-        :class:`camvlp.pipeline.model_decode.ModelDecode`; IDs need 4 or more).  Manchester
-        IDs the run-length decoder read (``hamming`` 0): its run margin in [0, 1] (see
-        :class:`camvlp.pipeline.decode.StripeDecode`; IDs need 0.3 or more).  Frequencies:
-        in [0, 1], how close the measured frequency is to the map's.
+        How sure the ID is: the decimal log of the likelihood ratio of the ID over the best
+        other ID (or frequency) of the map (4: ten thousand times likelier; the model fit needs
+        4, a frequency 5.4; see :class:`~camvlp.pipeline.decode.result.StripeDecode`).  NaN
+        when the run-length decoder read the ID: see ``run_margin``.
+    run_margin : float
+        The run-length decoder's confidence, 0 to 1 (it takes an ID from 0.3 on, with no chip
+        in error); NaN when another decoder read the stripes.
     reason : str
         Why it is not used ("" when used).
     hamming : int
@@ -51,11 +54,11 @@ class FixtureResult:
         Measured blinking frequency (frequency mode), Hz; NaN otherwise.
     centre_sigma_px : float
         Uncertainty of ``pixel`` estimated from the disc's ellipse fit, pixels (1-sigma per
-        axis; NaN when the disc was too small to fit).  Worked out when first read
-        (:class:`~camvlp.pipeline.later.LaterField`).
+        axis; NaN when the disc was too small to fit).  Worked out when first read, from
+        ``edge_fit`` (:class:`~camvlp.pipeline.detect.blob.EllipseFit`).
     look_alikes : tuple of int
         When the stripes fit two or more IDs of the map almost equally and the pose told
-        them apart (:mod:`camvlp.pipeline.by_pose`): those IDs, ``id`` among them (the one
+        them apart (:mod:`camvlp.pipeline.identify.by_pose`): those IDs, ``id`` among them (the one
         whose map position projects onto the fixture).  Empty when the stripes alone said
         the ID (``margin`` is then the stripes' own).
     """
@@ -66,12 +69,20 @@ class FixtureResult:
     margin: float
     reason: str
     hamming: int = -1
+    run_margin: float = float("nan")
     rows_spanned: float = float("nan")
     rows_per_chip: float = float("nan")
     residual_px: float = float("nan")
     frequency_hz: float = float("nan")
-    centre_sigma_px: float = LaterField(float("nan"))  # a descriptor: read per instance
     look_alikes: tuple[int, ...] = ()
+    edge_fit: EllipseFit | None = field(default=None, repr=False, compare=False)
+
+    @functools.cached_property
+    def centre_sigma_px(self) -> float:
+        """See the class' attributes."""
+        if self.edge_fit is None:
+            return float("nan")
+        return centre_sigma(self.edge_fit.covariance)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict (NaN becomes null); ``reason`` is always there ("" when used)."""
@@ -79,10 +90,11 @@ class FixtureResult:
             "id": self.id,
             "pixel": [round(float(v), 3) for v in self.pixel],
             "used": self.used,
-            "margin": round(self.margin, 3),
+            "margin": None if not np.isfinite(self.margin) else round(self.margin, 3),
             "reason": self.reason,
         }
-        for key in ("hamming", "rows_spanned", "rows_per_chip", "residual_px", "frequency_hz"):
+        keys = ("hamming", "run_margin", "rows_spanned", "rows_per_chip", "residual_px")
+        for key in (*keys, "frequency_hz"):
             v = getattr(self, key)
             if isinstance(v, float):
                 v = None if not np.isfinite(v) else round(v, 3)
@@ -150,9 +162,10 @@ class LocateResult:
     position_sigma : ndarray, shape (3,), or None
         How sure the position is: its standard deviation along the map's x, y and z, map
         units, from the fixtures' reprojection errors and what their layout makes of a pixel
-        (:func:`camvlp.pipeline.by_pose.position_sigma`), for the pose located; worked out
-        when first read (:class:`~camvlp.pipeline.later.LaterField`).  None when not
-        located, when the pose was solved with gravity, or when it is not finite.
+        (:func:`camvlp.geometry.pose_sigma.position_sigma`), for the pose located;
+        worked out when first read (``sigma_of``, a function of no arguments that gives it).
+        None when not located, when the pose was solved with gravity, or when it is not
+        finite.
     """
 
     position: np.ndarray | None
@@ -174,7 +187,14 @@ class LocateResult:
     solver: str = "pnp"
     tilt_disagreement_deg: float = float("nan")
     gravity_residual_deg: float = float("nan")
-    position_sigma: np.ndarray | None = LaterField(None)  # noqa: RUF009 (a descriptor)
+    sigma_of: Callable[[], np.ndarray | None] | None = field(
+        default=None, repr=False, compare=False
+    )
+
+    @functools.cached_property
+    def position_sigma(self) -> np.ndarray | None:
+        """See the class' attributes."""
+        return None if self.sigma_of is None else self.sigma_of()
 
     @property
     def fixtures_used(self) -> int:
@@ -248,20 +268,20 @@ class LocateStages:
         Each blob's region of interest, gray.
     profiles : tuple of ndarray, each (n,)
         Each blob's row profile, in the order the sensor read it.
-    decodes : tuple of ModelDecode or StripeDecode
+    decodes : tuple of StripeDecode or StripeDecode
         Each blob's decode (the model fit's in Manchester mode).
     profile_weights : tuple of ndarray, each (n,)
         Each profile's row weights, in the same order: the inverse of each row's variance
         under pixels of equal noise, up to a constant
-        (:func:`~camvlp.pipeline.profile.shape_profiles`).
+        (:func:`~camvlp.pipeline.decode.profile.shape_profiles`).
     beacons : tuple of tuple
         Frequency mode: each light's beacon profile, its test against the map's frequencies
-        and the map's periods (:func:`~camvlp.pipeline.frequency.decode_frequencies`).
+        and the map's periods (:func:`~camvlp.pipeline.decode.frequency.decode_frequencies`).
     """
 
     detection: Detection
     gray_rois: tuple[np.ndarray, ...]
     profiles: tuple[np.ndarray, ...]
-    decodes: tuple[ModelDecode | StripeDecode, ...]
+    decodes: tuple[StripeDecode, ...]
     profile_weights: tuple[np.ndarray, ...] = ()
     beacons: tuple = ()

@@ -6,6 +6,7 @@ page), and reach the state kept here on ``app.state`` through :mod:`camvlp.servi
 ``camvlp serve`` runs it with uvicorn.
 """
 
+import logging
 from collections.abc import AsyncIterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
@@ -18,9 +19,14 @@ from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from camvlp import __version__
-from camvlp.service import routes_api, routes_page
+from camvlp.service import routes_api, routes_frames, routes_page
 from camvlp.service.db import Store, make_engine
 from camvlp.service.deps import Gate, parse_count
+from camvlp.service.frames import FrameTracks
+from camvlp.service.logs import AccessLog
+from camvlp.service.metrics import ServiceMetrics
+from camvlp.service.migrate import prepare
+from camvlp.service.ratelimit import RateLimiter
 from camvlp.service.settings import ServiceSettings
 
 __all__ = ["app_from_env", "create_app"]
@@ -110,27 +116,63 @@ def create_app(settings: ServiceSettings | None = None) -> FastAPI:
     Returns
     -------
     FastAPI
-        Serves the API under ``/api/v1``, its documentation at ``/docs`` and the live page of
-        each site at ``/sites/{id}``.
+        Serves the API under ``/api/v1``, its documentation at ``/docs`` and ``/redoc``, the
+        live page of each site at ``/sites/{id}``, its camera page at ``/sites/{id}/capture``
+        and the metrics at ``/metrics``.
+
+    Raises
+    ------
+    camvlp.service.migrate.SchemaError
+        The database is at an older revision (``camvlp serve --migrate`` upgrades it), or at
+        one this code does not know.  An empty database is created at the last revision.
     """
     cfg = settings or ServiceSettings.from_env()
     store = Store(make_engine(cfg.db))
-    store.create_tables()
+    try:
+        prepare(store.engine)
+    except Exception:
+        store.engine.dispose()
+        raise
     app = FastAPI(
         title="camvlp",
         version=__version__,
         summary="Camera positioning from photos of coded ceiling lights.",
-        description="Create a site with its map and camera, send photos, get fixes. Every "
+        description="Create a site with its map and camera, send photos or video frames, get "
+        "fixes. Every "
         "request about a site needs its key: `Authorization: Bearer KEY`.",
         lifespan=_lifespan,
+        docs_url=None,  # served by routes_page from the package's files
+        redoc_url=None,
     )
+    logging.getLogger("camvlp").setLevel(cfg.log_level.upper())
     app.state.settings, app.state.store = cfg, store
     app.state.pool = ThreadPoolExecutor(cfg.locate_threads, thread_name_prefix="camvlp-locate")
-    app.state.gate = Gate(cfg.locate_threads + cfg.max_queued)
+    app.state.gate = gate = Gate(cfg.locate_threads + cfg.max_queued)
+    app.state.tracks = tracks = FrameTracks(cfg.frame_devices, cfg.frame_idle_s)
+    app.state.limiter = RateLimiter(cfg.rate_per_s, cfg.rate_burst)
+    app.state.metrics = metrics = ServiceMetrics()
+    metrics.gauge(
+        "camvlp_locate_in_hand",
+        "Photos and frames admitted to the locate pool (running or waiting).",
+        lambda: gate.busy,
+    )
+    metrics.gauge(
+        "camvlp_frame_queue_depth",
+        "Frames waiting for their device's turn (at most one per device).",
+        tracks.waiting,
+    )
+    metrics.gauge("camvlp_frame_devices", "Devices with a frame track.", lambda: len(tracks))
     app.add_middleware(_BodyLimit, max_bytes=cfg.max_upload_bytes)
+    app.add_middleware(AccessLog, metrics=metrics)  # outermost: sees every answer, 413s too
     app.add_exception_handler(RequestValidationError, _one_line)
     app.include_router(routes_api.router)
+    app.include_router(routes_frames.router)
     app.mount("/static", StaticFiles(directory=routes_page.STATIC_DIR), name="static")
+    app.mount(
+        routes_page.DOCS_ASSETS_URL,
+        StaticFiles(directory=routes_page.DOCS_ASSETS_DIR),
+        name="static-docs",
+    )
     app.include_router(routes_page.router)
     return app
 

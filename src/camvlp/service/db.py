@@ -15,8 +15,9 @@ from pydantic import ConfigDict
 from sqlalchemy.engine import Engine
 
 from camvlp.service.schemas import FixFields
+from camvlp.service.settings import sqlite_file
 
-__all__ = ["FixRow", "SiteRow", "Store", "make_engine"]
+__all__ = ["FixRow", "SiteRow", "Store", "make_engine", "metadata"]
 
 metadata = sa.MetaData()
 
@@ -60,7 +61,12 @@ fixes = sa.Table(
     sa.Column("result", sa.JSON, nullable=False),  # the locate JSON, whole
     sa.Column("has_picture", sa.Boolean, nullable=False),
     sa.Column("gravity", sa.JSON),  # [gx, gy, gz] as the client sent it, or null
+    # since migration 0002: where the fix came from, the frame's status, the position's sigma
+    sa.Column("source", sa.String(10), nullable=False, server_default="photo"),  # or "frame"
+    sa.Column("status", sa.String(16)),  # a frame's: fix, tracked, gravity, predicted, lost
+    sa.Column("position_sigma", sa.JSON),  # [sx, sy, sz] in map units, or null
     sa.Index("ix_fixes_site_id_id", "site_id", "id"),
+    sa.Index("ix_fixes_site_id_device_id", "site_id", "device", "id"),
 )
 
 pictures = sa.Table(
@@ -72,11 +78,20 @@ pictures = sa.Table(
 
 
 def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite files get WAL journaling and a busy timeout.
+    """An engine for ``url``; SQLite files get WAL journaling and a busy timeout, and their
+    folder is created when missing.
 
     WAL lets readers (the fix streams) go on while a writer commits, and the timeout makes
     concurrent writers from several processes wait for each other instead of failing.
+
+    Raises
+    ------
+    OSError
+        A SQLite file's folder cannot be created.
     """
+    path = sqlite_file(url)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
     engine = sa.create_engine(url, pool_pre_ping=True)
     if engine.dialect.name == "sqlite":
 
@@ -127,10 +142,6 @@ class Store:
 
     def __init__(self, engine: Engine):
         self.engine = engine
-
-    def create_tables(self) -> None:
-        """Create the tables that do not exist yet."""
-        metadata.create_all(self.engine, checkfirst=True)
 
     # --- sites -----------------------------------------------------------------------------
 
@@ -216,8 +227,12 @@ class Store:
         result: dict[str, Any],
         picture_jpeg: bytes | None = None,
         gravity: list[float] | None = None,
+        *,
+        source: str = "photo",
+        status: str | None = None,
     ) -> int:
-        """Record a locate result (the ``locate --json`` object); returns the fix's id."""
+        """Record a locate result (the ``locate --json`` object, or a frame's answer with
+        ``source="frame"`` and its tracker ``status``); returns the fix's id."""
         used = [f["id"] for f in result.get("fixtures", ()) if f.get("used")]
         with self.engine.begin() as conn:
             fix_id = conn.execute(
@@ -236,6 +251,9 @@ class Store:
                     result=result,
                     has_picture=picture_jpeg is not None,
                     gravity=gravity,
+                    source=source,
+                    status=status,
+                    position_sigma=result.get("position_sigma"),
                 )
             ).inserted_primary_key[0]
             if picture_jpeg is not None:
@@ -331,5 +349,8 @@ def _fix_row(r) -> FixRow:
         fixtures_used=list(r["fixtures_used"] or []),
         error=r["error"],
         has_picture=bool(r["has_picture"]),
+        source=r["source"],
+        status=r["status"],
+        position_sigma=r["position_sigma"],
         result=r.get("result") or {},
     )

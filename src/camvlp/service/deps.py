@@ -16,10 +16,13 @@ from fastapi.exceptions import HTTPException
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from camvlp.errors import InputError
-from camvlp.io.files import parse_mapping
 from camvlp.io.limits import limit
+from camvlp.io.textfiles import parse_mapping
 from camvlp.service.auth import hash_key, keys_match
 from camvlp.service.db import Store
+from camvlp.service.frames import FrameTracks
+from camvlp.service.metrics import ServiceMetrics
+from camvlp.service.ratelimit import RateLimiter
 from camvlp.service.settings import ServiceSettings
 
 __all__ = [
@@ -27,18 +30,23 @@ __all__ = [
     "Admin",
     "Gate",
     "GateDep",
+    "MetricsDep",
     "PoolDep",
     "RowId",
     "SettingsDep",
     "Site",
     "StoreDep",
+    "TracksDep",
     "admin_access",
+    "choose_camera",
     "get_gate",
     "get_pool",
     "get_settings",
     "get_store",
     "json_body_gate",
     "parse_count",
+    "parse_gravity",
+    "rate_limit",
     "site_access",
 ]
 
@@ -68,7 +76,7 @@ def _json_content(request: Request) -> bool:
 
 async def json_body_gate(request: Request) -> None:
     """A JSON body is checked before any route reads it, as the camera and map files are
-    (:func:`camvlp.io.files.parse_mapping`): at most ``CAMVLP_MAX_FILE_BYTES`` (413), UTF-8,
+    (:func:`camvlp.io.textfiles.parse_mapping`): at most ``CAMVLP_MAX_FILE_BYTES`` (413), UTF-8,
     an object nested at most ``CAMVLP_MAX_DEPTH`` deep, no number of more than 30 digits, no
     key given twice in one object (JSON keeps the last one without a word, so a map with a
     fixture's ``position`` given twice would be stored as one of them), and (what a JSON
@@ -119,6 +127,32 @@ def _plain_values(value: Any, where: str = "") -> None:
             ) from None
 
 
+def parse_gravity(text: str | None) -> list[float] | None:
+    """A ``gx,gy,gz`` field as three finite numbers, not all 0 (None when empty); 422
+    otherwise."""
+    if text is None or not text.strip():
+        return None
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
+        raise HTTPException(422, f"gravity must be three numbers gx,gy,gz, not all 0, got {text!r}")
+    return values
+
+
+def choose_camera(cameras: dict[str, Any], name: str | None, site_id: int) -> str:
+    """The camera a request names, or the site's only (or ``default``) one; 422 when the
+    request must say which, 404 when the site has no such camera."""
+    if name is None:
+        if len(cameras) != 1 and "default" not in cameras:
+            raise HTTPException(422, f"say which camera: ?camera=NAME, one of {', '.join(cameras)}")
+        name = next(iter(cameras)) if len(cameras) == 1 else "default"
+    if name not in cameras:
+        raise HTTPException(404, f"no camera {name!r} in site {site_id}")
+    return name
+
+
 def parse_count(text: str, most: int) -> int | None:
     """``text`` as a whole number from 0 to ``most`` (ASCII digits only), else None."""
     text = text.strip()
@@ -148,10 +182,22 @@ async def get_gate(request: Request) -> Gate:
     return request.app.state.gate
 
 
+async def get_tracks(request: Request) -> FrameTracks:
+    """The devices' frame tracks (``app.state.tracks``)."""
+    return request.app.state.tracks
+
+
+async def get_metrics(request: Request) -> ServiceMetrics:
+    """The service's metrics (``app.state.metrics``)."""
+    return request.app.state.metrics
+
+
 SettingsDep = Annotated[ServiceSettings, Depends(get_settings)]
 StoreDep = Annotated[Store, Depends(get_store)]
 PoolDep = Annotated[ThreadPoolExecutor, Depends(get_pool)]
 GateDep = Annotated[Gate, Depends(get_gate)]
+TracksDep = Annotated[FrameTracks, Depends(get_tracks)]
+MetricsDep = Annotated[ServiceMetrics, Depends(get_metrics)]
 
 
 #: Largest id of a database row (SQL's BIGINT, SQLite's INTEGER: signed 64 bits).
@@ -160,12 +206,30 @@ MAX_ROW_ID = 2**63 - 1
 RowId = Annotated[int, Path(ge=-MAX_ROW_ID - 1, le=MAX_ROW_ID)]
 
 
+def rate_limit(request: Request, key: str) -> None:
+    """Take one of the key's tokens (``app.state.limiter``); 429 with ``Retry-After`` when it
+    has none left."""
+    limiter: RateLimiter = request.app.state.limiter
+    wait = limiter.take(key)
+    if wait > 0:
+        request.app.state.metrics.rate_limited.inc()
+        retry = limiter.retry_after(wait)
+        raise HTTPException(
+            429,
+            f"rate limit: {limiter.rate:g} requests per second per key (bursts of "
+            f"{limiter.burst}); retry in {retry} s",
+            headers={"Retry-After": retry},
+        )
+
+
 def site_access(
     site_id: RowId,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
     store: StoreDep,
+    request: Request,
 ) -> int:
-    """The site's id when the request carries its key; 401, 403 or 404 otherwise."""
+    """The site's id when the request carries its key and the key is within its rate limit;
+    401, 403, 404 or 429 otherwise."""
     if credentials is None or not credentials.credentials:
         raise HTTPException(
             401,
@@ -175,6 +239,7 @@ def site_access(
     key = credentials.credentials
     stored = store.site_key_hash(site_id)
     if stored is not None and keys_match(key, stored):
+        rate_limit(request, f"site:{site_id}")
         return site_id
     if store.key_hash_exists(hash_key(key)):
         if stored is None:
@@ -190,9 +255,11 @@ Site = Annotated[int, Depends(site_access)]
 def admin_access(
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
     settings: SettingsDep,
+    request: Request,
 ) -> None:
-    """Nothing when the request carries the service's admin key (``CAMVLP_ADMIN_KEY``); 401
-    otherwise, and always when the service has none."""
+    """Nothing when the request carries the service's admin key (``CAMVLP_ADMIN_KEY``) within
+    its rate limit; 401 otherwise, and always when the service has none (429 over the
+    limit)."""
     if not settings.admin_key:
         raise HTTPException(
             401,
@@ -207,6 +274,7 @@ def admin_access(
         )
     if not keys_match(credentials.credentials, hash_key(settings.admin_key)):
         raise HTTPException(401, "wrong admin key", headers={"WWW-Authenticate": "Bearer"})
+    rate_limit(request, "admin")
 
 
 #: A request made with the service's admin key.

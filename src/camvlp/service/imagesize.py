@@ -1,7 +1,7 @@
 """A photo's width and height from its PNG or JPEG header, without decoding it.
 
 The service accepts only PNG and JPEG uploads; the header is read by the package's one
-header reader, :func:`camvlp.io.images.image_header`.
+header reader, :func:`camvlp.io.image_header.image_header`.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from camvlp.errors import InputError
-from camvlp.io.images import image_header
+from camvlp.io.image_header import image_header
 
 __all__ = ["ImageHeader", "read_image_header"]
 

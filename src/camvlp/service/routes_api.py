@@ -6,7 +6,6 @@ event loop; the pool, the store and the settings come from :mod:`camvlp.service.
 
 import asyncio
 import dataclasses
-import math
 import time
 from collections.abc import AsyncIterator
 from datetime import UTC, datetime
@@ -35,13 +34,16 @@ from camvlp.service.deps import (
     MAX_ROW_ID,
     Admin,
     GateDep,
+    MetricsDep,
     PoolDep,
     RowId,
     SettingsDep,
     Site,
     StoreDep,
+    choose_camera,
     json_body_gate,
     parse_count,
+    parse_gravity,
 )
 from camvlp.service.imagesize import read_image_header
 from camvlp.service.plan import PlanView, plan_view
@@ -106,18 +108,6 @@ def _parse_camera(data: dict[str, Any]) -> Camera:
         return camera_from_dict(data, "camera")
     except InputError as exc:
         raise HTTPException(422, str(exc)) from None
-
-
-def _parse_gravity(text: str | None) -> list[float] | None:
-    if text is None or not text.strip():
-        return None
-    try:
-        values = [float(v) for v in text.replace(" ", "").split(",")]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
-        raise HTTPException(422, f"gravity must be three numbers gx,gy,gz, not all 0, got {text!r}")
-    return values
 
 
 def _locate_job(
@@ -284,6 +274,7 @@ async def locate_photo(
     cfg: SettingsDep,
     pool: PoolDep,
     gate: GateDep,
+    metrics: MetricsDep,
     camera: Annotated[str | None, Query(description="Which of the site's cameras took it.")] = None,
 ) -> dict[str, Any]:
     """Locate a photo: the JSON of ``camvlp locate --json`` plus ``fix_id``.
@@ -300,12 +291,7 @@ async def locate_photo(
     )
     if site_row is None:
         raise HTTPException(404, f"no site {site_id}")
-    if camera is None:
-        if len(cameras) != 1 and "default" not in cameras:
-            raise HTTPException(422, f"say which camera: ?camera=NAME, one of {', '.join(cameras)}")
-        camera = next(iter(cameras)) if len(cameras) == 1 else "default"
-    if camera not in cameras:
-        raise HTTPException(404, f"no camera {camera!r} in site {site_id}")
+    camera = choose_camera(cameras, camera, site_id)
     if gate.busy >= gate.limit:
         raise HTTPException(
             503, f"busy: {gate.busy} photos being located; retry", headers={"Retry-After": "1"}
@@ -327,10 +313,15 @@ async def locate_photo(
                 )
             except ValueError as exc:
                 raise HTTPException(422, str(exc)) from None
+            request.state.device = fields.device
             job = (photo.file, cam, fmap, settings, fields.annotate, cfg, grav)
-            result, picture = await asyncio.get_running_loop().run_in_executor(
-                pool, _locate_job, *job
-            )
+            started = time.perf_counter()
+            try:
+                result, picture = await asyncio.get_running_loop().run_in_executor(
+                    pool, _locate_job, *job
+                )
+            finally:
+                metrics.locate_seconds.labels("photo").observe(time.perf_counter() - started)
     except _LocateRefused as exc:
         raise HTTPException(exc.status, exc.detail) from None
     except MultiPartException as exc:
@@ -340,6 +331,7 @@ async def locate_photo(
     fix_id = await run_in_threadpool(
         store.add_fix, site_id, fields.device, camera, result, picture, grav
     )
+    metrics.fixes.labels("photo", str(result["position"] is not None).lower()).inc()
     return {**result, "fix_id": fix_id}
 
 
@@ -355,7 +347,7 @@ def _locate_form(form: FormData) -> tuple[LocateForm, list[float] | None]:
         raise RequestValidationError(errors) from None
     if errors:
         raise RequestValidationError(errors)
-    return fields, _parse_gravity(fields.gravity)
+    return fields, parse_gravity(fields.gravity)
 
 
 @router.get("/sites/{site_id}/fixes", response_model=FixPage, tags=["fixes"])

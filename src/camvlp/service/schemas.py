@@ -77,6 +77,13 @@ class FixFields(BaseModel):
     euler_deg: list[float] | None
     fixtures_used: list[int]
     error: str
+    source: str = Field("photo", description="photo (POST .../locate) or frame (POST .../frames)")
+    status: str | None = Field(
+        None, description="A frame's status: fix, tracked, gravity, predicted or lost."
+    )
+    position_sigma: list[float] | None = Field(
+        None, description="Standard deviation of the position along x, y, z (map units)."
+    )
 
 
 class FixOut(FixFields):

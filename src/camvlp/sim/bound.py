@@ -32,8 +32,9 @@ import numpy as np
 
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.beacon import square_wave
-from camvlp.sim.render import LightPatch, RenderSettings, light_patches
+from camvlp.pipeline.decode.beacon import square_wave
+from camvlp.sim.render import LightPatch, light_patches
+from camvlp.sim.settings import RenderSettings
 
 __all__ = ["frequency_bounds", "frequency_intervals", "share_within"]
 

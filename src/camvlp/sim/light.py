@@ -12,19 +12,24 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.linecode import manchester_encode
+from camvlp.model.readout import Readout
 
 __all__ = [
     "CORE_SIGMA",
     "DATA_BITS",
+    "blur_margin",
     "coverage",
     "data_chips",
     "glow_margin",
+    "lamp_shape",
     "on_fraction",
     "pixel_box",
+    "sensor_lines",
     "shine",
 ]
 
@@ -221,6 +226,63 @@ def shine(
         glow = np.float32(halo) * np.exp(-np.maximum(rho - 1.0, 0.0) / np.float32(0.5))
         cov = cov + (1.0 - np.minimum(cov, 1.0)) * glow
     return cov
+
+
+def blur_margin(blur_px: float) -> int:
+    """Pixels a light's box needs around its projected rim for the optical blur (sigma
+    ``blur_px`` pixels): four sigmas and two pixels."""
+    return math.ceil(4.0 * blur_px) + 2
+
+
+def lamp_shape(
+    cov: np.ndarray,
+    rho: np.ndarray,
+    xy: np.ndarray | None,
+    core_at: tuple[float, float],
+    *,
+    core: float,
+    halo: float,
+    blur_px: float,
+) -> np.ndarray:
+    """A lamp's light over its box when fully on, in units of its brightness: its look
+    (:func:`shine`, with the same arguments), blurred by the optics (a Gaussian of sigma
+    ``blur_px`` pixels, 0 for none; nothing comes in from beyond the box).
+
+    Returns
+    -------
+    ndarray of float32, shape (h, w)
+    """
+    shape = shine(cov, rho, core, halo, xy, core_at)
+    if blur_px > 0:
+        shape = cv2.GaussianBlur(shape, (0, 0), blur_px, borderType=cv2.BORDER_CONSTANT)
+    return shape
+
+
+def sensor_lines(
+    box: tuple[int, int, int, int], width: int, height: int, readout: Readout
+) -> np.ndarray:
+    """The sensor line (in readout order) of each row of a pixel box, or of each column for a
+    readout along columns.
+
+    Parameters
+    ----------
+    box : tuple of int
+        ``(u0, u1, v0, v1)``, end-exclusive, pixels.
+    width, height : int
+        The picture's size, pixels.
+    readout : Readout
+        The sensor's readout: line 0 is the first image row (column), or the last one for
+        a ``-reversed`` readout.
+
+    Returns
+    -------
+    ndarray of int, shape (v1 - v0,) or (u1 - u0,)
+    """
+    u0, u1, v0, v1 = box
+    k = np.arange(v0, v1) if readout.by_rows else np.arange(u0, u1)
+    if readout.reversed:
+        k = (height if readout.by_rows else width) - 1 - k
+    return k
 
 
 def data_chips(seed: int, index: int, n_bits: int = DATA_BITS) -> np.ndarray:

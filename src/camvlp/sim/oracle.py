@@ -5,7 +5,7 @@ it, a sensor model).  To tell a decoder's limits from the photo's, :func:`id_sep
 redraws the lamp with every other ID of the map, at every phase, with all else in the photo
 known (the lamp's disc, hot core and halo, its neighbours' light, the clipping, the noise),
 and gives the decimal log likelihood ratio of the photo as drawn against the best of them.
-Below a decoder's margin (``camvlp.pipeline.model_decode.MIN_MARGIN``) no decoder can name
+Below a decoder's margin (``camvlp.pipeline.decode.model_choice.MIN_MARGIN``) no decoder can name
 the ID at that safety; far above it, the photo holds the ID and a decoder that misses it
 leaves something out.
 """
@@ -18,7 +18,8 @@ import math
 import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.render import LightPatch, Render, id_waveform, light_patches
+from camvlp.sim.render import LightPatch, Render, light_patches
+from camvlp.sim.scene import id_waveform
 from camvlp.sim.sensor import develops
 
 __all__ = ["id_separation"]

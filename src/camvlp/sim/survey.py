@@ -21,7 +21,6 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp._moved import forward_moved_names
 from camvlp.errors import InputError
 from camvlp.io.survey_csv import SURVEY_COLUMNS, write_survey
 from camvlp.io.writers import IMAGE_SUFFIXES, save_render
@@ -30,11 +29,6 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.sim.render import RenderSettings, render
 
 __all__ = ["SURVEY_COLUMNS", "default_jobs", "render_survey", "worker_context"]
-
-
-#: ``floor_grid``, the list of positions of a survey's grid, is now ``grid_points`` in
-#: :mod:`camvlp.sim.grid`, beside the study's ``floor_grid``.
-__getattr__ = forward_moved_names(__name__, {"floor_grid": "camvlp.sim.grid.grid_points"})
 
 
 def default_jobs() -> int:
@@ -92,7 +86,7 @@ def render_survey(
     """Render one photograph per camera pose and write ``survey.csv`` beside them.
 
     Photo ``i`` is ``out_dir/photo_{i:03d}<suffix>`` (with its ground-truth JSON,
-    ``photo_{i:03d}.json``, see :func:`camvlp.sim.render.save_render`), rendered with seed
+    ``photo_{i:03d}.json``, see :func:`camvlp.io.writers.save_render`), rendered with seed
     ``settings.seed + i`` so that each photo has its own LED phases and noise.
 
     Parameters

@@ -1,15 +1,9 @@
 """Rolling-shutter videos of a moving camera, with the true trajectory beside them.
 
-A video frame is read one sensor row after another, and the camera moves meanwhile: each
-sensor row sees the room from the pose the camera has at that row's own time.  This module
-renders frames that way (the pose interpolated along a trajectory for every row) and writes
-them as an H.264 video (PyAV, libx264) or as a folder of PNG frames with ``timestamps.csv``.
-
-Time convention: a frame's time ``t`` is the middle of the exposure of its middle sensor row;
-sensor row ``k`` of ``N`` is exposed over
-``[t + (k - (N - 1) / 2) * row_time - exposure / 2, ... + exposure]`` and seen from the pose
-at the centre of that window.  The LEDs run on the same absolute clock across frames (each
-with its own random phase, the same for the whole video), and each frame gets its own noise.
+The frames (:mod:`camvlp.sim.video_frame`: each sensor row seen from the pose at its own
+time, along a :class:`~camvlp.sim.trajectory.Trajectory`) are written as an H.264 video
+(PyAV, libx264) or as a folder of PNG frames with ``timestamps.csv``.  :class:`Trajectory` and
+:func:`load_trajectory` are importable from here as well.
 
 Files written beside a video ``DIR/name.mp4`` (or inside a frame folder ``DIR/``):
 
@@ -23,302 +17,37 @@ Files written beside a video ``DIR/name.mp4`` (or inside a frame folder ``DIR/``
 from __future__ import annotations
 
 import csv
-import dataclasses
-import io
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.geometry.disc import plane_basis
 from camvlp.io.atomic import StagedOutputs
-from camvlp.io.files import MAX_MAGNITUDE, read_text_file
 from camvlp.io.limits import limit
-from camvlp.model.camera import Camera, Pose, euler_to_matrix
+from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.sim import render as _render
-from camvlp.sim.light import coverage, glow_margin, on_fraction, pixel_box, shine
-from camvlp.sim.render import (
-    FixtureTruth,
-    RenderSettings,
-    check_render_size,
-    core_places,
-    sent_waveform,
-    stamp_photo,
-)
-from camvlp.sim.sensor import expose
+from camvlp.sim.settings import RenderSettings, check_render_size
+from camvlp.sim.trajectory import TRAJECTORY_COLUMNS, Trajectory, load_trajectory
+from camvlp.sim.video_frame import VideoFrame, render_frame
 
 __all__ = [
-    "TRAJECTORY_COLUMNS",
+    "VIDEO_SUFFIXES",
     "Trajectory",
-    "VideoFrame",
     "check_frame_budget",
     "check_video_size",
+    "frame_count",
+    "iter_frames",
     "load_trajectory",
     "partial_path",
-    "render_frame",
     "render_video",
-    "row_truths",
     "truth_paths",
 ]
 
-#: Columns of a trajectory CSV.
-TRAJECTORY_COLUMNS = ("t", "x", "y", "z", "theta_x", "theta_y", "theta_z")
-
 #: Video suffixes :func:`render_video` writes (anything else is a frame folder).
 VIDEO_SUFFIXES = (".mp4", ".mov", ".mkv")
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """A camera's path: poses at increasing times, interpolated linearly in between.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        Times, s, strictly increasing.
-    position : ndarray, shape (N, 3)
-        Camera centres, map units.
-    euler_deg : ndarray, shape (N, 3)
-        The thesis' angles ``(theta_x, theta_y, theta_z)``, degrees (unwrapped, so that
-        interpolation never goes the long way round).
-    """
-
-    t: np.ndarray
-    position: np.ndarray
-    euler_deg: np.ndarray
-
-    def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float).reshape(-1)
-        p = np.asarray(self.position, dtype=float).reshape(-1, 3)
-        e = np.asarray(self.euler_deg, dtype=float).reshape(-1, 3)
-        if t.size < 2 or p.shape[0] != t.size or e.shape[0] != t.size:
-            raise ValueError("a trajectory needs at least two poses, one per time")
-        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(p)) and np.all(np.isfinite(e))):
-            raise ValueError("a trajectory's times and poses must be finite numbers")
-        if np.any(np.diff(t) <= 0):
-            raise ValueError("a trajectory's times must be strictly increasing")
-        object.__setattr__(self, "t", t)
-        object.__setattr__(self, "position", p)
-        object.__setattr__(self, "euler_deg", np.rad2deg(np.unwrap(np.deg2rad(e), axis=0)))
-
-    @property
-    def duration_s(self) -> float:
-        """Time from the first pose to the last, s."""
-        return float(self.t[-1] - self.t[0])
-
-    def sample(self, times) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (M, 3) and angles (M, 3, degrees) at ``times`` (M,), s (clamped at ends)."""
-        tt = np.asarray(times, dtype=float).reshape(-1)
-        pos = np.stack([np.interp(tt, self.t, self.position[:, i]) for i in range(3)], axis=1)
-        eul = np.stack([np.interp(tt, self.t, self.euler_deg[:, i]) for i in range(3)], axis=1)
-        return pos, eul
-
-    def pose(self, time: float) -> Pose:
-        """The pose at one time, s."""
-        pos, eul = self.sample([time])
-        return Pose.from_euler(pos[0], eul[0])
-
-
-def load_trajectory(path: str | Path) -> Trajectory:
-    """Read a trajectory CSV with the columns ``t,x,y,z,theta_x,theta_y,theta_z``.
-
-    Raises
-    ------
-    InputError
-        Unreadable file, missing columns, non-numbers, fewer than two rows or times that do
-        not increase (one line naming the file).
-    """
-    p = Path(path)
-    rows = list(csv.DictReader(io.StringIO(read_text_file(p, "trajectory"), newline="")))
-    if not rows:
-        raise InputError("the trajectory has no rows", p)
-    missing = [c for c in TRAJECTORY_COLUMNS if c not in rows[0]]
-    if missing:
-        raise InputError(f"the trajectory lacks the column(s) {', '.join(missing)}", p)
-    try:
-        data = np.array([[float(r[c]) for c in TRAJECTORY_COLUMNS] for r in rows])
-    except (TypeError, ValueError):
-        raise InputError("the trajectory has a value that is not a number", p) from None
-    if np.any(np.abs(data) > MAX_MAGNITUDE):  # as every number of camera and map files
-        raise InputError(f"the trajectory has a value beyond +-{MAX_MAGNITUDE:g}", p)
-    try:
-        return Trajectory(data[:, 0], data[:, 1:4], data[:, 4:7])
-    except ValueError as exc:
-        raise InputError(str(exc), p) from None
-
-
-def save_trajectory(trajectory: Trajectory, path: str | Path) -> None:
-    """Write a trajectory CSV (``t,x,y,z,theta_x,theta_y,theta_z``)."""
-    data = np.column_stack([trajectory.t, trajectory.position, trajectory.euler_deg])
-    with Path(path).open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(TRAJECTORY_COLUMNS)
-        w.writerows([[f"{v:.6f}" for v in row] for row in data])
-
-
-@dataclass(frozen=True)
-class VideoFrame:
-    """One rendered video frame and its truth.
-
-    Attributes
-    ----------
-    image : ndarray of uint8, shape (H, W, 3)
-        The frame, BGR.
-    t : float
-        The frame's time (its middle sensor row's mid-exposure), s.
-    pose : Pose
-        The camera's pose at ``t``.
-    fixtures : tuple of FixtureTruth
-        What the frame shows of each fixture, each seen from the pose at the time of the
-        sensor row through its centre (:func:`row_truths`).
-    """
-
-    image: np.ndarray
-    t: float
-    pose: Pose
-    fixtures: tuple[FixtureTruth, ...]
-
-
-def _row_poses(
-    trajectory: Trajectory, times: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:  # (M, 3, 3) world_from_camera, (M, 3) centres
-    pos, eul = trajectory.sample(times)
-    rot = np.stack([euler_to_matrix(e) for e in eul])
-    return rot, pos
-
-
-def row_truths(
-    camera: Camera,
-    fixture_map: FixtureMap,
-    trajectory: Trajectory,
-    t: float,
-    settings: RenderSettings | None = None,
-) -> tuple[FixtureTruth, ...]:
-    """What a frame at ``t`` shows of each fixture, each seen from the pose at the time of
-    the sensor row through its centre (where the rolling shutter saw it), in map order; a
-    fixture nowhere near the picture (its centre farther outside than its disc's extent) as
-    seen from the frame's middle pose."""
-    s = (settings or RenderSettings()).resolved(camera)
-    n_rows = camera.height if s.readout.by_rows else camera.width
-    size = np.array([camera.width, camera.height]) - 0.5
-    phases = _render._phases(fixture_map, s)
-    mid = _render._truths(camera, fixture_map, trajectory.pose(t), s, phases=phases)[0]
-    out = []
-    for j, truth in enumerate(mid):
-        reach = truth.rows_spanned  # the disc's extent, pixels: a cut disc is refined too
-        if not np.all(np.abs(truth.pixel - 0.5 * size) <= 0.5 * size + 0.5 + reach):
-            out.append(truth)  # behind, or nowhere near the picture: as the mid pose sees it
-            continue
-        for _ in range(2):  # the row through the centre, then the centre seen from that row
-            k = truth.pixel[s.readout.pixel_index]
-            if not np.isfinite(k):
-                break
-            k = (n_rows - 1 - k) if s.readout.reversed else k
-            row_t = t + (k - 0.5 * (n_rows - 1)) * s.row_time_s
-            pose = trajectory.pose(row_t)
-            truth = _render._truths(camera, fixture_map, pose, s, [j], phases)[0][0]
-        out.append(truth)
-    return tuple(out)
-
-
-def render_frame(
-    camera: Camera,
-    fixture_map: FixtureMap,
-    trajectory: Trajectory,
-    t: float,
-    settings: RenderSettings | None = None,
-    *,
-    noise_seed: int = 0,
-) -> VideoFrame:
-    """Render one rolling-shutter frame of a moving camera.
-
-    Parameters
-    ----------
-    camera : Camera
-        Intrinsics, distortion, image size and row time.
-    fixture_map : FixtureMap
-        The fixtures (each with a diameter).
-    trajectory : Trajectory
-        The camera's path; every sensor row sees the pose at its own mid-exposure time.
-    t : float
-        The frame's time (its middle sensor row's mid-exposure), s.
-    settings : RenderSettings, optional
-        LED and sensor settings as for :func:`camvlp.render`; ``seed`` sets the LEDs' phases
-        (the same for every frame of a video).
-    noise_seed : int
-        Seed of this frame's noise (give each frame its own).
-
-    Returns
-    -------
-    VideoFrame
-    """
-    check_render_size(camera)
-    s = (settings or RenderSettings()).resolved(camera)
-    for f in fixture_map.fixtures:
-        if f.diameter is None:
-            raise ValueError(f"fixture {f.id} has no diameter (needed to render it)")
-    w, h = camera.width, camera.height
-    n_rows = h if s.readout.by_rows else w
-    half = 0.5 * (n_rows - 1) * s.row_time_s
-    mid = trajectory.pose(t)
-    truths, normals, _ = _render._truths(camera, fixture_map, mid, s)
-    colours = _render._colours(s, len(fixture_map.fixtures))
-    cores = core_places(fixture_map, s)
-    off_centre = s.core > 0 and s.core_offset > 0
-    field = _render._field_radius(camera)
-    ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
-    margin = math.ceil(4.0 * s.blur_px) + 2
-    patches = []
-    for i, (f, n, truth, colour) in enumerate(
-        zip(fixture_map.fixtures, normals, truths, colours, strict=True)
-    ):
-        if not truth.in_front or n @ (mid.position - f.position) <= 0:
-            continue
-        rim = _render._rim_points(f, n)
-        rims = [_render._project_within_field(camera, p, rim, field)[0] for p in ends]
-        if not all(np.all(np.isfinite(r)) for r in rims):
-            continue
-        rim_all = np.concatenate(rims)
-        box = pixel_box(rim_all, w, h, margin + 2 + glow_margin(rim_all, s.halo, s.brightness))
-        if box is None:
-            continue
-        u0, u1, v0, v1 = box
-        k = np.arange(v0, v1) if s.readout.by_rows else np.arange(u0, u1)
-        sensor = (n_rows - 1 - k) if s.readout.reversed else k
-        row_t = t + (sensor - 0.5 * (n_rows - 1)) * s.row_time_s  # mid-exposure of each row
-        rot, pos = _row_poses(trajectory, row_t)
-        grid = np.broadcast_to(
-            (np.arange(k.size)[:, None] if s.readout.by_rows else np.arange(k.size)[None, :]),
-            (v1 - v0, u1 - u0),
-        )
-        axes = np.stack(plane_basis(n)) if off_centre else None
-        cov, rho, xy = coverage(
-            camera, rot, pos, f.position, n, 0.5 * f.diameter, box, grid, axes=axes
-        )
-        cov = shine(cov, rho, s.core, s.halo, xy, tuple(cores[i]))
-        if s.blur_px > 0:
-            cov = cv2.GaussianBlur(cov, (0, 0), s.blur_px, borderType=cv2.BORDER_CONSTANT)
-        chips, chip_s, smooth = sent_waveform(fixture_map, i, s)
-        start = row_t - 0.5 * s.exposure_s + truth.phase_s - 0.5 * smooth
-        on = on_fraction(chips, chip_s, start, s.exposure_s + smooth, s.off_level)
-        on = on.astype(np.float32)
-        lit = cov * (on[:, None] if s.readout.by_rows else on[None, :]) * np.float32(s.brightness)
-        patches.append((v0, v1, u0, u1, lit[:, :, None] * colour[None, None, :]))
-    image = expose(patches, w, h, dataclasses.replace(s, seed=int(noise_seed)))
-    if camera.mirrored:
-        image = np.ascontiguousarray(image[:, ::-1])
-    stamp_photo(image, s, camera.mirrored)
-    return VideoFrame(
-        image=image,
-        t=float(t),
-        pose=mid,
-        fixtures=row_truths(camera, fixture_map, trajectory, t, s),
-    )
 
 
 def frame_count(trajectory: Trajectory, fps: float, max_frames: int | None = None) -> int:

@@ -9,8 +9,8 @@ import numpy as np
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.beacon import square_wave
-from camvlp.pipeline.decode import find_runs, stripe_threshold
+from camvlp.pipeline.decode.beacon import square_wave
+from camvlp.pipeline.decode.runs import find_runs, stripe_threshold
 from camvlp.viz.figure import new_figure
 
 __all__ = ["annotate", "write_debug_pictures"]

@@ -10,13 +10,21 @@ from pathlib import Path
 
 import numpy as np
 
-from camvlp.analysis.evaluate import Evaluation, floor_axes
+from camvlp.analysis.evaluation import Evaluation, floor_axes
+from camvlp.errors import InputError
 from camvlp.format import mm_per_unit
 from camvlp.io.survey_csv import AXES
+from camvlp.io.writers import write_json, write_results_csv
 from camvlp.model.fixtures import FixtureMap
 from camvlp.viz.figure import new_figure
 
-__all__ = ["draw_error_map", "draw_positions", "plot_error_map", "plot_positions"]
+__all__ = [
+    "draw_error_map",
+    "draw_positions",
+    "plot_error_map",
+    "plot_positions",
+    "write_evaluation",
+]
 
 _BLUE, _ORANGE = "#1f77b4", "#ff7f0e"
 
@@ -213,3 +221,42 @@ def plot_positions(
     p = Path(path)
     fig.savefig(p, dpi=dpi)
     return p
+
+
+def write_evaluation(
+    evaluation: Evaluation,
+    out_dir: str | Path,
+    *,
+    fixture_map: FixtureMap | None = None,
+    magnify: float | None = None,
+) -> dict[str, Path]:
+    """Write ``results.csv``, ``summary.json``, ``error_map.png`` and ``positions.png``.
+
+    The table by :func:`camvlp.io.writers.write_results_csv`, the figures by
+    :func:`plot_error_map` and :func:`plot_positions`.
+
+    Returns
+    -------
+    dict
+        The written paths under the keys ``results``, ``summary``, ``error_map``,
+        ``positions``.
+
+    Raises
+    ------
+    InputError
+        The folder cannot be created or written (naming it).
+    """
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {
+            "results": write_results_csv(evaluation, out / "results.csv"),
+            "summary": write_json(out / "summary.json", evaluation.summary()),
+        }
+        paths["error_map"] = plot_error_map(evaluation, out / "error_map.png")
+        paths["positions"] = plot_positions(
+            evaluation, out / "positions.png", fixture_map=fixture_map, magnify=magnify
+        )
+    except OSError as exc:
+        raise InputError(f"cannot write the results: {exc.strerror or exc}", out) from None
+    return paths

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.analysis.study import CoverageStudy, ForcedErrorStudy, MonteCarloStudy, RoundingStudy
-from camvlp.format import length_unit
+from camvlp.format import format_vector, length_unit
 from camvlp.viz.figure import new_figure
 
 __all__ = [
@@ -27,10 +27,6 @@ __all__ = [
     "plot_monte_carlo",
     "plot_rounding",
 ]
-
-
-def _fmt3(v) -> str:
-    return "(" + ", ".join(f"{x:g}" for x in np.asarray(v, dtype=float)) + ")"
 
 
 def _errors_unit(errors_m: np.ndarray) -> tuple[float, str]:
@@ -67,7 +63,8 @@ def draw_rounding(ax, study: RoundingStudy) -> None:
     if study.noise_px or study.survey_error_m:
         noise = f", noise {study.noise_px:g} px / {study.survey_error_m:g} m"
     ax.set_title(
-        f"θ = {_fmt3(study.euler_deg)}°, height {study.height_m:g} m, {study.solver}{noise}\n"
+        f"θ = {format_vector(study.euler_deg)}°, height {study.height_m:g} m, "
+        f"{study.solver}{noise}\n"
         f"mean = {study.mean_error_m * 1e3:.2f} mm, max = {study.max_error_m * 1e3:.2f} mm"
     )
 
@@ -91,9 +88,9 @@ def draw_forced_error(ax, study: ForcedErrorStudy, label: str = "") -> None:
     for p, a, e in zip(study.positions_m, study.euler_deg, study.errors_m, strict=True):
         parts = []
         if vary_pos or not vary_ang:
-            parts.append(f"C = {_fmt3(p)} m")
+            parts.append(f"C = {format_vector(p)} m")
         if vary_ang or not vary_pos:
-            parts.append(f"θ = {_fmt3(a)}°")
+            parts.append(f"θ = {format_vector(a)}°")
         ax.plot(study.offsets, e * scale, marker=".", ms=4, label=", ".join(parts))
     what = "image" if study.kind == "image" else "world"
     ax.set_xlabel(
@@ -103,9 +100,9 @@ def draw_forced_error(ax, study: ForcedErrorStudy, label: str = "") -> None:
     ax.set_ylabel(f"Position error ({unit})")
     common = []
     if not vary_pos:
-        common.append(f"C = {_fmt3(study.positions_m[0])} m")
+        common.append(f"C = {format_vector(study.positions_m[0])} m")
     if not vary_ang:
-        common.append(f"θ = {_fmt3(study.euler_deg[0])}°")
+        common.append(f"θ = {format_vector(study.euler_deg[0])}°")
     ax.set_title(
         f"{label}{what.capitalize()} {study.axis} coordinate, {study.solver}"
         + (f"\n{', '.join(common)}" if common else "")
@@ -146,7 +143,7 @@ def draw_monte_carlo(ax, study: MonteCarloStudy) -> None:
     for p, a, e in zip(study.positions_m, study.euler_deg, study.errors_m, strict=True):
         s = np.sort(e[np.isfinite(e)]) * scale
         frac = np.arange(1, s.size + 1) / e.size
-        ax.step(s, frac, where="post", label=f"C = {_fmt3(p)} m, θ = {_fmt3(a)}°")
+        ax.step(s, frac, where="post", label=f"C = {format_vector(p)} m, θ = {format_vector(a)}°")
     ax.axhline(0.95, color="0.5", lw=0.8, ls="--", label="95 %")
     ax.set_xlabel(f"Position error ({unit})")
     ax.set_ylabel("Fraction of trials")

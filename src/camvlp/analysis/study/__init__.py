@@ -23,7 +23,8 @@ means ``y = -h``.
 
 The package, one module per study: :mod:`~camvlp.analysis.study.rounding`,
 :mod:`~camvlp.analysis.study.forced` (image and world error),
-:mod:`~camvlp.analysis.study.montecarlo`, :mod:`~camvlp.analysis.study.coverage`, and
+:mod:`~camvlp.analysis.study.montecarlo`, :mod:`~camvlp.analysis.study.coverage` (with its
+sweep over poses, :mod:`~camvlp.analysis.study.coverage_sweep`), and
 :mod:`~camvlp.analysis.study.common` (the solve and the error per pose they share).  Floor
 grids come from :mod:`camvlp.sim.grid`, statistics from :mod:`camvlp.analysis.stats`; the
 plots are in :mod:`camvlp.viz.study_plots` and the files in :mod:`camvlp.io.writers`.
@@ -31,7 +32,6 @@ plots are in :mod:`camvlp.viz.study_plots` and the files in :mod:`camvlp.io.writ
 
 from __future__ import annotations
 
-from camvlp._moved import forward_moved_names
 from camvlp.analysis.stats import error_stats
 from camvlp.analysis.study.common import Progress, round_pixels, solve_positions
 from camvlp.analysis.study.coverage import CoverageStudy, coverage_study
@@ -57,16 +57,3 @@ __all__ = [
     "set_height",
     "solve_positions",
 ]
-
-#: Names that lived here before the plots and the writers got their own modules.
-_MOVED = {
-    "plot_coverage": "camvlp.viz.study_plots.plot_coverage",
-    "plot_forced_error": "camvlp.viz.study_plots.plot_forced_error",
-    "plot_monte_carlo": "camvlp.viz.study_plots.plot_monte_carlo",
-    "plot_rounding": "camvlp.viz.study_plots.plot_rounding",
-    "write_csv": "camvlp.io.writers.write_csv",
-    "write_outputs": "camvlp.io.writers.write_outputs",
-}
-
-
-__getattr__ = forward_moved_names(__name__, _MOVED)

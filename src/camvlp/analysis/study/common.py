@@ -7,7 +7,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camvlp.geometry.pnp import LOCATE_SOLVER, check_solver, project_batch, solve_pnp_batch
+from camvlp.geometry.pnp import LOCATE_SOLVER, check_solver, solve_pnp_batch
+from camvlp.geometry.projection import project_batch
 from camvlp.model.camera import Camera, euler_to_matrix
 from camvlp.model.fixtures import FixtureMap
 
@@ -43,7 +44,7 @@ def solve_positions(object_points, image_points, camera: Camera, solver: str) ->
 
     ``solver`` is an OpenCV method (:data:`camvlp.geometry.pnp.SOLVERS`, one
     ``cv2.solvePnP`` call per set) or ``"locate"``: the locator's own pose stage
-    (:func:`camvlp.pipeline.pose.estimate_pose`: candidates from several solvers, refined,
+    (:func:`camvlp.geometry.pose.estimate_pose`: candidates from several solvers, refined,
     the best in front of the camera), so that the study measures what ``locate`` gives.
 
     Parameters
@@ -64,7 +65,7 @@ def solve_positions(object_points, image_points, camera: Camera, solver: str) ->
     """
     if check_study_solver(solver) != LOCATE_SOLVER:
         return solve_pnp_batch(object_points, image_points, camera, solver)
-    from camvlp.pipeline.pose import estimate_pose
+    from camvlp.geometry.pose import estimate_pose
 
     img = np.asarray(image_points, dtype=float)
     obj = np.broadcast_to(np.asarray(object_points, dtype=float), (*img.shape[:2], 3))

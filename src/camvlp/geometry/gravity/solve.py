@@ -14,8 +14,9 @@ from itertools import combinations
 
 import numpy as np
 
+from camvlp.format import format_vector
 from camvlp.geometry.gravity.refine import refine_gravity_batch
-from camvlp.geometry.gravity.tilt import _fmt, check_gravity, map_up, tilt_error_deg
+from camvlp.geometry.gravity.tilt import check_gravity, map_up, tilt_error_deg
 from camvlp.geometry.gravity.two_fixtures import solve_two_fixtures
 from camvlp.model.camera import Camera, Pose
 
@@ -206,7 +207,7 @@ def solve_pose_gravity(
         reprojection residuals.
     pixel_sigma_px : float or array_like, shape (N,)
         The centres' uncertainty, pixels (1-sigma per axis): one for all, or one per fixture
-        (e.g. :attr:`camvlp.pipeline.detect.Blob.centre_sigma_px`), which weighs each
+        (e.g. :attr:`camvlp.pipeline.detect.blob.Blob.centre_sigma_px`), which weighs each
         fixture's reprojection residual.
     outlier_px : float
         A fixture whose reprojection error exceeds this (pixels) does not fit, nor does a
@@ -283,35 +284,17 @@ def _three_or_more(
     n = obj.shape[0]
     idx = np.arange(n)
     while True:
-        pose, reason = _least_squares(
-            bearings[idx],
-            obj[idx],
-            g,
-            u,
-            None if nrm is None else nrm[idx],
-            focal,
-            pixel_sigma_px[idx],
-        )
+        pose, reason = _fit(idx, bearings, obj, g, u, nrm, focal, sigma_deg, pixel_sigma_px)
         if pose is None:
             return _failure(n, reason)
-        pose = _refine(
-            pose,
-            obj[idx],
-            bearings[idx],
-            focal,
-            gravity=g,
-            up=u,
-            sigma_deg=sigma_deg,
-            pixel_sigma_px=pixel_sigma_px[idx],
-        )
-        res = _pixel_residuals(pose, obj[idx], bearings[idx], focal)
+        worst = float(np.max(_pixel_residuals(pose, obj[idx], bearings[idx], focal)))
         tilt = tilt_error_deg(pose.world_from_camera, g, u)
-        if float(np.max(res)) <= outlier_px and tilt <= MAX_TILT_SIGMAS * sigma_deg:
+        if worst <= outlier_px and tilt <= MAX_TILT_SIGMAS * sigma_deg:
             break
-        if idx.size <= 3 or float(np.max(res)) <= outlier_px:
+        if idx.size <= 3 or worst <= outlier_px:
             why = (
-                f"reprojection error up to {float(np.max(res)):.1f} px"
-                if float(np.max(res)) > outlier_px
+                f"reprojection error up to {worst:.1f} px"
+                if worst > outlier_px
                 else f"only with a tilt {tilt:.1f} degrees from gravity, more than "
                 f"{MAX_TILT_SIGMAS:g} x {sigma_deg:g}"
             )
@@ -326,6 +309,45 @@ def _three_or_more(
                 "ID, map, camera file or gravity",
             )
         idx = _drop_worst(idx, bearings, obj, g, u, nrm, focal, pixel_sigma_px)
+    return _kept(pose, idx, bearings, obj, g, u, nrm, focal, pixel_sigma_px)
+
+
+def _fit(
+    idx: np.ndarray, bearings, obj, g, u, nrm, focal: float, sigma_deg: float, pixel_sigma_px
+) -> tuple[Pose | None, str]:
+    """The pose of the fixtures ``idx``: least squares over heading and position with the tilt
+    held, then the whole pose refined with the gravity residual; or None and why."""
+    pose, reason = _least_squares(
+        bearings[idx],
+        obj[idx],
+        g,
+        u,
+        None if nrm is None else nrm[idx],
+        focal,
+        pixel_sigma_px[idx],
+    )
+    if pose is None:
+        return None, reason
+    pose = _refine(
+        pose,
+        obj[idx],
+        bearings[idx],
+        focal,
+        gravity=g,
+        up=u,
+        sigma_deg=sigma_deg,
+        pixel_sigma_px=pixel_sigma_px[idx],
+    )
+    return pose, reason
+
+
+def _kept(
+    pose: Pose, idx: np.ndarray, bearings, obj, g, u, nrm, focal: float, pixel_sigma_px
+) -> GravityPose:
+    """The result of the pose that the fixtures ``idx`` fit: refused when a fixture is behind
+    the camera or seen from its back; with four or more, the tilt the pixels alone give
+    compared with gravity's."""
+    n = obj.shape[0]
     in_front, lit = _valid(pose, obj[idx], None if nrm is None else nrm[idx])
     if not (in_front and lit):
         return _failure(
@@ -391,7 +413,8 @@ def _two(bearings, obj, g, u, nrm, focal) -> GravityPose:
             return _failure(
                 2,
                 "two poses fit the two fixtures and gravity equally (at "
-                f"{_fmt(ok[0].position)} and {_fmt(ok[1].position)}): a third fixture is needed",
+                f"{format_vector(ok[0].position)} and {format_vector(ok[1].position)}): a third "
+                "fixture is needed",
                 alternative=ok[1],
                 candidates=tuple(ok),
             )

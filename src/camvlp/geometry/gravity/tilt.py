@@ -7,11 +7,11 @@ fixes two of its three angles (the tilt); the heading about ``up`` is left.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
 from camvlp.errors import InputError
-from camvlp.model.camera import Camera
+from camvlp.format import format_vector
+from camvlp.model.camera import Camera, rotation_from_vector
 
 __all__ = ["check_gravity", "check_gravity_view", "map_up", "tilt_error_deg", "tilt_rotation"]
 
@@ -42,15 +42,11 @@ def check_gravity(gravity) -> np.ndarray:
     if g.shape != (3,):
         raise InputError(f"gravity must be three numbers GX,GY,GZ, got {g.size}")
     if not np.all(np.isfinite(g)):
-        raise InputError(f"gravity must be finite, got {_fmt(g)}")
+        raise InputError(f"gravity must be finite, got {format_vector(g)}")
     norm = float(np.linalg.norm(g))
     if norm < 1e-9 * max(1.0, float(np.max(np.abs(g)))) or norm == 0:
         raise InputError("gravity has zero length: its direction is not known")
     return g / norm
-
-
-def _fmt(v: np.ndarray) -> str:
-    return "(" + ", ".join(f"{x:g}" for x in np.asarray(v, float).reshape(-1)) + ")"
 
 
 def map_up(positions, *, up=None, normals=None) -> np.ndarray:
@@ -117,11 +113,6 @@ def map_up(positions, *, up=None, normals=None) -> np.ndarray:
     return plane * np.sign(side)
 
 
-def _rotvec_matrix(rotvec) -> np.ndarray:
-    """Rotation matrix (3, 3) of a rotation vector (axis times angle, radians)."""
-    return cv2.Rodrigues(np.asarray(rotvec, dtype=np.float64).reshape(3, 1))[0]
-
-
 def tilt_rotation(gravity_camera, up_world) -> np.ndarray:
     """The smallest rotation taking the measured gravity direction onto the map's down.
 
@@ -147,8 +138,8 @@ def tilt_rotation(gravity_camera, up_world) -> np.ndarray:
             return np.eye(3)
         # opposite: half a turn about any axis perpendicular to g
         perp = np.cross(g, [1.0, 0.0, 0.0] if abs(g[0]) < 0.9 else [0.0, 1.0, 0.0])
-        return _rotvec_matrix(np.pi * perp / np.linalg.norm(perp))
-    return _rotvec_matrix(axis / s * np.arctan2(s, c))
+        return rotation_from_vector(np.pi * perp / np.linalg.norm(perp))
+    return rotation_from_vector(axis / s * np.arctan2(s, c))
 
 
 def tilt_error_deg(rotation, gravity_camera, up_world) -> float:
@@ -217,7 +208,7 @@ def check_gravity_view(gravity, camera: Camera, up_world, normals=None) -> None:
         return
     axis_deg = float(np.degrees(np.arccos(np.clip(g[2], -1, 1))))
     raise InputError(
-        f"gravity {_fmt(g)} is {axis_deg:.0f} degrees from the optical axis: the camera would "
-        f"look down, its whole view at least {-np.max(elevation):.0f} degrees below the "
-        "horizon, and cannot see lights that face down (wrong sign or axes of gravity?)"
+        f"gravity {format_vector(g)} is {axis_deg:.0f} degrees from the optical axis: the "
+        f"camera would look down, its whole view at least {-np.max(elevation):.0f} degrees "
+        "below the horizon, and cannot see lights that face down (wrong sign or axes of gravity?)"
     )

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from camvlp.geometry.gravity.tilt import _rotvec_matrix, check_gravity, tilt_rotation
-from camvlp.model.camera import Pose
+from camvlp.geometry.gravity.tilt import check_gravity, tilt_rotation
+from camvlp.model.camera import Pose, rotation_from_vector
 
 __all__ = ["solve_two_fixtures"]
 
@@ -29,7 +29,7 @@ def _basis(up: np.ndarray) -> np.ndarray:
 
 
 def _about_up(up: np.ndarray, psi: float) -> np.ndarray:
-    return _rotvec_matrix(psi * up)
+    return rotation_from_vector(psi * up)
 
 
 def solve_two_fixtures(bearings, points, gravity, up) -> tuple[list[Pose], str]:

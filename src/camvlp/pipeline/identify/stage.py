@@ -1,0 +1,128 @@
+"""Stages 4 and 5 together, identify and solve: the IDs looked up in the map and the pose
+solved, the two weighed together (look-alikes and IDs read twice told by the pose, the readout
+direction decided by the pose when the stripes fit both ways), then how sure the position is.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.geometry.gravity import GravityPose
+from camvlp.geometry.pose import PoseEstimate
+from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
+from camvlp.pipeline.decode.stage import Decoded, read_profiles
+from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.identify.decide import decided
+from camvlp.pipeline.lights import UNCLEAR_AXIS, Lights, striped
+from camvlp.pipeline.prepare import Prepared
+from camvlp.pipeline.settings import LocateSettings
+from camvlp.pipeline.solve import PoseProblem, finite_sigma, sigma_inputs, sure_enough
+
+__all__ = ["Solved", "identify_and_solve", "readout_direction"]
+
+
+@dataclass(frozen=True)
+class Solved:
+    """The identify and solve stages' answer (:func:`identify_and_solve`).
+
+    Attributes
+    ----------
+    decodes : tuple
+        Per light, its decode in the direction kept (IDs that depend on an undecided
+        direction withheld).
+    found : Identified
+        Per light, its ID (or None) and why it cannot be used.
+    est : PoseEstimate or GravityPose or None
+        The pose (its ``pose`` None when refused), None when too few fixtures.
+    reason : str
+        Why the photo was not located ("" when it was).
+    told : dict
+        Light index -> the look-alike IDs the pose told it from.
+    readout : Readout
+        The readout the stripes were read with (the direction the pose decided).
+    manchester : Manchester or None
+        The Manchester decode in the direction kept.
+    sigma_of : callable or None
+        A function of no arguments that gives the position's standard deviation along the
+        map's axes, shape (3,) (worked out when first read), or None without a position.
+    """
+
+    decodes: tuple
+    found: Identified
+    est: PoseEstimate | GravityPose | None
+    reason: str
+    told: dict
+    readout: Readout
+    manchester: Manchester | None
+    sigma_of: Callable[[], np.ndarray | None] | None = None
+
+
+def identify_and_solve(
+    prepared: Prepared,
+    lights: Lights,
+    decoded: Decoded,
+    fixture_map: FixtureMap,
+    settings: LocateSettings,
+) -> Solved:
+    """Stages 4 and 5: the IDs looked up, the pose solved, and the two weighed together
+    (:func:`~camvlp.pipeline.identify.decide.decided`); then the position's standard
+    deviation, and the pose refused when it is over ``settings.max_position_sigma``."""
+    problem = PoseProblem(
+        prepared.camera,
+        fixture_map,
+        decoded.blobs,
+        settings,
+        prepared.outlier_px,
+        prepared.gravity,
+    )
+    man, kept = decided(problem, decoded.manchester, list(decoded.decodes))
+    est, reason = kept.est, kept.reason
+    if lights.readout is None:
+        reason = UNCLEAR_AXIS
+    readout = man.readout if man is not None else (lights.readout or Readout.ROWS)
+    inputs = sigma_inputs(prepared.camera, fixture_map, est, kept.found, prepared.gravity)
+    sigma_of = None if inputs is None else functools.partial(finite_sigma, *inputs)
+    if inputs is not None and settings.max_position_sigma is not None:  # now, against the limit
+        est, reason, sigma = sure_enough(est, inputs, settings.max_position_sigma)
+        sigma_of = functools.partial(_given, sigma)
+    return Solved(tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of)
+
+
+def _given(value):
+    """``value`` (what :func:`functools.partial` of it gives when called)."""
+    return value
+
+
+def readout_direction(
+    prepared: Prepared, lights: Lights, fixture_map: FixtureMap, settings: LocateSettings
+) -> Readout | None:
+    """The readout's direction as one photo decides it, for a camera that does not say.
+
+    As :func:`~camvlp.pipeline.locate.locate` decides it: by the stripes read both ways, else
+    (when they fit both about equally) by which direction's IDs give a pose.  A
+    frequency-coded map keeps the axis the lights' stripes show once one shows stripes (a
+    frequency reads the same either way).  Returns None when the photo does not decide (the
+    axis unclear, no ID read, or the directions cannot be told apart).
+    """
+    readout, blobs = lights.readout, lights.blobs
+    if readout is None:
+        return None
+    if fixture_map.mode == "frequency":
+        return readout if any(striped(b) for b in blobs) else None
+    profiles = read_profiles(prepared.image, blobs, readout)
+    camera = prepared.camera
+    man = decode_manchester(
+        list(profiles.profiles), readout, False, camera, fixture_map, list(profiles.weights)
+    )
+    if man.other is None:
+        found = identify(blobs, list(man.decodes), fixture_map)
+        return man.readout if found.usable else None
+    problem = PoseProblem(camera, fixture_map, tuple(blobs), settings, prepared.outlier_px)
+    man, kept = decided(problem, man, list(man.decodes))
+    return man.readout if kept.est is not None else None

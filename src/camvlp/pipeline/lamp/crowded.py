@@ -1,0 +1,474 @@
+"""Glowing lights whose glows joined: each centred on what its neighbours' looks leave.
+
+The photo is the sum of its lights' looks through the sensor's clipping: each light shines
+``g_i(rho_i) * s_i(line)`` (its radially symmetric shape, disc and glow, times its own
+stripes, :mod:`camvlp.pipeline.lamp.light_wave`), so where two glows overlap a pixel holds
+``A + g_i s_i + g_j s_j``.  A light fitted alone within its own cell of the joined region
+(:func:`camvlp.pipeline.lamp.glow.centred_on_glow`) explains its neighbour's glow in its lines
+with its own shape, and since its stripes are free per line, a neighbour's glow in a line
+where the light itself is dark pulls its centre along the readout (10 to 26 px on the stress
+benchmark's crowded photos).  Here the lights' looks are fitted together, by blocks: each
+light in turn is fitted (its shape, stripes and centre, :func:`radial_fit`) over its region
+grown beyond its box, to the photo less its neighbours' fitted looks, with their discs (where
+a fitted look is least sure: hot cores, clipping) and the clipped pixels left out, and so
+round after round (:data:`ROUNDS`).  A light only adds to the others, so a neighbour's look
+takes away at most what a pixel shows above the background: a look is fitted on the pixels
+that do not clip, and in the lines where a light clipped those are its glow's tail, whose
+level, told by a few dim pixels, can rise far beyond what the pixels nearer the light show.
+(Where a fitted look dips under the background, it is taken away as fitted: a bound at zero
+too moved two crowded phone photos of the stress benchmark further, 1.6 -> 4.0 and 51.8 ->
+86 mm.)
+The first rounds search each centre widely on all its pixels, along the readout first
+(:func:`radial_fit`'s ``wide``), and fit the looks on every k-th pixel; the last one also
+refines the centre on the pixels that tell it best.  Nothing
+is assumed of the glow's profile: each light's shape is the one its own pixels give.  A light
+whose joint centre is drawn away from its own clipped pixels keeps its centre alone
+(:func:`_held_by_clipped`).
+
+A light whose disc's rim shows clean (:func:`rim_from_chords`: each line's chord at a share
+of its own peak, whatever its stripes) is kept within a pixel of its rim's centre: the
+sum of looks holds for levels that are light, and a phone's tone curve, which
+a camera file may not give, bends it (lamps 10 to 67 px off through such a curve, where
+their rims put them within 0.3 px).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+
+from camvlp.geometry.disc import sampson_distances
+from camvlp.imaging.gray import to_gray
+from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
+from camvlp.pipeline.detect.blob import Blob
+from camvlp.pipeline.detect.disc import light_support
+from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
+
+__all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]
+
+#: Rounds of the block fit (each light refitted once a round).
+ROUNDS = 3
+#: How far a light's region is grown beyond its box for the joint fit, as a share of the
+#: box's smaller side each way: its cell of the joined region may cut its own disc.
+GROW = 0.25
+#: A neighbour's disc left out of a light's fit, in radii of its fitted rim.
+DISC = 1.15
+#: Where a line's chord of a light's disc ends: this share of the line's peak (or the
+#: clipping level, where the line clips), on the disc's blurred edge, above its glow.
+RIM_SHARE = 0.85
+#: Fewest lines whose chords make a rim.
+RIM_LINES = 6
+#: A chord's end further than this (px) from the rim's ellipse is off it: the ellipse is
+#: the one through five ends that most ends lie within half of this of, fitted again to
+#: those without the ends this far off (at most :data:`RIM_TRIMS` times), and at least
+#: :data:`RIM_KEPT` of all the ends must lie within it.  Neighbours' glows through a phone's
+#: tone curve put up to a third of a lamp's ends off (on a crowded phone photo of 15 lamps,
+#: each rim then within 0.5 px of its lamp's centre).
+RIM_OUT_PX = 3.0
+RIM_KEPT = 2.0 / 3.0
+#: ... and at least this share of the ends on each side within half of :data:`RIM_OUT_PX`:
+#: a glow that carries off the ends of most lines on one side can bend an ellipse through
+#: some of them (57 % of each side or more within it on the lamps of crowded phone photos).
+RIM_SIDE = 0.5
+#: Narrowest rim, its smaller semi-axis over its larger: a disc seen 75 degrees off its axis
+#: (a lamp that far off the view is a sliver whose stripes no decoder reads).
+RIM_ASPECT = 0.25
+#: Most fits of a rim's ellipse, each without the ends off the last: a rim still losing
+#: ends after these is no clean rim.
+RIM_TRIMS = 6
+#: Root-mean-square distance (px) of a clean rim's chord ends from their ellipse: the ends
+#: are whole pixels (a uniform error of 1 px has an RMS of 0.29 px), where a blurred edge
+#: (0.5 to 2 px), noise, JPEG and a phone's sharpening cross the line's share: 0.5 to 1.2 px
+#: on clean rims, rendered plain or through a phone's processing.
+RIM_RMS_PX = 1.5
+#: How near a light's centre must lie to its clean rim's (px): a rim's centre is within
+#: 0.3 px on the stress photos, and a fit of the light's shape is kept where it agrees (it
+#: is the finer, 0.08 against 0.11 px at the median on the glowing lamps of
+#: ``stress_centres.py --seed 3``), the rim's taken where it does not.
+RIM_AGREE_PX = 1.0
+#: How far a light's centre may lie from its clipped pixels' centre whatever its own centre
+#: did, in radii of a disc of their area: their centre's own spread (it was 0.1 to 2.2 px
+#: from the true centre on discs of 23 to 60 px radius, up to 4 %, with the stripes cutting
+#: the disc's ends and neighbours' glows in its cell).
+CLIPPED_SLACK = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class Fitted:
+    """A light's radial fit and the region (``(x0, y0, x1, y1)``, photo pixels) it was
+    fitted in."""
+
+    fit: RadialFit
+    box: tuple[int, int, int, int]
+
+
+def boxes_overlap(a, b) -> bool:
+    """Whether two boxes ``(x0, y0, x1, y1)`` overlap."""
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
+
+
+def _grown(box, shape) -> tuple[int, int, int, int]:
+    """``box`` grown by :data:`GROW` of its smaller side each way, within a photo of
+    ``shape`` (h, w, ...)."""
+    x0, y0, x1, y1 = box
+    m = int(GROW * min(x1 - x0, y1 - y0))
+    return max(x0 - m, 0), max(y0 - m, 0), min(x1 + m, shape[1]), min(y1 + m, shape[0])
+
+
+def centred_jointly(
+    img: np.ndarray, blobs: list[Blob], axis: str, glows: np.ndarray, rims: dict | None = None
+) -> list[Blob]:
+    """The blobs, each glowing light whose region meets another glowing light's, where
+    glows joined, centred on its own look, fitted jointly with theirs.
+
+    A light is refitted when its grown region overlaps another glowing light's, and it or
+    one of those has a cell of a joined region (:attr:`Blob.cell`; a light whose region
+    stayed apart is centred on its own, within the cell :func:`centred_on_glow` gives it),
+    unless it was found by its face in the dark stripes (:attr:`Blob.face`): there glows
+    clip together in the bright stripes, and what those leave unclipped tells little of the
+    shape, the face more.  A neighbour found by its face keeps its centre; its look is
+    fitted there (not searched for) and taken away from the light's pixels like the
+    others': its glow carries its own code's stripes, which no look of the light explains
+    (fitted alone beside such a neighbour, a lamp of a stress photo came out 21 px off, and
+    0.8 px with the neighbour's look taken away).  A light whose rim shows clean
+    (:func:`rim_from_chords`) keeps within :data:`RIM_AGREE_PX` of it (:func:`on_rim`): a
+    centre further off is moved to the rim's, a refit further off is not taken (its look is
+    refitted at the centre it has).
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, 3) or (H, W)
+        The photo.
+    blobs : list of Blob
+        The lights, the glowing ones centred each on its own (:func:`centred_on_glow`).
+    axis : {"rows", "columns"}
+        The readout axis.
+    glows : ndarray of bool, shape (len(blobs),)
+        The glowing lights.
+    rims : dict, optional
+        Lights' rims already found (:func:`rim_from_chords` of these ``blobs``, None for one
+        that does not show), by index: not looked for again.
+
+    Returns
+    -------
+    list of Blob
+        The blobs; a light refitted has its new ``pixel`` (all else as given).
+    """
+    blobs = list(blobs)
+    grown = [_grown(b.box, img.shape) for b in blobs]
+    near = [
+        [j for j in np.flatnonzero(glows) if j != k and boxes_overlap(grown[k], grown[j])]
+        for k in range(len(blobs))
+    ]
+    joined = [
+        blobs[k].cell is not None or any(blobs[j].cell is not None for j in near[k])
+        for k in range(len(blobs))
+    ]
+    crowded = [k for k in np.flatnonzero(glows) if near[k] and joined[k] and not blobs[k].face]
+    if not crowded:
+        return blobs
+    small = to_gray(img[::4, ::4])
+    background = float(np.percentile(small, 5))
+    known = rims or {}
+    rims = {k: known[k] if k in known else rim_from_chords(img, blobs, k, axis) for k in crowded}
+    for k in crowded:  # a clean rim says where the light is
+        if not on_rim(blobs[k].pixel, rims[k]):
+            blobs[k] = dataclasses.replace(blobs[k], pixel=rims[k][0])
+    fits: list[Fitted | None] = [None] * len(blobs)
+    faced = sorted({j for k in crowded for j in near[k] if blobs[j].face})
+    for k in faced + crowded:  # each one's look where it was centred (alone, by its rim or face)
+        refit = _refitted(img, blobs, fits, k, axis, background, search=False)
+        fits[k] = None if refit is None else refit[1]
+    alone = list(blobs)
+    for r in range(ROUNDS):
+        for k in crowded:
+            last = r == ROUNDS - 1
+            refit = _refitted(img, blobs, fits, k, axis, background, local=last)
+            if refit is not None and not on_rim(refit[0].pixel, rims[k]):  # ran off: its look
+                refit = _refitted(img, blobs, fits, k, axis, background, search=False)
+            if refit is not None:
+                blobs[k], fits[k] = refit
+    for k in crowded:  # a centre drawn away from the light's own clipped disc ran off
+        if not _held_by_clipped(img, blobs[k], alone[k].pixel):
+            blobs[k] = alone[k]
+    return blobs
+
+
+def on_rim(pixel: np.ndarray, rim) -> bool:
+    """Whether a centre lies within :data:`RIM_AGREE_PX` of a clean rim's centre (True when
+    there is no clean rim: ``rim`` None)."""
+    return rim is None or bool(np.hypot(*(np.asarray(pixel) - rim[0])) <= RIM_AGREE_PX)
+
+
+def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
+    """The centre and radius of light ``k``'s disc from its rim, where each line shows it:
+    None when the rim does not show as a clean ellipse.
+
+    Every line along the readout is exposed at the same instants, so along one line the
+    light is its radial shape times one level: in each line its stripes leave bright, the
+    pixels at :data:`RIM_SHARE` of the line's own peak or more are one chord of its disc
+    (or of its hot core, concentric), whatever the stripes, since the glow stays under
+    the disc's level; where the disc clips, the chord is its clipped part, or more where
+    the glow clips too, still concentric.  The chords' ends, two per line, lie on an
+    ellipse about the light's centre: they fix it along the readout by how their lengths
+    change from line to line, and across it by their middles.  Ends that a neighbour's glow
+    (in lines where the light itself is dark) or a cell's edge put off the ellipse are left
+    out of its fit: it is the ellipse most ends lie on (:func:`_trimmed_ellipse`); when
+    more than a third of the ends, or half of one side's, are off it, or those on it lie
+    further from it than :data:`RIM_RMS_PX` (root-mean-square), the rim says nothing.
+    Only the chord through the light's centre counts in each line, and an end that is an
+    edge of the light's own pixels (its region's, its cell's, a neighbour's mask) is a cut,
+    not the rim, and is left out.
+
+    Parameters
+    ----------
+    img : ndarray, shape (H, W, 3) or (H, W)
+        The photo.
+    blobs : list of Blob
+        The lights; ``k``'s own pixels are those of its mask (its cell of a joined region)
+        outside the others' masks (grown by the blur).
+    k : int
+        The light.
+    axis : {"rows", "columns"}
+        The readout axis (the lines are rows, or columns).
+
+    Returns
+    -------
+    tuple of (ndarray, shape (2,), float) or None
+        The rim's centre (photo pixels) and the mean of its semi-axes (px).
+    """
+    b = blobs[k]
+    x0, y0, x1, y1 = b.box
+    gray = to_gray(img[y0:y1, x0:x1]).astype(np.float32)
+    others = np.zeros(gray.shape, dtype=bool)
+    for j, o in enumerate(blobs):
+        if j != k and boxes_overlap(b.box, o.box):
+            _paste(others, o.mask, o.box, b.box)
+    own = ~others if b.cell is None else b.cell & ~others
+    lines, own = (gray, own) if axis == "rows" else (gray.T, own.T)  # a line per row
+    lines = np.where(own, lines, 0.0)
+    c = int(np.round(b.pixel[0] - x0 if axis == "rows" else b.pixel[1] - y0))
+    if not 0 < c < lines.shape[1] - 1:
+        return None
+    peak = lines.max(axis=1)
+    bright = peak >= RIM_SHARE * peak.max()  # the lines the stripes leave bright
+    chord = lines >= np.minimum(RIM_SHARE * peak, _CLIP)[:, None]
+    shown = np.flatnonzero(bright & chord[:, c])  # the lines whose chord holds the centre
+    if shown.size < RIM_LINES:
+        return None
+    # each line's chord through the centre: its ends where the level first falls below
+    # the line's share, on each side; an end that is the region's edge, a neighbour's or a
+    # cell's, is a cut, not the rim
+    n = lines.shape[1]
+    left = c - np.argmin(chord[shown, c::-1], axis=1)  # first below, leftwards
+    right = c + np.argmin(chord[shown, c:], axis=1)
+    left = np.where(left == c, -1, left)  # (chord[:, c] holds: no fall, it runs off the edge)
+    right = np.where(right == c, n, right)
+    ok_l = (left >= 0) & own[shown, np.clip(left, 0, n - 1)]
+    ok_r = (right < n) & own[shown, np.clip(right, 0, n - 1)]
+    ends = np.concatenate(
+        [
+            np.stack([left[ok_l] + 0.5, shown[ok_l]], axis=1),
+            np.stack([right[ok_r] - 0.5, shown[ok_r]], axis=1),
+        ]
+    ).astype(np.float64)
+    if ends.shape[0] < 2 * RIM_LINES:
+        return None
+    got = _trimmed_ellipse(ends, ok_l.sum())
+    if got is None:
+        return None
+    fit, d = got
+    if not np.sqrt(np.mean(np.square(d))) <= RIM_RMS_PX:
+        return None
+    cu, cv, a, b_ = fit[:4]
+    centre = np.array([cu, cv] if axis == "rows" else [cv, cu]) + np.array([x0, y0], float)
+    return centre, 0.5 * (a + b_)
+
+
+def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ellipse of a rim's chord ends (M, 2), its left ends first (``n_left`` of them):
+    the ellipse through five of them that most ends lie within half of :data:`RIM_OUT_PX`
+    of (:func:`_consensus`), fitted again to those, then again without the ends
+    :data:`RIM_OUT_PX` or more off it until none is.  Returns (the ellipse as
+    :func:`_ellipse` gives it, the Sampson distances of all the ends within
+    :data:`RIM_OUT_PX` of it), or None when fewer than :data:`RIM_KEPT` of the ends, or
+    fewer than :data:`RIM_SIDE` of one side's within half as far, or fewer than
+    :data:`RIM_LINES` on either side, are within it (a neighbour's glow, a ring: the rim
+    does not show), or when its centre lies outside the box of those ends or a semi-axis
+    is longer than the box's diagonal, or it is narrower than :data:`RIM_ASPECT` (chords of
+    a pixel or two, whose ends lie on two lines: a long thin ellipse passes through them).
+    Ends are only ever left out of the fit, never taken back: an end a glow carried a few
+    pixels off, taken back, draws the ellipse toward the others."""
+    fitted = _consensus(ends)
+    for _ in range(RIM_TRIMS):
+        if fitted.sum() < 2 * RIM_LINES:  # (fewer than the ends of a rim: none to fit)
+            return None
+        fit = _ellipse(ends[fitted])
+        if fit is None:
+            return None
+        d = sampson_distances(fit[None], ends[None, :, 0], ends[None, :, 1])[0][0]
+        near = np.abs(d) <= RIM_OUT_PX
+        if near[fitted].all():
+            break
+        fitted &= near
+    else:
+        return None  # (still changing: no clean rim)
+    close = np.abs(d) <= 0.5 * RIM_OUT_PX
+    sides = (slice(None, n_left), slice(n_left, None))
+    if min(near[s].sum() for s in sides) < RIM_LINES:  # (first: then no side is empty)
+        return None
+    if near.mean() < RIM_KEPT or min(close[s].mean() for s in sides) < RIM_SIDE:
+        return None
+    low, high = ends[near].min(axis=0), ends[near].max(axis=0)
+    if not (np.all(fit[:2] > low) and np.all(fit[:2] < high)):
+        return None  # (its centre outside its ends: ends on a line or two, not a rim)
+    if max(fit[2], fit[3]) > float(np.hypot(*(high - low))):
+        return None
+    if min(fit[2], fit[3]) < RIM_ASPECT * max(fit[2], fit[3]):
+        return None  # (no disc's outline: one seen this far off its axis is not read)
+    return fit, d[near]
+
+
+#: Ellipses through five chord ends tried by :func:`_consensus` (a fixed draw: the same
+#: ends, the same rim).  With four ends in ten off the rim, five clean ends come up in
+#: 7.8 % of the draws: 200 draws miss them once in 10^7.
+RIM_DRAWS = 200
+
+
+def _consensus(ends: np.ndarray) -> np.ndarray:
+    """The ends (M, 2) within half of :data:`RIM_OUT_PX` of the ellipse through five of
+    them that the most lie within (RANSAC; first-order geometric distances to each conic,
+    of :data:`RIM_DRAWS` fixed draws of five; conics that are no ellipse left out), as a
+    mask; all False when there are fewer than five ends."""
+    m = ends.shape[0]
+    out = np.zeros(m, bool)
+    if m < 5:
+        return out
+    rng = np.random.default_rng(0)
+    pick = np.argsort(rng.uniform(size=(RIM_DRAWS, m)), axis=1)[:, :5]
+    centre, scale = ends.mean(axis=0), max(float(ends.std()), 1e-9)
+    x, y = ((ends - centre) / scale).T  # (conditioned)
+    rows = np.stack([x * x, x * y, y * y, x, y, np.ones(m)], axis=1)  # (M, 6)
+    conic = np.linalg.svd(rows[pick])[2][:, -1]  # (D, 6): each draw's conic, its null vector
+    a, b, c = conic[:, 0], conic[:, 1], conic[:, 2]
+    value = conic @ rows.T  # (D, M)
+    gx = 2 * a[:, None] * x + b[:, None] * y + conic[:, 3:4]
+    gy = b[:, None] * x + 2 * c[:, None] * y + conic[:, 4:5]
+    dist = scale * np.abs(value) / np.maximum(np.hypot(gx, gy), 1e-12)
+    within = (dist <= 0.5 * RIM_OUT_PX) & (b * b < 4 * a * c)[:, None]
+    return within[int(np.argmax(within.sum(axis=1)))]
+
+
+def _ellipse(points: np.ndarray) -> np.ndarray | None:
+    """:func:`cv2.fitEllipse` of ``points`` (M, 2) as (centre, semi-axes, angle in radians),
+    shape (5,); None when degenerate."""
+    (cu, cv), (w, h), angle = cv2.fitEllipse(points.astype(np.float32))
+    p = np.array([cu, cv, 0.5 * w, 0.5 * h, np.radians(angle)])
+    return p if np.all(np.isfinite(p)) and min(w, h) > 0 else None
+
+
+def _held_by_clipped(img: np.ndarray, b: Blob, before: np.ndarray) -> bool:
+    """Whether the light's centre ``b.pixel`` (photo pixels) is no farther from the centre
+    of its own clipped pixels (those of its region within :attr:`Blob.mask`) than the
+    centre ``before`` it had alone, or than :data:`CLIPPED_SLACK` of their radius; True
+    when it clips nowhere.
+
+    A light bright enough to clip does so on its disc (and on the glow right around it):
+    its clipped pixels are its own (a neighbour's disc is in the neighbour's cell), and
+    they lie about its centre, which no neighbour's look takes part in.  The joint fit
+    explains the pixels that do not clip, where a neighbour's look that is off (a glow
+    that rises again far out, a disc that the look leaves dark) can draw a centre along
+    its lines, off its disc (27 px on a stress photo whose clipped disc's centre is 0.3 px
+    from the lamp's)."""
+    x0, y0, x1, y1 = b.box
+    ys, xs = np.nonzero((to_gray(img[y0:y1, x0:x1]) >= _CLIP) & b.mask)
+    if not ys.size:
+        return True
+    centre = np.array([xs.mean() + x0, ys.mean() + y0])
+    slack = CLIPPED_SLACK * np.sqrt(ys.size / np.pi)
+    return np.hypot(*(b.pixel - centre)) <= max(np.hypot(*(before - centre)), slack)
+
+
+def _refitted(
+    img: np.ndarray,
+    blobs: list[Blob],
+    fits: list[Fitted | None],
+    k: int,
+    axis: str,
+    background: float,
+    search: bool = True,
+    local: bool = False,
+) -> tuple[Blob, Fitted] | None:
+    """Light ``k`` fitted over its grown region to the photo less its neighbours' looks
+    (their discs and the clipped pixels left out); None when the fit fails or its centre
+    leaves the light's disc.  Without ``search``, its look at its centre as given; else its
+    centre searched for widely, then (``local``) refined (:func:`radial_fit`)."""
+    b = blobs[k]
+    x0, y0, x1, y1 = box = _grown(b.box, img.shape)
+    gray = to_gray(img[y0:y1, x0:x1]).astype(np.float64)
+    clipped = gray >= _CLIP
+    out = np.zeros(gray.shape, dtype=bool)  # neighbours' discs
+    for j, o in enumerate(blobs):
+        if j == k or not boxes_overlap(box, o.box if fits[j] is None else fits[j].box):
+            continue
+        _paste(out, o.mask, o.box, box)
+        f = fits[j]
+        if f is None or f.fit.model is None:  # no look to take away
+            continue
+        fx0, fy0, fx1, fy1 = f.box
+        ox0, oy0, ox1, oy1 = max(x0, fx0), max(y0, fy0), min(x1, fx1), min(y1, fy1)
+        if ox0 >= ox1 or oy0 >= oy1:
+            continue
+        ys, xs = np.mgrid[oy0:oy1, ox0:ox1].astype(np.float64)
+        level, rho = radial_model(f.fit.model, xs - fx0, ys - fy0, axis)
+        part = gray[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0]
+        # a light adds to what the others show: its look is at most what is left above the
+        # background (a look fitted on lines it barely crosses may rise far beyond)
+        part -= np.minimum(level, np.maximum(part - background, 0.0))
+        rim = f.fit.model.rim
+        if np.isfinite(rim):
+            out[oy0 - y0 : oy1 - y0, ox0 - x0 : ox1 - x0] |= rho < DISC * rim
+    mask = np.zeros(gray.shape, dtype=bool)
+    _paste(mask, b.mask, b.box, box, grow=False)
+    out &= ~mask
+    if not mask.any():
+        return None
+    kept = ~out & ~clipped
+    shown = np.where(clipped, 255.0, np.where(out, background, gray))  # for the support only
+    support = light_support(shown, mask, axis) & ~out
+    r = np.full(2, float(np.min(b.axes_px))) if b.touches_border else b.axes_px
+    ellipse = ((b.pixel[0] - x0, b.pixel[1] - y0), tuple(float(v) for v in r), b.angle_deg)
+    fit = radial_fit(
+        np.where(kept, gray, np.nan),
+        support,
+        ellipse,
+        axis,
+        wide=True,
+        local=local,
+        background=background,
+        search=search,
+    )
+    c = fit.centre
+    if fit.model is None or not np.all(np.isfinite(c)):
+        return None
+    cx, cy = int(c[0] + x0 + 0.5) - b.box[0], int(c[1] + y0 + 0.5) - b.box[1]
+    h, w = b.mask.shape
+    if not (0 <= cx < w and 0 <= cy < h and b.mask[cy, cx]):  # drawn off its disc: failed
+        return None
+    pixel = c + np.array([x0, y0], dtype=float)
+    return dataclasses.replace(b, pixel=pixel), Fitted(fit, box)
+
+
+def _paste(dst: np.ndarray, src: np.ndarray, src_box, dst_box, grow: bool = True) -> None:
+    """``dst`` (bool, ``dst_box``'s shape) |= ``src`` (bool, ``src_box``'s) where the two
+    boxes ``(x0, y0, x1, y1)`` overlap, dilated by 2 px (the disc's blur) when ``grow``."""
+    x0, y0 = max(src_box[0], dst_box[0]), max(src_box[1], dst_box[1])
+    x1, y1 = min(src_box[2], dst_box[2]), min(src_box[3], dst_box[3])
+    if x0 >= x1 or y0 >= y1:
+        return
+    part = src[y0 - src_box[1] : y1 - src_box[1], x0 - src_box[0] : x1 - src_box[0]]
+    if grow:
+        part = cv2.dilate(part.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    dst[y0 - dst_box[1] : y1 - dst_box[1], x0 - dst_box[0] : x1 - dst_box[0]] |= part

@@ -1,0 +1,174 @@
+"""The tracker's settings and its answers: :class:`TrackSettings`, :class:`TrackFrame` per
+frame, :class:`TrackedFixture` per blob (re-exported by :mod:`camvlp.pipeline.track.tracker`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from camvlp.pipeline.locate import LocateSettings
+
+__all__ = ["STATUSES", "TrackFrame", "TrackSettings", "TrackedFixture"]
+
+#: Per-frame statuses, best first.
+STATUSES = ("fix", "tracked", "predicted", "lost")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrackSettings:
+    """Tuning of :class:`camvlp.pipeline.track.tracker.Tracker`.
+
+    Attributes
+    ----------
+    locate : LocateSettings
+        The locator's settings (solver, outlier tolerance, detector sizes, readout); its
+        ``max_position_sigma`` is not applied (the tracker works out no position sigma).
+    gate_px : float or None
+        Largest distance (pixels) between a blob and a fixture's predicted position for the
+        blob to keep that fixture's ID; None: 3 % of the focal length.
+    ambiguity : float
+        A blob keeps an ID only when every other prediction is this many times farther.
+    min_tracked : int
+        Fewest identified fixtures for a ``tracked`` pose (with the track's prior).
+    max_gap_s : float
+        Longest prediction without a measurement before the track is ``lost``, s.
+    accel_sigma : float
+        Process noise of the filter: acceleration, map units per s^2.
+    angular_accel_sigma_deg : float
+        Process noise of the angles: degrees per s^2.
+    fix_sigma : float
+        Uncertainty of the first fix's position (the filter's start), map units.
+    fix_sigma_deg : float
+        Uncertainty of the first fix's angles, degrees.
+    pixel_sigma : float
+        Uncertainty of a fixture's centre in the image, pixels: every later fix or tracked
+        pose enters the filter as its fixtures' pixels (an iterated extended Kalman update,
+        so that what two or three fixtures leave open keeps the track's prediction).
+    tilt_window : int
+        Fixes whose tilts (theta_x, theta_y) give a tracked pose its tilt prior: their mean,
+        with their spread (at least ``min_tilt_sigma_deg``) as its uncertainty.
+    min_tilt_sigma_deg : float
+        Smallest uncertainty of that tilt prior, degrees.
+    rolling_shutter : bool
+        Correct each fixture's pixel for the camera's motion between its row and the frame's
+        middle row (needs the camera's ``row_time_s``).
+    carry_chip_length : bool
+        Pass the chip length measured in earlier frames to the decoder.
+    verify_every : int
+        A blob that the track's pose identifies without doubt (the only prediction within the
+        gate) is not decoded again while its fixture's stripes were decoded in the last
+        ``verify_every`` frames (1: decode every blob in every frame).
+    """
+
+    locate: LocateSettings = field(default_factory=LocateSettings)
+    gate_px: float | None = None
+    ambiguity: float = 2.0
+    min_tracked: int = 2
+    max_gap_s: float = 0.5
+    accel_sigma: float = 3.0
+    angular_accel_sigma_deg: float = 250.0
+    fix_sigma: float = 0.002
+    fix_sigma_deg: float = 0.05
+    pixel_sigma: float = 0.5
+    tilt_window: int = 90
+    min_tilt_sigma_deg: float = 0.02
+    rolling_shutter: bool = True
+    carry_chip_length: bool = True
+    verify_every: int = 10
+
+    def __post_init__(self) -> None:
+        for name in (
+            "ambiguity",
+            "max_gap_s",
+            "accel_sigma",
+            "angular_accel_sigma_deg",
+            "fix_sigma",
+            "fix_sigma_deg",
+            "pixel_sigma",
+        ):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be a positive number, got {v!r}")
+        if self.gate_px is not None and not self.gate_px > 0:
+            raise ValueError(f"gate_px must be a positive number, got {self.gate_px!r}")
+        if self.ambiguity < 1:
+            raise ValueError(f"ambiguity must be at least 1, got {self.ambiguity!r}")
+        if self.min_tracked < 1:
+            raise ValueError(f"min_tracked must be at least 1, got {self.min_tracked!r}")
+
+
+@dataclass(frozen=True)
+class TrackedFixture:
+    """One blob of a frame, as the tracker saw it.
+
+    Attributes
+    ----------
+    id : int or None
+        Its fixture's ID, or None.
+    pixel : ndarray, shape (2,)
+        Centre of its disc in the frame as given, pixels.
+    source : str
+        Where its ID came from: ``"decoded"`` (its stripes), ``"carried"`` (the track), or
+        ``""`` (no ID).
+    used : bool
+        Whether the frame's pose uses it.
+    reason : str
+        Why it is not used ("" when used).
+    """
+
+    id: int | None
+    pixel: np.ndarray
+    source: str
+    used: bool
+    reason: str
+
+
+@dataclass(frozen=True)
+class TrackFrame:
+    """The tracker's answer for one frame.
+
+    Attributes
+    ----------
+    index : int
+        Frame number, from 0.
+    t : float
+        The frame's time, s.
+    status : str
+        ``fix`` (four or more fixtures), ``tracked`` (fewer, with the track's prior),
+        ``predicted`` (the filter's prediction, no usable fixture), ``lost`` (no track).
+    position, euler_deg : ndarray, shape (3,), or None
+        The filtered camera centre (map units) and thesis angles (degrees); None when lost.
+    raw_position, raw_euler_deg : ndarray, shape (3,), or None
+        This frame's own solve (fix or tracked), before filtering; None otherwise.
+    fixtures_used : tuple of int
+        IDs of the fixtures the solve used.
+    reprojection_rms_px : float
+        RMS reprojection error of the solve, pixels (NaN without one).
+    fixtures : tuple of TrackedFixture
+        Every blob detected.
+    reason : str
+        Why there is no solve ("" for fix and tracked).
+    timing_ms : dict
+        ``locate`` (detection and decoding), ``track`` (association, glowing lights centred,
+        solve, filter), ``total``.
+    """
+
+    index: int
+    t: float
+    status: str
+    position: np.ndarray | None
+    euler_deg: np.ndarray | None
+    raw_position: np.ndarray | None
+    raw_euler_deg: np.ndarray | None
+    fixtures_used: tuple[int, ...]
+    reprojection_rms_px: float
+    fixtures: tuple[TrackedFixture, ...]
+    reason: str
+    timing_ms: dict[str, float]
+
+    @classmethod
+    def lost(cls, index: int, t: float, reason: str) -> TrackFrame:
+        """A frame with nothing known (unreadable, or before the first fix)."""
+        return cls(index, t, "lost", None, None, None, None, (), math.nan, (), reason, {})

@@ -1,0 +1,375 @@
+"""Positions along a video: the locator's stages frame after frame, with a memory.
+
+A single video frame often shows fewer than four decodable fixtures (stripes a little longer
+than one frame of chips, a light entering at the border).  :class:`Tracker` keeps what the
+previous frames established and uses it in the next one:
+
+* **the readout** found in the first striped frame, and the chip length (rows per chip)
+  measured by the decodes so far, passed to the decoder;
+* **each fixture's ID and image position**: every map fixture is predicted in the image
+  (from the track's pose, else from where it was last seen and how it moved); a fixture whose
+  stripes do not decode keeps its ID when it is the only prediction within a gate of it and
+  no other prediction is nearly as close; a decoded ID that lands far from where the track
+  predicts that fixture is refused (IDs are never swapped between fixtures);
+* **the lights as locate finds them**: every frame runs locate's stages in its order
+  (:mod:`camvlp.pipeline.stages`), a glowing lamp centred on its radial shape as
+  :func:`camvlp.locate` centres it;
+* **the pose**: with a pose prior, two or three identified fixtures give a ``tracked`` pose
+  (:func:`camvlp.geometry.pnp.refine_pose`); four or more give a ``fix`` as in
+  :func:`camvlp.locate`;
+* **a filter**: a constant-velocity Kalman filter on the camera centre and the thesis'
+  angles smooths the track and predicts through gaps (``predicted``); after ``max_gap_s``
+  without a measurement the track is ``lost`` until the next fix.
+* **the rolling shutter**: a fixture imaged on sensor row ``k`` was seen
+  ``(k - (N - 1) / 2) * row_time`` after the frame's middle row; with the track's velocity its
+  pixel is moved to where it would have been at the frame's time before solving.
+
+Frame time convention: a frame's ``t`` is its middle sensor row's time (see
+:mod:`camvlp.sim.video`); positions are the camera's at that time.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from camvlp.errors import InputError
+from camvlp.io.files import MAX_MAGNITUDE
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.locate import StageClock
+from camvlp.pipeline.stages import (
+    Prepared,
+    decode,
+    find_lights,
+    prepare,
+    read_profiles,
+    readout_direction,
+)
+from camvlp.pipeline.track.assoc import associate, known_blobs
+from camvlp.pipeline.track.kalman import ConstantVelocityFilter
+from camvlp.pipeline.track.motion import Motion, MotionState
+from camvlp.pipeline.track.offsets import PerspectiveOffsets
+from camvlp.pipeline.track.predict import (
+    Sighting,
+    predicted_pixels,
+    remember,
+    row_offset_s,
+    rs_shift,
+    sighted_pixels,
+)
+from camvlp.pipeline.track.records import STATUSES, TrackedFixture, TrackFrame, TrackSettings
+from camvlp.pipeline.track.solve import FrameSolve, FrameSolver, Measurements
+
+__all__ = [
+    "STATUSES",
+    "ConstantVelocityFilter",
+    "TrackFrame",
+    "TrackSettings",
+    "TrackedFixture",
+    "Tracker",
+]
+
+
+@dataclass(frozen=True)
+class _Located:
+    """A frame through the locator's stages up to identification, with the track's
+    prediction of every fixture's pixel (``from_pose``: predicted from the track's pose)."""
+
+    index: int
+    t: float
+    prepared: Prepared
+    blobs: list
+    found: Identified
+    predicted: dict[int, np.ndarray]
+    from_pose: bool
+
+
+@dataclass(frozen=True)
+class _Associated:
+    """Per blob: its ID (decoded, carried or None), the ID's source, and why it is unusable."""
+
+    ids: list[int | None]
+    sources: list[str]
+    reasons: list[str]
+
+
+class Tracker:
+    """Locate a camera frame after frame, using what the earlier frames established.
+
+    Call :meth:`update` with each frame in order.
+
+    Parameters
+    ----------
+    camera : Camera
+        The video's camera (its ``row_time_s`` enables the rolling-shutter correction).
+    fixture_map : FixtureMap
+        The room.
+    settings : TrackSettings, optional
+        How to track (defaults when None).
+    """
+
+    def __init__(
+        self, camera: Camera, fixture_map: FixtureMap, settings: TrackSettings | None = None
+    ) -> None:
+        self.camera = camera
+        self.map = fixture_map
+        self.settings = settings or TrackSettings()
+        st = self.settings.locate
+        outlier_px = (
+            st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
+        )
+        self._gate = self.settings.gate_px or 0.03 * camera.focal_px
+        self.readout: Readout | None = st.readout or camera.readout
+        self._motion = Motion(camera, self.settings)
+        self._offsets = PerspectiveOffsets(camera, fixture_map, enabled=st.correct_perspective)
+        self._solver = FrameSolver(
+            camera, fixture_map, self.settings, self._motion, self._offsets, outlier_px
+        )
+        self._t_given: float | None = None  # time of the last frame given to update
+        self._seen: dict[int, Sighting] = {}
+        self._chip_rows: list[float] = []
+        self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
+        self._index = 0
+        self._verified: dict[int, int] = {}  # frame of each fixture's last decode
+
+    @property
+    def filter(self) -> ConstantVelocityFilter | None:
+        """The track's Kalman filter on the pose (None before the first fix, and while lost)."""
+        return self._motion.filter
+
+    def update(self, image: np.ndarray, t: float) -> TrackFrame:
+        """Process the next frame.
+
+        Parameters
+        ----------
+        image : ndarray, shape (H, W, 3) or (H, W)
+            The frame, of the camera's size.
+        t : float
+            Its time, s: a finite number within +-1e9 s, later than the previous frame's.
+
+        Returns
+        -------
+        TrackFrame
+
+        Raises
+        ------
+        InputError
+            ``t`` is not such a time, or the frame is not an image of the camera's size; the
+            tracker is left as it was, ready for the next frame.
+        """
+        t = self._checked_time(t)
+        clock = StageClock()
+        frame = self._locate(image, t)
+        clock.lap("locate")
+        assoc = self._associate(frame)
+        state = self._motion.state_at(t)
+        fresh = frame.from_pose and state is not None
+        m = self._measurements(frame, assoc, state, fresh)
+        outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
+        status, reason = self._follow(outcome, t, m)
+        remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
+        clock.lap("track")
+        return self._report(frame, assoc, m, outcome, status, reason, clock)
+
+    # ---------------------------------------------------------------------------------------
+    # The frame's steps, in order
+
+    def _locate(self, image: np.ndarray, t: float) -> _Located:
+        """The stages of :func:`camvlp.locate`, in its order, up to identification: a video's
+        readout, once decided, and its chip length carried from frame to frame; the IDs the
+        track knows not decoded.  The frame counts (its index, its time) once prepared."""
+        st = self.settings.locate
+        prepared = prepare(image, self.camera, self.map, st)
+        img = prepared.image
+        index = self._index  # the frame is taken: its time and index count from here
+        self._index += 1
+        self._t_given = t
+        lights = find_lights(prepared, self.map, st, readout=self.readout)
+        if self.readout is None and lights.readout is not None:
+            # the first frame that decides the direction, from now on
+            self.readout = readout_direction(prepared, lights, self.map, st)
+        readout = self.readout or lights.readout or Readout.ROWS
+        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        # no ID read reversed, nor along an axis the stripes do not show
+        undecided = lights.readout is None or (
+            self.readout is None and self.map.mode != "frequency"
+        )
+        blobs = list(lights.blobs)
+        skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
+        known = dataclasses.replace(lights, readout=readout, direction_known=True)
+        profiles = read_profiles(img, blobs, readout)
+        decoded = decode(prepared, known, profiles, self.map, skip=skip, rows_per_chip=self._rpc())
+        self._carry(decoded.decodes)
+        blobs = list(decoded.blobs)
+        found = identify(blobs, list(decoded.decodes), self.map)
+        return _Located(index, t, prepared, blobs, found, predicted, from_pose)
+
+    def _associate(self, frame: _Located) -> _Associated:
+        """IDs per blob (see :mod:`camvlp.pipeline.track.assoc`); the decoded ones verified."""
+        gate = self._gate * (1.0 if frame.from_pose else 2.0)
+        ids, sources, reasons = associate(
+            frame.blobs,
+            frame.found.ids,
+            frame.found.reasons,
+            frame.predicted,
+            self.map,
+            gate,
+            self.settings.ambiguity,
+        )
+        for k, src in enumerate(sources):
+            if src == "decoded":
+                self._verified[ids[k]] = frame.index
+        return _Associated(ids, sources, reasons)
+
+    def _measurements(
+        self, frame: _Located, assoc: _Associated, state: MotionState | None, fresh: bool
+    ) -> Measurements:
+        """The identified, usable fixtures with their rows' times; with a fresh track and
+        the rolling-shutter model, their pixels moved to the frame's time (a first guess)."""
+        ids, blobs = assoc.ids, frame.blobs
+        usable = [k for k in range(len(blobs)) if ids[k] is not None and not assoc.reasons[k]]
+        shape = frame.prepared.image.shape[:2]
+        measured = np.array([blobs[k].pixel for k in usable]).reshape(-1, 2)
+        rs = self.settings.rolling_shutter and self.camera.row_time_s is not None
+        dts = (
+            row_offset_s(self.camera, self.readout, measured, shape)
+            if rs
+            else np.zeros(len(usable))
+        )
+        obj = np.array([self.map.get(ids[k]).position for k in usable]).reshape(-1, 3)
+        pixels = measured
+        if fresh and rs and len(usable):
+            pixels = measured - rs_shift(self.camera, self.readout, state, obj, measured, shape)
+        return Measurements(usable, obj, measured, pixels, dts)
+
+    def _follow(self, outcome: FrameSolve, t: float, m: Measurements) -> tuple[str, str]:
+        """The track after the frame: its solve fused into the filter, else the filter
+        coasting on (or lost); the frame's status and reason."""
+        if outcome.solved is not None:
+            used = outcome.used_mask
+            obj, pixels, dts = m.obj[used], m.measured[used], m.dts[used]
+            fix = outcome.status == "fix"
+            self._motion.measure(outcome.solved, t, obj, pixels, dts, self._offsets, fix=fix)
+            return outcome.status, ""
+        if self._motion.filter is not None and self._motion.t_measured is not None:
+            return self._motion.coast(t, outcome.reason)
+        return outcome.status, outcome.reason
+
+    def _report(
+        self,
+        frame: _Located,
+        assoc: _Associated,
+        m: Measurements,
+        outcome: FrameSolve,
+        status: str,
+        reason: str,
+        clock: StageClock,
+    ) -> TrackFrame:
+        """The frame as reported: the track's pose, the frame's own solve, its fixtures."""
+        solved, ids = outcome.solved, assoc.ids
+        used = np.flatnonzero(outcome.used_mask)
+        raw_pose = None if solved is None else solved.pose
+        no_pose = "" if raw_pose is not None else (reason or "no pose")
+        img = frame.prepared.image
+        mirror_w = img.shape[1] if frame.prepared.mirrored else None
+        fixtures = _reported(frame.blobs, assoc, m.usable, used, mirror_w, no_pose)
+        pos, euler = self._motion.current(status)
+        return TrackFrame(
+            index=frame.index,
+            t=float(frame.t),
+            status=status,
+            position=pos,
+            euler_deg=euler,
+            raw_position=None if raw_pose is None else raw_pose.position,
+            raw_euler_deg=None if raw_pose is None else self._motion.near(raw_pose.euler_deg),
+            fixtures_used=tuple(int(ids[m.usable[j]]) for j in used) if solved is not None else (),
+            reprojection_rms_px=math.nan if solved is None else solved.reprojection_rms_px,
+            fixtures=fixtures,
+            reason=reason,
+            timing_ms=clock.total(),
+        )
+
+    # ---------------------------------------------------------------------------------------
+    # Helpers of the steps
+
+    def _predict_pixels(
+        self, t: float, shape: tuple[int, int]
+    ) -> tuple[dict[int, np.ndarray], bool]:
+        """Each fixture's predicted pixel (processing image): from the pose when there is a
+        fresh track, else from where it was last seen; and whether the pose was used."""
+        state = self._motion.state_at(t)
+        if state is not None and self._motion.fresh(t):
+            rolling = self.settings.rolling_shutter
+            out = predicted_pixels(
+                self.camera, self.readout, state, self._fixtures, shape, rolling_shutter=rolling
+            )
+            return out, True
+        return sighted_pixels(self._seen, t, self.settings.max_gap_s), False
+
+    def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
+        """Blobs whose ID the track already knows (their stripes need not be decoded)."""
+        n_verify = self.settings.verify_every
+        if not from_pose or n_verify <= 1 or self.map.mode == "frequency":
+            return set()
+        return known_blobs(
+            blobs,
+            predicted,
+            self._verified,
+            self._index,
+            n_verify,
+            self._gate,
+            self.settings.ambiguity,
+        )
+
+    def _rpc(self) -> float | None:
+        """The chip length the recent frames' decodes agree on (their median, rows), when
+        carried (:attr:`TrackSettings.carry_chip_length`) and three or more were read."""
+        carry = self.settings.carry_chip_length and self.map.mode != "frequency"
+        if carry and len(self._chip_rows) >= 3:
+            return float(np.median(self._chip_rows[-50:]))
+        return None
+
+    def _carry(self, decodes) -> None:
+        """Remember the chip lengths of the IDs read (the last 50)."""
+        for d in decodes:
+            if d.id is not None and np.isfinite(d.rows_per_chip):
+                self._chip_rows.append(float(d.rows_per_chip))
+        del self._chip_rows[:-50]
+
+    def _checked_time(self, t: object) -> float:
+        """``t`` as a float when it is a finite time within +-1e9 s and later than the last
+        frame's; InputError otherwise (before anything of the tracker changes)."""
+        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)):
+            raise InputError(f"t must be a number of seconds, got {type(t).__name__}")
+        value = float(t)
+        if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+            raise InputError(f"t must be a finite time within +-{MAX_MAGNITUDE:g} s, got {t!r}")
+        if self._t_given is not None and not value > self._t_given:
+            raise InputError(
+                f"t must increase from frame to frame: {value!r} s after {self._t_given!r} s"
+            )
+        return value
+
+
+def _reported(blobs, assoc: _Associated, usable, used, mirror_width, no_pose: str):
+    """The frame's fixtures as reported (pixels of the photo as given: flipped back when
+    ``mirror_width`` is the mirrored image's width); ``used``: indices into ``usable`` of the
+    fixtures the pose uses; ``no_pose``: why identified fixtures are unused when there is no
+    pose ("" when there is one)."""
+    used_set = {usable[j] for j in used}
+    out = []
+    for k, b in enumerate(blobs):
+        why = assoc.reasons[k]
+        if k in usable and k not in used_set:
+            why = no_pose or "not used by the pose"
+        p = b.pixel
+        if mirror_width is not None:
+            p = np.array([mirror_width - 1 - p[0], p[1]])
+        out.append(TrackedFixture(assoc.ids[k], p, assoc.sources[k], k in used_set, why))
+    return tuple(out)
