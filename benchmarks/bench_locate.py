@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import resource
 import statistics
@@ -130,11 +131,13 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
                 workers[k].stdin.write(json.dumps([name, str(jpeg), truth.tolist()]) + "\n")
                 workers[k].stdin.flush()
                 rows[k].append(json.loads(workers[k].stdout.readline()))
-        print(f"{name}, {runs} runs each, in turn:")
+        print(f"{name}, {runs} runs each, in turn (stages: {' / '.join(STAGES)}):")
         for k, r in rows.items():
             r = r[2:]
             dec, loc = statistics.median(x[0] for x in r), statistics.median(x[1] for x in r)
-            st = " / ".join(f"{statistics.median(x[2][s] for x in r):.1f}" for s in STAGES)
+            st = " / ".join(
+                f"{statistics.median(x[2].get(s, math.nan) for x in r):.1f}" for s in STAGES
+            )
             print(
                 f"  {k:<8} imdecode {dec:6.1f} ms  locate {loc:6.1f} ms ({st})  ratio "
                 f"{loc / dec:.2f}  error {r[-1][3]:.3f} mm"
@@ -155,7 +158,8 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
         print(f"peak memory, {k}: {_peak_child(photos[0][1], src)['peak_mb']:.0f} MB")
 
 
-STAGES = ("detect", "decode", "pose")
+#: The stages timed (``LocateResult.timing_ms``); a code without one shows nan there.
+STAGES = ("prepare", "detect", "profile", "decode", "pose")
 #: The 1080p camera: width, height, focal length (px), row time (s).
 HD = (1920, 1080, 1200.0, 30e-6)
 
@@ -173,7 +177,7 @@ def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs
     path = _jpeg(name, camera, fmap, pose, settings, tmp)
     data = np.fromfile(str(path), np.uint8)
     decode_ms, locate_ms = [], []
-    stages: dict[str, list[float]] = {"detect": [], "decode": [], "pose": []}
+    stages: dict[str, list[float]] = {k: [] for k in STAGES}
     result = None
     for _ in range(runs):
         t = time.perf_counter()
@@ -183,7 +187,7 @@ def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs
         result = locate(img, camera, fmap)
         locate_ms.append(1e3 * (time.perf_counter() - t))
         for k in stages:
-            stages[k].append(result.timing_ms[k])
+            stages[k].append(result.timing_ms.get(k, math.nan))
     err_mm = (
         1e3 * float(np.linalg.norm(result.position - pose.position)) if result else float("nan")
     )
