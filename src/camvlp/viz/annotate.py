@@ -220,7 +220,7 @@ def draw_beacons(beacons, result, path: str | Path) -> Path:
                     label=f"{hz:.0f} Hz (the map's): explains {100 * share:.0f} %",
                 )
             title += (
-                f"; margin {test.margin:.2f}, {test.periods_seen:.1f} periods, "
+                f"; margin {test.log_ratio:.1f}, {test.periods_seen:.1f} periods, "
                 f"{100 * test.agreement:.0f} % of lines agree"
             )
         ax.set_title(title, fontsize=8, loc="left")

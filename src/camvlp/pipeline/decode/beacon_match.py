@@ -321,8 +321,9 @@ def _refusal(
         ), True
     if t.evidence < MIN_EVIDENCE:
         return (
-            f"two map frequencies fit its stripes about equally (margin {t.margin:.2f}): too "
-            "few periods, or too little between them, to tell them apart"
+            f"two map frequencies fit its stripes about equally (margin {t.log_ratio:.1f}, at "
+            f"least {MIN_EVIDENCE / (2.0 * np.log(10.0)):.1f} needed): too few periods, or too "
+            "little between them, to tell them apart"
         ), False
     if t.agreement < MIN_AGREEMENT:
         return (
