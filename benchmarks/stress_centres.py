@@ -46,7 +46,7 @@ def main() -> int:
     for e in sd.EXPOSURES:
         for r in sd.ROWS_PER_CHIP:
             for k in range(args.per_cell):
-                photo, res, cond, _, fmap = sd.one_photo(rng, e, r, looks=True, **phone)
+                photo, res, cond, _, fmap, _ = sd.one_photo(rng, e, r, looks=True, **phone)
                 used = [fmap.get(f.id).position for f in res.fixtures if f.used]
                 photos.append(
                     dict(
