@@ -268,7 +268,7 @@ class LocateStages:
         Each blob's region of interest, gray.
     profiles : tuple of ndarray, each (n,)
         Each blob's row profile, in the order the sensor read it.
-    decodes : tuple of StripeDecode or StripeDecode
+    decodes : tuple of StripeDecode
         Each blob's decode (the model fit's in Manchester mode).
     profile_weights : tuple of ndarray, each (n,)
         Each profile's row weights, in the same order: the inverse of each row's variance

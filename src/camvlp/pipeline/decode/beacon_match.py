@@ -48,9 +48,6 @@ class FrequencyTest:
     explained : float
         The share of the profile's variation (about its envelopes) the chosen frequency's
         wave explains, 0 to 1 (the best map frequency's when refused).
-    margin : float
-        ``1 - cost / next cost``: how much better the chosen frequency explains the stripes
-        than the next map frequency (0: as well, 1: the next explains nothing).
     agreement : float
         The share of clearly lit or dark lines the chosen wave agrees with.
     costs : ndarray, shape (K,)
@@ -73,7 +70,6 @@ class FrequencyTest:
     period_px: float
     periods_seen: float
     explained: float
-    margin: float
     agreement: float
     costs: np.ndarray
     waves: tuple = ()
@@ -204,7 +200,7 @@ def hold_against(
     if not profile.usable:
         nan, costs = float("nan"), np.full(target.size, np.inf)
         why = "too few lines with signal to measure stripes"
-        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, 0.0, costs, (None,) * target.size)
+        return FrequencyTest(None, why, nan, nan, 0.0, 0.0, costs, (None,) * target.size)
     free_cost, free_wave = free if free is not None else stripes_period(profile, target)
     j, costs, waves = _map_fits(profile, target, free_cost, free_wave, tolerance)
     best_cost = min(free_cost, float(costs[j]))  # of any period, map frequency or not
@@ -264,10 +260,9 @@ def _weighed(
     period: float,
 ) -> FrequencyTest:
     """Map frequency ``j`` weighed against the others: a :class:`FrequencyTest` choosing it,
-    with its share of the variation explained, its margin and evidence over the next map
-    frequency, its agreement line by line, and the stripes' own ``period`` (lines)."""
+    with its share of the variation explained, its evidence over the next map frequency, its
+    agreement line by line, and the stripes' own ``period`` (lines)."""
     nxt = np.sort(costs)[1] if costs.size > 1 else np.inf
-    margin = float(1.0 - costs[j] / nxt) if np.isfinite(nxt) and nxt > 0 else 1.0
     # the next map frequency's excess residual, in units of the residual per free line
     evidence = (nxt - costs[j]) / max(costs[j] / profile.free_lines, 1e-12)
     agreement = profile.agreement(waves[j]) if waves[j] is not None else 0.0
@@ -277,7 +272,6 @@ def _weighed(
         period,
         profile.span / period,
         _explained(profile, costs[j]),
-        margin,
         agreement,
         costs,
         tuple(waves),

@@ -51,7 +51,7 @@ class Manchester:
 
     Attributes
     ----------
-    decodes : tuple of (StripeDecode or StripeDecode)
+    decodes : tuple of StripeDecode
         One per profile: the run-length decoder's where it was taken, else the model fit's.
     readout : Readout
         The readout the profiles were read with.

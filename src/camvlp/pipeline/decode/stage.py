@@ -84,7 +84,7 @@ class Decoded:
 
     Attributes
     ----------
-    decodes : tuple of StripeDecode or StripeDecode
+    decodes : tuple of StripeDecode
         Per light: its ID (or None) and why not.
     frequencies : ndarray, shape (n,)
         Per light, the frequency its stripes were measured at, Hz (NaN on a Manchester map).
