@@ -125,8 +125,9 @@ def matrix_to_euler(rotation) -> np.ndarray:
 
 def all_finite(*arrays: np.ndarray) -> bool:
     """Whether every value of these (small) float arrays is finite: ``np.isfinite(a).all()``
-    of each, in Python floats (every pose made checks its rotation and position: for a few
-    values NumPy's two calls cost twice as much, 8 % of a pose's solve)."""
+    of each, in Python floats (every pose made checks its rotation and position, some 25
+    times in a pose's solve: for these few values 0.8 us a call against NumPy's 3.5 us,
+    about 6 % of the solve)."""
     for a in arrays:
         if not all(map(math.isfinite, a.ravel().tolist())):
             return False
