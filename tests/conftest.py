@@ -2,11 +2,22 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Under pytest-xdist each worker has a core of its own: OpenCV's thread pool would put
+    a second thread on the other worker's core (scripts/test.sh sets OpenBLAS's and OpenMP's
+    threads the same way, for the subprocesses too)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        import cv2
+
+        cv2.setNumThreads(1)
 
 
 @pytest.fixture(scope="session")
