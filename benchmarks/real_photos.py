@@ -31,6 +31,10 @@ import cv2
 import numpy as np
 import yaml
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from timing import PhotoTime, path_dict, slowest, time_table  # (the benchmarks beside this one)
+
 from camvlp.io import decode_image, exif_readout, load_camera, load_map
 from camvlp.io.images import read_photo
 from camvlp.pipeline.locate import LocateSettings, locate
@@ -61,11 +65,19 @@ class Row:
     timing_ms: dict[str, float] = field(default_factory=dict)
     jpeg_ms: float = float("nan")
     failures: list[str] = field(default_factory=list)  # how it falls short of its README
+    paths: dict[str, dict] = field(default_factory=dict)  # the special paths that ran
+
+    @property
+    def time(self) -> PhotoTime:
+        """Its times, for :mod:`timing`'s tables."""
+        return PhotoTime(
+            f"{self.folder}/{self.photo}", self.size, self.jpeg_ms, self.timing_ms, self.paths
+        )
 
     @property
     def ratio(self) -> float:
         """``locate``'s time over the JPEG decode's."""
-        return self.timing_ms.get("total", float("nan")) / self.jpeg_ms
+        return self.time.ratio
 
 
 def load_manifest(path: Path = MANIFEST) -> list[dict]:
@@ -195,6 +207,7 @@ def run(entries: list[dict], progress: bool = True) -> list[Row]:
         result, jpeg_ms, fixture_map = locate_as_user(e)
         row = judge(e, result, fixture_map)
         row.jpeg_ms = jpeg_ms
+        row.paths = path_dict(result.paths)
         row.size = _size(e["path"])
         rows.append(row)
     return rows
@@ -237,33 +250,6 @@ def table(rows: list[Row]) -> str:
     return "\n".join(lines)
 
 
-def time_table(rows: list[Row]) -> str:
-    """p50 / p95 / max of each stage per photo size, and the slowest photos."""
-    out = ["| size | photos | stage | p50 ms | p95 ms | max ms |", "|---|---|---|---|---|---|"]
-    for size in sorted({r.size for r in rows}):
-        part = [r for r in rows if r.size == size]
-        for stage in ("detect", "decode", "pose", "total"):
-            v = np.array([r.timing_ms[stage] for r in part])
-            out.append(
-                f"| {size} | {len(part)} | {stage} | {np.percentile(v, 50):.1f} | "
-                f"{np.percentile(v, 95):.1f} | {v.max():.1f} |"
-            )
-        ratio = np.array([r.ratio for r in part])
-        out.append(
-            f"| {size} | {len(part)} | x JPEG decode | {np.percentile(ratio, 50):.2f} | "
-            f"{np.percentile(ratio, 95):.2f} | {ratio.max():.2f} |"
-        )
-    slow = sorted(rows, key=lambda r: -r.ratio)[:3]
-    out.append(
-        "\nslowest against their decode: "
-        + "; ".join(
-            f"{r.folder}/{r.photo} {r.ratio:.2f}x (decode {r.timing_ms['decode']:.0f} ms)"
-            for r in slow
-        )
-    )
-    return "\n".join(out)
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="only the photos marked quick")
@@ -281,7 +267,8 @@ def main() -> int:
     rows = run(entries)
     print(table(rows))
     print()
-    print(time_table(rows))
+    print(time_table(r.time for r in rows))
+    print(slowest((r.time for r in rows), 3))
     short = [r for r in rows if r.failures]
     for r in short:
         print(f"short of its README: {r.folder}/{r.photo}: {'; '.join(r.failures)}")

@@ -37,7 +37,10 @@ Prints decode rate and wrong IDs per cell and overall, and saves a plot of the d
 over exposure x rows per chip.  Of each lamp detected but not read, it says whether an ideal
 decoder of its profile could tell its ID (:func:`separation`, plain discs) and whether the
 photo holds it at all (``camvlp.sim.oracle.id_separation``: the renderer's own model, all
-else in the photo known, on the plain sensor).  Run::
+else in the photo known, on the plain sensor).  Then ``locate``'s time as a distribution: per
+photo size, p50 / p95 / max of the JPEG decode, of each stage and of ``locate`` over the
+decode, and the slowest photos with the special paths their time went to
+(``LocateResult.paths``; ``benchmarks/timing.py``).  Run::
 
     python benchmarks/stress_decode.py --per-cell 4 --plot out/stress/decode_map.png
 
@@ -61,6 +64,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from timing import PhotoTime, path_dict, slowest, time_table  # (the benchmarks beside this one)
 
 from camvlp import Camera, Fixture, FixtureMap, LocateSettings, Pose, RenderSettings, locate, render
 from camvlp.pipeline.decode.model_choice import FIXTURE_KNEES, MIN_MARGIN
@@ -274,12 +281,15 @@ def one_photo(rng, exposure: float, rows_per_chip: float, **look):
 
 def shoot(d: Drawn, catch: bool = False):
     """A drawn photo rendered, stored as a JPEG and located (``keep_stages``); returns the
-    render, ``locate``'s result, the conditions, the time of ``locate`` (s) and the JPEG's
-    bytes.  With ``catch``, an exception ``locate`` raises is returned as its result."""
+    render, ``locate``'s result, the conditions (the JPEG's decode time, ms, among them),
+    the time of ``locate`` (s) and the JPEG's bytes.  With ``catch``, an exception
+    ``locate`` raises is returned as its result."""
     camera, fmap, settings = d.camera, d.fmap, d.settings
     photo = render(camera, d.scene or fmap, Pose(np.eye(3), np.zeros(3)), settings)
     _, buf = cv2.imencode(".jpg", photo.image, [cv2.IMWRITE_JPEG_QUALITY, d.quality])
+    t = time.perf_counter()
     image = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    jpeg_ms = 1e3 * (time.perf_counter() - t)
     t = time.perf_counter()
     try:
         res = locate(image, camera, fmap, settings=LocateSettings(keep_stages=True))
@@ -305,6 +315,7 @@ def shoot(d: Drawn, catch: bool = False):
         sharpen=round(settings.sharpen, 2),
         vignetting=round(settings.vignetting, 2),
         black_point=round(settings.black_point, 3),
+        jpeg_ms=round(jpeg_ms, 2),  # the JPEG's decode, ms: what locate's time compares with
     )
     return photo, res, cond, dt, buf.tobytes()
 
@@ -459,6 +470,7 @@ def main() -> int:
     cells = {}
     records = []
     slow = []  # (seconds, cell, photo in the cell, lamps, conditions) of every photo
+    photo_times: list[PhotoTime] = []  # each located photo's times per stage and special path
     oracles = []  # (decimal log likelihood ratio, closest ID) of the lamps read wrongly or not
     crashes = []  # (exposure, rows per chip, photo in the cell, the exception) where locate raised
     t0 = time.perf_counter()
@@ -482,6 +494,16 @@ def main() -> int:
                 )
                 continue
             slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
+            h, w = photo.image.shape[:2]
+            photo_times.append(
+                PhotoTime(
+                    f"exposure {exposure:g} chip, {rpc:g} rows per chip, photo {i_photo}",
+                    f"{w}x{h}",
+                    cond["jpeg_ms"],
+                    res.timing_ms,
+                    path_dict(res.paths),
+                )
+            )
             located += bool(res)
             reported: set[int] = set()
             for k_fr, fr in enumerate(res.fixtures):
@@ -642,6 +664,8 @@ def main() -> int:
     for r in records[:40]:
         print("  ", r)
     print(_timing_lines(slow))
+    print(time_table(photo_times))
+    print(slowest(photo_times))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(
@@ -653,6 +677,7 @@ def main() -> int:
                         dict(seconds=round(dt, 3), exposure=e, rows_per_chip=r, photo=i, lights=n)
                         for dt, e, r, i, n, _ in slow
                     ],
+                    times=[dataclasses.asdict(t) for t in photo_times],
                 )
                 | (
                     dict(

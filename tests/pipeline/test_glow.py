@@ -133,6 +133,8 @@ def test_locate_centres_glowing_lights():
     photo, pose = _photo(1, halo=0.4, brightness=1.0)  # from the pose found too:
     res = locate(photo.image, CAM, ROOM)
     assert res, res.reason
+    assert res.paths["radial fit"].calls >= 1, res.paths  # the path that ran is reported
+    assert res.paths["radial fit"].ms <= res.timing_ms["detect"]
     errors = _centre_errors(photo, res.fixtures)
     assert np.median(errors) < 0.25
     assert np.linalg.norm(res.position - pose.position) < 2e-3  # 16 mm centred on outlines

@@ -127,6 +127,7 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
         "reprojection_rms_px",
         "fixtures",
         "timing_ms",
+        "paths",
     ):
         assert key in d
     assert len(d["position"]) == 3
@@ -135,6 +136,8 @@ def test_to_dict_has_the_documented_keys(small_render, small_camera, small_room)
     assert d["position"] == pytest.approx(list(small_render.pose.position), abs=MAX_ERROR_M)
     assert {"prepare", "detect", "profile", "decode", "pose", "total"} == set(d["timing_ms"])
     assert all(v >= 0 for v in d["timing_ms"].values())
+    # plain discs: no glowing lamp's radial fit, no joint fit, no glows taken apart
+    assert not {"radial fit", "joint fit", "glows taken apart"} & set(d["paths"]), d["paths"]
     assert len(d["fixtures"]) == 5
     for f in d["fixtures"]:
         assert {"id", "pixel", "used", "margin", "reason"} <= set(f)

@@ -197,5 +197,8 @@ def _print_human(result, units: str, photo: Path) -> None:
     t = result.timing_ms
     stages = ", ".join(f"{k} {v:.0f}" for k, v in t.items() if k != "total")
     print(f"time          {t['total']:.0f} ms ({stages})")
+    if result.paths:  # where a long photo's time went
+        ran = ", ".join(f"{k} {p.ms:.0f} ms ({p.calls}x)" for k, p in result.paths.items())
+        print(f"paths         {ran}")
     for note in result.notes:
         print(f"note          {note}")

@@ -27,6 +27,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.stage import decode, read_profiles
 from camvlp.pipeline.identify.stage import identify_and_solve
 from camvlp.pipeline.lights import find_lights
+from camvlp.pipeline.paths import recording
 from camvlp.pipeline.prepare import prepare
 from camvlp.pipeline.report import report
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
@@ -97,26 +98,26 @@ def locate(
     check_arguments(camera, fixture_map, settings)
     st = settings or DEFAULT_SETTINGS
     clock = StageClock()
+    with recording() as paths:  # the special paths that run, and their time
+        # -- 0. prepare: the photo checked, its levels mapped back to light, unmirrored ---
+        prepared = prepare(image, camera, fixture_map, st, gravity)
+        clock.lap("prepare")
 
-    # -- 0. prepare: the photo checked, its levels mapped back to light, unmirrored -------
-    prepared = prepare(image, camera, fixture_map, st, gravity)
-    clock.lap("prepare")
+        # -- 1. detect: the lights, the readout axis, each readable light centred ---------
+        lights = find_lights(prepared, fixture_map, st)
+        clock.lap("detect")
 
-    # -- 1. detect: the lights, the readout axis, each readable light centred -------------
-    lights = find_lights(prepared, fixture_map, st)
-    clock.lap("detect")
+        # -- 2. profile: each light's level per sensor line --------------------------------
+        profiles = read_profiles(prepared.image, lights.blobs, lights.readout or Readout.ROWS)
+        clock.lap("profile")
 
-    # -- 2. profile: each light's level per sensor line ------------------------------------
-    profiles = read_profiles(prepared.image, lights.blobs, lights.readout or Readout.ROWS)
-    clock.lap("profile")
+        # -- 3. decode: the ID or frequency each light's stripes say, or why not ----------
+        decoded = decode(prepared, lights, profiles, fixture_map)
+        clock.lap("decode")
 
-    # -- 3. decode: the ID or frequency each light's stripes say, or why not --------------
-    decoded = decode(prepared, lights, profiles, fixture_map)
-    clock.lap("decode")
-
-    # -- 4 and 5. identify and solve: IDs looked up, the pose solved, weighed together ----
-    solved = identify_and_solve(prepared, lights, decoded, fixture_map, st)
-    clock.lap("pose")
+        # -- 4 and 5. identify and solve: IDs looked up, the pose solved, weighed together
+        solved = identify_and_solve(prepared, lights, decoded, fixture_map, st)
+        clock.lap("pose")
 
     # -- 6. report --------------------------------------------------------------------------
-    return report(prepared, lights, decoded, solved, fixture_map, st, clock.total())
+    return report(prepared, lights, decoded, solved, fixture_map, st, clock.total(), paths)

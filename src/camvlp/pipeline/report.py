@@ -12,6 +12,7 @@ from camvlp.pipeline.decode.stage import Decoded, Profiles
 from camvlp.pipeline.identified import Identified
 from camvlp.pipeline.identify.stage import Solved
 from camvlp.pipeline.lights import Lights
+from camvlp.pipeline.paths import PathTime
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.results import FixtureResult, LocateResult, LocateStages
 from camvlp.pipeline.settings import LocateSettings
@@ -27,10 +28,12 @@ def report(
     fixture_map: FixtureMap,
     settings: LocateSettings,
     timing_ms: dict[str, float],
+    paths: dict[str, PathTime] | None = None,
 ) -> LocateResult:
     """Stage 6: the :class:`~camvlp.pipeline.results.LocateResult` of the stages' answers
     (pixels in the photo as given, mirrored back), with ``timing_ms`` (milliseconds per
-    stage) and, with ``settings.keep_stages``, the intermediate results."""
+    stage), ``paths`` (the special paths that ran, :mod:`camvlp.pipeline.paths`) and, with
+    ``settings.keep_stages``, the intermediate results."""
     est, man = solved.est, solved.manchester
     pose = est.pose if est is not None else None
     gravity = isinstance(est, GravityPose)
@@ -54,6 +57,7 @@ def report(
         reprojection_rms_px=float(est.reprojection_rms_px) if pose is not None else nan,
         fixtures=fixtures,
         timing_ms=timing_ms,
+        paths=dict(paths or {}),
         reason=solved.reason,
         readout=solved.readout,
         mirrored=prepared.mirrored,

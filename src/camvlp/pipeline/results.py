@@ -15,6 +15,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.blob import EllipseFit
 from camvlp.pipeline.detect.candidates import Detection
+from camvlp.pipeline.paths import PathTime
 
 __all__ = ["FixtureResult", "LocateResult", "LocateStages"]
 
@@ -122,7 +123,13 @@ class LocateResult:
     fixtures : tuple of FixtureResult
         Every fixture detected, identified or not.
     timing_ms : dict
-        Milliseconds per stage: ``detect``, ``decode``, ``pose``, ``total``.
+        Milliseconds per stage: ``prepare``, ``detect``, ``profile``, ``decode``, ``pose``,
+        and their ``total``.
+    paths : dict
+        The special paths that ran (a glowing lamp's radial fit, the photo-wide model fit,
+        ...: :mod:`camvlp.pipeline.paths`), each with its calls and time, milliseconds
+        (inclusive: a path run within another counts in both); empty for a photo of plain
+        discs read by the run-length decoder.
     reason : str
         Why it was not located ("" when it was).  (``error`` is the same, its old name.)
     readout : Readout
@@ -174,6 +181,7 @@ class LocateResult:
     reprojection_rms_px: float
     fixtures: tuple[FixtureResult, ...]
     timing_ms: dict[str, float]
+    paths: dict[str, PathTime] = field(default_factory=dict)
     reason: str = ""
     readout: Readout = Readout.ROWS
     mirrored: bool = False
@@ -232,6 +240,7 @@ class LocateResult:
             "position_sigma": arr(self.position_sigma),
             "fixtures": [f.to_dict() for f in self.fixtures],
             "timing_ms": {k: round(v, 2) for k, v in self.timing_ms.items()},
+            "paths": {k: {"calls": p.calls, "ms": round(p.ms, 2)} for k, p in self.paths.items()},
             "readout": str(self.readout),
             "mirrored": self.mirrored,
             "solver": self.solver,

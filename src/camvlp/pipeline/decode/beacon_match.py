@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from camvlp.pipeline.decode.beacon import MIN_PERIOD, BeaconProfile
+from camvlp.pipeline.paths import path
 
 __all__ = [
     "FLAT_F",
@@ -140,6 +141,7 @@ def _search(profile: BeaconProfile, periods) -> tuple[float, np.ndarray]:
     return best
 
 
+@path("stripe period search")
 def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarray]:
     """The square wave that best fits a light's stripes, any period: (its residual under the
     profile's own envelopes, its ``[period, phase, window, duty]``, lines); (inf, NaNs) for
@@ -164,6 +166,7 @@ def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarra
     return cost, wave
 
 
+@path("frequencies held against the map")
 def hold_against(
     profile: BeaconProfile,
     periods,

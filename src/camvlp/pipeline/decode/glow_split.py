@@ -34,6 +34,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
 from camvlp.pipeline.decode.model import decode_profile_model
+from camvlp.pipeline.paths import path
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
 
@@ -76,6 +77,7 @@ class SeparatedWave(NamedTuple):
     weight: np.ndarray
 
 
+@path("glows taken apart")
 def separated_waveforms(
     img: np.ndarray,
     centres: np.ndarray,

@@ -35,6 +35,7 @@ from camvlp.pipeline.decode.model import (
 from camvlp.pipeline.decode.model_choice import MIN_MARGIN
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.run_decode import decode_profiles
+from camvlp.pipeline.paths import path
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
 
@@ -211,6 +212,7 @@ def _direction_votes(a: PhotoDecode, b: PhotoDecode, rev: np.ndarray) -> tuple[i
     return for_a, for_b
 
 
+@path("both readout directions")
 def _model_directions(
     profiles, readout: Readout, frame: FrameFormat, ids, seed, weights=None, rank=None
 ) -> Manchester:

@@ -41,6 +41,7 @@ from camvlp.pipeline.decode.stripe_model import (
     model_spectra,
     prepared_profile,
 )
+from camvlp.pipeline.paths import path
 
 __all__ = [
     "PhotoDecode",
@@ -218,6 +219,7 @@ def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples, 
     return replace(fit, rss=out_rss, gain=out_gain, offset=out_offset), knees
 
 
+@path("model decode")
 def decode_photo(
     profiles,
     frame: FrameFormat,

@@ -28,6 +28,7 @@ from camvlp.pipeline.decode.stripe_model import (
     templates,
     templates_batch,
 )
+from camvlp.pipeline.paths import path
 
 __all__ = ["estimate_photo_model"]
 
@@ -145,6 +146,7 @@ def _own_fitter(data, chips: np.ndarray, n: int, s: int, m: SensorModel, keep: i
     return _PhotoFitter(data, chips[union], s, n, [np.searchsorted(union, t) for t in tops])
 
 
+@path("photo-wide model")
 def estimate_photo_model(
     profiles,
     frame: FrameFormat,

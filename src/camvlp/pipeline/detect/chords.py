@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from camvlp.imaging.levels import CLIP_LEVEL
+from camvlp.pipeline.paths import path
 
 __all__ = ["CHORD_END_PX", "CHORD_LINES", "CHORD_SHARE", "chord_seeds"]
 
@@ -78,6 +79,7 @@ def _chords_circle(line: np.ndarray, half: np.ndarray, step: int) -> tuple[float
     return centre, radius
 
 
+@path("chords")
 def chord_seeds(
     gray: np.ndarray, inside: np.ndarray, axis: str, scale: int, min_radius: float
 ) -> np.ndarray:

@@ -35,6 +35,7 @@ from camvlp.pipeline.detect.codes import codes_differ
 from camvlp.pipeline.detect.faces import dark_level, dark_seeds
 from camvlp.pipeline.detect.peaks import distances, lamp_sized, light_seeds, power_cell
 from camvlp.pipeline.detect.readout import axis_contrast
+from camvlp.pipeline.paths import path
 
 __all__ = [
     "MIN_LIGHT_RADIUS",
@@ -253,6 +254,7 @@ def _joined(search: CandidateSearch, box: tuple[int, int, int, int]) -> JoinedRe
     return None if one_disc(_hull(inside)) else JoinedRegion(search, box, inside)
 
 
+@path("joined region")
 def region_lights(region: JoinedRegion) -> np.ndarray:
     """The lights of a joined region, ``[x, y, r, reach]`` (k, 4) in its box's pixels: the
     peaks of its brighter parts, or its faces in the dark stripes, or its clipped chords,

@@ -45,6 +45,7 @@ from camvlp.imaging.levels import CLIP_LEVEL as _CLIP
 from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.disc import light_support
 from camvlp.pipeline.lamp.radial import RadialFit, radial_fit, radial_model
+from camvlp.pipeline.paths import path
 
 __all__ = ["Fitted", "boxes_overlap", "centred_jointly", "on_rim", "rim_from_chords"]
 
@@ -202,6 +203,7 @@ def on_rim(pixel: np.ndarray, rim) -> bool:
     return rim is None or bool(np.hypot(*(np.asarray(pixel) - rim[0])) <= RIM_AGREE_PX)
 
 
+@path("rim from chords")
 def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     """The centre and radius of light ``k``'s disc from its rim, where each line shows it:
     None when the rim does not show as a clean ellipse.
@@ -391,6 +393,7 @@ def _held_by_clipped(img: np.ndarray, b: Blob, before: np.ndarray) -> bool:
     return np.hypot(*(b.pixel - centre)) <= max(np.hypot(*(before - centre)), slack)
 
 
+@path("joint fit")
 def _refitted(
     img: np.ndarray,
     blobs: list[Blob],

@@ -28,6 +28,7 @@ import numpy as np
 
 from camvlp.imaging.levels import CLIP_LEVEL, FULL_SCALE
 from camvlp.imaging.threads import one_blas_thread
+from camvlp.pipeline.paths import path
 
 __all__ = ["LightWave", "outline_ellipse", "separated_wave"]
 
@@ -384,6 +385,7 @@ def search_centre(cost, start: np.ndarray, step_px: float = 1.0) -> np.ndarray:
     return np.asarray(res.x, dtype=float)
 
 
+@path("light's waveform")
 @one_blas_thread
 def separated_wave(gray: np.ndarray, support: np.ndarray, ellipse, axis: str):
     """A round light's waveform per line, separated from its radial shape: the lines with

@@ -41,6 +41,7 @@ from camvlp.pipeline.lamp.light_wave import (
     search_centre,
     shape_fit,
 )
+from camvlp.pipeline.paths import path
 
 __all__ = ["RadialFit", "RadialModel", "radial_centre", "radial_fit", "radial_model", "rim_extents"]
 
@@ -108,6 +109,7 @@ def radial_centre(gray: np.ndarray, support: np.ndarray, ellipse, axis: str) -> 
     return radial_fit(gray, support, ellipse, axis).centre
 
 
+@path("radial fit")
 @one_blas_thread
 def radial_fit(
     gray: np.ndarray,
