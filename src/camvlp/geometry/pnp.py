@@ -36,7 +36,7 @@ import numpy as np
 
 from camvlp.geometry.pose_prior import PriorSolve, refine_pose
 from camvlp.geometry.projection import project_moving
-from camvlp.model.camera import Camera, Pose, all_finite
+from camvlp.model.camera import Camera, Pose, all_finite, project_camera_points
 
 __all__ = [
     "IPPE_JITTER_PX",
@@ -253,26 +253,31 @@ def other_minima(object_points, image_points, camera: Camera) -> list[Pose]:
     if not _TRIPLE_POINTS[0] <= n <= _TRIPLE_POINTS[1]:
         return []
     k, d = camera.matrix, camera.dist_or_none
-    poses = []
+    seeds = []  # (rvec, tvec) of every triple's P3P solutions
     for tri in itertools.combinations(range(n), 3):
         t = list(tri)
         try:
             _, rvecs, tvecs = cv2.solveP3P(o[t], i[t], k, d, flags=cv2.SOLVEPNP_AP3P)
         except cv2.error:
             continue
-        for rvec, tvec in zip(rvecs, tvecs, strict=True):
-            if not all_finite(rvec, tvec):
-                continue
-            uv, _ = cv2.projectPoints(o, rvec, tvec, k, d)
-            err = uv.reshape(-1, 2) - i.reshape(-1, 2)
-            rms = float(np.sqrt(np.mean(np.sum(err * err, axis=1))))
-            if not rms <= _SEED_RMS_PX:
-                continue
-            rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec.copy(), tvec.copy())
-            try:
-                poses.append(Pose.from_rvec_tvec(rvec, tvec))
-            except ValueError:
-                continue
+        seeds += [(r, v) for r, v in zip(rvecs, tvecs, strict=True) if all_finite(r, v)]
+    if not seeds:
+        return []
+    # every seed's RMS over all the points, in one projection
+    rot = np.array([cv2.Rodrigues(r)[0] for r, _ in seeds])  # (S, 3, 3), world to camera
+    shift = np.array([v.reshape(3) for _, v in seeds])  # (S, 3)
+    cam = o.reshape(1, n, 3) @ rot.transpose(0, 2, 1) + shift[:, None]  # (S, N, 3)
+    err = project_camera_points(camera, cam.reshape(-1, 3)).reshape(-1, n, 2) - i.reshape(n, 2)
+    rms = np.sqrt(np.mean(np.sum(err * err, axis=2), axis=1))  # (S,), pixels
+    poses = []
+    for (rvec, tvec), seed_rms in zip(seeds, rms, strict=True):
+        if not seed_rms <= _SEED_RMS_PX:
+            continue
+        rvec, tvec = cv2.solvePnPRefineLM(o, i, k, d, rvec.copy(), tvec.copy())
+        try:
+            poses.append(Pose.from_rvec_tvec(rvec, tvec))
+        except ValueError:
+            continue
     return poses
 
 
