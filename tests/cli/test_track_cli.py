@@ -247,15 +247,16 @@ def test_render_video_refuses_bad_looks(scene, tmp_path, args, message):
 
 
 def test_an_interrupted_render_says_where_its_frames_are(scene, tmp_path, monkeypatch):
-    # Ctrl-C during render-video: exit 130, and the partial video named (its frames so far)
-    import camvlp.cli.track as cli_track
+    # Ctrl-C during render-video: exit 130, and the partial video named (its frames so far).
+    # The command imports render_video when it runs: the simulator's own is replaced.
+    import camvlp.sim.video as sim_video
     from camvlp.sim.video import partial_path
 
     def interrupted(camera, fixture_map, trajectory, out, **kwargs):
         partial_path(out).write_bytes(b"frames so far")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli_track, "render_video", interrupted)
+    monkeypatch.setattr(sim_video, "render_video", interrupted)
     out = tmp_path / "v.mp4"
     result = _render_video(scene, out)
     assert result.exit_code == 130

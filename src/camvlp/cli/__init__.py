@@ -1,4 +1,9 @@
-"""Command-line interface: a thin layer that parses arguments and calls the library."""
+"""Command-line interface: a thin layer that parses arguments and calls the library.
+
+The command modules are imported here, where they declare their commands; each imports the
+library modules it needs when it runs, so that starting ``camvlp`` (``--help`` too) loads
+typer and the declarations only (tests/cli/test_startup.py).
+"""
 
 from __future__ import annotations
 

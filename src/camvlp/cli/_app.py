@@ -1,4 +1,8 @@
-"""The ``camvlp`` Typer application and its shared error handling."""
+"""The ``camvlp`` Typer application and its shared error handling.
+
+Imported whenever the command line starts (``--help`` too): it loads typer and the standard
+library only, the heavier modules when a command runs.
+"""
 
 from __future__ import annotations
 
@@ -12,13 +16,10 @@ from collections.abc import Callable
 from functools import wraps
 from typing import Annotated, Any, NoReturn, TypeVar
 
-import numpy as np
 import typer
 from typer.core import TyperGroup
 
-from camvlp.errors import one_line
-from camvlp.geometry import pnp
-from camvlp.io import InputError
+from camvlp.errors import InputError, one_line
 from camvlp.model.readout import Readout
 
 #: A line that starts a list item in a help text: ``- item``, ``* item``, ``1. item``, ``2) item``.
@@ -114,6 +115,8 @@ def handle_errors(func: F) -> F:
 
     @wraps(func)
     def wrapper(*args, **kwargs):
+        import numpy as np  # (the commands' work imports it anyway)
+
         check_numbers(kwargs)
         try:
             with warnings.catch_warnings(), np.errstate(all="ignore"):
@@ -256,6 +259,8 @@ def parse_gravity(text: str | None) -> list[float] | None:
 
 def check_solver(solver: str, *, allow_locate: bool = False) -> str:
     """``solver`` if it names a PnP method, else a usage error (exit 2)."""
+    from camvlp.geometry import pnp
+
     try:
         return pnp.check_solver(solver, allow_locate=allow_locate)
     except ValueError as exc:

@@ -1,20 +1,22 @@
 """The options of ``camvlp study``'s commands, and turning them into a study's arguments:
 the camera and map (the thesis' by default), the floor grid, the poses, the noise, gravity;
-each refused as a usage error naming the option at fault (exit 2)."""
+each refused as a usage error naming the option at fault (exit 2).  The files are read
+when a command runs: declaring the options imports typer only."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from camvlp.io import InputError, load_camera, load_map
-from camvlp.model.camera import Camera
-from camvlp.model.fixtures import FixtureMap
-from camvlp.sim.grid import plane_axes, up_sign
+from camvlp.errors import InputError
 
 from ._app import check_solver, fail, parse_floats
+
+if TYPE_CHECKING:
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
 
 #: Thesis figure presets for image-error / world-error: positions (m), angles (deg), height.
 FIGURES = {
@@ -115,6 +117,9 @@ def load_inputs(
     """The camera and the map (the thesis' by default), refused naming the file when the
     studies cannot use them; with ``plane`` (``--plane``, for a floor or a height), the
     fixtures must lie off the floor's level, on the side that is up."""
+    from camvlp.io import load_camera, load_map
+    from camvlp.sim.grid import plane_axes, up_sign
+
     camera_path = _default_file(camera, "thesis_camera.yaml")
     cam = load_camera(camera_path)
     if cam.distortion.size > 12:  # the studies' batched projection has no tilted sensor

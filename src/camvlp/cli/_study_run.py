@@ -6,9 +6,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
-from camvlp.io.writers import write_outputs
-
 from ._app import fail
 from .progress import progress_bar
 
@@ -21,6 +18,9 @@ PROGRESS_FROM_POSES = 5000
 
 def finish_study(study, name: str, plot, out: Path | None, as_json: bool, lines: list[str]) -> None:
     """Write the files (with --out), then print the summary as JSON or as ``lines``."""
+    from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
+    from camvlp.io.writers import write_outputs
+
     summary = study.summary()
     if out is not None:
         check_output_dir(out, "--out")

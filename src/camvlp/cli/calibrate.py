@@ -8,20 +8,19 @@ import itertools
 import re
 import sys
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
-import cv2
 import typer
 
-from camvlp.analysis.calibrate import CalibrationResult, calibrate_camera, estimate_row_time
-from camvlp.format import format_number
-from camvlp.io import InputError, load_camera, load_image, save_camera
-from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
-from camvlp.sim.chessboard import MIN_BOARD_SIDE, chessboard_views
-from camvlp.sim.render import check_render_size
+from camvlp.errors import InputError
 
 from ._app import EXIT_NOT_LOCATED, app, fail, handle_errors
 from .progress import progress_bar
+
+if TYPE_CHECKING:
+    from camvlp.analysis.calibrate import CalibrationResult
+    from camvlp.analysis.row_time import RowTimeEstimate
+    from camvlp.model.camera import Camera
 
 #: Image files taken from a directory given as an argument.
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff", ".bmp", ".webp"}
@@ -54,6 +53,9 @@ MAX_BOARD = 100
 
 
 def _parse_board(text: str) -> tuple[int, int]:
+    """``--board COLSxROWS``: the board's inner corners, or a usage error (exit 2)."""
+    from camvlp.sim.chessboard import MIN_BOARD_SIDE
+
     m = re.fullmatch(r"\s*(\d{1,4})\s*[xX*,]\s*(\d{1,4})\s*", text)
     if not m or not all(MIN_BOARD_SIDE <= int(m.group(k)) <= MAX_BOARD for k in (1, 2)):
         fail(
@@ -113,6 +115,9 @@ def calibrate(
 
     Exit 1 when fewer than 3 photos show the board.
     """
+    from camvlp.io import save_camera
+    from camvlp.io.atomic import check_output_file, strict_json
+
     if not images:
         fail("no chessboard photos given (IMAGES...)")
     if board is None:
@@ -148,7 +153,10 @@ def _calibrate_with_progress(
     fix_aspect: bool,
     zero_tangent: bool,
 ) -> CalibrationResult:
-    """:func:`calibrate_camera` with a progress bar on stderr (a terminal, 5 photos or more)."""
+    """:func:`~camvlp.analysis.calibrate.calibrate_camera` with a progress bar on stderr (a
+    terminal, 5 photos or more)."""
+    from camvlp.analysis.calibrate import calibrate_camera
+
     with progress_bar(len(paths), "finding the board", show=len(paths) >= PROGRESS_FROM) as update:
         done = itertools.count(1)
         return calibrate_camera(
@@ -164,6 +172,8 @@ def _calibrate_with_progress(
 
 def _report_failure(result: CalibrationResult, as_json: bool) -> NoReturn:
     """Print the rejected photos (or the JSON failure) and exit 1 with the reason."""
+    from camvlp.io.atomic import strict_json
+
     if not as_json:
         for name, reason in result.rejected:
             print(f"rejected  {name}: {reason}")
@@ -202,6 +212,8 @@ def _calibration_json(result: CalibrationResult, out: Path) -> dict:
 
 def _print_calibration(result: CalibrationResult, out: Path) -> None:
     """The human summary: intrinsics, distortion, RMS, each photo's error or reason."""
+    from camvlp.format import format_number
+
     camera = result.camera
     k = camera.matrix
     width = max(len(n) for n in (*result.used, *(n for n, _ in result.rejected)))
@@ -254,6 +266,10 @@ def calibrate_rows(
 
     Exit 1 when no light or no clear stripes are found.
     """
+    from camvlp.analysis.calibrate import estimate_row_time
+    from camvlp.io import load_camera, load_image, save_camera
+    from camvlp.io.atomic import check_output_file
+
     if frequency is None or not frequency > 0:
         fail(f"--frequency must be a positive number of Hz, got {frequency}")
     if axis is not None and axis not in ("rows", "columns"):
@@ -280,6 +296,15 @@ def calibrate_rows(
         fail(f"{est.reason} ({photo})", EXIT_NOT_LOCATED)
     if out is not None and camera is not None:
         save_camera(dataclasses.replace(camera, row_time_s=est.row_time_s), out)
+    _print_row_time(est, photo, frequency, out, as_json)
+
+
+def _print_row_time(
+    est: RowTimeEstimate, photo: Path, frequency: float, out: Path | None, as_json: bool
+) -> None:
+    """calibrate-rows' result: the stripes' axis and period, the row time; JSON or text."""
+    from camvlp.io.atomic import strict_json
+
     if as_json:
         print(
             strict_json(
@@ -359,6 +384,13 @@ def render_chessboard_command(
     in the board's frame and its inner corners' true pixels), all or none; `camvlp calibrate
     DIR --board COLSxROWS --square SIZE_M` should then find the camera file's intrinsics.
     """
+    import cv2
+
+    from camvlp.io import load_camera
+    from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
+    from camvlp.sim.chessboard import chessboard_views
+    from camvlp.sim.render import check_render_size
+
     cols_rows = _parse_board(board)
     if not square > 0 or square > 100:
         fail(f"--square must be a positive size in metres, at most 100, got {square}")
@@ -400,7 +432,9 @@ def render_chessboard_command(
     print(f"calibrate with: camvlp calibrate {out} --board {board} --square {square:g}")
 
 
-def _chessboard_truth(camera, board: tuple[int, int], square: float, seed, blur, noise) -> dict:
+def _chessboard_truth(
+    camera: Camera, board: tuple[int, int], square: float, seed: int, blur: float, noise: float
+) -> dict:
     """The head of render-chessboard's truth.json: the camera and how the photos were made."""
     return {
         "camera": {

@@ -7,10 +7,6 @@ from typing import Annotated
 
 import typer
 
-from camvlp.io import load_map
-from camvlp.io.atomic import strict_json
-from camvlp.model.linecode import FrameFormat, chip_schedule
-
 from ._app import app, fail, handle_errors
 
 
@@ -27,6 +23,10 @@ def encode(
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Print a fixture's frame bits, its Manchester chips, and the LED's on/off schedule."""
+    from camvlp.io import load_map
+    from camvlp.io.atomic import strict_json
+    from camvlp.model.linecode import FrameFormat, chip_schedule
+
     fixture_map = load_map(map_path) if map_path else None
     if fixture_map is not None and fixture_map.mode != "manchester":
         fail(

@@ -3,22 +3,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-
-from camvlp.analysis.evaluate import (
-    AXES,
-    Evaluation,
-    evaluate_survey,
-    read_survey,
-)
-from camvlp.format import mm_per_unit
-from camvlp.io import load_camera, load_map
-from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
-from camvlp.pipeline.locate import LocateSettings
-from camvlp.sim.survey import default_jobs
-from camvlp.viz.evaluate_plots import write_evaluation
 
 from ._app import (
     GravitySigmaOption,
@@ -33,6 +20,13 @@ from ._app import (
     handle_errors,
 )
 from .progress import progress_bar
+
+if TYPE_CHECKING:
+    from camvlp.analysis.evaluate import Evaluation
+    from camvlp.io.survey_csv import Survey
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
+    from camvlp.pipeline.locate import LocateSettings
 
 
 @app.command("evaluate")
@@ -84,6 +78,13 @@ def evaluate_command(
 
     Exit code 0 when the run completed (even with failures), 2 on bad input.
     """
+    from camvlp.analysis.evaluate import read_survey
+    from camvlp.io import load_camera, load_map
+    from camvlp.io.atomic import StagedOutputs, check_output_dir, strict_json
+    from camvlp.pipeline.locate import LocateSettings
+    from camvlp.sim.survey import default_jobs
+    from camvlp.viz.evaluate_plots import write_evaluation
+
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(max_sigma, "--max-sigma")
@@ -117,13 +118,21 @@ def evaluate_command(
         _print_human(evaluation, summary, paths)
 
 
-def _run(survey, camera, fixture_map, settings, jobs: int) -> Evaluation:
+def _run(
+    survey: Survey, camera: Camera, fixture_map: FixtureMap, settings: LocateSettings, jobs: int
+) -> Evaluation:
     """Evaluate with a progress bar on stderr (shown only on a terminal)."""
+    from camvlp.analysis.evaluate import evaluate_survey
+
     with progress_bar(len(survey), "locating") as update:
         return evaluate_survey(survey, camera, fixture_map, settings, jobs=jobs, progress=update)
 
 
 def _print_human(evaluation: Evaluation, s: dict, paths: dict) -> None:
+    """The summary ``s`` as text: the photos located, the errors, the failures, the files."""
+    from camvlp.analysis.evaluate import AXES
+    from camvlp.format import mm_per_unit
+
     scale, unit = mm_per_unit(s["units"])
 
     def v(x) -> str:

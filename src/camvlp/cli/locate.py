@@ -3,26 +3,13 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import cv2
-import numpy as np
 import typer
 
-from camvlp.format import format_number
-from camvlp.io import (
-    InputError,
-    decode_image,
-    exif_readout,
-    load_camera,
-    load_map,
-    load_sidecar,
-)
-from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
-from camvlp.io.images import read_photo
-from camvlp.pipeline.locate import LocateSettings, locate
-from camvlp.viz.annotate import annotate, write_debug_pictures
+from camvlp.errors import InputError
 
 from ._app import (
     EXIT_NOT_LOCATED,
@@ -39,6 +26,13 @@ from ._app import (
     parse_readout,
 )
 from .render import option_names
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
+    from camvlp.pipeline.locate import LocateResult
 
 
 @app.command("locate")
@@ -98,6 +92,11 @@ def locate_command(
     Exit code 0 when located, 1 when the photo could not be located (the reason is printed,
     and with --json the object still lists the fixtures), 2 on bad input.
     """
+    from camvlp.io import decode_image, exif_readout, load_camera, load_map, load_sidecar
+    from camvlp.io.atomic import check_output_dir, check_output_file, strict_json
+    from camvlp.io.images import read_photo
+    from camvlp.pipeline.locate import LocateSettings, locate
+
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(max_sigma, "--max-sigma")
@@ -137,7 +136,33 @@ def locate_command(
         result = locate(image, camera, fixture_map, settings, gravity=g)
     except InputError as exc:
         raise InputError(exc.what, photo) from None
-    with StagedOutputs() as outputs:  # the annotated photo and the debug pictures: all or none
+    _write_pictures(result, image, camera, fixture_map, annotate_path, debug_dir)
+    if as_json:
+        print(strict_json(result.to_dict()))
+    else:
+        _print_human(result, fixture_map.units, photo)
+    if not result:  # stdout keeps its JSON; the one error line goes to stderr either way
+        fail(f"not located: {result.reason} ({photo})", EXIT_NOT_LOCATED)
+
+
+def _write_pictures(
+    result: LocateResult,
+    image: np.ndarray,
+    camera: Camera,
+    fixture_map: FixtureMap,
+    annotate_path: Path | None,
+    debug_dir: Path | None,
+) -> None:
+    """The annotated photo (``--annotate``) and one picture per stage (``--debug-dir``):
+    all or none."""
+    if annotate_path is None and debug_dir is None:
+        return
+    import cv2
+
+    from camvlp.io.atomic import StagedOutputs
+    from camvlp.viz.annotate import annotate, write_debug_pictures
+
+    with StagedOutputs() as outputs:
         if annotate_path is not None:
             staged = outputs.file(annotate_path)
             if not cv2.imwrite(str(staged), annotate(image, result, camera, fixture_map)):
@@ -149,22 +174,20 @@ def locate_command(
                 result,
                 result.stages,
             )
-    if as_json:
-        print(strict_json(result.to_dict()))
-    else:
-        _print_human(result, fixture_map.units, photo)
-    if not result:  # stdout keeps its JSON; the one error line goes to stderr either way
-        fail(f"not located: {result.reason} ({photo})", EXIT_NOT_LOCATED)
 
 
-def _tilt(result) -> str:
+def _tilt(result: LocateResult) -> str:
+    """How far the pose found lies from the gravity given, and from the photo's own tilt."""
     text = f"pose {result.gravity_residual_deg:.2f} deg from gravity"
     if result.tilt_disagreement_deg == result.tilt_disagreement_deg:  # not NaN
         text += f", the photo's own tilt {result.tilt_disagreement_deg:.2f} deg"
     return text
 
 
-def _print_human(result, units: str, photo: Path) -> None:
+def _print_human(result: LocateResult, units: str, photo: Path) -> None:
+    """The located position, its uncertainty and orientation, and each fixture, as text."""
+    from camvlp.format import format_number
+
     if result:
         position = ", ".join(format_number(v, ".4f") for v in result.position)
         angles = ", ".join(format_number(v, ".2f") for v in result.euler_deg)
@@ -190,7 +213,7 @@ def _print_human(result, units: str, photo: Path) -> None:
         u, v = (format_number(c, "7.1f") for c in f.pixel)
         sure = (
             f"run margin {format_number(f.run_margin, '.2f')}"
-            if np.isfinite(f.run_margin)
+            if math.isfinite(f.run_margin)
             else f"margin {format_number(f.margin, '.1f')}"
         )
         print(f"  {ident}  at ({u}, {v})  {sure}  {state}")

@@ -1,22 +1,26 @@
-"""``camvlp render``: a simulated rolling-shutter photograph and its ground truth."""
+"""``camvlp render``: a simulated rolling-shutter photograph and its ground truth.
+
+The options' defaults are the renderer's (:class:`camvlp.sim.render.RenderSettings`), written
+out here so that the simulator is imported only when a render runs (tests/cli/test_startup.py
+checks that they agree).
+"""
 
 from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from camvlp.format import format_number
-from camvlp.io import load_camera, load_map
-from camvlp.io.atomic import StagedOutputs, check_output_file
-from camvlp.io.writers import IMAGE_SUFFIXES, save_render
-from camvlp.model.camera import DEFAULT_ROW_TIME_S, Pose
-from camvlp.model.readout import Readout
-from camvlp.sim.render import RenderSettings, check_render_size, distinct_colours, render
+from camvlp.model.readout import DEFAULT_ROW_TIME_S, Readout
 
 from ._app import app, fail, handle_errors, parse_floats, parse_readout
+
+if TYPE_CHECKING:
+    from camvlp.model.camera import Camera, Pose
+    from camvlp.model.fixtures import FixtureMap
+    from camvlp.sim.render import Render, RenderSettings
 
 
 @app.command("render")
@@ -158,6 +162,12 @@ def render_command(
     ] = "95",
 ) -> None:
     """Render a photograph of the map's fixtures from a camera pose, with its truth JSON."""
+    from camvlp.io import load_camera, load_map
+    from camvlp.io.atomic import check_output_file
+    from camvlp.io.writers import IMAGE_SUFFIXES
+    from camvlp.model.camera import Pose
+    from camvlp.sim.render import RenderSettings, check_render_size, distinct_colours
+
     if out.suffix.lower() not in IMAGE_SUFFIXES:
         fail(f"--out must end in {', '.join(IMAGE_SUFFIXES)} ({out})")
     check_output_file(out, "--out")
@@ -203,18 +213,27 @@ def render_command(
     except ValueError as exc:
         fail(option_names(str(exc)))
     result = _render_or_fail(camera, fixture_map, pose, settings, map_path)
-    with StagedOutputs() as outputs:  # the photo and its truth JSON: both or neither
+    _save(result, out, jpeg_quality)
+    _print_render(result, camera, out, out.with_suffix(".json"))
+
+
+def _save(result: Render, out: Path, jpeg_quality: int) -> None:
+    """Write the photo ``out`` and its truth JSON beside it: both or neither."""
+    from camvlp.io.atomic import StagedOutputs
+    from camvlp.io.writers import save_render
+
+    with StagedOutputs() as outputs:
         staged = outputs.folder(out.parent)
         try:
             save_render(result, staged / out.name, jpeg_quality=jpeg_quality)
         except ValueError as exc:
             fail(str(exc).replace(str(staged / out.name), str(out)))
-    json_path = out.with_suffix(".json")
-    _print_render(result, camera, out, json_path)
 
 
 def _noise_settings(scale: float) -> dict[str, float]:
     """Full well and read noise for ``--noise`` (0 = no noise, 1 = the default sensor)."""
+    from camvlp.sim.render import RenderSettings
+
     base = RenderSettings()
     return {
         "full_well_e": base.full_well_e / scale**2 if scale > 0 else 0.0,
@@ -222,8 +241,10 @@ def _noise_settings(scale: float) -> dict[str, float]:
     }
 
 
-def _print_render(result, camera, out: Path, json_path: Path) -> None:
+def _print_render(result: Render, camera: Camera, out: Path, json_path: Path) -> None:
     """What was written, the timing used and where each fixture landed."""
+    from camvlp.format import format_number
+
     s = result.settings
     print(
         f"wrote {out} ({camera.width} x {camera.height}) and {json_path}; "
@@ -273,8 +294,16 @@ def _ids(text: str | None, option: str) -> tuple[int, ...]:
         fail(f"{option} must be fixture IDs separated by commas, got {text!r}")
 
 
-def _render_or_fail(camera, fixture_map, pose, settings, map_path):
+def _render_or_fail(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    pose: Pose,
+    settings: RenderSettings,
+    map_path: Path,
+) -> Render:
     """Render, or fail with one line when the pose or the map cannot be rendered."""
+    from camvlp.sim.render import render
+
     try:
         result = render(camera, fixture_map, pose, settings)
     except ValueError as exc:

@@ -1,19 +1,19 @@
 """``camvlp study``: the thesis' error study (chapter 4) and a coverage planner.
 
 The commands' options and their checks are in :mod:`camvlp.cli._study_options`; running a
-study (its budget, progress bar, files and summary) in :mod:`camvlp.cli._study_run`.
+study (its budget, progress bar, files and summary) in :mod:`camvlp.cli._study_run`.  The
+studies (:mod:`camvlp.analysis.study`) and their plots (:mod:`camvlp.viz.study_plots`) are
+imported when a command runs.
 """
 
 from __future__ import annotations
 
-from typing import Annotated
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
-from camvlp.analysis import study as st
-from camvlp.format import format_length
-from camvlp.model.camera import DEFAULT_ROW_TIME_S
-from camvlp.viz import study_plots
+from camvlp.model.readout import DEFAULT_ROW_TIME_S
 
 from ._app import app, fail, handle_errors, parse_floats
 from ._study_options import (
@@ -49,6 +49,11 @@ from ._study_options import (
 )
 from ._study_run import finish_study, run_study, usage_errors
 
+if TYPE_CHECKING:
+    from camvlp.analysis.study import ForcedErrorStudy
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
+
 study_app = typer.Typer(
     name="study",
     help="Error study (thesis chapter 4) and deployment planning, geometry only.",
@@ -82,14 +87,34 @@ def _coverage_lines(s: dict, tilt_max: float, height: float, noise_px: float) ->
 
 
 def _mm(v: float | None) -> str:
+    """A length (m) in millimetres ("n/a" for None or NaN)."""
+    from camvlp.format import format_length
+
     return format_length(v, "mm")
 
 
-_len = format_length
+def _len(v: float | None) -> str:
+    """A length (m) in the unit that suits it ("n/a" for None or NaN)."""
+    from camvlp.format import format_length
+
+    return format_length(v)
 
 
-def _monte_carlo(cam, fmap, positions, eulers, solver, rounding, noise: dict, out, as_json) -> None:
+def _monte_carlo(
+    cam: Camera,
+    fmap: FixtureMap,
+    positions: list[list[float]],
+    eulers: list[list[float]],
+    solver: str,
+    rounding: bool,
+    noise: dict,
+    out: Path | None,
+    as_json: bool,
+) -> None:
     """The Monte Carlo study of the image-error and world-error commands given noise."""
+    from camvlp.analysis import study as st
+    from camvlp.viz import study_plots
+
     n = max(len(positions), len(eulers)) * noise["trials"]
     res = run_study(
         st.monte_carlo_study,
@@ -148,6 +173,9 @@ def rounding(
     as_json: JsonOpt = False,
 ) -> None:
     """Position error from pixel rounding over a grid on the floor (thesis fig. 4.2)."""
+    from camvlp.analysis import study as st
+    from camvlp.viz import study_plots
+
     check_study_options(solver, noise_px, survey_error_m, trials, step=step)
     angles = parse_floats(euler, 3, "--euler")
     grid = grid_options(plane, x_range, y_range, z_range, step, height)
@@ -204,6 +232,9 @@ def _forced(
 
     With noise (--noise-px or --survey-error-m) the Monte Carlo study runs instead.
     """
+    from camvlp.analysis import study as st
+    from camvlp.viz import study_plots
+
     check_study_options(solver, noise_px, survey_error_m, trials, step=step)
     axes = "xy" if kind == "image" else "xyz"
     if axis not in axes:
@@ -246,6 +277,14 @@ def _forced(
         solver=solver,
         rounding=rounding,
     )
+    lines = _forced_lines(res, kind, axis, lo, hi, solver)
+    finish_study(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
+
+
+def _forced_lines(
+    res: ForcedErrorStudy, kind: str, axis: str, lo: float, hi: float, solver: str
+) -> list[str]:
+    """The image-error or world-error study ``res``'s summary as text lines."""
     s = res.summary()
     unit = res.offset_unit
     lines = [
@@ -260,7 +299,7 @@ def _forced(
             f"{_len(ser['error_at_max_offset_m'])}, linear R^2 "
             + ("n/a" if r2 is None else f"{r2:.3f}")
         )
-    finish_study(res, f"{kind}-error", study_plots.plot_forced_error, out, as_json, lines)
+    return lines
 
 
 def _forced_command(
@@ -404,6 +443,9 @@ def coverage(
     ] = None,
 ) -> None:
     """Where on the floor a fix is possible over a range of tilts, and its expected error."""
+    from camvlp.analysis import study as st
+    from camvlp.viz import study_plots
+
     grav = gravity_options(gravity, gravity_sigma_deg, min_fixtures)
     check_study_options(
         solver,

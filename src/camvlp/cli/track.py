@@ -1,31 +1,17 @@
-"""``camvlp track``: positions along a video; ``camvlp render-video``: simulated videos."""
+"""``camvlp track``: positions along a video; ``camvlp render-video``: simulated videos.
+
+render-video's defaults of the lights' looks are the renderer's
+(:class:`camvlp.sim.render.RenderSettings`), written out here so that the simulator is
+imported only when a render runs (tests/cli/test_startup.py checks that they agree).
+"""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
-import numpy as np
 import typer
-
-from camvlp.analysis.track import Truths, read_truths, run_track, summarize
-from camvlp.io import load_camera, load_map
-from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
-from camvlp.io.video import open_frames
-from camvlp.pipeline.locate import LocateSettings
-from camvlp.pipeline.track.tracker import Tracker, TrackSettings
-from camvlp.sim.render import RenderSettings, check_render_size
-from camvlp.sim.video import (
-    VIDEO_SUFFIXES,
-    check_frame_budget,
-    check_video_size,
-    frame_count,
-    load_trajectory,
-    partial_path,
-    render_video,
-    truth_paths,
-)
 
 from ._app import (
     EXIT_NOT_LOCATED,
@@ -40,6 +26,13 @@ from ._app import (
 )
 from .progress import progress_bar
 from .render import option_names
+
+if TYPE_CHECKING:
+    from camvlp.analysis.track import TrackRun, Truths
+    from camvlp.model.camera import Camera
+    from camvlp.model.fixtures import FixtureMap
+    from camvlp.sim.render import RenderSettings
+    from camvlp.sim.trajectory import Trajectory
 
 #: The files ``camvlp track`` writes into its --out folder.
 TRACK_FILES = ("trajectory.csv", "fixtures.csv", "summary.json", "trajectory.png")
@@ -93,6 +86,13 @@ def track_command(
     frame's reason is in trajectory.csv). Exit code 0 when at least one frame was located, 1
     when none was (the most frequent reason in the error line), 2 on bad input.
     """
+    from camvlp.analysis.track import read_truths, run_track, summarize
+    from camvlp.io import load_camera, load_map
+    from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
+    from camvlp.io.video import open_frames
+    from camvlp.pipeline.locate import LocateSettings
+    from camvlp.pipeline.track.tracker import Tracker, TrackSettings
+
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(fps, "--fps")
@@ -166,7 +166,10 @@ def _print_reasons(reasons: list[dict], frames: int, out: Path) -> None:
     print("\n".join(lines), file=sys.stderr)
 
 
-def _plot(path: Path, fixture_map, run, truths: Truths) -> None:
+def _plot(path: Path, fixture_map: FixtureMap, run: TrackRun, truths: Truths) -> None:
+    """The trajectory's plot: each frame's position by its status, the raw solves, the truth."""
+    import numpy as np
+
     from camvlp.viz.trajectory import plot_trajectory
 
     nan3 = np.full(3, np.nan)
@@ -242,7 +245,7 @@ def render_video_command(
     seed: Annotated[int, typer.Option("--seed", help="Seed of the LED phases and noise.")] = 0,
     brightness: Annotated[
         float, typer.Option("--brightness", help="LED level, in sensor full scales (>1 clips).")
-    ] = RenderSettings.brightness,
+    ] = 4.0,
     off_level: Annotated[
         float, typer.Option("--off-level", help="LED light when off, fraction of on (0 to 1).")
     ] = 0.0,
@@ -255,9 +258,7 @@ def render_video_command(
     soft: Annotated[
         float, typer.Option("--soft", help="Soft stripes: waveform smoothed over X chips.")
     ] = 0.0,
-    blur: Annotated[
-        float, typer.Option("--blur", help="Optical blur sigma, pixels.")
-    ] = RenderSettings.blur_px,
+    blur: Annotated[float, typer.Option("--blur", help="Optical blur sigma, pixels.")] = 0.8,
     vignetting: Annotated[
         float, typer.Option("--vignetting", help="Fraction of light lost at the corners (0 to 1).")
     ] = 0.0,
@@ -284,6 +285,10 @@ def render_video_command(
     Each sensor row is seen from the pose at its own time, and the true trajectory is
     written beside the video; the lights look as in `camvlp render` (off level, hot core,
     halo, soft stripes, blur, a phone's processing, readout)."""
+    from camvlp.io import load_camera, load_map
+    from camvlp.sim.render import RenderSettings, check_render_size
+    from camvlp.sim.video import check_frame_budget, check_video_size, frame_count, load_trajectory
+
     _check_render_options(fps, chip_rate, row_time, exposure, crf, frames, seed)
     _check_video_out(out)
     camera = load_camera(camera_path)
@@ -349,6 +354,9 @@ def _check_render_options(
 def _check_video_out(out: Path) -> None:
     """render-video's --out: a video (its truth files beside it) or a folder, where each of
     those files can be written; else one line of error (exit 2)."""
+    from camvlp.io.atomic import check_output_dir, check_output_file
+    from camvlp.sim.video import VIDEO_SUFFIXES, truth_paths
+
     if out.suffix and out.suffix.lower() not in VIDEO_SUFFIXES:
         fail(f"--out must be a .mp4, .mov or .mkv video or a folder ({out})")
     if out.suffix:  # the video and its truth beside it
@@ -360,9 +368,21 @@ def _check_video_out(out: Path) -> None:
             check_output_file(path, "--out")
 
 
-def _render(camera, fixture_map, trajectory, out: Path, fps, settings, crf, frames, total) -> int:
+def _render(
+    camera: Camera,
+    fixture_map: FixtureMap,
+    trajectory: Trajectory,
+    out: Path,
+    fps: float,
+    settings: RenderSettings,
+    crf: int,
+    frames: int | None,
+    total: int,
+) -> int:
     """Render the video (or frames) with a progress bar; the number of frames written.  On
     Ctrl-C, where the frames so far were kept."""
+    from camvlp.sim.video import partial_path, render_video
+
     try:
         with progress_bar(total, "rendering") as update:
             return render_video(

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from camvlp.model.readout import Readout
+from camvlp.model.readout import DEFAULT_ROW_TIME_S, Readout
 
 __all__ = [
     "DEFAULT_ROW_TIME_S",
@@ -38,10 +38,6 @@ __all__ = [
     "rotation_y",
     "rotation_z",
 ]
-
-#: Row time (s) assumed where neither a camera file nor an option gives one: the thesis'
-#: camera's assumed 20 us (the renderer and the coverage study use it).
-DEFAULT_ROW_TIME_S = 20e-6
 
 
 #: Readout values of a camera: the image axis the sensor's rows follow, and ``-reversed``

@@ -10,7 +10,12 @@ from __future__ import annotations
 
 from enum import StrEnum
 
-__all__ = ["READOUT_NAMES", "Readout"]
+__all__ = ["DEFAULT_ROW_TIME_S", "READOUT_NAMES", "Readout"]
+
+#: Row time (s), the time between the readouts of two sensor rows, assumed where neither a
+#: camera file nor an option gives one: the thesis' camera's assumed 20 us (the renderer and
+#: the coverage study use it; :mod:`camvlp.model.camera` gives it too).
+DEFAULT_ROW_TIME_S = 20e-6
 
 # The readouts along rows and those reversed, by their names: a set's look-up is a few times
 # quicker than comparing with the members (read several times a locate).

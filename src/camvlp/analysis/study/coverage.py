@@ -215,7 +215,7 @@ def coverage_study(
         Line-code chips per second.
     row_time_s : float, optional
         Seconds per sensor row; default the camera's ``row_time_s``, else
-        :data:`~camvlp.model.camera.DEFAULT_ROW_TIME_S` (20 us).
+        :data:`~camvlp.model.readout.DEFAULT_ROW_TIME_S` (20 us).
     min_frames : float
         Frames of rows a disc must span (1 for cyclic decoding; 1.2 leaves a margin).
     default_diameter_m : float, optional
