@@ -5,7 +5,11 @@ then prints, as medians of several runs in one process, the time of ``cv2.imdeco
 each JPEG, the time of ``camvlp.locate`` on the decoded image (per stage), their ratio, and
 the peak memory of a fresh process that decodes and locates the 20-megapixel photo.
 
-Run: ``python benchmarks/bench_locate.py [--runs 15] [--against OTHER/src]``.
+Then the slow cells, a few runs each (``--hard-runs``, 0 leaves them out): a robot's 1080p
+frame at 2.2 rows per chip (the model decoder's photo) and two stress grid photos of glowing
+lamps, each with the special paths its time went to (``LocateResult.paths``).
+
+Run: ``python benchmarks/bench_locate.py [--runs 15] [--hard-runs 3] [--against OTHER/src]``.
 
 ``--against`` compares this code with another copy of the package (e.g. a worktree of the
 main branch): both run in worker processes, one ``imdecode`` and ``locate`` at a time in
@@ -164,17 +168,30 @@ STAGES = ("prepare", "detect", "profile", "decode", "pose")
 HD = (1920, 1080, 1200.0, 30e-6)
 
 
-def _jpeg(name: str, camera: Camera, fmap, pose, settings: RenderSettings, tmp: Path) -> Path:
-    """The photo rendered and saved as ``tmp/name.jpg`` (quality 92)."""
+def _jpeg(
+    name: str, camera: Camera, fmap, pose, settings: RenderSettings, tmp: Path, quality: int = 92
+) -> Path:
+    """The photo rendered and saved as ``tmp/name.jpg`` (of JPEG ``quality``)."""
     path = tmp / f"{name}.jpg"
     cv2.imwrite(
-        str(path), render(camera, fmap, pose, settings).image, [cv2.IMWRITE_JPEG_QUALITY, 92]
+        str(path), render(camera, fmap, pose, settings).image, [cv2.IMWRITE_JPEG_QUALITY, quality]
     )
     return path
 
 
-def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs: int, tmp: Path):
-    path = _jpeg(name, camera, fmap, pose, settings, tmp)
+def _bench(
+    name: str,
+    camera: Camera,
+    fmap,
+    pose,
+    settings: RenderSettings,
+    runs: int,
+    tmp: Path,
+    quality: int = 92,
+):
+    """``imdecode`` and ``locate`` of the photo's JPEG ``runs`` times: their medians, each
+    stage's, and the special paths the last run went through (printed)."""
+    path = _jpeg(name, camera, fmap, pose, settings, tmp, quality)
     data = np.fromfile(str(path), np.uint8)
     decode_ms, locate_ms = [], []
     stages: dict[str, list[float]] = {k: [] for k in STAGES}
@@ -204,13 +221,57 @@ def _bench(name: str, camera: Camera, fmap, pose, settings: RenderSettings, runs
         f"  located: {bool(result)}, position error {err_mm:.3f} mm, "
         f"{sum(f.used for f in result.fixtures)} fixtures used"
     )
+    if result.paths:
+        ran = ", ".join(f"{k} {p.ms:.0f} ms ({p.calls}x)" for k, p in result.paths.items())
+        print(f"  paths of the last run: {ran}")
     return path, med_dec, med_loc
+
+
+def _hard_photos(fmap) -> list[tuple[str, Camera, object, object, RenderSettings, int]]:
+    """The slow cells beside the two photos: ``(name, camera, map, pose, settings, JPEG
+    quality)`` of a robot's 1080p frame of the room looking up (four plain discs of 65 rows,
+    2.2 rows per chip, an exposure of 0.2 chip, JPEG 80: the model decoder's photo) and of
+    stress grid photos of glowing lamps (seed 3, two photos a cell: among its slowest)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import stress_decode  # (the benchmark beside this one)
+
+    rate = 1.0 / (2.2 * HD[3])
+    robot = Camera.from_focal(*HD[:2], 740.0, row_time_s=HD[3])
+    up = camvlp.Pose.from_euler([0.0, -1.0, 0.0], [90.0, 0.0, 0.0])
+    out = [
+        (
+            "1080p robot frame",
+            robot,
+            fmap,
+            up,
+            RenderSettings(chip_rate_hz=rate, exposure_s=0.2 / rate, seed=1),
+            80,
+        )
+    ]
+    for cell in HARD_CELLS:
+        d = stress_decode.drawn_photo(3, 2, cell, looks=True)
+        name = f"stress {cell[0]:g} chip, {cell[1]:g} rows per chip, photo {cell[2]}"
+        pose = camvlp.Pose(np.eye(3), np.zeros(3))
+        out.append((name, d.camera, d.fmap, pose, d.settings, d.quality))
+    return out
+
+
+#: Stress grid photos (exposure in chips, rows per chip, photo) of seed 3, two a cell, among
+#: its slowest: 1080p photos of glowing lamps whose glows join.
+HARD_CELLS = ((0.5, 8.0, 1), (0.85, 12.0, 1))
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--runs", type=int, default=15)
     ap.add_argument("--against", type=Path, help="another copy's src/ to run in turn with")
+    ap.add_argument(
+        "--hard-runs",
+        type=int,
+        default=3,
+        help="runs of each slow cell (a robot's frame at 2.2 rows per chip, stress photos of "
+        "glowing lamps); 0 leaves them out",
+    )
     args = ap.parse_args()
     cv2.setNumThreads(1)
     fmap = camvlp.load_map(ROOT / "examples/thesis_room.yaml")
@@ -233,6 +294,10 @@ def main() -> int:
         for n, cam, pose, seed in photos:
             _bench(n, cam, fmap, pose, RenderSettings(seed=seed), args.runs, tmp)
         mem = _peak_child(tmp / "20MP.jpg")
+        if args.hard_runs > 0:
+            print(f"the slow cells, {args.hard_runs} runs each:")
+            for name, cam, hard_map, pose, settings, quality in _hard_photos(fmap):
+                _bench(name, cam, hard_map, pose, settings, args.hard_runs, tmp, quality)
     print(
         f"peak memory, fresh process decoding and locating the 20MP JPEG: {mem['peak_mb']:.0f} MB "
         f"(after imports {mem['after_imports_mb']:.0f} MB, after decoding "

@@ -326,16 +326,26 @@ def replay(args, look: dict) -> int:
     reports of each, and with ``--save DIR`` the JPEG, the result drawn on it (the truth's
     centres as yellow crosses) and the pictures of each stage."""
     target = (float(args.photo[0]), float(args.photo[1]), int(args.photo[2]))
-    rng = np.random.default_rng(args.seed)
-    for e in EXPOSURES:
-        for r in ROWS_PER_CHIP:
-            for k in range(args.per_cell):
-                d = draw_photo(rng, e, r, **look)
-                if (e, r, k) == target:
-                    return _report(d, args.save)
+    d = drawn_photo(args.seed, args.per_cell, target, **look)
+    if d is not None:
+        return _report(d, args.save)
     cells = f"exposures {EXPOSURES}, rows per chip {ROWS_PER_CHIP}, photos 0 to {args.per_cell - 1}"
     print(f"error: no photo {target} in the sweep ({cells})", file=sys.stderr)
     return 2
+
+
+def drawn_photo(seed: int, per_cell: int, target: tuple[float, float, int], **look) -> Drawn | None:
+    """Photo ``target`` = (exposure in chips, rows per chip, photo in the cell) of the sweep of
+    ``seed`` and ``per_cell`` photos a cell (the photos before it drawn, not rendered), with
+    the ``look`` options of :func:`draw_photo`; None when the sweep has no such photo."""
+    rng = np.random.default_rng(seed)
+    for e in EXPOSURES:
+        for r in ROWS_PER_CHIP:
+            for k in range(per_cell):
+                d = draw_photo(rng, e, r, **look)
+                if (e, r, k) == target:
+                    return d
+    return None
 
 
 def _report(d: Drawn, save: Path | None) -> int:
@@ -469,7 +479,7 @@ def main() -> int:
     rng = np.random.default_rng(args.seed)
     cells = {}
     records = []
-    slow = []  # (seconds, cell, photo in the cell, lamps, conditions) of every photo
+    per_photo = []  # (seconds, cell, photo in the cell, lamps, conditions): the JSON's
     photo_times: list[PhotoTime] = []  # each located photo's times per stage and special path
     oracles = []  # (decimal log likelihood ratio, closest ID) of the lamps read wrongly or not
     crashes = []  # (exposure, rows per chip, photo in the cell, the exception) where locate raised
@@ -486,18 +496,20 @@ def main() -> int:
             eligible += len(eligible_k)
             if isinstance(res, Exception):  # every lamp missed; listed at the end
                 crashes.append((exposure, rpc, i_photo, f"{type(res).__name__}: {res}"))
-                slow.append((dt, exposure, rpc, i_photo, 0, cond))
+                per_photo.append((dt, exposure, rpc, i_photo, 0, cond))
                 missed = sorted(truth[k].id for k in eligible_k)
                 records.append(  # one record for the photo's lamps
                     dict(exposure=exposure, rows_per_chip=rpc, ids=missed, got=None)
                     | dict(reason=f"locate raised {type(res).__name__}", **cond)
                 )
                 continue
-            slow.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
+            per_photo.append((dt, exposure, rpc, i_photo, len(res.fixtures), cond))
             h, w = photo.image.shape[:2]
+            looks = {k: cond[k] for k in ("n", "brightness", "core", "halo", "gamma")}
             photo_times.append(
                 PhotoTime(
-                    f"exposure {exposure:g} chip, {rpc:g} rows per chip, photo {i_photo}",
+                    f"exposure {exposure:g} chip, {rpc:g} rows per chip, photo {i_photo}, "
+                    f"{len(res.fixtures)} lights, {looks}",
                     f"{w}x{h}",
                     cond["jpeg_ms"],
                     res.timing_ms,
@@ -663,7 +675,6 @@ def main() -> int:
             print(f"   exposure {e:g}, {r:g} rows per chip, photo {i}: {what}")
     for r in records[:40]:
         print("  ", r)
-    print(_timing_lines(slow))
     print(time_table(photo_times))
     print(slowest(photo_times))
     if args.json:
@@ -675,7 +686,7 @@ def main() -> int:
                     misses=records,
                     seconds=[
                         dict(seconds=round(dt, 3), exposure=e, rows_per_chip=r, photo=i, lights=n)
-                        for dt, e, r, i, n, _ in slow
+                        for dt, e, r, i, n, _ in per_photo
                     ],
                     times=[dataclasses.asdict(t) for t in photo_times],
                 )
@@ -696,23 +707,6 @@ def main() -> int:
         plot(cells, args.plot)
         print(f"wrote {args.plot}")
     return 0
-
-
-def _timing_lines(slow: list, n: int = 5) -> str:
-    """``locate``'s time per photo over the sweep (median, 90th percentile, the largest) and
-    the ``n`` slowest photos with their cell, place in it, lights found and conditions."""
-    dts = np.array([s[0] for s in slow])
-    lines = [
-        f"locate per photo: median {np.median(dts):.2f} s, 90th percentile "
-        f"{np.percentile(dts, 90):.2f} s, the slowest {dts.max():.2f} s; the {n} slowest:"
-    ]
-    for dt, e, r, i, lights, cond in sorted(slow, key=lambda s: -s[0])[:n]:
-        looks = {k: cond[k] for k in ("big", "n", "brightness", "core", "halo", "gamma")}
-        lines.append(
-            f"   {dt:6.2f} s  exposure {e:g}, {r:g} rows per chip, photo {i}: {lights} lights, "
-            f"{looks}"
-        )
-    return "\n".join(lines)
 
 
 def plot(cells, path: Path) -> None:
