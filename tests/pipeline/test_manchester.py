@@ -7,7 +7,7 @@ from tests.pipeline.test_model_decode import FRAME, synth
 
 from camvlp import Camera, Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.decode.manchester import _reversed_ids, decode_manchester
+from camvlp.pipeline.decode.manchester import decode_manchester
 
 CAMERA = Camera.from_focal(1920, 1080, 1400.0)  # no row time: the chip length is measured
 RPC = 5.0
@@ -27,7 +27,7 @@ def profiles(ids, rng, *, reverse: bool = False):
 
 
 def test_reversed_ids_of_the_default_format():
-    rev = _reversed_ids(FRAME)
+    rev = FRAME.reversed_ids
     for a, b in ((0, 14), (2, 6), (4, 10), (8, 12)):
         assert rev[a] == b and rev[b] == a
     assert all(rev[i] < 0 for i in (1, 3, 5, 7, 9, 11, 13, 15))
@@ -72,7 +72,7 @@ def test_reversal_pairs_only_are_left_to_the_model_and_the_pose():
     # read either way the IDs are the map's: the pose must decide, and each direction is
     # read as if it were known (its run-length IDs, the model for the rest)
     assert man.other is not None
-    rev = _reversed_ids(FRAME)
+    rev = FRAME.reversed_ids
     assert [d.id for d in man.decodes] == ids
     assert [d.id for d in man.other] == [int(rev[i]) for i in ids]
     known = decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))

@@ -179,6 +179,18 @@ class FrameFormat:
         return np.stack([self.chips(i) for i in range(self.n_ids)])
 
     @cached_property
+    def reversed_ids(self) -> np.ndarray:
+        """For each ID, the ID whose frame is its frame read backwards (-1 where none is),
+        int64 array of shape (n_ids,): a photo whose readout direction is not known may read
+        one as the other."""
+        rev = np.full(self.n_ids, -1, dtype=np.int64)
+        for i in range(self.n_ids):
+            d = self.decode(self.codebook[i][::-1], max_errors=0)
+            if d.id is not None:
+                rev[i] = d.id
+        return rev
+
+    @cached_property
     def _rotations(self) -> np.ndarray:
         """Every rotation of every ID: shape (n_ids, n_chips, n_chips), ``[i, r]`` starts at r."""
         n = self.n_chips

@@ -20,7 +20,7 @@ from camvlp.geometry.projection import project_batch
 from camvlp.model.camera import Camera
 from camvlp.model.readout import Readout
 
-__all__ = ["KnownGravity", "sweep_poses"]
+__all__ = ["KnownGravity", "decodable_in_view", "sweep_poses"]
 
 
 @dataclass(frozen=True)
@@ -74,7 +74,7 @@ def sweep_poses(
     if gravity is not None:  # lights on one line along up look like one point from above
         flat = pts - np.outer(pts @ gravity.up, gravity.up)
     for j in range(o):
-        ok = facing & _decodable_in_view(camera, rots[j], centres, rims, min_rows)
+        ok = facing & decodable_in_view(camera, rots[j], centres, rims, min_rows)
         usable[:, j] = ok.sum(1)
         fix_four[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
         if gravity is None:
@@ -88,7 +88,7 @@ def sweep_poses(
     return usable, fix, fix_four, errors
 
 
-def _decodable_in_view(
+def decodable_in_view(
     camera: Camera, rot: np.ndarray, centres: np.ndarray, rims: np.ndarray, min_rows: float
 ) -> np.ndarray:
     """Which fixtures (G, N) have their whole rim in the image and span ``min_rows`` rows.

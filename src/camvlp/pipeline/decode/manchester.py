@@ -16,7 +16,6 @@ decide, to the pose), as without the fast path.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -84,18 +83,6 @@ class Manchester:
     def exposure_chips(self) -> float:
         """Fitted exposure window, chips (NaN when the model was not needed)."""
         return float("nan") if self.model is None else self.model.exposure_chips
-
-
-@functools.lru_cache(maxsize=8)
-def _reversed_ids(frame: FrameFormat) -> np.ndarray:
-    """For each ID, the ID whose frame is its frame read backwards (-1 when none is)."""
-    book = frame.codebook
-    rev = np.full(frame.n_ids, -1, dtype=np.int64)
-    for i in range(frame.n_ids):
-        d = frame.decode(book[i][::-1], max_errors=0)
-        if d.id is not None:
-            rev[i] = d.id
-    return rev
 
 
 def _fast(profiles, frame: FrameFormat, map_ids: set[int], skip=()):
@@ -226,7 +213,7 @@ def _model_directions(
     fwd = decode_photo(profiles, frame, ids, weights=weights, rows_per_chip=seed, rank=rank)
     backwards = [p[::-1] for p in profiles]
     bw = None if weights is None else [w[::-1] for w in weights]
-    rev = _reversed_ids(frame)
+    rev = frame.reversed_ids
     flipped = Readout.of(readout.axis, not readout.reversed)
 
     def better(a: PhotoDecode, b: PhotoDecode) -> bool:
@@ -342,7 +329,7 @@ def _decode_manchester(
     bwd, _ = _fast(backwards, frame, map_ids, skip=[d is not None for d in fwd])
     t, (fwd, bwd) = _agreeing([fwd, bwd], seed)
     t = t or seed or _measured(lengths)
-    rev = _reversed_ids(frame).tolist()  # (Python ints: indexed once a fixture)
+    rev = frame.reversed_ids.tolist()  # (Python ints: indexed once a fixture)
     firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
     firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
     if firm_f >= 2 and firm_b == 0:
