@@ -15,6 +15,7 @@ from typing import TextIO
 
 import typer
 
+from . import assign_ids as _assign_ids  # noqa: F401  (registers commands)
 from . import calibrate as _calibrate  # noqa: F401  (registers commands)
 from . import encode  # noqa: F401  (registers commands)
 from . import evaluate as _evaluate  # noqa: F401  (registers commands)
