@@ -13,7 +13,9 @@ from ._app import app, fail, handle_errors
 @app.command()
 @handle_errors
 def encode(
-    fixture_id: Annotated[int, typer.Argument(metavar="ID", help="The fixture's ID.")],
+    fixture_id: Annotated[
+        int | None, typer.Argument(metavar="ID", help="The fixture's ID.", show_default=False)
+    ] = None,
     chip_rate: Annotated[
         float, typer.Option("--chip-rate", help="Chips per second (Hz), for the schedule.")
     ] = 10_000.0,
@@ -21,8 +23,32 @@ def encode(
         Path | None, typer.Option("--map", help="Take the frame format from this map file.")
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    design: Annotated[
+        bool,
+        typer.Option(
+            "--design", help="Recommend frame formats for --fixtures fixtures of --rows rows."
+        ),
+    ] = False,
+    fixtures: Annotated[
+        int | None, typer.Option("--fixtures", help="With --design: fixtures that need IDs.")
+    ] = None,
+    rows: Annotated[
+        float | None,
+        typer.Option("--rows", help="With --design: rows a fixture's disc spans in a photo."),
+    ] = None,
+    rows_per_chip: Annotated[
+        float, typer.Option("--rows-per-chip", help="With --design: rows one chip lasts.")
+    ] = 5.0,
 ) -> None:
-    """Print a fixture's frame bits, its Manchester chips, and the LED's on/off schedule."""
+    """Print a fixture's frame bits, its Manchester chips, and the LED's on/off schedule;
+    with --design, the frame formats that give --fixtures fixtures IDs of their own."""
+    if design:
+        if fixtures is None or rows is None:
+            fail("--design needs --fixtures and --rows")
+        _design(fixtures, rows, rows_per_chip, as_json)
+        return
+    if fixture_id is None:
+        fail("give a fixture ID (or --design)")
     from camvlp.io import load_map
     from camvlp.io.atomic import strict_json
     from camvlp.model.linecode import FrameFormat, chip_schedule
@@ -63,3 +89,44 @@ def encode(
     duration_us = len(chips) / chip_rate * 1e6
     print(f"frame     {len(chips)} chips, {duration_us:.1f} us at {chip_rate:g} Hz")
     print("schedule  " + ", ".join(f"{'on' if s else 'off'} {d * 1e6:.1f} us" for s, d in schedule))
+
+
+def _design(fixtures: int, rows: float, rows_per_chip: float, as_json: bool) -> None:
+    """Print the frame formats :func:`~camvlp.analysis.frame_design.design_frames` finds."""
+    from camvlp.analysis.frame_design import ONE_PHOTO_FRAMES, design_frames
+    from camvlp.io.atomic import strict_json
+
+    try:
+        found = design_frames(fixtures, rows, rows_per_chip)[:5]
+    except ValueError as exc:
+        fail(str(exc))
+    if as_json:
+        print(strict_json([
+            {"preamble": d.frame.preamble, "id_bits": d.frame.id_bits,
+             "check_bits": d.frame.check_bits, "postamble": d.frame.postamble,
+             "chips": d.frame.n_chips, "min_distance": d.min_distance,
+             "frames_per_disc": d.frames_per_disc, "one_photo": d.one_photo}
+            for d in found
+        ]))  # fmt: skip
+        return
+    print(f"{fixtures} fixtures, discs of {rows:g} rows, {rows_per_chip:g} rows a chip")
+    print("preamble  id bits  check bits  postamble  chips  min distance  frames a disc")
+    for d in found:
+        f = d.frame
+        print(
+            f"{f.preamble:>8}  {f.id_bits:7d}  {f.check_bits:10d}  {f.postamble:>9}  "
+            f"{f.n_chips:5d}  {d.min_distance:12d}  {d.frames_per_disc:13.2f}"
+        )
+    if found and found[0].one_photo:
+        f = found[0].frame
+        print(
+            f"recommended: preamble {f.preamble}, {f.id_bits} ID bits, {f.check_bits} check "
+            f"bits, postamble {f.postamble} (a map's frame: id_bits: {f.id_bits}, "
+            f"check_bits: {f.check_bits})"
+        )
+    else:
+        print(
+            f"no format gives {fixtures} IDs in {ONE_PHOTO_FRAMES:g} frames of a "
+            f"{rows:g}-row disc: reuse a shorter frame's IDs (camvlp assign-ids), or read "
+            "the longer frame along a video"
+        )

@@ -1,7 +1,9 @@
 """The line code: frames, Manchester chips, and cyclic decoding (thesis section 5.4).
 
 A fixture repeats its frame without gaps: a preamble (default ``111``), its ID in
-``id_bits`` bits (most significant first), a postamble (default ``00``).  Each bit is sent
+``id_bits`` bits (most significant first), optionally ``check_bits`` bits of a cyclic
+redundancy check of the ID (:data:`CRC_POLYNOMIALS`; a frame read with an error in it then
+fits no ID's frame rather than another's), a postamble (default ``00``).  Each bit is sent
 as two chips: bit 0 as chips ``1, 0`` and bit 1 as chips ``0, 1``.  Chip 1 is light on.
 
 Decoding is cyclic: any ``n_chips`` consecutive chips of the repeating stream, starting at
@@ -18,10 +20,34 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["ChipDecode", "FrameFormat", "chip_schedule", "manchester_encode"]
+__all__ = [
+    "CRC_POLYNOMIALS",
+    "ChipDecode",
+    "FrameFormat",
+    "chip_schedule",
+    "crc_bits",
+    "manchester_encode",
+]
 
 #: Most bits a frame may have (preamble + ID + postamble): two chips a bit fit one 64-bit word.
 MAX_FRAME_BITS = 32
+
+#: The generator polynomial of the ID's check for each width (bits): x + 1 (parity),
+#: x^2 + x + 1, x^3 + x + 1, x^4 + x + 1, x^5 + x^2 + 1, x^6 + x + 1, x^7 + x^3 + 1 and
+#: x^8 + x^2 + x + 1, each its coefficients as bits, the highest first.
+CRC_POLYNOMIALS = {1: 0b11, 2: 0b111, 3: 0b1011, 4: 0b10011, 5: 0b100101, 6: 0b1000011,
+                   7: 0b10001001, 8: 0b100000111}  # fmt: skip
+
+
+def crc_bits(value: int, n_bits: int, width: int) -> str:
+    """The ``width``-bit check (:data:`CRC_POLYNOMIALS`) of ``value``'s ``n_bits`` bits: the
+    remainder of ``value * x^width`` divided by the polynomial, as a string of 0 and 1."""
+    poly = CRC_POLYNOMIALS[width]
+    rem = value << width
+    for shift in range(n_bits - 1, -1, -1):
+        if rem >> (shift + width) & 1:
+            rem ^= poly << shift
+    return format(rem, f"0{width}b")
 
 
 def manchester_encode(bits) -> np.ndarray:
@@ -119,6 +145,7 @@ class FrameFormat:
     preamble: str = "111"
     id_bits: int = 4
     postamble: str = "00"
+    check_bits: int = 0
 
     def __post_init__(self) -> None:
         for name in ("preamble", "postamble"):
@@ -127,6 +154,11 @@ class FrameFormat:
                 raise ValueError(f"frame {name} must be a string of 0 and 1, got {value!r}")
         if not isinstance(self.id_bits, int) or not 1 <= self.id_bits <= 12:
             raise ValueError(f"frame id_bits must be an integer from 1 to 12, got {self.id_bits!r}")
+        if self.check_bits != 0 and self.check_bits not in CRC_POLYNOMIALS:
+            raise ValueError(
+                f"frame check_bits must be an integer from 0 to {max(CRC_POLYNOMIALS)}, "
+                f"got {self.check_bits!r}"
+            )
         if self.n_bits > MAX_FRAME_BITS:
             raise ValueError(
                 f"frame has {self.n_bits} bits (preamble, id_bits, postamble); at most "
@@ -134,7 +166,9 @@ class FrameFormat:
             )
         if self.min_distance == 0:
             raise ValueError(
-                f"frame format {self.preamble}+{self.id_bits} bits+{self.postamble} is ambiguous: "
+                f"frame format {self.preamble}+{self.id_bits} bits"
+                + (f"+{self.check_bits} check bits" if self.check_bits else "")
+                + f"+{self.postamble} is ambiguous: "
                 "a rotation of one ID's frame equals a rotation of another's"
             )
 
@@ -146,7 +180,7 @@ class FrameFormat:
     @property
     def n_bits(self) -> int:
         """Bits per frame."""
-        return len(self.preamble) + self.id_bits + len(self.postamble)
+        return len(self.preamble) + self.id_bits + self.check_bits + len(self.postamble)
 
     @property
     def n_chips(self) -> int:
@@ -167,7 +201,8 @@ class FrameFormat:
     def bits(self, fixture_id: int) -> str:
         """The frame's bits as a string, e.g. ``'111010100'`` for ID 5."""
         fid = self.check_id(fixture_id)
-        return self.preamble + format(fid, f"0{self.id_bits}b") + self.postamble
+        check = crc_bits(fid, self.id_bits, self.check_bits) if self.check_bits else ""
+        return self.preamble + format(fid, f"0{self.id_bits}b") + check + self.postamble
 
     def chips(self, fixture_id: int) -> np.ndarray:
         """The frame's Manchester chips, uint8 array of shape (n_chips,)."""
