@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camvlp.pipeline.locate import LocateSettings
+from camvlp.pipeline.paths import PathTime
 
 __all__ = ["STATUSES", "TrackFrame", "TrackSettings", "TrackedFixture"]
 
@@ -151,8 +152,12 @@ class TrackFrame:
     reason : str
         Why there is no solve ("" for fix and tracked).
     timing_ms : dict
-        ``locate`` (detection and decoding), ``track`` (association, glowing lights centred,
-        solve, filter), ``total``.
+        Milliseconds (wall time) per stage: ``prepare``, ``detect``, ``profile``, ``decode``
+        (locate's stages, :mod:`camvlp.pipeline.stages`), ``track`` (association, glowing
+        lights centred, solve, filter), and their ``total``.
+    paths : dict
+        The special paths that ran on the frame (the photo-wide model fit, the model
+        decoder, ...: :mod:`camvlp.pipeline.paths`), name -> ``PathTime(calls, ms)``.
     """
 
     index: int
@@ -167,6 +172,7 @@ class TrackFrame:
     fixtures: tuple[TrackedFixture, ...]
     reason: str
     timing_ms: dict[str, float]
+    paths: dict[str, PathTime] = field(default_factory=dict)
 
     @classmethod
     def lost(cls, index: int, t: float, reason: str) -> TrackFrame:

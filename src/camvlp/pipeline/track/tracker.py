@@ -43,6 +43,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.identified import Identified, identify
 from camvlp.pipeline.locate import StageClock
+from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import (
     Prepared,
     decode,
@@ -165,36 +166,39 @@ class Tracker:
         """
         t = self._checked_time(t)
         clock = StageClock()
-        frame = self._locate(image, t)
-        clock.lap("locate")
-        assoc = self._associate(frame)
-        state = self._motion.state_at(t)
-        fresh = frame.from_pose and state is not None
-        m = self._measurements(frame, assoc, state, fresh)
-        outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
-        status, reason = self._follow(outcome, t, m)
-        remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
-        clock.lap("track")
-        return self._report(frame, assoc, m, outcome, status, reason, clock)
+        with recording() as paths:  # the special paths that run, and their time
+            frame = self._locate(image, t, clock)
+            assoc = self._associate(frame)
+            state = self._motion.state_at(t)
+            fresh = frame.from_pose and state is not None
+            m = self._measurements(frame, assoc, state, fresh)
+            outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
+            status, reason = self._follow(outcome, t, m)
+            remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
+            clock.lap("track")
+        return self._report(frame, assoc, m, outcome, status, reason, clock, paths)
 
     # ---------------------------------------------------------------------------------------
     # The frame's steps, in order
 
-    def _locate(self, image: np.ndarray, t: float) -> _Located:
-        """The stages of :func:`camvlp.locate`, in its order, up to identification: a video's
-        readout, once decided, and its chip length carried from frame to frame; the IDs the
-        track knows not decoded.  The frame counts (its index, its time) once prepared."""
+    def _locate(self, image: np.ndarray, t: float, clock: StageClock) -> _Located:
+        """The stages of :func:`camvlp.locate`, in its order, up to identification (each
+        timed on ``clock``): a video's readout, once decided, and its chip length carried from
+        frame to frame; the IDs the track knows not decoded.  The frame counts (its index, its
+        time) once prepared."""
         st = self.settings.locate
         prepared = prepare(image, self.camera, self.map, st)
         img = prepared.image
         index = self._index  # the frame is taken: its time and index count from here
         self._index += 1
         self._t_given = t
+        clock.lap("prepare")
         lights = find_lights(prepared, self.map, st, readout=self.readout)
         if self.readout is None and lights.readout is not None:
             # the first frame that decides the direction, from now on
             self.readout = readout_direction(prepared, lights, self.map, st)
         readout = self.readout or lights.readout or Readout.ROWS
+        clock.lap("detect")
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
         # no ID read reversed, nor along an axis the stripes do not show
         undecided = lights.readout is None or (
@@ -204,10 +208,12 @@ class Tracker:
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
         known = dataclasses.replace(lights, readout=readout, direction_known=True)
         profiles = read_profiles(img, blobs, readout)
+        clock.lap("profile")
         decoded = decode(prepared, known, profiles, self.map, skip=skip, rows_per_chip=self._rpc())
         self._carry(decoded.decodes)
         blobs = list(decoded.blobs)
         found = identify(blobs, list(decoded.decodes), self.map)
+        clock.lap("decode")
         return _Located(index, t, prepared, blobs, found, predicted, from_pose)
 
     def _associate(self, frame: _Located) -> _Associated:
@@ -270,6 +276,7 @@ class Tracker:
         status: str,
         reason: str,
         clock: StageClock,
+        paths: dict,
     ) -> TrackFrame:
         """The frame as reported: the track's pose, the frame's own solve, its fixtures."""
         solved, ids = outcome.solved, assoc.ids
@@ -293,6 +300,7 @@ class Tracker:
             fixtures=fixtures,
             reason=reason,
             timing_ms=clock.total(),
+            paths=dict(paths),
         )
 
     # ---------------------------------------------------------------------------------------
