@@ -57,6 +57,10 @@ class TrackSettings:
         middle row (needs the camera's ``row_time_s``).
     carry_chip_length : bool
         Pass the chip length measured in earlier frames to the decoder.
+    carry_model : bool
+        Pass the photo-wide parameters of the stripes' model (chip length, exposure, sensor
+        response, blur) last fitted to a frame to the next frames' decoder, which fits them
+        anew only when they leave a light that spans a frame of the code without an ID.
     verify_every : int
         A blob that the track's pose identifies without doubt (the only prediction within the
         gate) is not decoded again while its fixture's stripes were decoded in the last
@@ -77,6 +81,7 @@ class TrackSettings:
     min_tilt_sigma_deg: float = 0.02
     rolling_shutter: bool = True
     carry_chip_length: bool = True
+    carry_model: bool = True
     verify_every: int = 10
 
     def __post_init__(self) -> None:

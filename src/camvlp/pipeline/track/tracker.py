@@ -4,8 +4,10 @@ A single video frame often shows fewer than four decodable fixtures (stripes a l
 than one frame of chips, a light entering at the border).  :class:`Tracker` keeps what the
 previous frames established and uses it in the next one:
 
-* **the readout** found in the first striped frame, and the chip length (rows per chip)
-  measured by the decodes so far, passed to the decoder;
+* **the readout** found in the first striped frame, the chip length (rows per chip)
+  measured by the decodes so far, and the photo-wide parameters of the stripes' model last
+  fitted (chip length, exposure, response, blur), passed to the decoder: a frame pays the
+  photo-wide fit only when those parameters leave a light unread;
 * **each fixture's ID and image position**: every map fixture is predicted in the image
   (from the track's pose, else from where it was last seen and how it moved); a fixture whose
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
@@ -41,10 +43,12 @@ from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.decode.model import SensorModel
 from camvlp.pipeline.identified import Identified, identify
 from camvlp.pipeline.locate import StageClock
 from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import (
+    Decoded,
     Prepared,
     decode,
     find_lights,
@@ -135,6 +139,7 @@ class Tracker:
         self._t_given: float | None = None  # time of the last frame given to update
         self._seen: dict[int, Sighting] = {}
         self._chip_rows: list[float] = []
+        self._model: SensorModel | None = None  # the photo-wide parameters last used
         self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
@@ -209,8 +214,16 @@ class Tracker:
         known = dataclasses.replace(lights, readout=readout, direction_known=True)
         profiles = read_profiles(img, blobs, readout)
         clock.lap("profile")
-        decoded = decode(prepared, known, profiles, self.map, skip=skip, rows_per_chip=self._rpc())
-        self._carry(decoded.decodes)
+        decoded = decode(
+            prepared,
+            known,
+            profiles,
+            self.map,
+            skip=skip,
+            rows_per_chip=self._rpc(),
+            model=self._model,
+        )
+        self._carry(decoded)
         blobs = list(decoded.blobs)
         found = identify(blobs, list(decoded.decodes), self.map)
         clock.lap("decode")
@@ -343,12 +356,16 @@ class Tracker:
             return float(np.median(self._chip_rows[-50:]))
         return None
 
-    def _carry(self, decodes) -> None:
-        """Remember the chip lengths of the IDs read (the last 50)."""
-        for d in decodes:
+    def _carry(self, decoded: Decoded) -> None:
+        """Remember the chip lengths of the IDs read (the last 50), and the photo-wide
+        parameters the decoder used, when it used any (:attr:`TrackSettings.carry_model`)."""
+        for d in decoded.decodes:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
         del self._chip_rows[:-50]
+        man = decoded.manchester
+        if self.settings.carry_model and man is not None and man.model is not None:
+            self._model = man.model
 
     def _checked_time(self, t: object) -> float:
         """``t`` as a float when it is a finite time within +-1e9 s and later than the last

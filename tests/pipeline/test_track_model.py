@@ -1,0 +1,106 @@
+"""The photo-wide parameters of the stripes' model carried from frame to frame: fitted on the
+first frame the model decoder reads, reused on the next ones, fitted anew when they do not
+explain a frame; the IDs right either way."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from camvlp.model.camera import Camera
+from camvlp.model.fixtures import Fixture, FixtureMap
+from camvlp.model.readout import Readout
+from camvlp.pipeline.locate import LocateSettings
+from camvlp.pipeline.paths import recording
+from camvlp.pipeline.stages import decode, find_lights, prepare, read_profiles
+from camvlp.pipeline.track.tracker import Tracker, TrackSettings
+from camvlp.sim.render import RenderSettings
+from camvlp.sim.trajectory import Trajectory
+from camvlp.sim.video import iter_frames
+
+FIT = "photo-wide model"
+MODEL = "model decode"
+ROW_TIME_S = 40e-6
+ROWS_PER_CHIP = 2.2  # the run-length decoder refuses most lights there
+
+
+@pytest.fixture(scope="module")
+def video():
+    """Six frames of 640 x 360 (f = 483 px) 1.2 m under four 0.25 m discs of about 100 rows,
+    the camera moving along x; chips of 2.2 rows, rows exposed for 0.3 chip, sensor noise."""
+    cam = Camera.from_focal(640, 360, 483.0, row_time_s=ROW_TIME_S)
+    xz = ((0.3, 0.22), (0.3, -0.22), (-0.3, -0.22), (-0.3, 0.22))
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
+        )
+    )
+    traj = Trajectory(
+        np.array([0.0, 1.0]),
+        np.array([[0.0, -1.5, 0.0], [0.2, -1.5, 0.02]]),
+        np.array([[90.0, 0.0, 0.0], [90.2, -0.1, 1.0]]),
+    )
+    rate = 1.0 / (ROWS_PER_CHIP * ROW_TIME_S)
+    look = RenderSettings(chip_rate_hz=rate, exposure_s=0.3 / rate, seed=4)
+    return cam, room, list(iter_frames(cam, room, traj, 15.0, look, max_frames=6))
+
+
+def tracked(video, carry: bool):
+    cam, room, frames = video
+    # every blob decoded in every frame (none taken from the track alone)
+    settings = TrackSettings(
+        verify_every=1, carry_model=carry, locate=LocateSettings(readout="rows")
+    )
+    tracker = Tracker(cam, room, settings)
+    return [tracker.update(f.image, f.t) for f in frames]
+
+
+def test_the_model_fitted_on_the_first_frame_decodes_the_next(video):
+    results = tracked(video, carry=True)
+    assert FIT in results[0].paths  # the first frame's parameters fitted...
+    for r in results[1:]:  # ...and used as they are by the next ones
+        assert MODEL in r.paths and FIT not in r.paths, r.paths
+    for r in results:
+        assert r.status == "fix"
+        decoded = {b.id for b in r.fixtures if b.source == "decoded"}
+        assert decoded == {5, 6, 9, 10}, r.fixtures
+    # without carrying them, every frame fits its own
+    alone = tracked(video, carry=False)
+    assert all(FIT in r.paths for r in alone)
+    for a, b in zip(results, alone, strict=True):
+        assert [f.id for f in a.fixtures] == [f.id for f in b.fixtures]
+
+
+def stages(cam, room, image):
+    """A frame through the stages up to its profiles, the readout known (rows)."""
+    prepared = prepare(image, cam, room, LocateSettings())
+    lights = find_lights(prepared, room, LocateSettings(), readout=Readout.ROWS)
+    lights = dataclasses.replace(lights, direction_known=True)
+    return prepared, lights, read_profiles(prepared.image, lights.blobs, Readout.ROWS)
+
+
+def test_parameters_that_do_not_explain_a_frame_are_fitted_anew(video):
+    cam, room, frames = video
+    prepared, lights, profiles = stages(cam, room, frames[2].image)
+    with recording() as paths:
+        fitted = decode(prepared, lights, profiles, room)
+    assert FIT in paths
+    good = fitted.manchester.model
+    ids = [d.id for d in fitted.decodes]
+    assert sorted(ids) == [5, 6, 9, 10]
+    # the frame's own parameters explain it: no fit
+    with recording() as paths:
+        again = decode(prepared, lights, profiles, room, model=good)
+    assert FIT not in paths and MODEL in paths
+    assert [d.id for d in again.decodes] == ids
+    assert again.manchester.model == good
+    # parameters of another camera mode (chips 1.5 times as long) read no light: refitted
+    wrong = dataclasses.replace(good, rows_per_chip=1.5 * good.rows_per_chip)
+    with recording() as paths:
+        refit = decode(prepared, lights, profiles, room, model=wrong)
+    assert FIT in paths
+    assert [d.id for d in refit.decodes] == ids
+    assert refit.manchester.model != wrong
