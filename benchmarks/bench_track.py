@@ -26,7 +26,10 @@ Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench
 renders the chips 2.2 of the camera's rows long (a chip rate of ``1 / (2.2 * row_time)``)
 with rows exposed for 0.3 chip (the model decoder's videos: the run-length decoder refuses
 most lights there).  Per frame it prints p50 / p95 / max of each stage's time and of each
-special path's (``TrackFrame.timing_ms``, ``TrackFrame.paths``; wall time).
+special path's (``TrackFrame.timing_ms``, ``TrackFrame.paths``; wall time), and of the
+tracker's CPU time; ``--baseline`` times the tracker without the photo-wide model carried
+and the fixtures' glows carried from frame to frame too (``TrackSettings(carry_model=False,
+carry_glows=False)``, as the tracker was before it carried them) and prints the ratios.
 """
 
 from __future__ import annotations
@@ -153,11 +156,15 @@ def _speed(video: Path, room, camera, runs: int, settings: TrackSettings | None 
         n = len(frames)
         del frames
         tracker = Tracker(camera, room, settings)
+        run, cpu = [], []
         c0, w0 = time.process_time(), time.perf_counter()
-        run = [tracker.update(f.image, f.t) for f in open_frames(video, threads=1, gray=True)]
+        for f in open_frames(video, threads=1, gray=True):
+            c1 = time.process_time()
+            run.append(tracker.update(f.image, f.t))
+            cpu.append(1e3 * (time.process_time() - c1))
         total_cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)
-        records.append(run)
+        records.append((run, cpu))
     read, total = min(read_cpu), min(total_cpu)
     return {
         "frames": n,
@@ -166,7 +173,7 @@ def _speed(video: Path, room, camera, runs: int, settings: TrackSettings | None 
         "track_ms": 1e3 * (total - read) / n,
         "reading_share": read / total,
         "fps_wall": n / min(wall),
-        "per_frame": _per_frame(records[int(np.argmin(total_cpu))]),
+        "per_frame": _per_frame(*records[int(np.argmin(total_cpu))]),
     }
 
 
@@ -174,13 +181,14 @@ def _speed(video: Path, room, camera, runs: int, settings: TrackSettings | None 
 STAGES = ("prepare", "detect", "profile", "decode", "track", "total")
 
 
-def _per_frame(frames) -> dict:
-    """p50 / p95 / max over the frames of each stage's time and of each special path's
-    (``TrackFrame.paths``; 0 where it did not run), wall ms; and in how many frames each
-    path ran."""
+def _per_frame(frames, cpu_ms) -> dict:
+    """p50 / p95 / max over the frames of the tracker's CPU time (``cpu_ms``, one a frame),
+    of each stage's time and of each special path's (``TrackFrame.paths``; 0 where it did not
+    run), wall ms; and in how many frames each path ran."""
     names = list(dict.fromkeys(k for f in frames for k in f.paths))
     out = {}
     for what, v in [
+        ("tracking, CPU", cpu_ms),
         *((st, [f.timing_ms.get(st, 0.0) for f in frames]) for st in STAGES),
         *((f"path: {p}", [f.paths[p].ms if p in f.paths else 0.0 for f in frames]) for p in names),
     ]:
@@ -191,11 +199,19 @@ def _per_frame(frames) -> dict:
 
 
 def _print_per_frame(label: str, table: dict) -> None:
-    print(f"per frame ({label}; wall ms, the machine's load included):")
+    print(f"per frame ({label}; ms; wall time but the first row, the machine's load included):")
     print("| stage or path | frames | p50 | p95 | max |")
     print("|---|---|---|---|---|")
     for what, r in table.items():
         print(f"| {what} | {r['frames']} | {r['p50']:.1f} | {r['p95']:.1f} | {r['max']:.1f} |")
+
+
+def _print_speed(label: str, speed: dict) -> None:
+    print(
+        f"{label} {speed['fps_cpu']:.1f} frames/s of CPU time on one core "
+        f"(reading {speed['read_ms']:.1f} ms, tracking {speed['track_ms']:.1f} ms a frame: "
+        f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} frames/s"
+    )
 
 
 def _reference_cpu_ms(runs: int = 15) -> float:
@@ -251,6 +267,13 @@ def main() -> None:
         help="Exposure of each row, chips (half a chip by default; `camvlp render-video "
         "--exposure`).",
     )
+    ap.add_argument(
+        "--baseline",
+        action="store_true",
+        help="Also time the tracker without the photo-wide model and the fixtures' glows "
+        "carried from frame to frame (TrackSettings(carry_model=False, carry_glows=False): "
+        "every frame the model decoder reads fits its own, a cut disc's ring tells its glow).",
+    )
     ap.add_argument("--videos", nargs="+", choices=sorted(VIDEOS), default=list(VIDEOS))
     args = ap.parse_args()
     cv2.setNumThreads(1)
@@ -273,6 +296,10 @@ def main() -> None:
         plain = _track(video, room, camera, args.cache / f"track_{video.stem}_no_rs", False)
         alone = _locate_alone(video, room, camera)
         speed = _speed(video, room, camera, args.runs)
+        if args.baseline:  # the same run without the model carried, for ratios
+            old = TrackSettings(carry_model=False, carry_glows=False)
+            base = _speed(video, room, camera, args.runs, old)
+            speed["without_carrying"] = base
         results[name] = {"track": rs, "no_rolling_shutter": plain, "locate": alone, "speed": speed}
         e, p = rs["errors"], plain["errors"]
         n = rs["frames"]
@@ -303,13 +330,16 @@ def main() -> None:
             f"({100 * alone['decoded'] / max(alone['visible'], 1):.0f} %), "
             f"{alone['wrong']} wrong"
         )
-        print(
-            f"speed         {speed['fps_cpu']:.1f} frames/s of CPU time on one core "
-            f"(reading {speed['read_ms']:.1f} ms, tracking {speed['track_ms']:.1f} ms a frame: "
-            f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} "
-            "frames/s"
-        )
+        _print_speed("speed        ", speed)
         _print_per_frame("the best speed run", speed["per_frame"])
+        if args.baseline:
+            base = speed["without_carrying"]
+            _print_speed("without the model and glows carried:", base)
+            _print_per_frame("the best run without the model and glows carried", base["per_frame"])
+            print(
+                f"carried: {speed['fps_cpu'] / base['fps_cpu']:.2f}x the frames/s, "
+                f"{speed['track_ms'] / base['track_ms']:.2f}x the tracking time a frame"
+            )
     ref = _reference_cpu_ms()
     results["reference_locate_1080p_cpu_ms"] = ref
     print(

@@ -12,7 +12,7 @@ import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
 
-__all__ = ["associate", "known_blobs"]
+__all__ = ["associate", "known_blobs", "predicted_near"]
 
 
 def associate(
@@ -141,3 +141,22 @@ def known_blobs(
         if last is not None and index - last < verify_every:
             known.add(k)
     return known
+
+
+def predicted_near(blob, predicted: dict[int, np.ndarray], gate: float, ambiguity: float):
+    """The fixture predicted near a blob: the only prediction within ``gate`` pixels of it
+    (plus half its outline's larger axis when it touches the border: a cut disc's outline
+    centre is off by up to its radius), no rival within ``ambiguity`` times as far; None
+    when there is none or the nearest has such a rival."""
+    if not predicted:
+        return None
+    pred_ids = list(predicted)
+    d = np.linalg.norm(np.array([predicted[i] for i in pred_ids]) - blob.pixel, axis=1)
+    order = np.argsort(d)
+    j = int(order[0])
+    slack = 0.5 * float(np.max(blob.axes_px)) if blob.touches_border else 0.0
+    if d[j] > gate + slack:
+        return None
+    if order.size > 1 and d[order[1]] < ambiguity * max(d[j], 1.0):
+        return None
+    return pred_ids[j]

@@ -61,6 +61,11 @@ class TrackSettings:
         Pass the photo-wide parameters of the stripes' model (chip length, exposure, sensor
         response, blur) last fitted to a frame to the next frames' decoder, which fits them
         anew only when they leave a light that spans a frame of the code without an ID.
+    carry_glows : bool
+        Tell whether a light the border cuts glows (and is centred on its radial shape) by
+        its fixture's glow as told in an earlier frame that showed it whole, when the track
+        predicts that fixture alone near it (its own ring may read as a glow: the round
+        outline of a cut disc can be smaller than the disc).
     verify_every : int
         A blob that the track's pose identifies without doubt (the only prediction within the
         gate) is not decoded again while its fixture's stripes were decoded in the last
@@ -82,6 +87,7 @@ class TrackSettings:
     rolling_shutter: bool = True
     carry_chip_length: bool = True
     carry_model: bool = True
+    carry_glows: bool = True
     verify_every: int = 10
 
     def __post_init__(self) -> None:

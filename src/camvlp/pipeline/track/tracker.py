@@ -8,6 +8,8 @@ previous frames established and uses it in the next one:
   measured by the decodes so far, and the photo-wide parameters of the stripes' model last
   fitted (chip length, exposure, response, blur), passed to the decoder: a frame pays the
   photo-wide fit only when those parameters leave a light unread;
+* **whether each fixture glows**, told while it is seen whole: a light the border cuts is
+  not taken for a glowing one (centred on its radial shape) on the strength of its own rim;
 * **each fixture's ID and image position**: every map fixture is predicted in the image
   (from the track's pose, else from where it was last seen and how it moved); a fixture whose
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
@@ -33,6 +35,7 @@ Frame time convention: a frame's ``t`` is its middle sensor row's time (see
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -45,6 +48,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import SensorModel
 from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.lamp.glow import glowing
 from camvlp.pipeline.locate import StageClock
 from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import (
@@ -56,7 +60,7 @@ from camvlp.pipeline.stages import (
     read_profiles,
     readout_direction,
 )
-from camvlp.pipeline.track.assoc import associate, known_blobs
+from camvlp.pipeline.track.assoc import associate, known_blobs, predicted_near
 from camvlp.pipeline.track.kalman import ConstantVelocityFilter
 from camvlp.pipeline.track.motion import Motion, MotionState
 from camvlp.pipeline.track.offsets import PerspectiveOffsets
@@ -140,6 +144,7 @@ class Tracker:
         self._seen: dict[int, Sighting] = {}
         self._chip_rows: list[float] = []
         self._model: SensorModel | None = None  # the photo-wide parameters last used
+        self._glows: dict[int, bool] = {}  # whether each fixture glows, told when seen whole
         self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
@@ -198,13 +203,15 @@ class Tracker:
         self._index += 1
         self._t_given = t
         clock.lap("prepare")
-        lights = find_lights(prepared, self.map, st, readout=self.readout)
+        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        glows = functools.partial(self._glowing, img, predicted, from_pose)
+        glows = glows if self.settings.carry_glows else None
+        lights = find_lights(prepared, self.map, st, readout=self.readout, glows=glows)
         if self.readout is None and lights.readout is not None:
             # the first frame that decides the direction, from now on
             self.readout = readout_direction(prepared, lights, self.map, st)
         readout = self.readout or lights.readout or Readout.ROWS
         clock.lap("detect")
-        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
         # no ID read reversed, nor along an axis the stripes do not show
         undecided = lights.readout is None or (
             self.readout is None and self.map.mode != "frequency"
@@ -332,6 +339,22 @@ class Tracker:
             )
             return out, True
         return sighted_pixels(self._seen, t, self.settings.max_gap_s), False
+
+    def _glowing(self, img: np.ndarray, predicted, from_pose: bool, blobs) -> np.ndarray:
+        """Which lights glow (``blobs``: the readable ones as detected): as each one's ring
+        tells (:func:`~camvlp.pipeline.lamp.glow.glowing`), but a light whose ring does not
+        tell surely (the border cuts it) as its fixture's was told in an earlier frame, when
+        the track predicts that fixture alone near it.  The fixtures' glows told surely here
+        are remembered."""
+        which, told = glowing(img, blobs)
+        gate = self._gate * (1.0 if from_pose else 2.0)
+        for k, b in enumerate(blobs):
+            fid = predicted_near(b, predicted, gate, self.settings.ambiguity)
+            if fid is not None and told[k]:
+                self._glows[fid] = bool(which[k])
+            elif fid is not None and fid in self._glows:
+                which[k] = self._glows[fid]
+        return which
 
     def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
         """Blobs whose ID the track already knows (their stripes need not be decoded)."""

@@ -1,6 +1,7 @@
-"""The photo-wide parameters of the stripes' model carried from frame to frame: fitted on the
-first frame the model decoder reads, reused on the next ones, fitted anew when they do not
-explain a frame; the IDs right either way."""
+"""What the tracker carries from frame to frame: the photo-wide parameters of the stripes'
+model (fitted on the first frame the model decoder reads, reused on the next ones, fitted
+anew when they do not explain a frame), and whether each fixture glows (told while it is seen
+whole, used once the border cuts it); the IDs right either way."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
-from camvlp.pipeline.locate import LocateSettings
+from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import decode, find_lights, prepare, read_profiles
 from camvlp.pipeline.track.tracker import Tracker, TrackSettings
@@ -104,3 +105,41 @@ def test_parameters_that_do_not_explain_a_frame_are_fitted_anew(video):
     assert FIT in paths
     assert [d.id for d in refit.decodes] == ids
     assert refit.manchester.model != wrong
+
+
+def test_a_disc_the_border_cuts_is_told_by_its_fixture_seen_whole():
+    # plain discs of 100 px leaving the picture: once less than half of one is in it, its
+    # round outline is smaller than the disc and its ring reads as a glow, and locate
+    # centres it on a glow it has not (a radial fit); the track knows its fixture does not
+    # glow (told in the frames before).  (In the next frame, a sliver's outline centre is
+    # too far from its fixture's prediction to be tied to it: its ring tells, as in locate)
+    cam = Camera.from_focal(640, 360, 483.0, row_time_s=ROW_TIME_S)
+    xz = ((0.35, 0.25), (0.35, -0.25), (-0.35, -0.25), (-0.35, 0.25))
+    room = FixtureMap(
+        tuple(
+            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
+            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
+        )
+    )
+    traj = Trajectory(
+        np.array([0.0, 1.0]),
+        np.array([[0.1, -1.5, 0.0], [0.6, -1.5, 0.02]]),
+        np.array([[90.0, 0.0, 0.0], [90.2, -0.1, 1.0]]),
+    )
+    frames = list(iter_frames(cam, room, traj, 15.0, RenderSettings(seed=2), max_frames=13))
+    tracker = Tracker(cam, room)
+    results = [tracker.update(f.image, f.t) for f in frames]
+    assert "radial fit" in locate(frames[11].image, cam, room).paths
+    cut = 0
+    for r, f in zip(results, frames, strict=True):
+        assert "radial fit" not in r.paths, (f.t, r.paths)
+        assert r.status in ("fix", "tracked")
+        cut += sum(b.reason.startswith("cut by the image border") for b in r.fixtures)
+        truth = {t.id: t.pixel for t in f.fixtures if np.all(np.isfinite(t.pixel))}
+        for b in r.fixtures:
+            if b.id is not None:  # the nearest true fixture's ID
+                assert b.id == min(truth, key=lambda i: np.linalg.norm(truth[i] - b.pixel))
+    assert cut >= 8  # (two discs cut in frames 7 to 12)
+    # told by their own rings, as before the track carried the glows
+    tracker = Tracker(cam, room, TrackSettings(carry_glows=False))
+    assert any("radial fit" in tracker.update(f.image, f.t).paths for f in frames)
