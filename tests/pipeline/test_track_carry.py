@@ -9,44 +9,29 @@ import dataclasses
 
 import numpy as np
 import pytest
+from tests.pipeline.test_track import small_scene
 
-from camvlp.model.camera import Camera
-from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.locate import LocateSettings, locate
 from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import decode, find_lights, prepare, read_profiles
 from camvlp.pipeline.track.tracker import Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
-from camvlp.sim.trajectory import Trajectory
 from camvlp.sim.video import iter_frames
 
 FIT = "photo-wide model"
 MODEL = "model decode"
-ROW_TIME_S = 40e-6
 ROWS_PER_CHIP = 2.2  # the run-length decoder refuses most lights there
 
 
 @pytest.fixture(scope="module")
 def video():
-    """Six frames of 640 x 360 (f = 483 px) 1.2 m under four 0.25 m discs of about 100 rows,
-    the camera moving along x; chips of 2.2 rows, rows exposed for 0.3 chip, sensor noise."""
-    cam = Camera.from_focal(640, 360, 483.0, row_time_s=ROW_TIME_S)
-    xz = ((0.3, 0.22), (0.3, -0.22), (-0.3, -0.22), (-0.3, 0.22))
-    room = FixtureMap(
-        tuple(
-            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
-            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
-        )
-    )
-    traj = Trajectory(
-        np.array([0.0, 1.0]),
-        np.array([[0.0, -1.5, 0.0], [0.2, -1.5, 0.02]]),
-        np.array([[90.0, 0.0, 0.0], [90.2, -0.1, 1.0]]),
-    )
-    rate = 1.0 / (ROWS_PER_CHIP * ROW_TIME_S)
+    """Five frames of test_track's scene (640 x 360, discs of about 100 rows, the camera
+    moving along x) with chips of 2.2 rows, rows exposed for 0.3 chip, sensor noise."""
+    cam, room, traj = small_scene()
+    rate = 1.0 / (ROWS_PER_CHIP * cam.row_time_s)
     look = RenderSettings(chip_rate_hz=rate, exposure_s=0.3 / rate, seed=4)
-    return cam, room, list(iter_frames(cam, room, traj, 15.0, look, max_frames=6))
+    return cam, room, list(iter_frames(cam, room, traj, 15.0, look, max_frames=5))
 
 
 def tracked(video, carry: bool):
@@ -113,19 +98,7 @@ def test_a_disc_the_border_cuts_is_told_by_its_fixture_seen_whole():
     # centres it on a glow it has not (a radial fit); the track knows its fixture does not
     # glow (told in the frames before).  (In the next frame, a sliver's outline centre is
     # too far from its fixture's prediction to be tied to it: its ring tells, as in locate)
-    cam = Camera.from_focal(640, 360, 483.0, row_time_s=ROW_TIME_S)
-    xz = ((0.35, 0.25), (0.35, -0.25), (-0.35, -0.25), (-0.35, 0.25))
-    room = FixtureMap(
-        tuple(
-            Fixture(i, np.array([x, -2.7, z]), 0.25, np.array([0.0, 1.0, 0.0]))
-            for i, (x, z) in zip((5, 6, 9, 10), xz, strict=True)
-        )
-    )
-    traj = Trajectory(
-        np.array([0.0, 1.0]),
-        np.array([[0.1, -1.5, 0.0], [0.6, -1.5, 0.02]]),
-        np.array([[90.0, 0.0, 0.0], [90.2, -0.1, 1.0]]),
-    )
+    cam, room, traj = small_scene()
     frames = list(iter_frames(cam, room, traj, 15.0, RenderSettings(seed=2), max_frames=13))
     tracker = Tracker(cam, room)
     results = [tracker.update(f.image, f.t) for f in frames]
