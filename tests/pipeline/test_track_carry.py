@@ -113,6 +113,10 @@ def test_a_disc_the_border_cuts_is_told_by_its_fixture_seen_whole():
             if b.id is not None:  # the nearest true fixture's ID
                 assert b.id == min(truth, key=lambda i: np.linalg.norm(truth[i] - b.pixel))
     assert cut >= 8  # (two discs cut in frames 7 to 12)
+    # a tracker that starts on a frame with two discs cut: they are told as the two whole
+    # ones are (a room's lamps are alike)
+    first = Tracker(cam, room).update(frames[11].image, frames[11].t)
+    assert "radial fit" not in first.paths
     # told by their own rings, as before the track carried the glows
     tracker = Tracker(cam, room, TrackSettings(carry_glows=False))
     assert any("radial fit" in tracker.update(f.image, f.t).paths for f in frames)

@@ -64,8 +64,9 @@ class TrackSettings:
     carry_glows : bool
         Tell whether a light the border cuts glows (and is centred on its radial shape) by
         its fixture's glow as told in an earlier frame that showed it whole, when the track
-        predicts that fixture alone near it (its own ring may read as a glow: the round
-        outline of a cut disc can be smaller than the disc).
+        predicts that fixture alone near it, else by the video's lights told so far when two
+        or more were and all alike (its own ring may read as a glow: the round outline of a
+        cut disc can be smaller than the disc).
     verify_every : int
         A blob that the track's pose identifies without doubt (the only prediction within the
         gate) is not decoded again while its fixture's stripes were decoded in the last

@@ -8,8 +8,9 @@ previous frames established and uses it in the next one:
   measured by the decodes so far, and the photo-wide parameters of the stripes' model last
   fitted (chip length, exposure, response, blur), passed to the decoder: a frame pays the
   photo-wide fit only when those parameters leave a light unread;
-* **whether each fixture glows**, told while it is seen whole: a light the border cuts is
-  not taken for a glowing one (centred on its radial shape) on the strength of its own rim;
+* **whether each fixture glows**, told while it is seen whole (and whether the room's lamps
+  all glow or none does): a light the border cuts is not taken for a glowing one (centred on
+  its radial shape) on the strength of its own rim;
 * **each fixture's ID and image position**: every map fixture is predicted in the image
   (from the track's pose, else from where it was last seen and how it moved); a fixture whose
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
@@ -145,6 +146,7 @@ class Tracker:
         self._chip_rows: list[float] = []
         self._model: SensorModel | None = None  # the photo-wide parameters last used
         self._glows: dict[int, bool] = {}  # whether each fixture glows, told when seen whole
+        self._told = np.zeros(2, dtype=np.int64)  # lights told surely: plain, glowing
         self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
@@ -344,16 +346,24 @@ class Tracker:
         """Which lights glow (``blobs``: the readable ones as detected): as each one's ring
         tells (:func:`~camvlp.pipeline.lamp.glow.glowing`), but a light whose ring does not
         tell surely (the border cuts it) as its fixture's was told in an earlier frame, when
-        the track predicts that fixture alone near it.  The fixtures' glows told surely here
-        are remembered."""
+        the track predicts that fixture alone near it; else, when two or more of the video's
+        lights were told surely so far and all alike (all plain, or all glowing), as they
+        were (a room's lamps are alike; one entering the picture is not yet known).  The
+        fixtures' glows told surely here are remembered."""
         which, told = glowing(img, blobs)
+        self._told += np.bincount(which[told].astype(np.int64), minlength=2)
+        plain, glows = self._told
+        alike = bool(glows) if min(plain, glows) == 0 and plain + glows >= 2 else None
         gate = self._gate * (1.0 if from_pose else 2.0)
         for k, b in enumerate(blobs):
             fid = predicted_near(b, predicted, gate, self.settings.ambiguity)
-            if fid is not None and told[k]:
-                self._glows[fid] = bool(which[k])
+            if told[k]:
+                if fid is not None:
+                    self._glows[fid] = bool(which[k])
             elif fid is not None and fid in self._glows:
                 which[k] = self._glows[fid]
+            elif alike is not None:
+                which[k] = alike
         return which
 
     def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
