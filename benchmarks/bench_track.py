@@ -27,9 +27,9 @@ renders the chips 2.2 of the camera's rows long (a chip rate of ``1 / (2.2 * row
 with rows exposed for 0.3 chip (the model decoder's videos: the run-length decoder refuses
 most lights there).  Per frame it prints p50 / p95 / max of each stage's time and of each
 special path's (``TrackFrame.timing_ms``, ``TrackFrame.paths``; wall time), and of the
-tracker's CPU time; ``--baseline`` times the tracker without the photo-wide model carried
-and the fixtures' glows carried from frame to frame too (``TrackSettings(carry_model=False,
-carry_glows=False)``, as the tracker was before it carried them) and prints the ratios.
+tracker's CPU time; ``--baseline`` times the tracker without the photo-wide model and the
+fixtures' glows carried from frame to frame too (``TrackSettings(carry_model=False,
+carry_glows=False)``) and prints the ratios.
 """
 
 from __future__ import annotations
