@@ -22,7 +22,14 @@ where a phone records 1080p at 10 to 20).  Then for each video it prints:
 Run: ``python benchmarks/bench_track.py [--runs 3] [--crf 10] [--cache out/bench_track]``;
 ``--halo 0.4 --brightness 1`` renders (and tracks) the lamps glowing, as
 ``camvlp render-video --halo --brightness`` does; ``--seed`` the renderer's seed (1);
-``--videos robot`` takes one of the two.
+``--videos robot`` takes one of the two; ``--rows-per-chip 2.2 --exposure-chips 0.3``
+renders the chips 2.2 of the camera's rows long (a chip rate of ``1 / (2.2 * row_time)``)
+with rows exposed for 0.3 chip (the model decoder's videos: the run-length decoder refuses
+most lights there).  Per frame it prints p50 / p95 / max of each stage's time and of each
+special path's (``TrackFrame.timing_ms``, ``TrackFrame.paths``; wall time), and of the
+tracker's CPU time; ``--baseline`` times the tracker without the photo-wide model and the
+fixtures' glows carried from frame to frame too (``TrackSettings(carry_model=False,
+carry_glows=False)``) and prints the ratios.
 """
 
 from __future__ import annotations
@@ -54,18 +61,34 @@ VIDEOS = {"robot": "thesis_room.yaml", "walk": "corridor_room.yaml"}
 
 
 def _video(
-    name: str, cache: Path, crf: int, halo: float = 0.0, brightness: float = 4.0, seed: int = 1
+    name: str,
+    cache: Path,
+    crf: int,
+    halo: float = 0.0,
+    brightness: float = 4.0,
+    seed: int = 1,
+    rows_per_chip: float | None = None,
+    exposure_chips: float | None = None,
 ) -> Path:
-    look = RenderSettings(seed=seed, halo=halo, brightness=brightness)
+    camera = camvlp.load_camera(EX / "video_camera.yaml")
+    rate = RenderSettings.chip_rate_hz
+    if rows_per_chip is not None:  # the chips' rate that spans that many of the camera's rows
+        rate = 1.0 / (rows_per_chip * camera.row_time_s)
+    exposure_s = None if exposure_chips is None else exposure_chips / rate
+    look = RenderSettings(
+        seed=seed, halo=halo, brightness=brightness, chip_rate_hz=rate, exposure_s=exposure_s
+    )
     stem = name + (f"_halo{halo:g}" if halo else "")
     stem += f"_bright{brightness:g}" if brightness != RenderSettings.brightness else ""
     stem += f"_seed{seed}" if seed != 1 else ""
+    stem += f"_rpc{rows_per_chip:g}" if rows_per_chip is not None else ""
+    stem += f"_exp{exposure_chips:g}" if exposure_chips is not None else ""
     path = cache / f"{stem}.mp4"
     if not path.exists() or not (cache / f"{stem}_truth.csv").exists():
         cache.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
         n = render_video(
-            camvlp.load_camera(EX / "video_camera.yaml"),
+            camera,
             camvlp.load_map(EX / VIDEOS[name]),
             load_trajectory(EX / "trajectories" / f"{name}.csv"),
             path,
@@ -121,9 +144,10 @@ def _locate_alone(video: Path, room, camera) -> dict:
     }
 
 
-def _speed(video: Path, room, camera, runs: int) -> dict:
-    """Best of ``runs``: CPU seconds reading all frames, and reading + tracking them."""
-    read_cpu, total_cpu, wall = [], [], []
+def _speed(video: Path, room, camera, runs: int, settings: TrackSettings | None = None) -> dict:
+    """Best of ``runs``: CPU seconds reading all frames, and reading + tracking them; the
+    best run's frames (their ``timing_ms`` and ``paths``) under ``"frames"``."""
+    read_cpu, total_cpu, wall, records = [], [], [], []
     n = 0
     for _ in range(runs):
         c0 = time.process_time()
@@ -131,12 +155,16 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
         read_cpu.append(time.process_time() - c0)
         n = len(frames)
         del frames
-        tracker = Tracker(camera, room)
+        tracker = Tracker(camera, room, settings)
+        run, cpu = [], []
         c0, w0 = time.process_time(), time.perf_counter()
-        for frame in open_frames(video, threads=1, gray=True):
-            tracker.update(frame.image, frame.t)
+        for f in open_frames(video, threads=1, gray=True):
+            c1 = time.process_time()
+            run.append(tracker.update(f.image, f.t))
+            cpu.append(1e3 * (time.process_time() - c1))
         total_cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)
+        records.append((run, cpu))
     read, total = min(read_cpu), min(total_cpu)
     return {
         "frames": n,
@@ -145,7 +173,45 @@ def _speed(video: Path, room, camera, runs: int) -> dict:
         "track_ms": 1e3 * (total - read) / n,
         "reading_share": read / total,
         "fps_wall": n / min(wall),
+        "per_frame": _per_frame(*records[int(np.argmin(total_cpu))]),
     }
+
+
+#: The tracker's stages per frame (``TrackFrame.timing_ms``), then their total.
+STAGES = ("prepare", "detect", "profile", "decode", "track", "total")
+
+
+def _per_frame(frames, cpu_ms) -> dict:
+    """p50 / p95 / max over the frames of the tracker's CPU time (``cpu_ms``, one a frame),
+    of each stage's time and of each special path's (``TrackFrame.paths``; 0 where it did not
+    run), wall ms; and in how many frames each path ran."""
+    names = list(dict.fromkeys(k for f in frames for k in f.paths))
+    out = {}
+    for what, v in [
+        ("tracking, CPU", cpu_ms),
+        *((st, [f.timing_ms.get(st, 0.0) for f in frames]) for st in STAGES),
+        *((f"path: {p}", [f.paths[p].ms if p in f.paths else 0.0 for f in frames]) for p in names),
+    ]:
+        a = np.asarray(v, dtype=float)
+        p50, p95 = np.percentile(a, [50, 95])
+        out[what] = {"p50": p50, "p95": p95, "max": a.max(), "frames": int(np.sum(a > 0))}
+    return out
+
+
+def _print_per_frame(label: str, table: dict) -> None:
+    print(f"per frame ({label}; ms; wall time but the first row, the machine's load included):")
+    print("| stage or path | frames | p50 | p95 | max |")
+    print("|---|---|---|---|---|")
+    for what, r in table.items():
+        print(f"| {what} | {r['frames']} | {r['p50']:.1f} | {r['p95']:.1f} | {r['max']:.1f} |")
+
+
+def _print_speed(label: str, speed: dict) -> None:
+    print(
+        f"{label} {speed['fps_cpu']:.1f} frames/s of CPU time on one core "
+        f"(reading {speed['read_ms']:.1f} ms, tracking {speed['track_ms']:.1f} ms a frame: "
+        f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} frames/s"
+    )
 
 
 def _reference_cpu_ms(runs: int = 15) -> float:
@@ -187,6 +253,27 @@ def main() -> None:
     ap.add_argument(
         "--seed", type=int, default=1, help="The renderer's seed (noise, phases, lamps' looks)."
     )
+    ap.add_argument(
+        "--rows-per-chip",
+        type=float,
+        default=None,
+        help="Render the chips this many of the camera's rows long (default: 10 kHz chips, "
+        "3.33 rows), as `camvlp render-video --chip-rate` does.",
+    )
+    ap.add_argument(
+        "--exposure-chips",
+        type=float,
+        default=None,
+        help="Exposure of each row, chips (half a chip by default; `camvlp render-video "
+        "--exposure`).",
+    )
+    ap.add_argument(
+        "--baseline",
+        action="store_true",
+        help="Also time the tracker without the photo-wide model and the fixtures' glows "
+        "carried from frame to frame (TrackSettings(carry_model=False, carry_glows=False): "
+        "every frame the model decoder reads fits its own, a cut disc's ring tells its glow).",
+    )
     ap.add_argument("--videos", nargs="+", choices=sorted(VIDEOS), default=list(VIDEOS))
     args = ap.parse_args()
     cv2.setNumThreads(1)
@@ -194,12 +281,25 @@ def main() -> None:
     results = {}
     for name in args.videos:
         room_file = VIDEOS[name]
-        video = _video(name, args.cache, args.crf, args.halo, args.brightness, args.seed)
+        video = _video(
+            name,
+            args.cache,
+            args.crf,
+            args.halo,
+            args.brightness,
+            args.seed,
+            args.rows_per_chip,
+            args.exposure_chips,
+        )
         room = camvlp.load_map(EX / room_file)
         rs = _track(video, room, camera, args.cache / f"track_{video.stem}", True)
         plain = _track(video, room, camera, args.cache / f"track_{video.stem}_no_rs", False)
         alone = _locate_alone(video, room, camera)
         speed = _speed(video, room, camera, args.runs)
+        if args.baseline:  # the same run without the model carried, for ratios
+            old = TrackSettings(carry_model=False, carry_glows=False)
+            base = _speed(video, room, camera, args.runs, old)
+            speed["without_carrying"] = base
         results[name] = {"track": rs, "no_rolling_shutter": plain, "locate": alone, "speed": speed}
         e, p = rs["errors"], plain["errors"]
         n = rs["frames"]
@@ -230,12 +330,16 @@ def main() -> None:
             f"({100 * alone['decoded'] / max(alone['visible'], 1):.0f} %), "
             f"{alone['wrong']} wrong"
         )
-        print(
-            f"speed         {speed['fps_cpu']:.1f} frames/s of CPU time on one core "
-            f"(reading {speed['read_ms']:.1f} ms, tracking {speed['track_ms']:.1f} ms a frame: "
-            f"{100 * speed['reading_share']:.0f} % reading); wall {speed['fps_wall']:.1f} "
-            "frames/s"
-        )
+        _print_speed("speed        ", speed)
+        _print_per_frame("the best speed run", speed["per_frame"])
+        if args.baseline:
+            base = speed["without_carrying"]
+            _print_speed("without the model and glows carried:", base)
+            _print_per_frame("the best run without the model and glows carried", base["per_frame"])
+            print(
+                f"carried: {speed['fps_cpu'] / base['fps_cpu']:.2f}x the frames/s, "
+                f"{speed['track_ms'] / base['track_ms']:.2f}x the tracking time a frame"
+            )
     ref = _reference_cpu_ms()
     results["reference_locate_1080p_cpu_ms"] = ref
     print(

@@ -401,9 +401,9 @@ def _off_centre(shift_px: np.ndarray, sigma_px: float, near: np.ndarray, border=
     taken as cut by the photo's border."""
     real = _CENTRED_ON_GLOW
 
-    def fake(img, blobs, axis):
+    def fake(img, blobs, axis, which=None):
         out = []
-        for b in real(img, blobs, axis):
+        for b in real(img, blobs, axis, which):
             if np.hypot(*(b.pixel - near)) < 5:
                 cov = np.eye(2) * sigma_px**2
                 b = dataclasses.replace(

@@ -93,15 +93,19 @@ def project_batch(camera: Camera, R, C, points, *, distort: bool = False) -> np.
 
 
 def _euler_matrices(euler_deg: np.ndarray) -> np.ndarray:
-    """``Rx Ry Rz`` for many sets of the thesis' angles: (N, 3) degrees -> (N, 3, 3)."""
+    """``Rx Ry Rz`` for many sets of the thesis' angles: (N, 3) degrees -> (N, 3, 3).
+
+    The product written out element by element (no per-axis matrices): the tracker projects
+    a few points from a few poses many times a frame, where building and multiplying the
+    three matrices cost more than the projection."""
     a = np.deg2rad(np.asarray(euler_deg, dtype=np.float64).reshape(-1, 3))
-    c, s = np.cos(a), np.sin(a)
-    n = a.shape[0]
-    one, zero = np.ones(n), np.zeros(n)
-    rx = np.stack([one, zero, zero, zero, c[:, 0], -s[:, 0], zero, s[:, 0], c[:, 0]], 1)
-    ry = np.stack([c[:, 1], zero, s[:, 1], zero, one, zero, -s[:, 1], zero, c[:, 1]], 1)
-    rz = np.stack([c[:, 2], -s[:, 2], zero, s[:, 2], c[:, 2], zero, zero, zero, one], 1)
-    return rx.reshape(n, 3, 3) @ ry.reshape(n, 3, 3) @ rz.reshape(n, 3, 3)
+    (cx, cy, cz), (sx, sy, sz) = np.cos(a).T, np.sin(a).T
+    out = np.empty((a.shape[0], 3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = cy * cz, -cy * sz, sy
+    sx_sy, cx_sy = sx * sy, cx * sy
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = cx * sz + sx_sy * cz, cx * cz - sx_sy * sz, -sx * cy
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = sx * sz - cx_sy * cz, sx * cz + cx_sy * sz, cx * cy
+    return out
 
 
 def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:

@@ -3,6 +3,7 @@ readable light centred as its look asks (:mod:`camvlp.pipeline.lamp`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,7 @@ def find_lights(
     fixture_map: FixtureMap,
     settings: LocateSettings,
     readout: Readout | None = None,
+    glows: Callable[[list[Blob]], np.ndarray] | None = None,
 ) -> Lights:
     """Stage 1: the lights of a prepared photo and its readout.
 
@@ -69,14 +71,19 @@ def find_lights(
     call's (``settings.readout``) or the camera's, else the stripes tell the axis
     (:func:`detected_with_readout`).  On a Manchester map each readable glowing light is
     centred on its radial shape (:func:`~camvlp.pipeline.lamp.glow.centred_on_glow`); a
-    frequency-coded light is centred as its stripes are measured (stage 3).
+    frequency-coded light is centred as its stripes are measured (stage 3).  ``glows``, when
+    given, tells which readable lights (as detected) glow, one flag each (a video's tracker,
+    from what earlier frames showed of each fixture); else each light's ring tells
+    (:func:`~camvlp.pipeline.lamp.glow.glowing`).
     """
     given = readout or settings.readout or prepared.camera.readout
     detection, found, known, note = detected_with_readout(prepared.image, given, settings)
     blobs = list(detection.blobs)
     readable = [k for k, b in enumerate(blobs) if striped(b)]
     if fixture_map.mode != "frequency" and found is not None:
-        centred = centred_on_glow(prepared.image, [blobs[k] for k in readable], found.axis)
+        sub = [blobs[k] for k in readable]
+        which = None if glows is None else glows(sub)
+        centred = centred_on_glow(prepared.image, sub, found.axis, which)
         blobs = spread_out(centred, readable, blobs)
     return Lights(detection, tuple(blobs), found, known, tuple(readable), (note,) if note else ())
 

@@ -34,6 +34,7 @@ from camvlp.pipeline.decode.model import (
 from camvlp.pipeline.decode.model_choice import MIN_MARGIN
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.run_decode import decode_profiles
+from camvlp.pipeline.decode.stripe_model import MIN_FRAMES
 from camvlp.pipeline.paths import path
 
 __all__ = ["MIN_FAST_MARGIN", "Manchester", "decode_manchester"]
@@ -128,24 +129,55 @@ def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     return (ref if finite else None), kept
 
 
-def _with_model(profiles, fast, frame: FrameFormat, ids, t: float | None, weights=None, rank=None):
-    """The fast decodes, completed by the model fit for the fixtures they lack."""
+def _with_model(
+    profiles,
+    fast,
+    frame: FrameFormat,
+    ids,
+    t: float | None,
+    weights=None,
+    rank=None,
+    carried: SensorModel | None = None,
+):
+    """The fast decodes, completed by the model fit for the fixtures they lack: with the
+    ``carried`` parameters when they explain those fixtures (:func:`_explains`), else with
+    parameters fitted to this photo (the carried ones kept when they read more IDs)."""
     refused = [k for k, d in enumerate(fast) if d is None]
     if not refused:
         return list(fast), None
     sub = [profiles[k] for k in refused]
     sub_w = None if weights is None else [weights[k] for k in refused]
-    try:  # the photo-wide parameters from every fixture, seeded by the chip length
-        model, _ = estimate_photo_model(
-            profiles, frame, ids, weights=weights, rows_per_chip=t, rank=rank
-        )
-        photo = decode_photo(sub, frame, ids, weights=sub_w, model=model)
-    except ValueError:
-        photo = decode_photo(sub, frame, ids, weights=sub_w, rows_per_chip=t)
+    photo = kept = None
+    if carried is not None:
+        kept = decode_photo(sub, frame, ids, weights=sub_w, model=carried)
+        photo = kept if _explains(kept) else None
+    if photo is None:
+        try:  # the photo-wide parameters from every fixture, seeded by the chip length
+            model, _ = estimate_photo_model(
+                profiles, frame, ids, weights=weights, rows_per_chip=t, rank=rank
+            )
+            photo = decode_photo(sub, frame, ids, weights=sub_w, model=model)
+        except ValueError:
+            photo = decode_photo(sub, frame, ids, weights=sub_w, rows_per_chip=t)
+        if kept is not None and _read(kept) > _read(photo):
+            photo = kept
     out = list(fast)
     for k, d in zip(refused, photo.decodes, strict=True):
         out[k] = d
     return out, photo.model
+
+
+def _read(photo: PhotoDecode) -> int:
+    """IDs a model decode read."""
+    return sum(d.id is not None for d in photo.decodes)
+
+
+def _explains(photo: PhotoDecode) -> bool:
+    """Whether parameters carried from elsewhere (a video's earlier frames) explain a photo's
+    profiles, decoded with them in ``photo``: every profile that spans a frame of the code
+    (:data:`~camvlp.pipeline.decode.stripe_model.MIN_FRAMES`) got an ID.  Otherwise (fewer
+    IDs than the profiles promise) the photo's own parameters are fitted."""
+    return all(d.id is not None or not d.frames >= MIN_FRAMES for d in photo.decodes)
 
 
 def _one_way(
@@ -158,13 +190,15 @@ def _one_way(
     readout: Readout,
     weights=None,
     rank=None,
+    carried: SensorModel | None = None,
 ) -> Manchester:
     """The decode of one readout direction taken as known: its run-length decodes ``fast``
-    whose chip lengths agree (with ``seed`` or each other), the model fit for the rest, seeded
-    by that chip length, else ``seed``, else ``fallback`` (rows)."""
+    whose chip lengths agree (with ``seed`` or each other), the model fit for the rest (with
+    the ``carried`` parameters when they explain them), seeded by that chip length, else
+    ``seed``, else ``fallback`` (rows)."""
     t, (kept,) = _agreeing([fast], seed)
     t = t or seed or fallback
-    decodes, model = _with_model(profiles, kept, frame, ids, t, weights, rank)
+    decodes, model = _with_model(profiles, kept, frame, ids, t, weights, rank, carried)
     return _manchester(decodes, readout, model, t)
 
 
@@ -257,6 +291,7 @@ def decode_manchester(
     weights=None,
     rank=None,
     rows_per_chip: float | None = None,
+    model: SensorModel | None = None,
 ) -> Manchester:
     """Decode every profile: the run-length decoder's sure IDs, the model fit for the rest.
 
@@ -281,16 +316,25 @@ def decode_manchester(
     rows_per_chip : float, optional
         The chip length when known otherwise (a video's earlier frames), rows: it seeds the
         decoders in place of the camera's row time and the map's chip rate.
+    model : SensorModel, optional
+        The photo-wide parameters when known otherwise (fitted to a video's earlier frames):
+        once the readout's direction is known (given, or said by the run-length IDs), the
+        profiles the run-length decoder refuses are decoded with them, and parameters are
+        fitted to this photo only when they leave a profile that spans a frame of the code
+        without an ID.
 
     Returns
     -------
     Manchester
-        The decodes, the readout they were read with, the photo-wide parameters.
+        The decodes, the readout they were read with, the photo-wide parameters (``model``
+        when it explained the photo; None when the run-length decoder read every profile).
     """
     seed = rows_per_chip
     if seed is None and camera.row_time_s and fixture_map.chip_rate_hz:
         seed = 1.0 / (camera.row_time_s * fixture_map.chip_rate_hz)
-    man = _decode_manchester(profiles, readout, direction_known, fixture_map, seed, weights, rank)
+    man = _decode_manchester(
+        profiles, readout, direction_known, fixture_map, seed, weights, rank, model
+    )
     if seed is None or any(d.id is not None for d in man.decodes):
         return man
     # nothing identified with the chip length the files give: do the stripes' runs say
@@ -313,14 +357,16 @@ def _decode_manchester(
     seed,
     weights,
     rank=None,
+    carried: SensorModel | None = None,
 ) -> Manchester:
     """:func:`decode_manchester` with the chip length the files give (``seed``, rows, or
-    None)."""
+    None) and the ``carried`` parameters (or None)."""
     frame, ids = fixture_map.frame, fixture_map.ids
     map_ids = {int(i) for i in ids}
     fwd, lengths = _fast(profiles, frame, map_ids)
     if direction_known:
-        return _one_way(profiles, fwd, frame, ids, seed, _measured(lengths), readout, weights, rank)
+        fallback = _measured(lengths)
+        return _one_way(profiles, fwd, frame, ids, seed, fallback, readout, weights, rank, carried)
     fast_f = fwd  # (fwd is narrowed below to the chip lengths both ways agree on)
     backwards = [p[::-1] for p in profiles]
     bw = None if weights is None else [w[::-1] for w in weights]
@@ -333,11 +379,11 @@ def _decode_manchester(
     firm_f = sum(d is not None and rev[d.id] < 0 for d in fwd)
     firm_b = sum(d is not None and rev[d.id] < 0 for d in bwd)
     if firm_f >= 2 and firm_b == 0:
-        decodes, model = _with_model(profiles, fwd, frame, ids, t, weights, rank)
+        decodes, model = _with_model(profiles, fwd, frame, ids, t, weights, rank, carried)
         return _manchester(decodes, readout, model, t)
     flipped = Readout.of(readout.axis, not readout.reversed)
     if firm_b >= 2 and firm_f == 0:
-        decodes, model = _with_model(backwards, bwd, frame, ids, t, bw, rank)
+        decodes, model = _with_model(backwards, bwd, frame, ids, t, bw, rank, carried)
         return _manchester(decodes, flipped, model, t)
     man = _model_directions(profiles, readout, frame, ids, t, weights, rank)
     if man.other is None:

@@ -15,6 +15,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.frequency import decode_frequencies
 from camvlp.pipeline.decode.glow_split import decode_from_glows
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
+from camvlp.pipeline.decode.model import SensorModel
 from camvlp.pipeline.decode.profile import shape_profiles
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.detect.blob import Blob
@@ -121,6 +122,7 @@ def decode(
     *,
     skip=(),
     rows_per_chip: float | None = None,
+    model: SensorModel | None = None,
 ) -> Decoded:
     """Stage 3: what each readable light's stripes say; the others are refused with why.
 
@@ -134,6 +136,10 @@ def decode(
         Lights not to decode (a video's, whose IDs the track knows).
     rows_per_chip : float, optional
         The chip length when known otherwise (a video's earlier frames), rows.
+    model : SensorModel, optional
+        The photo-wide parameters when known otherwise (a video's earlier frames): the
+        Manchester decoder starts from them and fits its own only when they do not explain
+        the photo (:func:`~camvlp.pipeline.decode.manchester.decode_manchester`).
     """
     blobs = list(lights.blobs)
     if lights.readout is None:
@@ -148,7 +154,7 @@ def decode(
     ]
     if fixture_map.mode == "frequency":
         return _frequencies(prepared, lights, profiles, fixture_map, keep, refused)
-    return _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per_chip)
+    return _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per_chip, model)
 
 
 def _frequencies(prepared, lights, profiles, fixture_map, keep, refused) -> Decoded:
@@ -187,7 +193,9 @@ def _frequencies(prepared, lights, profiles, fixture_map, keep, refused) -> Deco
 CLEAR = 2.0
 
 
-def _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per_chip) -> Decoded:
+def _manchester(
+    prepared, lights, profiles, fixture_map, keep, refused, rows_per_chip, model
+) -> Decoded:
     """:func:`decode` on a Manchester map: :func:`decode_manchester` of the readable lights,
     then those it refused read from their glows
     (:func:`~camvlp.pipeline.decode.glow_split.decode_from_glows`), whose waveforms become
@@ -206,6 +214,7 @@ def _manchester(prepared, lights, profiles, fixture_map, keep, refused, rows_per
         sub_w,
         rank,
         rows_per_chip,
+        model,
     )
     man, waves = decode_from_glows(prepared.image, [blobs[k] for k in keep], man, fixture_map)
     step = -1 if lights.readout.reversed else 1  # (in the order of the others)

@@ -15,8 +15,8 @@ cost of some 250 pixels sampled (:func:`glow_levels`).  :func:`camvlp.locate` te
 centres every light of a photo (a light whose glow the photo's border cuts too, fitted to
 the pixels in the photo, and used when its disc's rim lies within the photo; lights whose
 glows joined fitted together, :mod:`camvlp.pipeline.lamp.crowded`);
-:class:`camvlp.pipeline.track.tracker.Tracker` tells each fixture's glow once and centres the
-glowing ones it uses, frame after frame.
+:class:`camvlp.pipeline.track.tracker.Tracker` runs the same stages on every frame, a light
+the border cuts told by its fixture's glow as an earlier frame showed it whole.
 """
 
 from __future__ import annotations
@@ -126,8 +126,8 @@ def glow_level(img: np.ndarray, blob: Blob) -> float:
 
 
 def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
-    """Which lights glow (:func:`glow_levels` at least :data:`GLOW_LEVEL`), and which could
-    be told.
+    """Which lights glow (:func:`glow_levels` at least :data:`GLOW_LEVEL`), and which were
+    told surely.
 
     Parameters
     ----------
@@ -139,15 +139,17 @@ def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     glows : ndarray of bool, shape (len(blobs),)
-        The lights that glow (never one that could not be told).
+        The lights that glow, as :func:`centred_on_glow` tells them by itself: a light
+        touching the photo's border measured on a round outline (see :func:`_round`); never
+        one whose ring or background the photo lacks.
     told : ndarray of bool, shape (len(blobs),)
-        The lights that could be told: enough of their ring and background in the photo, and
-        not touching its border (a light the border cuts is not centred on its shape).
+        The lights told surely: enough of their ring and background in the photo, and not
+        touching its border (the round outline of a disc the border cuts may be smaller than
+        the disc, whose rim then lifts the ring as a glow would).
     """
-    levels = glow_levels(img, blobs)
+    levels = glow_levels(img, [_round(b) for b in blobs])
     border = np.array([b.touches_border for b in blobs], dtype=bool)
-    told = np.isfinite(levels) & ~border
-    return told & (levels >= GLOW_LEVEL), told  # (NaN: not told, and not glowing)
+    return levels >= GLOW_LEVEL, np.isfinite(levels) & ~border  # (NaN: not glowing)
 
 
 def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]:
@@ -162,9 +164,9 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     axis : {"rows", "columns"}
         The readout axis.
     which : array_like of bool, shape (len(blobs),), optional
-        The blobs to centre, when already told (e.g. once per light along a video); None:
-        those whose :func:`glow_levels` is at least :data:`GLOW_LEVEL`, those touching the
-        border included (measured on a round outline, see :func:`_round`).
+        The blobs to centre, when told otherwise (e.g. a video's lights the border cuts, as
+        their fixtures were told whole in earlier frames); None: those that
+        :func:`glowing` says glow, those touching the border included.
 
     Returns
     -------
@@ -183,8 +185,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
     (:func:`_to_clean_rim`).
     """
     if which is None:
-        levels = glow_levels(img, [_round(b) for b in blobs])
-        which = levels >= GLOW_LEVEL  # (NaN: False)
+        which = glowing(img, blobs)[0]
     which = np.asarray(which, dtype=bool)
     if which.shape != (len(blobs),):
         raise ValueError(f"which must have one flag per blob, got shape {which.shape}")

@@ -12,7 +12,7 @@ import numpy as np
 
 from camvlp.model.fixtures import FixtureMap
 
-__all__ = ["associate", "known_blobs"]
+__all__ = ["associate", "known_blobs", "predicted_near"]
 
 
 def associate(
@@ -57,9 +57,7 @@ def associate(
             continue
         if fid in predicted:
             d = dist[k, pred_ids.index(fid)]
-            # a cut disc's centre is off by up to its radius
-            slack = 0.5 * float(np.max(blobs[k].axes_px)) if blobs[k].touches_border else 0
-            if d > gate + slack:
+            if d > gate + _cut_slack(blobs[k]):
                 reasons[k] = f"decoded ID {fid}, but the track puts that fixture {d:.0f} px away"
                 continue
         ids[k], sources[k] = fid, "decoded"
@@ -72,7 +70,8 @@ def associate(
     for k in range(n):
         if reasons[k].startswith(f"ID {ids[k]} was decoded for two"):
             ids[k], sources[k] = None, ""
-    _carry(ids, sources, reasons, dist, pred_ids, gate, ambiguity)
+    slack = np.array([_cut_slack(b) for b in blobs])
+    _carry(ids, sources, reasons, dist, pred_ids, gate + slack, ambiguity)
     for k in range(n):
         if ids[k] is not None:
             border = blobs[k].touches_border
@@ -80,8 +79,16 @@ def associate(
     return ids, sources, reasons
 
 
-def _carry(ids, sources, reasons, dist, pred_ids, gate: float, ambiguity: float) -> None:
-    """Carried IDs, in place: the one prediction within the gate, no rival nearly as close."""
+def _cut_slack(blob) -> float:
+    """How much farther than the gate a light may lie from its fixture's prediction, pixels:
+    half its outline's larger axis when the border cuts it (a cut disc's centre is off by up
+    to its radius), else 0."""
+    return 0.5 * float(np.max(blob.axes_px)) if blob.touches_border else 0.0
+
+
+def _carry(ids, sources, reasons, dist, pred_ids, gate: np.ndarray, ambiguity: float) -> None:
+    """Carried IDs, in place: the one prediction within each blob's gate (pixels, one a
+    blob), no rival nearly as close."""
     n = len(ids)
     claimed = {i for i in ids if i is not None}
     for k in range(n):
@@ -91,7 +98,7 @@ def _carry(ids, sources, reasons, dist, pred_ids, gate: float, ambiguity: float)
         j = int(order[0])
         d = dist[k, j]
         fid = pred_ids[j]
-        if d > gate:
+        if d > gate[k]:
             continue
         if order.size > 1 and dist[k, order[1]] < ambiguity * max(d, 1.0):
             reasons[k] = reasons[k] or "ambiguous: two fixtures are predicted near it"
@@ -117,27 +124,35 @@ def known_blobs(
 ) -> set[int]:
     """Indices of the blobs whose ID the track already knows.
 
-    Each is the only prediction within ``gate`` pixels of the blob (no rival within
-    ``ambiguity`` times as far), for a fixture whose stripes were decoded in the last
-    ``verify_every`` frames (``verified``: fixture ID -> frame index of its last decode,
-    ``index`` the current frame's).  Their stripes need not be decoded again.
+    Each is near the one prediction of a fixture (:func:`predicted_near`: within ``gate``
+    pixels, plus half its outline for a light the border cuts, no rival within
+    ``ambiguity`` times as far) whose stripes were decoded in the last ``verify_every``
+    frames (``verified``: fixture ID -> frame index of its last decode, ``index`` the
+    current frame's).  Their stripes need not be decoded again: a light entering or leaving
+    the picture is not decoded frame after frame while the border cuts it (it is not used).
     """
-    if not predicted:
-        return set()
-    pred_ids = list(predicted)
-    pred_px = np.array([predicted[i] for i in pred_ids])
     known = set()
     for k, b in enumerate(blobs):
-        if b.touches_border:
-            continue
-        d = np.linalg.norm(pred_px - b.pixel, axis=1)
-        order = np.argsort(d)
-        j = int(order[0])
-        if d[j] > gate:
-            continue
-        if order.size > 1 and d[order[1]] < ambiguity * max(d[j], 1.0):
-            continue
-        last = verified.get(pred_ids[j])
+        fid = predicted_near(b, predicted, gate, ambiguity)
+        last = None if fid is None else verified.get(fid)
         if last is not None and index - last < verify_every:
             known.add(k)
     return known
+
+
+def predicted_near(blob, predicted: dict[int, np.ndarray], gate: float, ambiguity: float):
+    """The fixture predicted near a blob: the only prediction within ``gate`` pixels of it
+    (plus half its outline's larger axis when it touches the border: a cut disc's outline
+    centre is off by up to its radius), no rival within ``ambiguity`` times as far; None
+    when there is none or the nearest has such a rival."""
+    if not predicted:
+        return None
+    pred_ids = list(predicted)
+    d = np.linalg.norm(np.array([predicted[i] for i in pred_ids]) - blob.pixel, axis=1)
+    order = np.argsort(d)
+    j = int(order[0])
+    if d[j] > gate + _cut_slack(blob):
+        return None
+    if order.size > 1 and d[order[1]] < ambiguity * max(d[j], 1.0):
+        return None
+    return pred_ids[j]

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from camvlp.pipeline.locate import LocateSettings
+from camvlp.pipeline.paths import PathTime
 
 __all__ = ["STATUSES", "TrackFrame", "TrackSettings", "TrackedFixture"]
 
@@ -56,6 +57,16 @@ class TrackSettings:
         middle row (needs the camera's ``row_time_s``).
     carry_chip_length : bool
         Pass the chip length measured in earlier frames to the decoder.
+    carry_model : bool
+        Pass the photo-wide parameters of the stripes' model (chip length, exposure, sensor
+        response, blur) last fitted to a frame to the next frames' decoder, which fits them
+        anew only when they leave a light that spans a frame of the code without an ID.
+    carry_glows : bool
+        Tell whether a light the border cuts glows (and is centred on its radial shape) by
+        its fixture's glow as told in an earlier frame that showed it whole, when the track
+        predicts that fixture alone near it, else by the video's lights told so far when two
+        or more were and all alike (its own ring may read as a glow: the round outline of a
+        cut disc can be smaller than the disc).
     verify_every : int
         A blob that the track's pose identifies without doubt (the only prediction within the
         gate) is not decoded again while its fixture's stripes were decoded in the last
@@ -76,6 +87,8 @@ class TrackSettings:
     min_tilt_sigma_deg: float = 0.02
     rolling_shutter: bool = True
     carry_chip_length: bool = True
+    carry_model: bool = True
+    carry_glows: bool = True
     verify_every: int = 10
 
     def __post_init__(self) -> None:
@@ -151,8 +164,12 @@ class TrackFrame:
     reason : str
         Why there is no solve ("" for fix and tracked).
     timing_ms : dict
-        ``locate`` (detection and decoding), ``track`` (association, glowing lights centred,
-        solve, filter), ``total``.
+        Milliseconds (wall time) per stage: ``prepare``, ``detect``, ``profile``, ``decode``
+        (locate's stages, :mod:`camvlp.pipeline.stages`), ``track`` (association, glowing
+        lights centred, solve, filter), and their ``total``.
+    paths : dict
+        The special paths that ran on the frame (the photo-wide model fit, the model
+        decoder, ...: :mod:`camvlp.pipeline.paths`), name -> ``PathTime(calls, ms)``.
     """
 
     index: int
@@ -167,6 +184,7 @@ class TrackFrame:
     fixtures: tuple[TrackedFixture, ...]
     reason: str
     timing_ms: dict[str, float]
+    paths: dict[str, PathTime] = field(default_factory=dict)
 
     @classmethod
     def lost(cls, index: int, t: float, reason: str) -> TrackFrame:

@@ -4,8 +4,13 @@ A single video frame often shows fewer than four decodable fixtures (stripes a l
 than one frame of chips, a light entering at the border).  :class:`Tracker` keeps what the
 previous frames established and uses it in the next one:
 
-* **the readout** found in the first striped frame, and the chip length (rows per chip)
-  measured by the decodes so far, passed to the decoder;
+* **the readout** found in the first striped frame, the chip length (rows per chip)
+  measured by the decodes so far, and the photo-wide parameters of the stripes' model last
+  fitted (chip length, exposure, response, blur), passed to the decoder: a frame pays the
+  photo-wide fit only when those parameters leave a light unread;
+* **whether each fixture glows**, told while it is seen whole (and whether the room's lamps
+  all glow or none does): a light the border cuts is not taken for a glowing one (centred on
+  its radial shape) on the strength of its own rim;
 * **each fixture's ID and image position**: every map fixture is predicted in the image
   (from the track's pose, else from where it was last seen and how it moved); a fixture whose
   stripes do not decode keeps its ID when it is the only prediction within a gate of it and
@@ -31,6 +36,7 @@ Frame time convention: a frame's ``t`` is its middle sensor row's time (see
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -41,9 +47,13 @@ from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
+from camvlp.pipeline.decode.model import SensorModel
 from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.lamp.glow import glowing
 from camvlp.pipeline.locate import StageClock
+from camvlp.pipeline.paths import recording
 from camvlp.pipeline.stages import (
+    Decoded,
     Prepared,
     decode,
     find_lights,
@@ -51,7 +61,7 @@ from camvlp.pipeline.stages import (
     read_profiles,
     readout_direction,
 )
-from camvlp.pipeline.track.assoc import associate, known_blobs
+from camvlp.pipeline.track.assoc import associate, known_blobs, predicted_near
 from camvlp.pipeline.track.kalman import ConstantVelocityFilter
 from camvlp.pipeline.track.motion import Motion, MotionState
 from camvlp.pipeline.track.offsets import PerspectiveOffsets
@@ -134,6 +144,9 @@ class Tracker:
         self._t_given: float | None = None  # time of the last frame given to update
         self._seen: dict[int, Sighting] = {}
         self._chip_rows: list[float] = []
+        self._model: SensorModel | None = None  # the photo-wide parameters last used
+        self._glows: dict[int, bool] = {}  # whether each fixture glows, told when seen whole
+        self._told = np.zeros(2, dtype=np.int64)  # lights told surely: plain, glowing
         self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
@@ -165,37 +178,42 @@ class Tracker:
         """
         t = self._checked_time(t)
         clock = StageClock()
-        frame = self._locate(image, t)
-        clock.lap("locate")
-        assoc = self._associate(frame)
-        state = self._motion.state_at(t)
-        fresh = frame.from_pose and state is not None
-        m = self._measurements(frame, assoc, state, fresh)
-        outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
-        status, reason = self._follow(outcome, t, m)
-        remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
-        clock.lap("track")
-        return self._report(frame, assoc, m, outcome, status, reason, clock)
+        with recording() as paths:  # the special paths that run, and their time
+            frame = self._locate(image, t, clock)
+            assoc = self._associate(frame)
+            state = self._motion.state_at(t)
+            fresh = frame.from_pose and state is not None
+            m = self._measurements(frame, assoc, state, fresh)
+            outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
+            status, reason = self._follow(outcome, t, m)
+            remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
+            clock.lap("track")
+        return self._report(frame, assoc, m, outcome, status, reason, clock, paths)
 
     # ---------------------------------------------------------------------------------------
     # The frame's steps, in order
 
-    def _locate(self, image: np.ndarray, t: float) -> _Located:
-        """The stages of :func:`camvlp.locate`, in its order, up to identification: a video's
-        readout, once decided, and its chip length carried from frame to frame; the IDs the
-        track knows not decoded.  The frame counts (its index, its time) once prepared."""
+    def _locate(self, image: np.ndarray, t: float, clock: StageClock) -> _Located:
+        """The stages of :func:`camvlp.locate`, in its order, up to identification (each
+        timed on ``clock``): a video's readout, once decided, and its chip length carried from
+        frame to frame; the IDs the track knows not decoded.  The frame counts (its index, its
+        time) once prepared."""
         st = self.settings.locate
         prepared = prepare(image, self.camera, self.map, st)
         img = prepared.image
         index = self._index  # the frame is taken: its time and index count from here
         self._index += 1
         self._t_given = t
-        lights = find_lights(prepared, self.map, st, readout=self.readout)
+        clock.lap("prepare")
+        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        glows = functools.partial(self._glowing, img, predicted, from_pose)
+        glows = glows if self.settings.carry_glows else None
+        lights = find_lights(prepared, self.map, st, readout=self.readout, glows=glows)
         if self.readout is None and lights.readout is not None:
             # the first frame that decides the direction, from now on
             self.readout = readout_direction(prepared, lights, self.map, st)
         readout = self.readout or lights.readout or Readout.ROWS
-        predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        clock.lap("detect")
         # no ID read reversed, nor along an axis the stripes do not show
         undecided = lights.readout is None or (
             self.readout is None and self.map.mode != "frequency"
@@ -204,10 +222,20 @@ class Tracker:
         skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
         known = dataclasses.replace(lights, readout=readout, direction_known=True)
         profiles = read_profiles(img, blobs, readout)
-        decoded = decode(prepared, known, profiles, self.map, skip=skip, rows_per_chip=self._rpc())
-        self._carry(decoded.decodes)
+        clock.lap("profile")
+        decoded = decode(
+            prepared,
+            known,
+            profiles,
+            self.map,
+            skip=skip,
+            rows_per_chip=self._rpc(),
+            model=self._model,
+        )
+        self._carry(decoded)
         blobs = list(decoded.blobs)
         found = identify(blobs, list(decoded.decodes), self.map)
+        clock.lap("decode")
         return _Located(index, t, prepared, blobs, found, predicted, from_pose)
 
     def _associate(self, frame: _Located) -> _Associated:
@@ -270,6 +298,7 @@ class Tracker:
         status: str,
         reason: str,
         clock: StageClock,
+        paths: dict,
     ) -> TrackFrame:
         """The frame as reported: the track's pose, the frame's own solve, its fixtures."""
         solved, ids = outcome.solved, assoc.ids
@@ -293,6 +322,7 @@ class Tracker:
             fixtures=fixtures,
             reason=reason,
             timing_ms=clock.total(),
+            paths=dict(paths),
         )
 
     # ---------------------------------------------------------------------------------------
@@ -311,6 +341,30 @@ class Tracker:
             )
             return out, True
         return sighted_pixels(self._seen, t, self.settings.max_gap_s), False
+
+    def _glowing(self, img: np.ndarray, predicted, from_pose: bool, blobs) -> np.ndarray:
+        """Which lights glow (``blobs``: the readable ones as detected): as each one's ring
+        tells (:func:`~camvlp.pipeline.lamp.glow.glowing`), but a light whose ring does not
+        tell surely (the border cuts it) as its fixture's was told in an earlier frame, when
+        the track predicts that fixture alone near it; else, when two or more of the video's
+        lights were told surely so far and all alike (all plain, or all glowing), as they
+        were (a room's lamps are alike; one entering the picture is not yet known).  The
+        fixtures' glows told surely here are remembered."""
+        which, told = glowing(img, blobs)
+        self._told += np.bincount(which[told].astype(np.int64), minlength=2)
+        plain, glows = self._told
+        alike = bool(glows) if min(plain, glows) == 0 and plain + glows >= 2 else None
+        gate = self._gate * (1.0 if from_pose else 2.0)
+        for k, b in enumerate(blobs):
+            fid = predicted_near(b, predicted, gate, self.settings.ambiguity)
+            if told[k]:
+                if fid is not None:
+                    self._glows[fid] = bool(which[k])
+            elif fid is not None and fid in self._glows:
+                which[k] = self._glows[fid]
+            elif alike is not None:
+                which[k] = alike
+        return which
 
     def _known(self, blobs, predicted: dict[int, np.ndarray], from_pose: bool) -> set[int]:
         """Blobs whose ID the track already knows (their stripes need not be decoded)."""
@@ -335,12 +389,16 @@ class Tracker:
             return float(np.median(self._chip_rows[-50:]))
         return None
 
-    def _carry(self, decodes) -> None:
-        """Remember the chip lengths of the IDs read (the last 50)."""
-        for d in decodes:
+    def _carry(self, decoded: Decoded) -> None:
+        """Remember the chip lengths of the IDs read (the last 50), and the photo-wide
+        parameters the decoder used, when it used any (:attr:`TrackSettings.carry_model`)."""
+        for d in decoded.decodes:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
         del self._chip_rows[:-50]
+        man = decoded.manchester
+        if self.settings.carry_model and man is not None and man.model is not None:
+            self._model = man.model
 
     def _checked_time(self, t: object) -> float:
         """``t`` as a float when it is a finite time within +-1e9 s and later than the last
