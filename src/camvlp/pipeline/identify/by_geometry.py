@@ -50,6 +50,7 @@ __all__ = [
     "PLACES_LISTED",
     "SEED_SETS",
     "Placement",
+    "distance_bounds",
     "placed",
 ]
 
@@ -132,9 +133,25 @@ def _lights(problem: PoseProblem, decodes) -> _Lights:
     return _Lights(np.array(keep, dtype=np.int64), ids, pixels, rays, near, far)
 
 
-def _chord(a: tuple[float, float], b: tuple[float, float], cos: float) -> tuple[float, float]:
-    """The least and greatest distance between two points seen ``arccos(cos)`` apart from the
-    camera, at distances within ``a`` and ``b`` (each (least, greatest), map units)."""
+def distance_bounds(
+    a: tuple[float, float], b: tuple[float, float], cos: float
+) -> tuple[float, float]:
+    """The least and greatest distance between two points seen at an angle ``arccos(cos)``
+    apart from the camera, their distances from it within ``a`` and ``b``.
+
+    Parameters
+    ----------
+    a, b : tuple of float
+        Each point's least and greatest distance from the camera, map units.
+    cos : float
+        The cosine of the angle between the two rays.
+
+    Returns
+    -------
+    tuple of float
+        The least and greatest distance between the points, map units; ``(0, inf)`` when a
+        greatest distance is not finite.
+    """
 
     def d(r1, r2):
         return np.sqrt(np.maximum(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
@@ -159,8 +176,8 @@ def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
 
 def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.ndarray | None:
     """Every four fixtures, one a seed light, whose IDs are the seeds' and whose distances
-    fit the bounds the photo sets (:func:`_chord`); shape (q, 4) of fixture indices, or None
-    when more than :data:`MAX_HYPOTHESES`."""
+    fit the bounds the photo sets (:func:`distance_bounds`); shape (q, 4) of fixture
+    indices, or None when more than :data:`MAX_HYPOTHESES`."""
     ids = np.array([f.id for f in fmap.fixtures])
     pos = fmap.positions
     first = fmap.with_id(lights.ids[seeds[0]])
@@ -168,7 +185,7 @@ def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.
     for m in range(1, len(seeds)):
         s = seeds[m]
         bounds = [
-            _chord(
+            distance_bounds(
                 (lights.near[seeds[j]], lights.far[seeds[j]]),
                 (lights.near[s], lights.far[s]),
                 float(lights.rays[seeds[j]] @ lights.rays[s]),
@@ -296,7 +313,7 @@ def _places(ranked: list, units: str) -> str:
         for _, (_, pose) in ranked[:PLACES_LISTED]
     ]
     more = len(ranked) - PLACES_LISTED
-    return ", ".join(text) + (f" and {more} more" if more > 0 else "") + f" {units}"
+    return ", ".join(text) + (f" and {more} more" if more > 0 else "") + f" ({units})"
 
 
 def _local_map(problem: PoseProblem, lights: _Lights, pairs: frozenset, pose: Pose) -> FixtureMap:
@@ -382,10 +399,14 @@ def placed(problem: PoseProblem, decodes, near=None, within: float | None = None
     ranked = sorted(found.items(), key=lambda kv: (-len(kv[0]), kv[1][0]))
     scope = "" if prior is None else f" within {within:g} {fmap.units} of the prior"
     if not ranked or len(ranked[0][0]) < confirm:
-        best = f" (at best {len(ranked[0][0])} at {_places(ranked[:1], fmap.units)})"
+        best = (
+            f" (at best {len(ranked[0][0])} of them, the camera at "
+            f"{_places(ranked[:1], fmap.units)})"
+            if ranked
+            else ""
+        )
         return _refused(
-            f"no place of the map{scope} fits its {n} lights' IDs and geometry"
-            + (best if ranked else ""),
+            f"no place of the map{scope} fits its {n} lights' IDs and geometry{best}",
             ranked[:1],
         )
     top = len(ranked[0][0])
