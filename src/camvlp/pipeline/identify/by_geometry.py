@@ -317,9 +317,10 @@ def _places(ranked: list, units: str) -> str:
 
 
 def _local_map(problem: PoseProblem, lights: _Lights, pairs: frozenset, pose: Pose) -> FixtureMap:
-    """The fixtures ``pose`` puts in the photo (or within a tenth of its width of it, in
-    front of the camera) and those ``pairs`` gives the lights, each ID once: where the view
-    holds two fixtures with one ID, the one a light was found to be (else neither)."""
+    """The fixtures ``pose`` puts in front of the camera and in the photo (or within a tenth
+    of its width of it) and those ``pairs`` gives the lights, each ID once: where two have
+    one ID, the one a light was found to be, else the one in the photo when the other lies
+    outside it; else neither."""
     fmap, camera = problem.fixture_map, problem.camera
     if np.isfinite(lights.far).all():
         idx = np.asarray(fmap.index.query_ball_point(pose.position, 2 * float(lights.far.max())))
@@ -327,22 +328,21 @@ def _local_map(problem: PoseProblem, lights: _Lights, pairs: frozenset, pose: Po
         idx = np.arange(len(fmap.fixtures))
     idx = idx.astype(np.int64)
     where = project_points(camera, pose, fmap.positions[idx]).reshape(-1, 2)
-    pad = 0.1 * camera.width
-    inside = np.all(np.isfinite(where), axis=1)
-    inside &= (where[:, 0] >= -pad) & (where[:, 0] <= camera.width - 1 + pad)
-    inside &= (where[:, 1] >= -pad) & (where[:, 1] <= camera.height - 1 + pad)
-    matched = sorted(f for _, f in pairs)
-    view = matched + sorted(set(idx[inside].tolist()) - set(matched))
-    by_id: dict[int, int] = {}
-    twice: set[int] = set()
-    for i in view:
+    ahead = (fmap.positions[idx] - pose.position) @ pose.world_from_camera[:, 2] > 0
+    tier = np.full(len(idx), 3)  # 1: in the photo, 2: within the margin, 3: neither
+    for t, pad in ((2, 0.1 * camera.width), (1, 0.0)):
+        inside = ahead & np.all(np.isfinite(where), axis=1)
+        inside &= (where[:, 0] >= -pad) & (where[:, 0] <= camera.width - 1 + pad)
+        inside &= (where[:, 1] >= -pad) & (where[:, 1] <= camera.height - 1 + pad)
+        tier[inside] = t
+    rank = dict(zip(idx.tolist(), tier.tolist(), strict=True))
+    rank.update({f: 0 for _, f in pairs})  # 0: a light's
+    best: dict[int, tuple[int, list[int]]] = {}  # ID -> its best tier, the fixtures of it
+    for i, t in sorted(rank.items(), key=lambda it: it[1]):
         fid = fmap.fixtures[i].id
-        if fid in by_id and i not in matched:
-            if by_id[fid] not in matched:
-                twice.add(fid)
-            continue
-        by_id.setdefault(fid, i)
-    keep = sorted(i for fid, i in by_id.items() if fid not in twice)
+        if t < 3 and (fid not in best or best[fid][0] == t):
+            best.setdefault(fid, (t, []))[1].append(i)
+    keep = sorted(f[0] for t, f in best.values() if len(f) == 1 or t == 0)
     return FixtureMap(
         tuple(fmap.fixtures[i] for i in keep),
         units=fmap.units,

@@ -93,7 +93,7 @@ def identify_and_solve(
         prepared.outlier_px,
         prepared.gravity,
     )
-    local = None
+    local, whole = None, fixture_map
     if fixture_map.reuse:
         place = placed(problem, decoded.decodes, settings.near, settings.within)
         if place.local is None:
@@ -101,6 +101,8 @@ def identify_and_solve(
         local = fixture_map = place.local
         problem = dataclasses.replace(problem, fixture_map=local)
     man, kept = decided(problem, decoded.manchester, list(decoded.decodes))
+    if local is not None:
+        kept = dataclasses.replace(kept, found=_outside_view(kept.found, whole))
     est, reason = kept.est, kept.reason
     if lights.readout is None:
         reason = UNCLEAR_AXIS
@@ -113,6 +115,19 @@ def identify_and_solve(
     return Solved(
         tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of, local
     )
+
+
+def _outside_view(found: Identified, whole: FixtureMap) -> Identified:
+    """``found`` (looked up in the fixtures in view of the place found in ``whole``, a map
+    whose IDs repeat) with the lights that send an ID of ``whole`` none of them has saying
+    so."""
+    reasons = [
+        f"sends ID {i}, which no fixture in view of the place found has"
+        if r == f"sends ID {i}, which is not in the map" and whole.with_id(i).size
+        else r
+        for i, r in zip(found.ids, found.reasons, strict=True)
+    ]
+    return identified_as(found.ids, reasons)
 
 
 def _unplaced(problem: PoseProblem, lights: Lights, decoded: Decoded, reason: str) -> Solved:
