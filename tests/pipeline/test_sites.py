@@ -164,3 +164,11 @@ def test_the_prior_needs_both_parts():
     with pytest.raises(InputError, match="within must be a positive"):
         LocateSettings(near=(1.0, 2.0), within=-1.0)
     assert LocateSettings(near=[1, 2, 3], within=2).near == (1.0, 2.0, 3.0)
+
+
+def test_a_video_is_not_tracked_in_a_map_whose_ids_repeat(varied):
+    from camvlp.errors import InputError
+    from camvlp.pipeline.track.tracker import Tracker
+
+    with pytest.raises(InputError, match=r"one ID to many fixtures \(reuse: true\)"):
+        Tracker(site_camera(), varied)

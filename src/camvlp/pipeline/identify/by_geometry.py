@@ -47,6 +47,7 @@ from camvlp.pipeline.solve import PoseProblem
 __all__ = [
     "DISTANCE_SLACK",
     "HYPOTHESIS_SOLVER",
+    "LIGHTS_NEEDED",
     "MAX_HYPOTHESES",
     "PLACES_LISTED",
     "SEED_SETS",
@@ -63,8 +64,12 @@ DISTANCE_SLACK = 2.0
 SEED_SETS = 3
 
 #: Most hypotheses (four fixtures) a seed set may give: beyond, the photo is refused (its
-#: lights fit too many places to try; a prior narrows them).
-MAX_HYPOTHESES = 20_000
+#: lights fit too many places to try; a prior narrows them).  Each costs about a quarter of
+#: a millisecond; the warehouse of ``examples/make_warehouse.py`` gives 450 to 760.
+MAX_HYPOTHESES = 5_000
+
+#: Lights with an ID a photo needs to be placed: four for a pose, one more to confirm it.
+LIGHTS_NEEDED = 5
 
 #: Most candidate places a refusal lists.
 PLACES_LISTED = 4
@@ -238,18 +243,23 @@ def _pose_of(problem: PoseProblem, lights: _Lights, seeds, quad: np.ndarray) -> 
     return pose
 
 
+def _around(fmap: FixtureMap, lights: _Lights, pose: Pose, factor: float) -> np.ndarray:
+    """Indices of the fixtures within ``factor`` times the farthest a light can be of the
+    camera (by the map's k-d tree); every fixture when a light's distance is not bounded."""
+    if not np.isfinite(lights.far).all():
+        return np.arange(len(fmap.fixtures))
+    reach = factor * float(lights.far.max())
+    return np.asarray(fmap.index.query_ball_point(pose.position, reach), dtype=np.int64)
+
+
 def _explained(problem: PoseProblem, lights: _Lights, pose: Pose) -> tuple[frozenset, float]:
     """The lights ``pose`` explains: (light, fixture) pairs, each light's fixture the one of
     the map with its ID that projects within the outlier distance of it, every other with
     that ID :data:`TOLD_APART` times farther, no fixture twice; and their RMS distance (px)."""
     fmap, tol = problem.fixture_map, problem.outlier_px
-    if np.isfinite(lights.far).all():
-        idx = np.asarray(fmap.index.query_ball_point(pose.position, float(lights.far.max())))
-    else:
-        idx = np.arange(len(fmap.fixtures))
+    idx = _around(fmap, lights, pose, 1.0)
     if idx.size == 0:
         return frozenset(), np.inf
-    idx = idx.astype(np.int64)
     where = project_points(problem.camera, pose, fmap.positions[idx])
     dist = np.hypot(*(where[None, :, :] - lights.pixels[:, None, :]).transpose(2, 0, 1))
     same = np.array([f.id for f in (fmap.fixtures[i] for i in idx.tolist())])
@@ -328,11 +338,7 @@ def _local_map(problem: PoseProblem, lights: _Lights, pairs: frozenset, pose: Po
     one ID, the one a light was found to be, else the one in the photo when the other lies
     outside it; else neither."""
     fmap, camera = problem.fixture_map, problem.camera
-    if np.isfinite(lights.far).all():
-        idx = np.asarray(fmap.index.query_ball_point(pose.position, 2 * float(lights.far.max())))
-    else:
-        idx = np.arange(len(fmap.fixtures))
-    idx = idx.astype(np.int64)
+    idx = _around(fmap, lights, pose, 2.0)
     where = project_points(camera, pose, fmap.positions[idx]).reshape(-1, 2)
     ahead = (fmap.positions[idx] - pose.position) @ pose.world_from_camera[:, 2] > 0
     tier = np.full(len(idx), 3)  # 1: in the photo, 2: within the margin, 3: neither
@@ -389,7 +395,7 @@ def placed(problem: PoseProblem, decodes, near=None, within: float | None = None
     """
     fmap = problem.fixture_map
     lights = _lights(problem, decodes)
-    n, confirm = len(lights.ids), 5
+    n, confirm = len(lights.ids), LIGHTS_NEEDED
     if n < confirm:
         return _refused(
             f"{n} light{'s' if n != 1 else ''} with an ID of the map; the map gives its IDs "

@@ -19,7 +19,7 @@ from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.stage import Decoded, read_profiles
 from camvlp.pipeline.identified import Identified, identified_as, identify
-from camvlp.pipeline.identify.by_geometry import placed
+from camvlp.pipeline.identify.by_geometry import Placement, placed
 from camvlp.pipeline.identify.decide import decided
 from camvlp.pipeline.lights import UNCLEAR_AXIS, Lights, striped
 from camvlp.pipeline.prepare import Prepared
@@ -95,7 +95,7 @@ def identify_and_solve(
     )
     local, whole = None, fixture_map
     if fixture_map.reuse:
-        place = placed(problem, decoded.decodes, settings.near, settings.within)
+        place = _placed(problem, decoded, settings)
         if place.local is None:
             return _unplaced(problem, lights, decoded, place.reason)
         local = fixture_map = place.local
@@ -115,6 +115,19 @@ def identify_and_solve(
     return Solved(
         tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of, local
     )
+
+
+def _placed(problem: PoseProblem, decoded: Decoded, settings: LocateSettings) -> Placement:
+    """:func:`~camvlp.pipeline.identify.by_geometry.placed` with the IDs read in the readout
+    direction the stripes favour; when those fit no place and the stripes fit the other
+    direction about as well (``manchester.other``), with that direction's IDs (the pose
+    then decides the direction among the fixtures in view)."""
+    place = placed(problem, decoded.decodes, settings.near, settings.within)
+    man = decoded.manchester
+    if place.local is None and len(place.places) <= 1 and man is not None and man.other:
+        other = placed(problem, man.other, settings.near, settings.within)
+        place = other if other.local is not None else place
+    return place
 
 
 def _outside_view(found: Identified, whole: FixtureMap) -> Identified:
