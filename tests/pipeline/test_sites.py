@@ -138,6 +138,14 @@ def test_a_prior_that_holds_no_place_is_refused(periodic, periodic_photo):
     assert result.reason.startswith("no place of the map within 1 m of the prior fits")
 
 
+def test_a_photo_of_another_site_is_refused_not_placed(varied):
+    # the same grid with its IDs drawn again: the photo's arrangement of IDs is nowhere
+    other = site_map(20, 10, pattern="varied", seed=1, **SITE)
+    result = locate(photo(varied, pose_at(6.4, 5.3, 1.4, 120.0), 5), site_camera(), other)
+    assert not result and result.position is None
+    assert result.reason.startswith("no place of the map fits its ")
+
+
 def test_the_distance_bounds_hold_the_true_distance():
     rng = np.random.default_rng(4)
     for _ in range(200):
