@@ -15,9 +15,9 @@ from tests.conftest import one_error_line
 
 from camvlp import locate
 from camvlp.cli import main
+from camvlp.geometry.hypotheses import distance_bounds
 from camvlp.io import save_camera, save_map
 from camvlp.model.camera import Camera, Pose
-from camvlp.pipeline.identify.by_geometry import distance_bounds
 from camvlp.pipeline.settings import LocateSettings
 from camvlp.sim.render import RenderSettings, render
 from camvlp.sim.site import site_map

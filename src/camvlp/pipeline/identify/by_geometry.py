@@ -13,12 +13,14 @@ in that arrangement.  :func:`placed` finds them:
    Four seed lights' candidates are combined only where every pair's distance lies within
    those bounds, each next one looked up among the fixtures the map's k-d tree puts within
    the largest distance of the first (:attr:`FixtureMap.index`).
-3. *Verification*: each combination is a hypothesis, solved by PnP; it stands when the four
-   fixtures reproject within the outlier distance, in front of the camera and seen from the
-   side they face.  Its pose then tells the other lights (:func:`_explained`): a light is
-   explained when one fixture of the map with its ID projects within the outlier distance
-   of it and every other with that ID :data:`~camvlp.pipeline.identify.by_pose.TOLD_APART`
-   times farther.
+3. *Verification*: each combination is a hypothesis.  Those a rigid motion cannot explain
+   (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`: four fixtures on a plane and their
+   rays are related by a homography whose first two columns are a rotation's) are dropped
+   together; each one left is solved by PnP and stands when the four fixtures reproject
+   within the outlier distance, in front of the camera and seen from the side they face.
+   Its pose then tells the other lights (:func:`_explained`): a light is explained when one
+   fixture of the map with its ID projects within the outlier distance of it and every
+   other with that ID :data:`~camvlp.pipeline.identify.by_pose.TOLD_APART` times farther.
 4. *Decision*: the correspondence (light -> fixture) that explains the most lights is taken
    when it explains more lights than a pose needs (a light beyond the seeds confirms them)
    and no correspondence that contradicts it explains as many, or one fewer.  Otherwise the
@@ -38,6 +40,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from camvlp.geometry.hypotheses import (
+    distance_bounds,
+    least_triangle,
+    rigid_on_plane,
+)
 from camvlp.geometry.pnp import solve_pnp
 from camvlp.model.camera import Pose, project_points
 from camvlp.model.fixtures import FixtureMap
@@ -52,7 +59,6 @@ __all__ = [
     "PLACES_LISTED",
     "SEED_SETS",
     "Placement",
-    "distance_bounds",
     "placed",
 ]
 
@@ -144,37 +150,6 @@ def _lights(problem: PoseProblem, decodes) -> _Lights:
     return _Lights(np.array(keep, dtype=np.int64), ids, pixels, rays, near, far)
 
 
-def distance_bounds(
-    a: tuple[float, float], b: tuple[float, float], cos: float
-) -> tuple[float, float]:
-    """The least and greatest distance between two points seen at an angle ``arccos(cos)``
-    apart from the camera, their distances from it within ``a`` and ``b``.
-
-    Parameters
-    ----------
-    a, b : tuple of float
-        Each point's least and greatest distance from the camera, map units.
-    cos : float
-        The cosine of the angle between the two rays.
-
-    Returns
-    -------
-    tuple of float
-        The least and greatest distance between the points, map units; ``(0, inf)`` when a
-        greatest distance is not finite.
-    """
-
-    def d(r1, r2):
-        return np.sqrt(np.maximum(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
-
-    if not (np.isfinite(a[1]) and np.isfinite(b[1])):
-        return 0.0, np.inf
-    # convex in each distance: the greatest at a corner, the least on an edge
-    corners = [d(r1, r2) for r1 in a for r2 in b]
-    edges = [d(r1, np.clip(r1 * cos, *b)) for r1 in a] + [d(np.clip(r2 * cos, *a), r2) for r2 in b]
-    return float(min(edges)), float(max(corners))
-
-
 def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
     """The fixtures within ``within + reach`` of the prior ``near`` (its x, y only when it
     gives two numbers); every fixture without a prior."""
@@ -187,8 +162,8 @@ def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
 
 def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.ndarray | None:
     """Every four fixtures, one a seed light, whose IDs are the seeds' and whose distances
-    fit the bounds the photo sets (:func:`distance_bounds`); shape (q, 4) of fixture
-    indices, or None when more than :data:`MAX_HYPOTHESES`."""
+    fit the bounds the photo sets (:func:`~camvlp.geometry.hypotheses.distance_bounds`);
+    shape (q, 4) of fixture indices, or None when more than :data:`MAX_HYPOTHESES`."""
     ids = np.array([f.id for f in fmap.fixtures])
     pos = fmap.positions
     first = fmap.with_id(lights.ids[seeds[0]])
@@ -230,8 +205,8 @@ def _pose_of(problem: PoseProblem, lights: _Lights, seeds, quad: np.ndarray) -> 
         pose = solve_pnp(obj, img, camera, HYPOTHESIS_SOLVER)
     except ValueError:
         return None
-    if pose is None:
-        return None
+    if pose is None or np.any((obj - pose.position) @ pose.world_from_camera[:, 2] <= 0):
+        return None  # (or a fixture behind the camera)
     where = project_points(camera, pose, obj)
     err = np.hypot(*(where - img).T)
     if not np.all(np.isfinite(err)) or err.max() > problem.outlier_px:
@@ -279,11 +254,15 @@ def _explained(problem: PoseProblem, lights: _Lights, pose: Pose) -> tuple[froze
 def _seed_sets(fmap: FixtureMap, lights: _Lights, allowed: np.ndarray) -> list[tuple[int, ...]]:
     """Up to :data:`SEED_SETS` sets of four lights (indices into ``lights``), drawn from the
     five with the fewest candidate fixtures (ties: the lights farther apart in the photo
-    first), each set ordered by its lights' candidates."""
+    first), the sets whose smallest triangle is the largest (:func:`least_triangle`)
+    first, each set ordered by its lights' candidates."""
     count = np.array([np.count_nonzero(allowed[fmap.with_id(i)]) for i in lights.ids])
     spread = np.linalg.norm(lights.pixels - lights.pixels.mean(axis=0), axis=1)
     order = np.lexsort((-spread, count))[:5]
-    return list(itertools.islice(itertools.combinations(order.tolist(), 4), SEED_SETS))
+    sets = list(itertools.combinations(order.tolist(), 4))
+    flat = least_triangle(*np.moveaxis(lights.rays[sets, :2] / lights.rays[sets, 2:], 2, 0))
+    # (sorted: the sets farthest from three lights on a line first; a stable sort)
+    return [sets[k] for k in np.argsort(-flat, kind="stable")[:SEED_SETS]]
 
 
 def _correspondences(problem: PoseProblem, lights: _Lights, allowed, prior) -> dict | str:
@@ -298,7 +277,7 @@ def _correspondences(problem: PoseProblem, lights: _Lights, allowed, prior) -> d
                 f"its {len(lights.ids)} lights' IDs fit more than {MAX_HYPOTHESES:,} sets of "
                 "fixtures of the map: give a prior (near and within) to narrow the search"
             )
-        for quad in quads:
+        for quad in quads[rigid_on_plane(fmap.positions[quads], lights.rays[list(seeds)])]:
             pose = _pose_of(problem, lights, seeds, quad)
             if pose is None or (prior is not None and not _inside(pose.position, *prior)):
                 continue
