@@ -8,11 +8,12 @@ in that arrangement.  :func:`placed` finds them:
 1. *Candidates*: each light whose stripes gave an ID may be any fixture of the map with it
    (within the prior's radius of its centre, when a prior ``near``/``within`` is given).
 2. *Distances*: a disc's size in the photo says how far its fixture is (the focal length
-   times its diameter over its major axis, to within :data:`DISTANCE_SLACK` either way), and
+   times its diameter over its major axis, within the factors of :data:`DISTANCE_SLACK`), and
    the angle between two lights' rays then bounds the distance between their fixtures.
    Four seed lights' candidates are combined only where every pair's distance lies within
-   those bounds, each next one looked up among the fixtures the map's k-d tree puts within
-   the largest distance of the first (:attr:`FixtureMap.index`).
+   those bounds at one scale common to the photo's lights (:data:`RELATIVE_SLACK`), each
+   next one looked up in a k-d tree of the fixtures with its ID, within the greatest
+   distance of the first.
 3. *Verification*: each combination is a hypothesis.  Those a rigid motion cannot explain
    (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`: four fixtures on a plane and their
    rays are related by a homography whose first two columns are a rotation's) are dropped
@@ -39,6 +40,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from camvlp.geometry.hypotheses import (
     distance_bounds,
@@ -57,22 +59,31 @@ __all__ = [
     "LIGHTS_NEEDED",
     "MAX_HYPOTHESES",
     "PLACES_LISTED",
+    "RELATIVE_SLACK",
     "SEED_SETS",
     "Placement",
     "placed",
 ]
 
-#: A light's distance from its disc's size is taken to lie within this factor either way (a
-#: glowing lamp's disc looks larger, a disc seen at a slant narrower).
-DISTANCE_SLACK = 2.0
+#: A light's distance from its disc's size (the estimate) is the true one over a scale that
+#: lies between the first factor's inverse and the second: a glowing lamp's halo makes its
+#: disc look larger, so the fixture farther (lamps of the stress benchmark's looks: up to
+#: 2.2 times); a disc's major axis is hardly ever shorter than its diameter's image.
+DISTANCE_SLACK = (2.0, 3.0)
+
+#: The lights of one photo share that scale to within this factor (one look, one exposure):
+#: each light's estimate times the common scale is within its square root either way.
+RELATIVE_SLACK = 1.5
 
 #: Most sets of four seed lights tried (among the five lights with the fewest candidates).
 SEED_SETS = 3
 
 #: Most hypotheses (four fixtures) a seed set may give: beyond, the photo is refused (its
-#: lights fit too many places to try; a prior narrows them).  Each costs about a quarter of
-#: a millisecond; the warehouse of ``examples/make_warehouse.py`` gives 450 to 760.
-MAX_HYPOTHESES = 5_000
+#: lights fit too many places to try; a prior narrows them).  Those a rigid motion cannot
+#: explain are dropped together (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`), and
+#: each one left costs a PnP solve (about a tenth of a millisecond); renders of the
+#: warehouse of ``examples/make_warehouse.py`` give a few hundred.
+MAX_HYPOTHESES = 20_000
 
 #: Lights with an ID a photo needs to be placed: four for a pose, one more to confirm it.
 LIGHTS_NEEDED = 5
@@ -113,13 +124,14 @@ class Placement:
 @dataclass(frozen=True)
 class _Lights:
     """The lights with an ID: their indices among the photo's, IDs, pixels, rays (unit
-    vectors in the camera's frame) and distance bounds (map units)."""
+    vectors in the camera's frame), distances from their discs' sizes (map units; inf
+    unknown, without diameters) and the greatest distance each can be at."""
 
     index: np.ndarray
     ids: np.ndarray
     pixels: np.ndarray
     rays: np.ndarray
-    near: np.ndarray
+    rho: np.ndarray
     far: np.ndarray
 
 
@@ -140,14 +152,14 @@ def _lights(problem: PoseProblem, decodes) -> _Lights:
     else:
         rays = np.zeros((0, 3))
     focal = 0.5 * float(camera.matrix[0, 0] + camera.matrix[1, 1])
-    near, far = np.zeros(len(keep)), np.full(len(keep), np.inf)
+    rho = np.full(len(keep), np.inf)
     for j, k in enumerate(keep):
         diameters = [fmap.fixtures[i].diameter for i in fmap.with_id(ids[j])]
         major = float(np.max(problem.blobs[k].axes_px))
         if all(diameters) and major > 0:
-            r = focal * float(np.median(diameters)) / major
-            near[j], far[j] = r / DISTANCE_SLACK, r * DISTANCE_SLACK
-    return _Lights(np.array(keep, dtype=np.int64), ids, pixels, rays, near, far)
+            rho[j] = focal * float(np.median(diameters)) / major
+    far = rho * DISTANCE_SLACK[1] * np.sqrt(RELATIVE_SLACK)
+    return _Lights(np.array(keep, dtype=np.int64), ids, pixels, rays, rho, far)
 
 
 def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
@@ -162,37 +174,53 @@ def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
 
 def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.ndarray | None:
     """Every four fixtures, one a seed light, whose IDs are the seeds' and whose distances
-    fit the bounds the photo sets (:func:`~camvlp.geometry.hypotheses.distance_bounds`);
-    shape (q, 4) of fixture indices, or None when more than :data:`MAX_HYPOTHESES`."""
-    ids = np.array([f.id for f in fmap.fixtures])
-    pos = fmap.positions
+    fit what the photo sees (:func:`_extended`); shape (q, 4) of fixture indices, or None
+    when more than :data:`MAX_HYPOTHESES`."""
     first = fmap.with_id(lights.ids[seeds[0]])
     rows = first[allowed[first]][:, None]
+    scale = np.tile([1 / DISTANCE_SLACK[0], DISTANCE_SLACK[1]], (len(rows), 1))
+    ids = np.array([f.id for f in fmap.fixtures])
     for m in range(1, len(seeds)):
-        s = seeds[m]
-        bounds = [
-            distance_bounds(
-                (lights.near[seeds[j]], lights.far[seeds[j]]),
-                (lights.near[s], lights.far[s]),
-                float(lights.rays[seeds[j]] @ lights.rays[s]),
-            )
-            for j in range(m)
-        ]
-        ok = allowed & (ids == lights.ids[s])
-        if np.isfinite(bounds[0][1]):
-            near = fmap.index.query_ball_point(pos[rows[:, 0]], bounds[0][1])
-        else:
-            near = [np.flatnonzero(ok)] * len(rows)
-        which = np.repeat(np.arange(len(rows)), [len(n) for n in near])
-        cand = np.concatenate([np.asarray(n, dtype=np.int64) for n in near] + [np.zeros(0, int)])
-        keep = ok[cand]
-        for j, (lo, hi) in enumerate(bounds):
-            dist = np.linalg.norm(pos[cand] - pos[rows[which, j]], axis=1)
-            keep &= (dist >= lo) & (dist <= hi) & (cand != rows[which, j])
-        rows = np.column_stack([rows[which[keep]], cand[keep]])
+        ok = allowed & (ids == lights.ids[seeds[m]])
+        rows, scale = _extended(fmap, lights, seeds[: m + 1], rows, scale, ok)
         if len(rows) > MAX_HYPOTHESES:
             return None
     return rows
+
+
+def _extended(fmap: FixtureMap, lights: _Lights, seeds, rows, scale, ok):
+    """``rows`` (shape (r, m), fixtures of the first m ``seeds``) each extended by every
+    fixture ``ok`` allows for the last seed whose distance to each of the row's fixtures
+    fits the rays' angle and the lights' distances (:func:`~camvlp.geometry.hypotheses.
+    distance_bounds`) at one scale common to the row (``scale``, shape (r, 2): the least and
+    greatest, narrowed as fixtures are added).  Returns the new rows and their scales."""
+    pos, s, k = fmap.positions, seeds[-1], np.sqrt(RELATIVE_SLACK)
+    bounds = [
+        distance_bounds(
+            (lights.rho[j] / k, lights.rho[j] * k),
+            (lights.rho[s] / k, lights.rho[s] * k),
+            float(lights.rays[j] @ lights.rays[s]),
+        )
+        for j in seeds[:-1]
+    ]
+    pool = np.flatnonzero(ok)
+    if np.isfinite(bounds[0][1]) and pool.size:  # a k-d tree of the fixtures with that ID
+        near = cKDTree(pos[pool]).query_ball_point(pos[rows[:, 0]], scale[:, 1] * bounds[0][1])
+        counts = np.fromiter(map(len, near), np.int64, len(near))
+        cand = pool[np.fromiter(itertools.chain.from_iterable(near), np.int64, counts.sum())]
+    else:
+        counts, cand = np.full(len(rows), pool.size), np.tile(pool, len(rows))
+    which = np.repeat(np.arange(len(rows)), counts)
+    keep = np.ones(len(cand), dtype=bool)
+    lo, hi = scale[which, 0].copy(), scale[which, 1].copy()
+    for j, (d_lo, d_hi) in enumerate(bounds):
+        dist = np.linalg.norm(pos[cand] - pos[rows[which, j]], axis=1)
+        keep &= cand != rows[which, j]
+        lo = np.maximum(lo, dist / d_hi)  # (a distance d at scale s: d_lo <= d / s <= d_hi)
+        hi = np.minimum(hi, np.divide(dist, d_lo, out=np.full_like(dist, np.inf), where=d_lo > 0))
+    keep &= lo <= hi
+    rows = np.column_stack([rows[which[keep]], cand[keep]])
+    return rows, np.column_stack([lo[keep], hi[keep]])
 
 
 def _pose_of(problem: PoseProblem, lights: _Lights, seeds, quad: np.ndarray) -> Pose | None:
