@@ -10,22 +10,31 @@ tilts up to 20 degrees, at random places (seeded):
 - ``periodic``: 20 x 10 fixtures, the same 4 x 4 block of IDs over and over (every photo
   should be refused as ambiguous);
 - ``room``: one 4 x 4 block alone, its 16 IDs unique (an ordinary map), the camera over it:
-  the error to compare the sites' with.
+  the error to compare the sites' with;
+- ``lamps``: the varied site's lamps with the stress benchmark's looks (hot cores, some off
+  centre, halos: ``stress_decode.lamp_look``), brightness 0.5 to 8, blur 0.5 to 2 px, each
+  photo stored as a JPEG (quality 85) and read back.
 
 A place more than 10 cm from the truth counts as wrong.
 
-Run: ``python benchmarks/sites_locate.py [--photos 60] [--seed 11]``.
+Run: ``python benchmarks/sites_locate.py [--photos 60] [--seed 11] [--sites varied,lamps]``.
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 import time
 from collections import Counter
+from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from stress_decode import lamp_look
 
 from camvlp import locate
 from camvlp.model.camera import Camera, Pose
@@ -40,6 +49,7 @@ SITES = {
     "varied": (30, 20, "varied", 1.0),
     "periodic": (20, 10, "periodic", 1 / 3),
     "room": (4, 4, "periodic", 1 / 3),
+    "lamps": (30, 20, "varied", 2 / 3),
 }
 
 
@@ -50,6 +60,24 @@ def _pose(rng: np.random.Generator, columns: int, rows: int, margin: float) -> P
     angles = [rng.uniform(0, 360), *rng.uniform(-20, 20, 2)]
     r = Rotation.from_euler("zxy", angles, degrees=True).as_matrix()
     return Pose(r, np.array([*xy, rng.uniform(1.0, 1.6)]))
+
+
+def _photo(fmap, pose: Pose, seed: int, looks: np.random.Generator | None) -> np.ndarray:
+    """A render of ``fmap`` from ``pose``; with ``looks``, its lamps' looks, brightness and
+    blur drawn from it, stored as a JPEG and read back."""
+    if looks is None:
+        return render(CAMERA, fmap, pose, RenderSettings(seed=seed, **RENDER)).image
+    brightness = float(np.exp(looks.uniform(np.log(0.5), np.log(8.0))))
+    settings = RenderSettings(
+        seed=seed,
+        brightness=brightness,
+        blur_px=float(looks.uniform(0.5, 2.0)),
+        **lamp_look(np.random.default_rng(seed)),
+        **RENDER,
+    )
+    image = render(CAMERA, fmap, pose, settings).image
+    _, jpeg = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, 85])
+    return cv2.imdecode(jpeg, cv2.IMREAD_COLOR)
 
 
 def run(name: str, photos: int, seed: int) -> None:
@@ -63,7 +91,7 @@ def run(name: str, photos: int, seed: int) -> None:
     start = time.perf_counter()
     for k in range(photos):
         pose = _pose(rng, columns, rows, 0.5 if name == "room" else 1.0)
-        image = render(CAMERA, fmap, pose, RenderSettings(seed=k, **RENDER)).image
+        image = _photo(fmap, pose, k, rng if name == "lamps" else None)
         result = locate(image, CAMERA, fmap)
         if result:
             errors.append(float(np.linalg.norm(result.position - pose.position)))
@@ -85,9 +113,12 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--photos", type=int, default=60, help="photos of the varied site (60)")
     ap.add_argument("--seed", type=int, default=11, help="seed of the poses (11)")
+    ap.add_argument("--sites", default=",".join(SITES), help="which, comma-separated (all)")
     a = ap.parse_args(argv)
-    for name, (*_, share) in SITES.items():
-        run(name, max(1, round(a.photos * share)), a.seed)
+    for name in a.sites.split(","):
+        if name not in SITES:
+            ap.error(f"--sites: no site {name!r} (one of {', '.join(SITES)})")
+        run(name, max(1, round(a.photos * SITES[name][3])), a.seed)
 
 
 if __name__ == "__main__":
