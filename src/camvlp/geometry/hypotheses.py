@@ -3,7 +3,7 @@
 
 - :func:`distance_bounds`: how far apart two fixtures can be, given how far each is from the
   camera (within bounds) and the angle between their rays;
-- :func:`least_triangle`: how far four points are from three on a line;
+- :func:`triangles`, :func:`least_triangle`: how far four points are from three on a line;
 - :func:`rigid_on_plane`: whether four fixtures on a plane can be where four rays see them,
   by a rotation and a translation (their homography's first two columns a rotation's).
 """
@@ -13,17 +13,19 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "ON_A_LINE",
     "RIGID_COS",
     "RIGID_RATIO",
-    "SEEDS_APART",
     "distance_bounds",
     "least_triangle",
     "rigid_on_plane",
+    "triangles",
 ]
 
-#: Four rays (seed lights) whose smallest triangle in the photo is at least this share of their
-#: size squared (:func:`least_triangle`) are taken as far from a line.
-SEEDS_APART = 0.1
+#: :func:`rigid_on_plane`: a triangle of a set's fixtures whose share (:func:`triangles`)
+#: is under the first is taken as on a line; seen as one over the second, as off it (a
+#: factor of 25 between the two: a view more oblique than a ceiling's changes a share less).
+ON_A_LINE = (0.002, 0.05)
 
 
 def distance_bounds(
@@ -64,6 +66,31 @@ def distance_bounds(
 RIGID_RATIO, RIGID_COS = 1.3, 0.25
 
 
+def triangles(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The four triangles of each set of four points, each as a share of the set's size.
+
+    Parameters
+    ----------
+    u, v : ndarray, shape (q, 4)
+        The points' coordinates, any unit (one for both).
+
+    Returns
+    -------
+    ndarray, shape (q, 4)
+        The areas of the triangles of points (0, 1, 2), (0, 1, 3), (0, 2, 3) and (1, 2, 3)
+        over the square of the set's size (the largest distance from its first point): 0
+        for three points on a line.
+    """
+    size = np.hypot(u - u[:, :1], v - v[:, :1]).max(axis=1)
+    area = [
+        np.abs(
+            (u[:, j] - u[:, i]) * (v[:, k] - v[:, i]) - (u[:, k] - u[:, i]) * (v[:, j] - v[:, i])
+        )
+        for i, j, k in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3))
+    ]
+    return np.stack(area, axis=1) / np.maximum(size**2, 1e-300)[:, None]
+
+
 def least_triangle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """How far each set of four points is from three on a line.
 
@@ -75,17 +102,9 @@ def least_triangle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     Returns
     -------
     ndarray, shape (q,)
-        The area of the smallest of the four triangles of each set over the square of its
-        size (the largest distance from its first point): 0 when three lie on a line.
+        The smallest of the set's :func:`triangles`: 0 when three lie on a line.
     """
-    size = np.hypot(u - u[:, :1], v - v[:, :1]).max(axis=1)
-    area = [
-        np.abs(
-            (u[:, j] - u[:, i]) * (v[:, k] - v[:, i]) - (u[:, k] - u[:, i]) * (v[:, j] - v[:, i])
-        )
-        for i, j, k in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3))
-    ]
-    return np.min(area, axis=0) / np.maximum(size**2, 1e-300)
+    return triangles(u, v).min(axis=1)
 
 
 def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
@@ -95,9 +114,9 @@ def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
     Four points of a plane and their images are related by a homography whose first two
     columns (in the plane's own axes) are a rotation's, of one length and orthogonal; a
     wrong set of fixtures gives columns of other lengths or angles (within
-    :data:`RIGID_RATIO` and :data:`RIGID_COS` is taken as right).  When the rays are far
-    from a line (:data:`SEEDS_APART`), a set three of whose fixtures lie on a line is not
-    theirs either.
+    :data:`RIGID_RATIO` and :data:`RIGID_COS` is taken as right).  Three fixtures on a line
+    are seen on a line, and three off a line off it (:data:`ON_A_LINE`): a set whose
+    triangles do not match the rays' is not theirs either.
 
     Parameters
     ----------
@@ -114,18 +133,15 @@ def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
         (rays near a line).
     """
     q = points.shape[0]
-    origin = points[:, 0]
-    e1 = points[:, 1] - origin
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    n = np.cross(e1, points[:, 2] - origin)
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    e2 = np.cross(n, e1)
-    rel = points - origin[:, None, :]
+    rel = points - points[:, :1, :]
+    # the plane's axes from all four points (three on a line leave no normal of their own)
+    _, sv, axes = np.linalg.svd(rel - rel.mean(axis=1, keepdims=True))
     size = np.linalg.norm(rel, axis=2).max(axis=1)
-    planar = np.abs(np.einsum("qkj,qj->qk", rel, n)).max(axis=1) <= 1e-3 * size
-    u, v = np.einsum("qkj,qj->qk", rel, e1), np.einsum("qkj,qj->qk", rel, e2)
+    planar = sv[:, 2] <= 1e-3 * np.maximum(size, 1e-300)
+    u, v = np.einsum("qkj,qj->qk", rel, axes[:, 0]), np.einsum("qkj,qj->qk", rel, axes[:, 1])
     x, y = rays[:, 0] / rays[:, 2], rays[:, 1] / rays[:, 2]
-    flat = least_triangle(u, v)
+    flat = triangles(u, v)
+    seen = triangles(x[None], y[None])[0]
     a = np.zeros((q, 8, 8))
     one, zero = np.ones((q, 4)), np.zeros((q, 4))
     a[:, 0::2] = np.stack([u, v, one, zero, zero, zero, -u * x, -v * x], axis=2)
@@ -136,9 +152,9 @@ def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
     l1, l2 = np.linalg.norm(c1, axis=1), np.linalg.norm(c2, axis=1)
     cos = np.abs(np.einsum("qj,qj->q", c1, c2)) / np.maximum(l1 * l2, 1e-300)
     ratio = np.maximum(l1, l2) / np.maximum(np.minimum(l1, l2), 1e-300)
-    ok = ~(planar & (flat > 0.05)) | ((ratio <= RIGID_RATIO) & (cos <= RIGID_COS))
-    if least_triangle(x[None], y[None])[0] >= SEEDS_APART:
-        # (a triangle 50 times smaller, in share of its set's size, on the plane than in the
-        # photo: a view far more oblique than a ceiling's)
-        ok &= ~(planar & (flat < 0.002))
-    return ok
+    line, off = ON_A_LINE
+    # (three on a line leave the homography undetermined: those sets are kept for PnP)
+    determined = planar & (flat.min(axis=1) > off)
+    ok = ~determined | ((ratio <= RIGID_RATIO) & (cos <= RIGID_COS))
+    mismatch = ((flat < line) & (seen > off)) | ((flat > off) & (seen < line))
+    return ok & ~(planar & mismatch.any(axis=1))
