@@ -92,18 +92,9 @@ def triangles(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def least_triangle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """How far each set of four points is from three on a line.
-
-    Parameters
-    ----------
-    u, v : ndarray, shape (q, 4)
-        The points' coordinates, any unit (one for both).
-
-    Returns
-    -------
-    ndarray, shape (q,)
-        The smallest of the set's :func:`triangles`: 0 when three lie on a line.
-    """
+    """How far each set of four points (``u``, ``v`` as :func:`triangles` takes them, shape
+    (q, 4)) is from three on a line: the smallest of its triangles' shares, shape (q,), 0
+    when three lie on a line."""
     return triangles(u, v).min(axis=1)
 
 
