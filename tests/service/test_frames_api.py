@@ -4,6 +4,7 @@ frame the track cannot place, stale and superseded frames, and every refusal in 
 from __future__ import annotations
 
 import asyncio
+import copy
 
 import cv2
 import numpy as np
@@ -203,3 +204,21 @@ def _camera_and_map():
     from camvlp.io import camera_from_dict, map_from_dict
 
     return camera_from_dict(CAMERA_JSON, "camera"), map_from_dict(MAP_JSON, "map")
+
+
+def test_a_map_whose_ids_repeat_is_not_tracked_one_line_422(client, frames):
+    jpeg, _ = frames[0][0]
+    site_map = copy.deepcopy(MAP_JSON)
+    site_map.setdefault("frame", {})["reuse"] = True
+    first = site_map["fixtures"][0]
+    site_map["fixtures"].append({**first, "position": [p + 5.0 for p in first["position"]]})
+    r = client.post(
+        "/api/v1/sites",
+        json={"name": "reused", "map": site_map, "camera": CAMERA_JSON},
+        headers=ADMIN,
+    )
+    assert r.status_code == 201, r.text
+    headers = {"Authorization": f"Bearer {r.json()['api_key']}"}
+    r = post(client, r.json()["id"], headers, jpeg, t=0.0)
+    assert r.status_code == 422
+    assert "the site's map: the map gives one ID to many fixtures" in _one_line(r)

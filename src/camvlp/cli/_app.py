@@ -257,6 +257,20 @@ def parse_gravity(text: str | None) -> list[float] | None:
     return values
 
 
+def parse_prior(
+    near: str | None, within: float | None
+) -> tuple[tuple[float, ...] | None, float | None]:
+    """``--near X,Y[,Z] --within R``: two or three numbers and a positive radius, given
+    together (both None passes), else a usage error."""
+    if (near is None) != (within is None):
+        fail("--near and --within go together: give both or neither")
+    if near is None:
+        return None, None
+    n = 3 if near.count(",") >= 2 else 2
+    values = parse_floats(near, n, "--near")
+    return tuple(values), check_positive(within, "--within")
+
+
 def check_solver(solver: str, *, allow_locate: bool = False) -> str:
     """``solver`` if it names a PnP method, else a usage error (exit 2)."""
     from camvlp.geometry import pnp

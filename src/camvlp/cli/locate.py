@@ -23,6 +23,7 @@ from ._app import (
     fail,
     handle_errors,
     parse_gravity,
+    parse_prior,
     parse_readout,
 )
 from .render import option_names
@@ -86,6 +87,20 @@ def locate_command(
         ),
     ] = None,
     gravity_sigma_deg: GravitySigmaOption = None,
+    near: Annotated[
+        str | None,
+        typer.Option(
+            "--near",
+            metavar="X,Y[,Z]",
+            help="A prior on where the photo was taken, map units (with --within): in a map "
+            "whose IDs repeat (reuse: true), only the places within R of it are searched "
+            "(X,Y compares the map's x and y only).",
+        ),
+    ] = None,
+    within: Annotated[
+        float | None,
+        typer.Option("--within", metavar="R", help="The prior's radius, map units."),
+    ] = None,
 ) -> None:
     """Locate the camera that took PHOTO: position, orientation, fixtures seen.
 
@@ -102,6 +117,7 @@ def locate_command(
     check_positive(max_sigma, "--max-sigma")
     check_positive(gravity_sigma_deg, "--gravity-sigma-deg")
     g = parse_gravity(gravity)
+    prior_near, prior_within = parse_prior(near, within)
     given_readout = parse_readout(readout)
     if annotate_path is not None:
         check_output_file(annotate_path, "--annotate", (".png", ".jpg", ".jpeg"))
@@ -131,6 +147,8 @@ def locate_command(
         max_position_sigma=max_sigma,
         keep_stages=debug_dir is not None,
         gravity_sigma_deg=1.0 if gravity_sigma_deg is None else gravity_sigma_deg,
+        near=prior_near,
+        within=prior_within,
     )
     try:
         result = locate(image, camera, fixture_map, settings, gravity=g)

@@ -129,7 +129,7 @@ CAMERA_KEYS = (
     "tone_gamma",
 )
 MAP_KEYS = ("units", "frame", "fixtures", "up")
-FRAME_KEYS = ("mode", "line_code", "preamble", "id_bits", "postamble", "chip_rate_hz")
+FRAME_KEYS = ("mode", "line_code", "preamble", "id_bits", "postamble", "chip_rate_hz", "reuse")
 FIXTURE_KEYS = ("id", "position", "diameter", "normal", "frequency_hz")
 
 
@@ -279,11 +279,15 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
     expect_mapping(data, "map", p)
     _misspelled(data, MAP_KEYS, "", p)
     units = data.get("units", "m")
-    mode, frame, chip_rate = _frame_from_dict(data.get("frame") or {}, p)
+    frame_spec = data.get("frame") or {}
+    mode, frame, chip_rate = _frame_from_dict(frame_spec, p)
+    reuse = frame_spec.get("reuse", False)
+    if not isinstance(reuse, bool):
+        raise InputError(f"frame reuse must be true or false, got {_short(reuse)}", p)
     entries = data.get("fixtures")
     if not isinstance(entries, list) or not entries:
         raise InputError("map needs a non-empty list 'fixtures'", p)
-    seen: set[int] = set()
+    seen: set[int] | None = None if reuse else set()
     fixtures = [_fixture_from_dict(e, i, mode, frame, seen, p) for i, e in enumerate(entries)]
     up = None
     if data.get("up") is not None:
@@ -299,6 +303,7 @@ def map_from_dict(data: Mapping[str, Any], source: str | Path = "map") -> Fixtur
             source=str(p),
             up=up,
             chip_rate_hz=chip_rate,
+            reuse=reuse,
         )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
@@ -334,10 +339,10 @@ def _frame_from_dict(frame_spec: Any, p: str | Path) -> tuple[str, FrameFormat, 
 
 
 def _fixture_from_dict(
-    entry: Any, index: int, mode: str, frame: FrameFormat, seen: set[int], p: str | Path
+    entry: Any, index: int, mode: str, frame: FrameFormat, seen: set[int] | None, p: str | Path
 ) -> Fixture:
-    """The map's ``index``-th fixture (from 0): its id (added to the ``seen`` ones), position
-    and optional keys."""
+    """The map's ``index``-th fixture (from 0): its id (added to the ``seen`` ones; None: a
+    map whose IDs may repeat), position and optional keys."""
     where = f"fixture #{index + 1}"
     expect_mapping(entry, f"map {where}", p)
     fid = entry.get("id", index if mode == "frequency" else None)
@@ -345,9 +350,14 @@ def _fixture_from_dict(
         raise InputError(f"{where} needs an integer id, got {_short(fid)}", p)
     where = f"fixture {fid}"
     _misspelled(entry, FIXTURE_KEYS, f"{where}: ", p)
-    if fid in seen:
-        raise InputError(f"duplicate ID in {where}", p)
-    seen.add(fid)
+    if seen is not None:
+        if fid in seen:
+            raise InputError(
+                f"duplicate ID in {where} (a map that gives one ID to many fixtures says "
+                "reuse: true in its frame)",
+                p,
+            )
+        seen.add(fid)
     if mode == "manchester":
         try:
             frame.check_id(fid)
@@ -381,6 +391,8 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
         )
         if fm.chip_rate_hz is not None:
             frame["chip_rate_hz"] = float(fm.chip_rate_hz)
+        if fm.reuse:
+            frame["reuse"] = True
     entries = []
     for f in fm.fixtures:
         e: dict[str, Any] = {"id": f.id, "position": [float(v) for v in f.position]}

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +19,7 @@ import yaml
 
 from camvlp.errors import InputError
 from camvlp.io.limits import limit, read_regular_file
+from camvlp.io.yaml_events import SAFE_LOADER, UNUSUAL, load_events
 
 __all__ = [
     "MAX_DIGITS",
@@ -58,7 +59,8 @@ def _line_of(text: str, index: int) -> int:
 
 def _check_text(text: str, path: Path, kind: str, as_json: bool) -> None:
     """Refuse, before parsing, what a parser would spend unbounded time, memory or stack on:
-    numbers of too many digits, nesting deeper than CAMVLP_MAX_DEPTH, YAML anchors and aliases.
+    numbers of too many digits, brackets nested deeper than CAMVLP_MAX_DEPTH (a YAML file's
+    anchors, aliases and block nesting are checked as it is read: :func:`_event_check`).
     """
     long_number = re.search(rf"\d{{{MAX_DIGITS + 1},}}", text)
     if long_number:
@@ -75,30 +77,47 @@ def _check_text(text: str, path: Path, kind: str, as_json: bool) -> None:
     depth = int(np.cumsum(step).max()) if step.size else 0
     if depth > max_depth:
         raise InputError(f"{kind} file is nested {depth} deep (at most {max_depth})", path)
-    if as_json:
-        return
+
+
+def _event_check(path: Path, kind: str) -> Callable[[Any], None]:
+    """A check of each YAML event in turn (:func:`~camvlp.io.yaml_events.load_events`):
+    InputError at an anchor or alias, or nesting deeper than CAMVLP_MAX_DEPTH."""
+    max_depth = limit("CAMVLP_MAX_DEPTH")
     depth = 0
-    try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
-            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
-                mark = event.start_mark
+
+    def check(event) -> None:
+        nonlocal depth
+        if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+            mark = event.start_mark
+            raise InputError(
+                f"{kind} file uses a YAML anchor or alias at line {mark.line + 1} "
+                "(not accepted: write the values out)",
+                path,
+            )
+        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            depth += 1
+            if depth > max_depth:
                 raise InputError(
-                    f"{kind} file uses a YAML anchor or alias at line {mark.line + 1} "
-                    "(not accepted: write the values out)",
+                    f"{kind} file is nested more than {max_depth} deep at line "
+                    f"{event.start_mark.line + 1}",
                     path,
                 )
-            if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-                depth += 1
-                if depth > max_depth:
-                    raise InputError(
-                        f"{kind} file is nested more than {max_depth} deep at line "
-                        f"{event.start_mark.line + 1}",
-                        path,
-                    )
-            elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-                depth -= 1
-    except yaml.YAMLError as exc:
-        raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            depth -= 1
+
+    return check
+
+
+def _load_yaml(text: str, path: Path, kind: str) -> Any:
+    """The YAML document, built from its events as they are checked; a text that uses what
+    only PyYAML's loader builds is checked whole, then loaded by it."""
+    data = load_events(text, _event_check(path, kind))
+    if data is UNUSUAL:
+        check = _event_check(path, kind)
+        for event in yaml.parse(text, Loader=SAFE_LOADER):
+            check(event)
+        data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader
+    return data
 
 
 _STRING = re.compile(r'"(?:[^"\\\n]|\\.)*"' + r"|'(?:[^'\n]|'')*'")
@@ -111,7 +130,7 @@ def _first_line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else exc.__class__.__name__
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
+class _UniqueKeyLoader(SAFE_LOADER):
     """YAML's safe loader, refusing a mapping that gives a key twice (YAML says keys are
     unique; PyYAML would keep the last one silently, e.g. a fixture's second ``position``)."""
 
@@ -156,7 +175,7 @@ def parse_mapping(text: str, path: Path, kind: str) -> dict:
         if as_json:
             data = json.loads(text, object_pairs_hook=unique_keys)
         else:
-            data = yaml.load(text, Loader=_UniqueKeyLoader)  # a SafeLoader
+            data = _load_yaml(text, path, kind)
     except (json.JSONDecodeError, yaml.YAMLError, ValueError, RecursionError) as exc:
         raise InputError(f"malformed {kind} file: {_first_line(exc)}", path) from None
     expect_mapping(data, f"{kind} file", path)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from camvlp.format import UNITS_TO_M
 from camvlp.model.linecode import FrameFormat
@@ -38,16 +40,19 @@ class Fixture:
     frequency_hz: float | None = None
 
     def __post_init__(self) -> None:
+        # (``ndarray.all`` and ``math.sqrt``, not their NumPy functions: a map of 10,000
+        # fixtures is checked a tenth of a second sooner)
         p = np.asarray(self.position, dtype=float).reshape(-1)
-        if p.shape != (3,) or not np.all(np.isfinite(p)):
+        if p.shape != (3,) or not np.isfinite(p).all():
             raise ValueError(f"position must be three finite numbers, got {self.position!r}")
         object.__setattr__(self, "position", p)
         if self.normal is not None:
             n = np.asarray(self.normal, dtype=float).reshape(-1)
-            if n.shape != (3,) or not np.all(np.isfinite(n)) or np.linalg.norm(n) == 0:
+            length = math.sqrt(float(n @ n)) if n.shape == (3,) else 0.0
+            if not (math.isfinite(length) and length > 0):
                 got = n.tolist() if n.size <= 8 else f"{n.size} numbers"
                 raise ValueError(f"normal must be a non-zero 3-vector, got {got}")
-            object.__setattr__(self, "normal", n / np.linalg.norm(n))
+            object.__setattr__(self, "normal", n / length)
         if self.diameter is not None and not (np.isfinite(self.diameter) and self.diameter > 0):
             raise ValueError(f"diameter must be a positive number, got {self.diameter!r}")
         if self.frequency_hz is not None and not (
@@ -63,7 +68,7 @@ class FixtureMap:
     Attributes
     ----------
     fixtures : tuple of Fixture
-        The fixtures, IDs unique.
+        The fixtures, IDs unique (unless ``reuse``).
     units : str
         Length unit of positions and diameters: ``"m"``, ``"cm"`` or ``"mm"``.
     mode : str
@@ -79,6 +84,10 @@ class FixtureMap:
     chip_rate_hz : float or None
         Manchester chips per second every fixture sends, when known (with the camera's
         ``row_time_s`` it gives the chip length in sensor rows); None otherwise.
+    reuse : bool
+        The map gives one ID to many fixtures (Manchester mode only): a photo's fixtures are
+        then told apart by their geometry (:mod:`camvlp.pipeline.identify.by_geometry`).
+        False (the default): a repeated ID is an error.
     """
 
     fixtures: tuple[Fixture, ...]
@@ -88,6 +97,7 @@ class FixtureMap:
     source: str = ""
     up: np.ndarray | None = None
     chip_rate_hz: float | None = None
+    reuse: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "fixtures", tuple(self.fixtures))
@@ -107,13 +117,17 @@ class FixtureMap:
             and self.chip_rate_hz > 0
         ):
             raise ValueError(f"chip_rate_hz must be a positive number, got {self.chip_rate_hz!r}")
+        if not isinstance(self.reuse, bool):
+            raise ValueError(f"reuse must be true or false, got {self.reuse!r}")
+        if self.reuse and self.mode != "manchester":
+            raise ValueError("reuse (one ID for many fixtures) needs the manchester mode")
         ids = [f.id for f in self.fixtures]
-        if len(set(ids)) != len(ids):
+        if not self.reuse and len(set(ids)) != len(ids):
             dup = sorted({i for i in ids if ids.count(i) > 1})
             raise ValueError(f"duplicate fixture ID {dup[0]}")
         # two fixtures at one point: a copied line (the pose would be solved from a map in
         # which one lamp stands for two)
-        pos = np.array([f.position for f in self.fixtures], dtype=float).reshape(-1, 3)
+        pos = self.positions
         _, first, counts = np.unique(pos, axis=0, return_index=True, return_counts=True)
         if np.any(counts > 1):
             twin = pos[first[counts > 1].min()]
@@ -121,8 +135,8 @@ class FixtureMap:
             where = ", ".join(f"{v:g}" for v in twin)
             raise ValueError(f"fixtures {a} and {b} are both at position [{where}]")
         if self.mode == "manchester":
-            for f in self.fixtures:
-                self.frame.check_id(f.id)
+            for i in self.distinct_ids:
+                self.frame.check_id(i)
         else:
             missing = [f.id for f in self.fixtures if f.frequency_hz is None]
             if missing:
@@ -141,14 +155,37 @@ class FixtureMap:
         """The fixtures' IDs, in map order."""
         return [f.id for f in self.fixtures]
 
-    @property
+    @cached_property
+    def distinct_ids(self) -> list[int]:
+        """The IDs the map's fixtures send, each once, in map order (``ids`` without
+        repeats: the same list in a map without ``reuse``)."""
+        return list(dict.fromkeys(f.id for f in self.fixtures))
+
+    @cached_property
     def positions(self) -> np.ndarray:
-        """Fixture centres, shape (N, 3), map units."""
-        return np.array([f.position for f in self.fixtures], dtype=float).reshape(-1, 3)
+        """Fixture centres, shape (N, 3), map units (read-only: built once)."""
+        pos = np.array([f.position for f in self.fixtures], dtype=float).reshape(-1, 3)
+        pos.flags.writeable = False
+        return pos
+
+    @cached_property
+    def index(self) -> cKDTree:
+        """A k-d tree over :attr:`positions` (map units), built when first asked for: the
+        fixtures near a point or within a distance of each other, in logarithmic time."""
+        return cKDTree(self.positions)
+
+    def with_id(self, fixture_id: int) -> np.ndarray:
+        """Indices into ``fixtures`` of the fixtures that send ``fixture_id``, shape (k,)
+        (one at most without ``reuse``; empty for an ID the map lacks)."""
+        try:
+            return self._indices_by_id.get(fixture_id, _NONE)
+        except TypeError:  # (an unhashable ID is no fixture's)
+            return _NONE
 
     def get(self, fixture_id: int) -> Fixture | None:
         """The fixture with this ID, or None (looked up by ID: a map of thousands of
-        fixtures costs no more than one of four)."""
+        fixtures costs no more than one of four).  In a map with ``reuse``, an ID given to
+        more than one fixture names none of them: None."""
         try:
             return self._by_id.get(fixture_id)
         except TypeError:  # (an unhashable ID is no fixture's)
@@ -156,5 +193,25 @@ class FixtureMap:
 
     @cached_property
     def _by_id(self) -> dict[int, Fixture]:
-        """The fixtures by ID (``fixtures`` is a tuple and the map frozen: built once)."""
-        return {f.id: f for f in self.fixtures}
+        """The fixtures by ID (``fixtures`` is a tuple and the map frozen: built once); the
+        IDs given to one fixture only."""
+        if not self.reuse:
+            return {f.id: f for f in self.fixtures}
+        one = {i for i, k in self._indices_by_id.items() if k.size == 1}
+        return {f.id: f for f in self.fixtures if f.id in one}
+
+    @cached_property
+    def _indices_by_id(self) -> dict[int, np.ndarray]:
+        """Each ID's fixtures' indices (read-only arrays)."""
+        lists: dict[int, list[int]] = {}
+        for k, f in enumerate(self.fixtures):
+            lists.setdefault(f.id, []).append(k)
+        out = {}
+        for key, part in lists.items():
+            out[key] = np.array(part, dtype=np.int64)
+            out[key].flags.writeable = False
+        return out
+
+
+_NONE = np.zeros(0, dtype=np.int64)
+_NONE.flags.writeable = False

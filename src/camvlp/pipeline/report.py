@@ -47,7 +47,7 @@ def report(
         prepared.shown,
         4 if prepared.gravity is None else 2,
         solved.told,
-        fixture_map,
+        fixture_map if solved.fixture_map is None else solved.fixture_map,
     )
     nan = float("nan")
     return LocateResult(

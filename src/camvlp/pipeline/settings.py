@@ -66,6 +66,13 @@ class LocateSettings:
         (its fixtures on a narrow band of the photo, a centre or a map position off) is not
         located, its reason giving the sigma.  None (the default): no limit.  Not applied to
         a pose solved with gravity (whose sigma is not worked out).
+    near : tuple of float or None
+        A prior on where the photo was taken, for a map whose IDs repeat
+        (:attr:`FixtureMap.reuse`): the camera's ``(x, y)`` or ``(x, y, z)``, map units (with
+        two numbers only the map's x and y are compared).  Only the places within ``within``
+        of it are searched (:mod:`camvlp.pipeline.identify.by_geometry`).  None: anywhere.
+    within : float or None
+        The prior's radius, map units; given with ``near`` (and only with it).
     """
 
     solver: str = "iterative"
@@ -80,6 +87,8 @@ class LocateSettings:
     gravity_sigma_deg: float = 1.0
     centre_sigma_px: float | None = None
     max_position_sigma: float | None = None
+    near: tuple[float, ...] | None = None
+    within: float | None = None
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
@@ -91,9 +100,27 @@ class LocateSettings:
                 isinstance(sigma, (int, float)) and np.isfinite(sigma) and sigma > 0
             ):
                 raise InputError(f"{name} must be a positive number, got {sigma!r}")
+        self._check_prior()
         object.__setattr__(self, "readout", Readout.parse_optional(self.readout))
         hint = Readout.parse_optional(self.readout_hint, "readout_hint")
         object.__setattr__(self, "readout_hint", hint)
+
+    def _check_prior(self) -> None:
+        """InputError unless ``near`` (2 or 3 finite numbers) and ``within`` (a positive
+        number) are given together, or neither."""
+        if (self.near is None) != (self.within is None):
+            raise InputError("near and within go together: give both or neither")
+        if self.near is None:
+            return
+        near = np.asarray(self.near, dtype=float).reshape(-1)
+        if near.size not in (2, 3) or not np.isfinite(near).all():
+            raise InputError(f"near must be 2 or 3 finite numbers, got {self.near!r}")
+        within = self.within
+        if isinstance(within, bool) or not (
+            isinstance(within, (int, float)) and np.isfinite(within) and within > 0
+        ):
+            raise InputError(f"within must be a positive number, got {within!r}")
+        object.__setattr__(self, "near", tuple(near.tolist()))
 
 
 DEFAULT_SETTINGS = LocateSettings()  # frozen: one instance serves every call without settings

@@ -152,7 +152,8 @@ class FrameTracks:
         reset: bool = False,
     ) -> DeviceTrack:
         """The device's track, new when it has none, when its site's camera or map changed,
-        or when ``reset``; ``build()`` parses the camera and map for a new one."""
+        or when ``reset``; ``build()`` parses the camera and map for a new one.
+        :class:`FrameRefused` (422) for a map the tracker does not take (IDs that repeat)."""
         now = time.monotonic()
         for k in [k for k, tr in self._tracks.items() if now - tr.used > self.idle_s]:
             if not self._tracks[k].busy:
@@ -163,7 +164,11 @@ class FrameTracks:
         if tr is None:
             camera, fmap = build()
             sources = (camera_json, map_json)
-            tr = DeviceTrack(camera, fmap, plan_view(fmap), sources, Tracker(camera, fmap))
+            try:
+                tracker = Tracker(camera, fmap)
+            except InputError as exc:  # a map whose IDs repeat: not tracked
+                raise FrameRefused(422, f"the site's map: {exc.what}") from None
+            tr = DeviceTrack(camera, fmap, plan_view(fmap), sources, tracker)
             self._tracks[key] = tr
             idle = [k for k, t in self._tracks.items() if not t.busy and k != key]
             while len(self._tracks) > self.max_devices and idle:

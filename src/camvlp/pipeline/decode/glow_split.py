@@ -314,7 +314,7 @@ def decode_from_glows(
             got = decode_profile_model(
                 wave.level[::step],
                 fixture_map.frame,
-                fixture_map.ids,
+                fixture_map.distinct_ids,
                 replace(model, knee=1.0),
                 weights=wave.weight[::step],
             )

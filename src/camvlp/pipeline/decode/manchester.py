@@ -339,7 +339,7 @@ def decode_manchester(
         return man
     # nothing identified with the chip length the files give: do the stripes' runs say
     # another?  (the run-length IDs that disagree with it were dropped)
-    measured = _measured(_fast(profiles, fixture_map.frame, set(fixture_map.ids))[1])
+    measured = _measured(_fast(profiles, fixture_map.frame, set(fixture_map.distinct_ids))[1])
     if measured is None or abs(measured / seed - 1) <= CHIP_AGREEMENT:
         return man
     note = (
@@ -361,7 +361,7 @@ def _decode_manchester(
 ) -> Manchester:
     """:func:`decode_manchester` with the chip length the files give (``seed``, rows, or
     None) and the ``carried`` parameters (or None)."""
-    frame, ids = fixture_map.frame, fixture_map.ids
+    frame, ids = fixture_map.frame, fixture_map.distinct_ids
     map_ids = {int(i) for i in ids}
     fwd, lengths = _fast(profiles, frame, map_ids)
     if direction_known:

@@ -5,6 +5,7 @@ direction decided by the pose when the stripes fit both ways), then how sure the
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -17,7 +18,8 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester, decode_manchester
 from camvlp.pipeline.decode.stage import Decoded, read_profiles
-from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.identified import Identified, identified_as, identify
+from camvlp.pipeline.identify.by_geometry import Placement, placed
 from camvlp.pipeline.identify.decide import decided
 from camvlp.pipeline.lights import UNCLEAR_AXIS, Lights, striped
 from camvlp.pipeline.prepare import Prepared
@@ -51,6 +53,10 @@ class Solved:
     sigma_of : callable or None
         A function of no arguments that gives the position's standard deviation along the
         map's axes, shape (3,) (worked out when first read), or None without a position.
+    fixture_map : FixtureMap or None
+        In a map whose IDs repeat (``reuse``), the part of it the IDs were looked up in (the
+        fixtures in view of the place :func:`~camvlp.pipeline.identify.by_geometry.placed`
+        found); None otherwise (the map given).
     """
 
     decodes: tuple
@@ -61,6 +67,7 @@ class Solved:
     readout: Readout
     manchester: Manchester | None
     sigma_of: Callable[[], np.ndarray | None] | None = None
+    fixture_map: FixtureMap | None = None
 
 
 def identify_and_solve(
@@ -72,7 +79,12 @@ def identify_and_solve(
 ) -> Solved:
     """Stages 4 and 5: the IDs looked up, the pose solved, and the two weighed together
     (:func:`~camvlp.pipeline.identify.decide.decided`); then the position's standard
-    deviation, and the pose refused when it is over ``settings.max_position_sigma``."""
+    deviation, and the pose refused when it is over ``settings.max_position_sigma``.
+
+    In a map whose IDs repeat, the photo is first placed by its lights' IDs and geometry
+    (:func:`~camvlp.pipeline.identify.by_geometry.placed`, narrowed by ``settings.near`` and
+    ``settings.within``), and the stages run on the fixtures in view there; a photo that
+    cannot be placed is refused with the reason."""
     problem = PoseProblem(
         prepared.camera,
         fixture_map,
@@ -81,7 +93,16 @@ def identify_and_solve(
         prepared.outlier_px,
         prepared.gravity,
     )
+    local, whole = None, fixture_map
+    if fixture_map.reuse:
+        place = _placed(problem, decoded, settings)
+        if place.local is None:
+            return _unplaced(problem, lights, decoded, place.reason)
+        local = fixture_map = place.local
+        problem = dataclasses.replace(problem, fixture_map=local)
     man, kept = decided(problem, decoded.manchester, list(decoded.decodes))
+    if local is not None:
+        kept = dataclasses.replace(kept, found=_outside_view(kept.found, whole))
     est, reason = kept.est, kept.reason
     if lights.readout is None:
         reason = UNCLEAR_AXIS
@@ -91,7 +112,54 @@ def identify_and_solve(
     if inputs is not None and settings.max_position_sigma is not None:  # now, against the limit
         est, reason, sigma = sure_enough(est, inputs, settings.max_position_sigma)
         sigma_of = functools.partial(_given, sigma)
-    return Solved(tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of)
+    return Solved(
+        tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of, local
+    )
+
+
+def _placed(problem: PoseProblem, decoded: Decoded, settings: LocateSettings) -> Placement:
+    """:func:`~camvlp.pipeline.identify.by_geometry.placed` with the IDs read in the readout
+    direction the stripes favour; when those fit no place and the stripes fit the other
+    direction about as well (``manchester.other``), with that direction's IDs (the pose
+    then decides the direction among the fixtures in view)."""
+    place = placed(problem, decoded.decodes, settings.near, settings.within)
+    man = decoded.manchester
+    if place.local is None and len(place.places) <= 1 and man is not None and man.other:
+        other = placed(problem, man.other, settings.near, settings.within)
+        place = other if other.local is not None else place
+    return place
+
+
+def _outside_view(found: Identified, whole: FixtureMap) -> Identified:
+    """``found`` (looked up in the fixtures in view of the place found in ``whole``, a map
+    whose IDs repeat) with the lights that send an ID of ``whole`` none of them has saying
+    so."""
+    reasons = [
+        f"sends ID {i}, which no fixture in view of the place found has"
+        if r == f"sends ID {i}, which is not in the map" and whole.with_id(i).size
+        else r
+        for i, r in zip(found.ids, found.reasons, strict=True)
+    ]
+    return identified_as(found.ids, reasons)
+
+
+def _unplaced(problem: PoseProblem, lights: Lights, decoded: Decoded, reason: str) -> Solved:
+    """The answer for a photo that a map whose IDs repeat cannot place: no pose, and each
+    light whose ID the map gives to many fixtures says so."""
+    fmap = problem.fixture_map
+    found = identify(problem.blobs, decoded.decodes, fmap)
+    reasons = [
+        f"ID {i} is given to {fmap.with_id(i).size} fixtures of the map: which one is not told"
+        if i is not None and fmap.with_id(i).size > 1 and d.id == i
+        else r
+        for i, r, d in zip(found.ids, found.reasons, decoded.decodes, strict=True)
+    ]
+    man = decoded.manchester
+    readout = man.readout if man is not None else (lights.readout or Readout.ROWS)
+    reason = UNCLEAR_AXIS if lights.readout is None else reason
+    return Solved(
+        tuple(decoded.decodes), identified_as(found.ids, reasons), None, reason, {}, readout, man
+    )
 
 
 def _given(value):

@@ -122,11 +122,22 @@ class Tracker:
         The room.
     settings : TrackSettings, optional
         How to track (defaults when None).
+
+    Raises
+    ------
+    InputError
+        A map whose IDs repeat (``reuse``): a video is not yet placed by its lights'
+        geometry (a photo is: :func:`~camvlp.pipeline.locate.locate`).
     """
 
     def __init__(
         self, camera: Camera, fixture_map: FixtureMap, settings: TrackSettings | None = None
     ) -> None:
+        if fixture_map.reuse:
+            raise InputError(
+                "the map gives one ID to many fixtures (reuse: true): tracking a video needs "
+                "a map whose IDs are unique (locate places single photos in such a map)"
+            )
         self.camera = camera
         self.map = fixture_map
         self.settings = settings or TrackSettings()

@@ -1,0 +1,151 @@
+"""Hypotheses of which fixtures a photo's lights are, checked by geometry before any PnP
+(:mod:`camvlp.pipeline.identify.by_geometry` weighs them).
+
+- :func:`distance_bounds`: how far apart two fixtures can be, given how far each is from the
+  camera (within bounds) and the angle between their rays;
+- :func:`triangles`, :func:`least_triangle`: how far four points are from three on a line;
+- :func:`rigid_on_plane`: whether four fixtures on a plane can be where four rays see them,
+  by a rotation and a translation (their homography's first two columns a rotation's).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "ON_A_LINE",
+    "RIGID_COS",
+    "RIGID_RATIO",
+    "distance_bounds",
+    "least_triangle",
+    "rigid_on_plane",
+    "triangles",
+]
+
+#: :func:`rigid_on_plane`: a triangle of a set's fixtures whose share (:func:`triangles`)
+#: is under the first is taken as on a line; seen as one over the second, as off it (a
+#: factor of 25 between the two: a view more oblique than a ceiling's changes a share less).
+ON_A_LINE = (0.002, 0.05)
+
+
+def distance_bounds(
+    a: tuple[float, float], b: tuple[float, float], cos: float
+) -> tuple[float, float]:
+    """The least and greatest distance between two points seen at an angle ``arccos(cos)``
+    apart from the camera, their distances from it within ``a`` and ``b``.
+
+    Parameters
+    ----------
+    a, b : tuple of float
+        Each point's least and greatest distance from the camera, map units.
+    cos : float
+        The cosine of the angle between the two rays.
+
+    Returns
+    -------
+    tuple of float
+        The least and greatest distance between the points, map units; ``(0, inf)`` when a
+        greatest distance is not finite.
+    """
+
+    def d(r1, r2):
+        return np.sqrt(np.maximum(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
+
+    if not (np.isfinite(a[1]) and np.isfinite(b[1])):
+        return 0.0, np.inf
+    # convex in each distance: the greatest at a corner, the least on an edge
+    corners = [d(r1, r2) for r1 in a for r2 in b]
+    edges = [d(r1, np.clip(r1 * cos, *b)) for r1 in a] + [d(np.clip(r2 * cos, *a), r2) for r2 in b]
+    return float(min(edges)), float(max(corners))
+
+
+#: :func:`rigid_on_plane`'s tolerance: the columns of a plane's homography that a camera's
+#: rotation makes (orthogonal, of one length) may differ in length by this factor and meet at
+#: a cosine of at most :data:`RIGID_COS` (four fixtures' centres a few pixels off stay well
+#: within).
+RIGID_RATIO, RIGID_COS = 1.3, 0.25
+
+
+def triangles(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The four triangles of each set of four points, each as a share of the set's size.
+
+    Parameters
+    ----------
+    u, v : ndarray, shape (q, 4)
+        The points' coordinates, any unit (one for both).
+
+    Returns
+    -------
+    ndarray, shape (q, 4)
+        The areas of the triangles of points (0, 1, 2), (0, 1, 3), (0, 2, 3) and (1, 2, 3)
+        over the square of the set's size (the largest distance from its first point): 0
+        for three points on a line.
+    """
+    size = np.hypot(u - u[:, :1], v - v[:, :1]).max(axis=1)
+    area = [
+        np.abs(
+            (u[:, j] - u[:, i]) * (v[:, k] - v[:, i]) - (u[:, k] - u[:, i]) * (v[:, j] - v[:, i])
+        )
+        for i, j, k in ((0, 1, 2), (0, 1, 3), (0, 2, 3), (1, 2, 3))
+    ]
+    return np.stack(area, axis=1) / np.maximum(size**2, 1e-300)[:, None]
+
+
+def least_triangle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """How far each set of four points (``u``, ``v`` as :func:`triangles` takes them, shape
+    (q, 4)) is from three on a line: the smallest of its triangles' shares, shape (q,), 0
+    when three lie on a line."""
+    return triangles(u, v).min(axis=1)
+
+
+def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
+    """Which sets of four fixtures a rotation and a translation can put where four rays see
+    them, before any PnP.
+
+    Four points of a plane and their images are related by a homography whose first two
+    columns (in the plane's own axes) are a rotation's, of one length and orthogonal; a
+    wrong set of fixtures gives columns of other lengths or angles (within
+    :data:`RIGID_RATIO` and :data:`RIGID_COS` is taken as right).  Three fixtures on a line
+    are seen on a line, and three off a line off it (:data:`ON_A_LINE`): a set whose
+    triangles do not match the rays' is not theirs either.
+
+    Parameters
+    ----------
+    points : ndarray, shape (q, 4, 3)
+        Each hypothesis' four fixture positions, map units.
+    rays : ndarray, shape (4, 3)
+        The four lights' rays in the camera's frame (z forward; any length, z > 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (q,)
+        True where the set may be the lights' (kept for PnP): also every set whose points
+        are not on a plane, or whose homography three points on a line leave undetermined
+        (rays near a line).
+    """
+    q = points.shape[0]
+    rel = points - points[:, :1, :]
+    # the plane's axes from all four points (three on a line leave no normal of their own)
+    _, sv, axes = np.linalg.svd(rel - rel.mean(axis=1, keepdims=True))
+    size = np.linalg.norm(rel, axis=2).max(axis=1)
+    planar = sv[:, 2] <= 1e-3 * np.maximum(size, 1e-300)
+    u, v = np.einsum("qkj,qj->qk", rel, axes[:, 0]), np.einsum("qkj,qj->qk", rel, axes[:, 1])
+    x, y = rays[:, 0] / rays[:, 2], rays[:, 1] / rays[:, 2]
+    flat = triangles(u, v)
+    seen = triangles(x[None], y[None])[0]
+    a = np.zeros((q, 8, 8))
+    one, zero = np.ones((q, 4)), np.zeros((q, 4))
+    a[:, 0::2] = np.stack([u, v, one, zero, zero, zero, -u * x, -v * x], axis=2)
+    a[:, 1::2] = np.stack([zero, zero, zero, u, v, one, -u * y, -v * y], axis=2)
+    b = np.stack([x * one, y * one], axis=2).reshape(q, 8)
+    h = np.einsum("qij,qj->qi", np.linalg.pinv(a), b)
+    c1, c2 = h[:, [0, 3, 6]], h[:, [1, 4, 7]]
+    l1, l2 = np.linalg.norm(c1, axis=1), np.linalg.norm(c2, axis=1)
+    cos = np.abs(np.einsum("qj,qj->q", c1, c2)) / np.maximum(l1 * l2, 1e-300)
+    ratio = np.maximum(l1, l2) / np.maximum(np.minimum(l1, l2), 1e-300)
+    line, off = ON_A_LINE
+    # (three on a line leave the homography undetermined: those sets are kept for PnP)
+    determined = planar & (flat.min(axis=1) > off)
+    ok = ~determined | ((ratio <= RIGID_RATIO) & (cos <= RIGID_COS))
+    mismatch = ((flat < line) & (seen > off)) | ((flat > off) & (seen < line))
+    return ok & ~(planar & mismatch.any(axis=1))

@@ -1,0 +1,182 @@
+"""Maps whose IDs repeat (``frame: reuse: true``): photos placed by their lights' IDs and
+geometry (camvlp.pipeline.identify.by_geometry), refused when the place is ambiguous, and a
+prior that narrows the search."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+from tests.conftest import one_error_line
+
+from camvlp import locate
+from camvlp.cli import main
+from camvlp.geometry.hypotheses import distance_bounds
+from camvlp.io import save_camera, save_map
+from camvlp.model.camera import Camera, Pose
+from camvlp.pipeline.settings import LocateSettings
+from camvlp.sim.render import RenderSettings, render
+from camvlp.sim.site import site_map
+
+#: 640 x 480, f = 400 px, 25 us rows, read top down; 16 kHz chips: 2.5 rows a chip.
+ROW_TIME_S, CHIP_RATE_HZ = 25e-6, 16_000.0
+#: The site: 20 x 10 fixtures 1 m apart, 0.5 m discs on a 4 m ceiling, the thesis' 4-bit IDs.
+SITE = dict(spacing=1.0, height=4.0, diameter=0.5)
+
+
+def site_camera() -> Camera:
+    return Camera.from_focal(640, 480, 400.0, row_time_s=ROW_TIME_S, readout="rows")
+
+
+def photo(fixture_map, pose: Pose, seed: int) -> np.ndarray:
+    settings = RenderSettings(chip_rate_hz=CHIP_RATE_HZ, row_time_s=ROW_TIME_S, seed=seed)
+    return render(site_camera(), fixture_map, pose, settings).image
+
+
+def pose_at(x: float, y: float, z: float, heading: float, tilt=(0.0, 0.0)) -> Pose:
+    """A camera at (x, y, z) looking up (+z), turned ``heading`` degrees about the vertical
+    and tilted by ``tilt`` (degrees about its x and y)."""
+    r = Rotation.from_euler("zxy", [heading, *tilt], degrees=True).as_matrix()
+    return Pose(r, np.array([x, y, z]))
+
+
+@pytest.fixture(scope="module")
+def varied():
+    """The site with IDs no two within two grid steps alike (seed 0): 200 fixtures, 16 IDs."""
+    return site_map(20, 10, pattern="varied", seed=0, **SITE)
+
+
+@pytest.fixture(scope="module")
+def periodic():
+    """The same site with the IDs repeated every four grid steps: no photo tells its place."""
+    return site_map(20, 10, pattern="periodic", **SITE)
+
+
+@pytest.fixture(scope="module")
+def periodic_photo(periodic):
+    """A photo of the periodic site from (9.3, 4.4, 1.3), and that pose."""
+    pose = pose_at(9.3, 4.4, 1.3, 20.0)
+    return photo(periodic, pose, seed=3), pose
+
+
+def test_the_site_reuses_its_ids(varied):
+    assert len(varied.fixtures) == 200 and varied.reuse
+    assert sorted(varied.distinct_ids) == list(range(16))
+    assert all(varied.with_id(i).size >= 8 for i in range(16))
+    assert varied.get(3) is None  # an ID of many fixtures names none
+
+
+@pytest.mark.parametrize(
+    "where",
+    [(4.3, 3.2, 1.2, 35.0, (5.0, -4.0), 11), (15.6, 6.1, 1.6, 250.0, (-8.0, 3.0), 12)],
+)
+def test_a_photo_is_located_at_its_place(varied, where):
+    *xyz, heading, tilt, seed = where
+    pose = pose_at(*xyz, heading, tilt)
+    result = locate(photo(varied, pose, seed), site_camera(), varied)
+    assert result, result.reason
+    assert np.linalg.norm(result.position - pose.position) < 0.05
+    # every fixture reported is the one of the map with that ID the camera sees there (a
+    # disc cut by the border, not used, is centred off)
+    where_px = site_camera().project(pose, varied.positions)
+    for f in result.fixtures:
+        if f.id is not None:
+            off = np.sort(np.hypot(*(where_px[varied.with_id(f.id)] - f.pixel).T))
+            assert off[0] < (5.0 if f.used else 60.0) and off[1] > 200.0
+    assert sum(f.used for f in result.fixtures) >= 5
+
+
+@pytest.fixture(scope="module")
+def periodic_files(tmp_path_factory, periodic, periodic_photo):
+    """The periodic site's map, the camera and the photo as files (for ``camvlp locate``)."""
+    d = tmp_path_factory.mktemp("site")
+    save_map(periodic, d / "site.yaml")
+    save_camera(site_camera(), d / "camera.yaml")
+    cv2.imwrite(str(d / "photo.png"), periodic_photo[0])
+    return [str(d / "photo.png"), "--camera", str(d / "camera.yaml"), "--map", str(d / "site.yaml")]
+
+
+def test_an_ambiguous_place_is_refused_listing_the_places(capsys, periodic_files, periodic_photo):
+    code = main(["locate", *periodic_files, "--json"])
+    out, err = capsys.readouterr()
+    assert code == 1
+    line = one_error_line(err)
+    result = json.loads(out)
+    assert result["position"] is None and not any(f["used"] for f in result["fixtures"])
+    reason = result["error"]
+    assert reason in line and reason.startswith("ambiguous: ")
+    assert "places of the map fit" in reason and "a prior" in reason
+    # the places listed lie a whole number of the pattern's periods (4 m) from the truth
+    listed = np.array(re.findall(r"\((-?[\d.]+), (-?[\d.]+), (-?[\d.]+)\)", reason), float)
+    assert len(listed) >= 2
+    for p in listed:
+        off = p - periodic_photo[1].position
+        assert np.allclose(off[1:], 0.0, atol=0.05) and abs(off[0] / 4 - round(off[0] / 4)) < 0.02
+
+
+def test_a_prior_tells_the_places_apart(capsys, periodic_files, periodic_photo):
+    code = main(["locate", *periodic_files, "--json", "--near", "9,4", "--within", "1.5"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    position = np.array(json.loads(out)["position"])
+    assert np.linalg.norm(position - periodic_photo[1].position) < 0.05
+    # the prior's two halves go together
+    assert main(["locate", *periodic_files, "--near", "9,4"]) == 2
+    assert "--near and --within go together" in one_error_line(capsys.readouterr()[1])
+    assert main(["locate", *periodic_files, "--near", "9", "--within", "1"]) == 2
+    assert "--near must be 2 comma-separated numbers" in one_error_line(capsys.readouterr()[1])
+
+
+def test_a_prior_that_holds_no_place_is_refused(periodic, periodic_photo):
+    image, _ = periodic_photo
+    result = locate(image, site_camera(), periodic, LocateSettings(near=(11.0, 4.0), within=1.0))
+    assert not result
+    assert result.reason.startswith("no place of the map within 1 m of the prior fits")
+
+
+def test_a_photo_of_another_site_is_refused_not_placed(varied):
+    # the same grid with its IDs drawn again: the photo's arrangement of IDs is nowhere
+    other = site_map(20, 10, pattern="varied", seed=1, **SITE)
+    result = locate(photo(varied, pose_at(6.4, 5.3, 1.4, 120.0), 5), site_camera(), other)
+    assert not result and result.position is None
+    assert result.reason.startswith("no place of the map fits its ")
+
+
+def test_the_distance_bounds_hold_the_true_distance():
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        r1, r2 = rng.uniform(0.5, 10.0, 2)
+        u, v = rng.normal(size=(2, 3))
+        u, v = u / np.linalg.norm(u), v / np.linalg.norm(v)
+        cos = float(u @ v)
+        true = np.linalg.norm(r1 * u - r2 * v)
+        for slack in (1.0, 1.5):
+            lo, hi = distance_bounds((r1 / slack, r1 * slack), (r2 / slack, r2 * slack), cos)
+            assert lo - 1e-9 <= true <= hi + 1e-9
+        lo, hi = distance_bounds((r1, r1), (r2, r2), cos)  # exact distances: the bounds meet
+        assert lo == pytest.approx(true) and hi == pytest.approx(true)
+    assert distance_bounds((1.0, np.inf), (1.0, 2.0), 0.5) == (0.0, np.inf)
+
+
+def test_the_prior_needs_both_parts():
+    from camvlp.errors import InputError
+
+    with pytest.raises(InputError, match="near and within go together"):
+        LocateSettings(near=(1.0, 2.0))
+    with pytest.raises(InputError, match="near must be 2 or 3"):
+        LocateSettings(near=(1.0,), within=2.0)
+    with pytest.raises(InputError, match="within must be a positive"):
+        LocateSettings(near=(1.0, 2.0), within=-1.0)
+    assert LocateSettings(near=[1, 2, 3], within=2).near == (1.0, 2.0, 3.0)
+
+
+def test_a_video_is_not_tracked_in_a_map_whose_ids_repeat(varied):
+    from camvlp.errors import InputError
+    from camvlp.pipeline.track.tracker import Tracker
+
+    with pytest.raises(InputError, match=r"one ID to many fixtures \(reuse: true\)"):
+        Tracker(site_camera(), varied)
