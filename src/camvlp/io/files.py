@@ -129,7 +129,16 @@ CAMERA_KEYS = (
     "tone_gamma",
 )
 MAP_KEYS = ("units", "frame", "fixtures", "up")
-FRAME_KEYS = ("mode", "line_code", "preamble", "id_bits", "postamble", "chip_rate_hz", "reuse")
+FRAME_KEYS = (
+    "mode",
+    "line_code",
+    "preamble",
+    "id_bits",
+    "check_bits",
+    "postamble",
+    "chip_rate_hz",
+    "reuse",
+)
 FIXTURE_KEYS = ("id", "position", "diameter", "normal", "frequency_hz")
 
 
@@ -329,6 +338,7 @@ def _frame_from_dict(frame_spec: Any, p: str | Path) -> tuple[str, FrameFormat, 
             frame_spec.get("preamble", "111"),
             frame_spec.get("id_bits", 4),
             frame_spec.get("postamble", "00"),
+            frame_spec.get("check_bits", 0),
         )
     except ValueError as exc:
         raise InputError(str(exc), p) from None
@@ -389,6 +399,8 @@ def save_map(fixture_map: FixtureMap, path: str | Path) -> None:
         frame.update(
             preamble=fm.frame.preamble, id_bits=fm.frame.id_bits, postamble=fm.frame.postamble
         )
+        if fm.frame.check_bits:
+            frame["check_bits"] = fm.frame.check_bits
         if fm.chip_rate_hz is not None:
             frame["chip_rate_hz"] = float(fm.chip_rate_hz)
         if fm.reuse:
