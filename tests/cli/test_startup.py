@@ -158,3 +158,16 @@ def test_render_defaults_are_the_renderer_s(command, option, field):
     expected = getattr(RenderSettings(), field)
     converted = default if isinstance(expected, bool) else type(expected)(default)
     assert converted == expected, (command, option, default, expected)
+
+
+def test_reading_a_map_and_loading_the_locator_need_no_scipy():
+    """``camvlp locate`` imports the locator and reads the files before any work: SciPy (half a
+    second to import) waits for a path that uses it (a k-d tree of a large site's map, a
+    glowing lamp's fit)."""
+    room = SRC.parent / "examples" / "thesis_room.yaml"
+    code = "import camvlp.io, camvlp.pipeline.locate; camvlp.io.load_map(sys.argv[2]).index"
+    modules = _loaded(code.removesuffix(".index"), str(room))
+    assert "camvlp.pipeline.locate" in modules and "camvlp.model.fixtures" in modules
+    assert not [m for m in modules if m == "scipy" or m.startswith("scipy.")]
+    # the map's k-d tree is SciPy's, imported when first asked for
+    assert "scipy.spatial" in _loaded(code, str(room))

@@ -5,12 +5,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from camvlp.format import UNITS_TO_M
 from camvlp.model.linecode import FrameFormat
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = ["UNITS_TO_M", "Fixture", "FixtureMap"]
 
@@ -172,6 +175,8 @@ class FixtureMap:
     def index(self) -> cKDTree:
         """A k-d tree over :attr:`positions` (map units), built when first asked for: the
         fixtures near a point or within a distance of each other, in logarithmic time."""
+        from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
+
         return cKDTree(self.positions)
 
     def with_id(self, fixture_id: int) -> np.ndarray:

@@ -40,7 +40,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from scipy.spatial import cKDTree
 
 from camvlp.geometry.hypotheses import (
     distance_bounds,
@@ -205,6 +204,8 @@ def _extended(fmap: FixtureMap, lights: _Lights, seeds, rows, scale, ok):
     ]
     pool = np.flatnonzero(ok)
     if np.isfinite(bounds[0][1]) and pool.size:  # a k-d tree of the fixtures with that ID
+        from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
+
         near = cKDTree(pos[pool]).query_ball_point(pos[rows[:, 0]], scale[:, 1] * bounds[0][1])
         counts = np.fromiter(map(len, near), np.int64, len(near))
         cand = pool[np.fromiter(itertools.chain.from_iterable(near), np.int64, counts.sum())]
