@@ -230,3 +230,26 @@ def test_bad_looks_give_one_error_line(tmp_path, small_camera_path, thesis_room_
         assert result.exit_code == 2, (extra, result.output)
         assert needle in one_error_line(result), (extra, result.output)
     assert not list(tmp_path.glob("p.*"))
+
+
+def test_a_large_site_lists_the_fixtures_near_the_picture_and_counts_the_others(
+    tmp_path, small_camera_path
+):
+    from camvlp.io import save_map
+    from camvlp.sim.site import site_map
+
+    site = tmp_path / "site.yaml"
+    save_map(site_map(20, 10, spacing=1.0, height=4.0, diameter=0.5, seed=0), site)
+    out = tmp_path / "photo.png"
+    result = runner.invoke(
+        app,
+        ["render", "--camera", str(small_camera_path), "--map", str(site), "--position",
+         "4.5,3,1.5", "--euler", "0,0,0", "--out", str(out), "--noise", "0"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    listed = [ln for ln in result.stdout.splitlines() if ln.startswith("fixture ")]
+    truth = json.loads(out.with_suffix(".json").read_text())["fixtures"]
+    inside = [f for f in truth if f["fully_inside"]]
+    assert inside and len(inside) <= len(listed) < 200
+    assert f"{200 - len(listed)} other fixtures of the map out of the picture" in result.stdout
+    assert len(truth) == 200  # the truth file keeps every fixture

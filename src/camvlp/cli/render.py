@@ -251,7 +251,8 @@ def _print_render(result: Render, camera: Camera, out: Path, json_path: Path) ->
         f"row time {s.row_time_s * 1e6:g} us, exposure {s.exposure_s * 1e6:g} us, "
         f"readout {s.readout}"
     )
-    for t in result.fixtures:
+    shown = [t for t in result.fixtures if _near_the_picture(t, camera)]
+    for t in shown:
         u, v = (format_number(c, ".1f") for c in t.pixel)
         where = f"pixel ({u}, {v})" if t.in_front else "behind the camera"
         print(
@@ -259,9 +260,23 @@ def _print_render(result: Render, camera: Camera, out: Path, json_path: Path) ->
             f"{t.rows_spanned:.0f} rows, {t.frames_spanned:.2f} frames"
             + (", sends data" if t.sends_data else "")
         )
+    if len(shown) < len(result.fixtures):
+        rest = len(result.fixtures) - len(shown)
+        print(f"{rest} other fixture{'s' if rest != 1 else ''} of the map out of the picture")
     if result.stamp_box is not None:
         u0, v0, u1, v1 = result.stamp_box
         print(f"stamp {s.stamp!r}: pixels {u0} to {u1 - 1} across, {v0} to {v1 - 1} down")
+
+
+def _near_the_picture(t, camera: Camera) -> bool:
+    """Whether a fixture's truth is worth a line: in front of the camera, its centre within
+    the picture or within its disc's extent (its rows) of it; a large site's others are
+    only counted."""
+    if not t.in_front:
+        return False
+    u, v = t.pixel
+    pad = t.rows_spanned if math.isfinite(t.rows_spanned) else 0.0
+    return -pad <= u <= camera.width + pad and -pad <= v <= camera.height + pad
 
 
 def _number(text: str, option: str) -> float:
