@@ -239,13 +239,6 @@ def _triples(members: np.ndarray):
                 yield members[a], members[b], members[c]
 
 
-def _through_flat(values: np.ndarray, rows: np.ndarray, n: int) -> list[np.ndarray]:
-    """Per value 0..n-1, the ``rows`` paired with it in ``values`` (both shape (M,))."""
-    order = np.argsort(values, kind="stable")
-    cut = np.searchsorted(values[order], np.arange(n + 1))
-    return [rows[order[cut[f] : cut[f + 1]]] for f in range(n)]
-
-
 def assign_ids(
     positions_m: np.ndarray,
     up: np.ndarray,

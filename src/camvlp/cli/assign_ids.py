@@ -65,8 +65,9 @@ def assign_ids_command(
 
     from camvlp.analysis.assign_ids import assign_ids, assignment_report
     from camvlp.analysis.site_views import sample_views
+    from camvlp.geometry.gravity.tilt import map_up
     from camvlp.io import load_camera, save_map
-    from camvlp.io.layout import load_layout, site_up, with_ids
+    from camvlp.io.layout import load_layout, with_ids
 
     lo, hi = parse_floats(heights, 2, "--heights")
     if not (0 <= lo <= hi):
@@ -77,7 +78,8 @@ def assign_ids_command(
         fail("--poses and --check-poses must be at least 1")
     site = load_layout(layout)
     camera = load_camera(camera_path)
-    up = site_up(site)
+    normals = [f.normal if f.normal is not None else [np.nan] * 3 for f in site.fixtures]
+    up = map_up(site.positions, up=site.up, normals=normals)
     pos = site.positions * site.unit_m
     diam = np.array([f.diameter or 0.0 for f in site.fixtures]) * site.unit_m
     if not np.all(diam > 0):

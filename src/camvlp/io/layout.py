@@ -12,7 +12,7 @@ from camvlp.io.files import map_from_dict
 from camvlp.io.textfiles import read_mapping
 from camvlp.model.fixtures import FixtureMap
 
-__all__ = ["load_layout", "site_up", "with_ids"]
+__all__ = ["load_layout", "with_ids"]
 
 
 def load_layout(path: str | Path) -> FixtureMap:
@@ -37,23 +37,6 @@ def load_layout(path: str | Path) -> FixtureMap:
             {"id": 0, **e} if isinstance(e, dict) and "id" not in e else e for e in fixtures
         ]
     return map_from_dict(data, Path(path))
-
-
-def site_up(site: FixtureMap) -> np.ndarray:
-    """The site's up (3,): the map's ``up``, else against the fixtures' mean normal.
-
-    Raises
-    ------
-    InputError
-        Neither is given.
-    """
-    if site.up is not None:
-        return np.asarray(site.up, dtype=float)
-    normals = [f.normal for f in site.fixtures if f.normal is not None]
-    if not normals or np.linalg.norm(np.mean(normals, axis=0)) < 1e-6:
-        raise InputError("the layout needs 'up' (or fixtures' normals facing down)", site.source)
-    n = np.mean(normals, axis=0)
-    return -n / np.linalg.norm(n)
 
 
 def with_ids(site: FixtureMap, ids: np.ndarray) -> FixtureMap:
