@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from camvlp.model.camera import Camera, in_front
+from camvlp.model.camera import Camera, Pose, in_front
 
-__all__ = ["project_batch", "project_moving"]
+__all__ = ["in_view", "project_batch", "project_moving"]
 
 
 def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -151,3 +151,46 @@ def project_moving(camera: Camera, values, rates, points, dt_s) -> np.ndarray:
     k = camera.matrix
     uv = np.stack([k[0, 0] * x + k[0, 1] * y + k[0, 2], k[1, 1] * y + k[1, 2]], axis=-1)
     return uv[0] if single else uv
+
+
+def in_view(camera: Camera, pose: Pose, centres, reach, margin_px: float = 0.0) -> np.ndarray:
+    """Whether anything within ``reach`` of each point can show in the picture: the sphere
+    about it meets the camera's view (the pyramid through the picture's border, pixels
+    ``margin_px`` beyond it).  Conservative: a sphere that meets the pyramid may still show
+    nothing, one outside it never shows.
+
+    Parameters
+    ----------
+    camera : Camera
+    pose : Pose
+        The camera's pose, map frame and units.
+    centres : array_like, shape (N, 3)
+        The points (a disc's centre), map units.
+    reach : array_like, shape (N,)
+        Each sphere's radius (a disc's radius and its glow's reach), map units.
+    margin_px : float
+        Pixels beyond the border that still count (a blur's reach).
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+    """
+    p = pose.to_camera(np.asarray(centres, dtype=float).reshape(-1, 3))
+    r = np.asarray(reach, dtype=float).reshape(-1)
+    w, h = camera.width - 1.0, camera.height - 1.0
+    t = np.linspace(0.0, 1.0, 33)
+    zero, one = np.zeros_like(t), np.ones_like(t)
+    border = np.concatenate(
+        [
+            np.stack(side, axis=1)
+            for side in ((t * w, zero), (w * one, t * h), (t * w, h * one), (zero, t * h))
+        ]
+    )
+    xy = camera.undistort_pixels(border)
+    pad = margin_px / np.array([camera.matrix[0, 0], camera.matrix[1, 1]])
+    lo, hi = xy.min(axis=0) - pad, xy.max(axis=0) + pad
+    seen = np.ones(p.shape[0], dtype=bool)
+    for k in range(2):  # the pyramid's sides: lo z <= x <= hi z, the same for y
+        seen &= (p[:, k] - hi[k] * p[:, 2]) <= r * np.hypot(1.0, hi[k])
+        seen &= (lo[k] * p[:, 2] - p[:, k]) <= r * np.hypot(1.0, lo[k])
+    return seen

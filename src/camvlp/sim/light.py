@@ -26,6 +26,7 @@ __all__ = [
     "coverage",
     "data_chips",
     "glow_margin",
+    "glow_reach",
     "lamp_shape",
     "on_fraction",
     "pixel_box",
@@ -294,13 +295,19 @@ def data_chips(seed: int, index: int, n_bits: int = DATA_BITS) -> np.ndarray:
     return manchester_encode(bits)
 
 
-def glow_margin(rim_px: np.ndarray, halo: float, brightness: float = 1.0) -> int:
-    """Extra pixels a light's box needs around its projected rim (N, 2) for its halo: as far
-    as the glow (``halo * brightness`` full scale at the rim, decaying over half a radius, see
-    :func:`shine`) is brighter than half an 8-bit step.  A box that ended sooner would draw
-    the glow's cut as a straight edge, which no camera sees."""
+def glow_reach(halo: float, brightness: float = 1.0) -> float:
+    """How far a light's halo reaches beyond its rim, in radii of its disc: as far as the
+    glow (``halo * brightness`` full scale at the rim, decaying over half a radius, see
+    :func:`shine`) is brighter than half an 8-bit step; 0 for a glow fainter than that."""
     level = 510.0 * halo * brightness  # the glow at the rim, in half 8-bit steps
-    if level > 1.0 and np.all(np.isfinite(rim_px)):
-        radii = 0.5 * math.log(level)
+    return 0.5 * math.log(level) if level > 1.0 else 0.0
+
+
+def glow_margin(rim_px: np.ndarray, halo: float, brightness: float = 1.0) -> int:
+    """Extra pixels a light's box needs around its projected rim (N, 2) for its halo
+    (:func:`glow_reach`).  A box that ended sooner would draw the glow's cut as a straight
+    edge, which no camera sees."""
+    radii = glow_reach(halo, brightness)
+    if radii > 0.0 and np.all(np.isfinite(rim_px)):
         return math.ceil(radii * 0.5 * float(np.ptp(rim_px, axis=0).max()))
     return 0

@@ -57,12 +57,14 @@ import cv2
 import numpy as np
 
 from camvlp.geometry.disc import plane_basis
+from camvlp.geometry.projection import in_view
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.sim.light import (
     blur_margin,
     coverage,
     glow_margin,
+    glow_reach,
     lamp_shape,
     on_fraction,
     pixel_box,
@@ -250,12 +252,22 @@ def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettin
     off_centre = s.core > 0 and s.core_offset > 0
     w, h = camera.width, camera.height
     margin = blur_margin(s.blur_px)
+    # the fixtures whose disc and glow may reach the picture (a far one across the camera's
+    # plane would otherwise be searched for over the whole picture)
+    reach = 0.5 * np.array([f.diameter for f in fixture_map.fixtures], dtype=float)
+    seen = in_view(
+        camera,
+        pose,
+        fixture_map.positions,
+        reach * (1.0 + glow_reach(s.halo, s.brightness)),
+        margin,
+    )
     out = []
     for i, (f, n, rim_px, truth) in enumerate(
         zip(fixture_map.fixtures, normals, rims, truths, strict=True)
     ):
-        if not truth.in_front or n @ (pose.position - f.position) <= 0:
-            continue  # behind the camera, or seen from the fixture's back
+        if not (seen[i] and truth.in_front) or n @ (pose.position - f.position) <= 0:
+            continue  # out of view, behind the camera, or seen from the fixture's back
         box = pixel_box(rim_px, w, h, margin + glow_margin(rim_px, s.halo, s.brightness))
         if box is None:
             continue

@@ -261,48 +261,84 @@ def fixture_views(
     check_data_lights(fixture_map, s)
     normals = fixture_normals(fixture_map, pose)
     phases = phases or led_phases(fixture_map, s)
-    cores = core_places(fixture_map, s)
-    axis = s.readout.pixel_index
-    truths, rims = [], []
-    w, h = camera.width, camera.height
-    field = lens_field_radius(camera)
-    chosen = range(len(fixture_map.fixtures)) if only is None else only
-    for j in chosen:
-        f, n = fixture_map.fixtures[j], normals[j]
+    chosen = np.arange(len(fixture_map.fixtures)) if only is None else np.asarray(only, int)
+    fixtures = [fixture_map.fixtures[j] for j in chosen]
+    n = normals[chosen]
+    centres = np.array([f.position for f in fixtures], dtype=float).reshape(-1, 3)
+    centre_px = camera.project(pose, centres)
+    ahead = in_front(pose.to_camera(centres))
+    rims = _rims_px(camera, pose, fixtures, n)
+    core_px = _core_pixels(camera, pose, fixtures, n, core_places(fixture_map, s)[chosen], s)
+    truths = []
+    for k, (j, f) in enumerate(zip(chosen, fixtures, strict=True)):
+        rim_px, clamped = rims[k]
+        ok = bool(np.all(np.isfinite(rim_px)))
+        inside = (rim_px >= -0.5) & (rim_px <= np.array([camera.width, camera.height]) - 0.5)
+        fully = bool(ahead[k] and ok and not np.any(clamped) and np.all(inside))
+        span = float(np.ptp(rim_px[:, s.readout.pixel_index])) if ok else float("nan")
         period, phase = phases[j]
-        centre_px = camera.project(pose, f.position[None, :])[0]
-        ahead = bool(in_front(pose.to_camera(f.position[None, :]))[0])
-        rim = fixture_rim(f, n)
-        rim_px, clamped = project_within_field(camera, pose, rim, field)
-        rims.append(rim_px)
-        ok = np.all(np.isfinite(rim_px))
-        fully = bool(
-            ahead
-            and ok
-            and not np.any(clamped)
-            and np.all((rim_px[:, 0] >= -0.5) & (rim_px[:, 0] <= w - 0.5))
-            and np.all((rim_px[:, 1] >= -0.5) & (rim_px[:, 1] <= h - 0.5))
-        )
-        span = float(np.ptp(rim_px[:, axis])) if ok else float("nan")
-        core_px = np.full(2, np.nan)
-        if s.core > 0 and f.diameter is not None and ahead:
-            a, b = plane_basis(n)
-            hot = f.position + 0.5 * f.diameter * (cores[j, 0] * a + cores[j, 1] * b)
-            core_px = camera.project(pose, hot[None, :])[0]
         truths.append(
             FixtureTruth(
                 id=f.id,
-                pixel=centre_px,
-                in_front=ahead,
+                pixel=centre_px[k],
+                in_front=bool(ahead[k]),
                 fully_inside=fully,
                 rows_spanned=span,
                 frames_spanned=span * s.row_time_s / period,
                 phase_s=phase,
                 sends_data=f.id in s.data_lights,
-                core_pixel=core_px,
+                core_pixel=core_px[k],
             )
         )
-    return tuple(truths), normals[list(chosen)], rims
+    return tuple(truths), n, [rim for rim, _ in rims]
+
+
+def _rims_px(
+    camera: Camera, pose: Pose, fixtures: list[Fixture], normals: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each fixture's rim (:func:`fixture_rim`) projected (:func:`project_within_field`),
+    all in one batch: per fixture, its pixels (shape (N_RIM, 2), or (1, 2), its centre, for
+    a fixture without a diameter) and which of them were pulled onto the lens' field."""
+    if not fixtures:
+        return []
+    sized = np.array([f.diameter is not None for f in fixtures])
+    centres = np.array([f.position for f in fixtures], dtype=float)
+    diameters = np.array([f.diameter if f.diameter is not None else 0.0 for f in fixtures])
+    points = rim_points(centres, diameters, normals, N_RIM)  # (K, N_RIM, 3)
+    pixels, clamped = project_within_field(
+        camera, pose, points.reshape(-1, 3), lens_field_radius(camera)
+    )
+    pixels, clamped = pixels.reshape(len(fixtures), N_RIM, 2), clamped.reshape(-1, N_RIM)
+    # a fixture without a diameter: its centre, which is the rim's every point
+    return [
+        (p, c) if ok else (p[:1], c[:1]) for p, c, ok in zip(pixels, clamped, sized, strict=True)
+    ]
+
+
+def _core_pixels(
+    camera: Camera,
+    pose: Pose,
+    fixtures: list[Fixture],
+    normals: np.ndarray,
+    cores: np.ndarray,
+    s: RenderSettings,
+) -> np.ndarray:
+    """Where each fixture's hot core projects, shape (K, 2), pixels: NaN without a core
+    (``s.core`` 0), without a diameter, or with its centre behind the camera."""
+    out = np.full((len(fixtures), 2), np.nan)
+    if s.core <= 0 or not fixtures:
+        return out
+    centres = np.array([f.position for f in fixtures], dtype=float)
+    sized = np.array([f.diameter is not None for f in fixtures])
+    drawn = sized & in_front(pose.to_camera(centres))
+    if not drawn.any():
+        return out
+    diameters = np.array([f.diameter for f, d in zip(fixtures, drawn, strict=True) if d])
+    a, b = plane_basis(normals[drawn])
+    c = cores[drawn]
+    hot = centres[drawn] + 0.5 * diameters[:, None] * (c[:, :1] * a + c[:, 1:] * b)
+    out[drawn] = camera.project(pose, hot)
+    return out
 
 
 def lens_field_radius(camera: Camera) -> float:

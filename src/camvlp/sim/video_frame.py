@@ -21,12 +21,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from camvlp.geometry.disc import plane_basis
+from camvlp.geometry.projection import in_view
 from camvlp.model.camera import Camera, Pose, euler_to_matrix
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.sim.light import (
     blur_margin,
     coverage,
     glow_margin,
+    glow_reach,
     lamp_shape,
     on_fraction,
     pixel_box,
@@ -182,11 +184,19 @@ def _moving_lights(
     off_centre = s.core > 0 and s.core_offset > 0
     field = lens_field_radius(camera)
     ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
+    # the fixtures whose disc and glow may reach the picture at the frame's start, middle
+    # or end (as their boxes are swept over those poses)
+    reach = 0.5 * np.array([f.diameter for f in fixture_map.fixtures], dtype=float)
+    reach *= 1.0 + glow_reach(s.halo, s.brightness)
+    margin = blur_margin(s.blur_px) + 2
+    seen = np.any(
+        [in_view(camera, pose, fixture_map.positions, reach, margin) for pose in ends], axis=0
+    )
     patches = []
     for i, (f, n, truth, colour) in enumerate(
         zip(fixture_map.fixtures, normals, truths, colours, strict=True)
     ):
-        if not truth.in_front or n @ (mid.position - f.position) <= 0:
+        if not (seen[i] and truth.in_front) or n @ (mid.position - f.position) <= 0:
             continue
         box = _swept_box(camera, f, n, ends, field, s)
         if box is None:
