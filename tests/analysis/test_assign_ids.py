@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from camvlp.analysis.assign_ids import assign_ids, assignment_report
-from camvlp.analysis.site_views import Views, ambiguous_views, identified_share, sample_views
+from camvlp.analysis.study.site_views import Views, ambiguous_views, identified_share, sample_views
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.linecode import FrameFormat
 

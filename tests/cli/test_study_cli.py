@@ -182,3 +182,34 @@ def test_study_cli_accepts_the_locate_solver_and_refuses_others():
     bad = runner.invoke(app, ["study", "rounding", "--solver", "dlt"])
     assert bad.exit_code == 2
     assert "locate" in one_error_line(bad)
+
+
+def test_a_range_across_the_floor_is_refused_naming_height(thesis_room_path):
+    """--z-range with --plane xy is not an axis of the floor: one line, not a silent study of
+    another place (it was ignored)."""
+    result = runner.invoke(
+        app,
+        ["study", "coverage", "--map", str(thesis_room_path), "--plane", "xy", "--z-range", "1,2"],
+    )
+    assert result.exit_code == 2
+    line = one_error_line(result)
+    assert "--z-range" in line and "--height" in line
+
+
+def test_a_site_coverage_writes_the_fixtures_in_view_and_the_ambiguous_views(tmp_path):
+    """A map whose IDs repeat: the summary says how many poses saw how many fixtures and how
+    many were left ambiguous, and the plot has the fixtures in view."""
+    from camvlp.io import save_map
+    from camvlp.sim.site import site_map
+
+    site = tmp_path / "site.yaml"
+    save_map(site_map(12, 12, spacing=1.0, height=3.0, diameter=0.3, pattern="periodic"), site)
+    args = ["study", "coverage", "--map", str(site), "--plane", "xy", "--x-range", "2,9"]
+    args += ["--y-range", "2,9", "--step", "1", "--height", "0", "--euler", "0,0,0"]
+    args += ["--tilt-max", "0", "--chip-rate", "100000", "--out", str(tmp_path / "out")]
+    result = runner.invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["reuse"] and summary["fixes"] == 0  # periodic: every view repeats
+    assert summary["ambiguous_views"] > 0 and summary["poses_seeing_at_least"]["5"] > 0.5
+    assert (tmp_path / "out" / "coverage.png").stat().st_size > 10_000

@@ -1,7 +1,7 @@
 """IDs for a site of more fixtures than a frame has IDs: every view told apart by geometry.
 
 :func:`assign_ids` chooses IDs that leave as few of a site's views ambiguous
-(:func:`~camvlp.analysis.site_views.ambiguous_views`) as it can find: first a greedy
+(:func:`~camvlp.analysis.study.site_views.ambiguous_views`) as it can find: first a greedy
 colouring in which lights seen together get different IDs and no light is seen beside its
 readout-reversal partner (an ID whose frame read backwards is another ID's: a photo whose
 readout direction is not known could read one as the other), then a local search that gives
@@ -17,14 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camvlp.analysis.site_views import (
+from camvlp.analysis.study.common import Progress
+from camvlp.analysis.study.site_views import (
     SiteGeometry,
     Views,
     ambiguous_views,
     identified_share,
     seen_together,
 )
-from camvlp.analysis.study.common import Progress
 
 __all__ = ["Assignment", "assign_ids", "assignment_report"]
 

@@ -62,7 +62,9 @@ PlaneOpt = Annotated[
     str,
     typer.Option("--plane", help="The two world axes spanning the floor (xz: thesis, y down)."),
 ]
-RangeX = Annotated[str, typer.Option("--x-range", help="Grid extent along x, 'lo,hi' (m).")]
+RangeX = Annotated[
+    str | None, typer.Option("--x-range", help="Grid extent along x, 'lo,hi' (m; -1,1).")
+]
 RangeY = Annotated[str | None, typer.Option("--y-range", help="Grid extent along y (m).")]
 RangeZ = Annotated[str | None, typer.Option("--z-range", help="Grid extent along z (m).")]
 StepOpt = Annotated[float, typer.Option("--step", help="Grid spacing (m).")]
@@ -148,13 +150,20 @@ def parse_triples(text: str, name: str) -> list[list[float]]:
 
 
 def grid_options(
-    plane: str, x: str, y: str | None, z: str | None, step: float, height: float
+    plane: str, x: str | None, y: str | None, z: str | None, step: float, height: float
 ) -> dict:
     """The floor grid's keyword arguments (see :func:`camvlp.sim.grid.floor_grid`) from the
     options --plane, --x-range/--y-range/--z-range (the plane's two), --step and --height."""
-    given = {"x": x, "y": y if y is not None else "-1,1", "z": z if z is not None else "-1,1"}
+    given = {a: r if r is not None else "-1,1" for a, r in zip("xyz", (x, y, z), strict=True)}
     if len(plane) != 2 or any(a not in "xyz" for a in plane) or plane[0] == plane[1]:
         fail(f"--plane must be two different axes of x, y, z (e.g. xz), got {plane!r}")
+    across = ({"x": x, "y": y, "z": z}[a] for a in "xyz" if a not in plane)
+    if next(across) is not None:
+        vertical = next(a for a in "xyz" if a not in plane)
+        fail(
+            f"--{vertical}-range is not an axis of the floor --plane {plane}: the camera's "
+            "place off the floor is --height"
+        )
     return {
         "plane": plane,
         "u_range_m": parse_floats(given[plane[0]], 2, f"--{plane[0]}-range"),

@@ -64,7 +64,7 @@ def assign_ids_command(
     import numpy as np
 
     from camvlp.analysis.assign_ids import assign_ids, assignment_report
-    from camvlp.analysis.site_views import sample_views
+    from camvlp.analysis.study.site_views import sample_views
     from camvlp.geometry.gravity.tilt import map_up
     from camvlp.io import load_camera, save_map
     from camvlp.io.layout import load_layout, with_ids

@@ -83,6 +83,19 @@ def _coverage_lines(s: dict, tilt_max: float, height: float, noise_px: float) ->
         f"{s['floor_fraction_all_fix']:.1%} for every tilt{four}",
         f"error where fixed (noise {noise_px:g} px): mean {_mm(s['mean_error_m'])}, "
         f"median {_mm(s['median_error_m'])}, 95% {_mm(s['p95_error_m'])}",
+        *_site_lines(s),
+    ]
+
+
+def _site_lines(s: dict) -> list[str]:
+    """For a map whose IDs repeat: the fixtures poses see, and the views left ambiguous."""
+    if not s["reuse"]:
+        return []
+    seeing = ", ".join(f"{k}+ {v:.1%}" for k, v in s["poses_seeing_at_least"].items())
+    return [
+        f"IDs reused: a pose is placed by its fixtures' IDs and arrangement; poses seeing {seeing}",
+        f"{s['ambiguous_views']} poses with fixtures enough for a pose were too few or ambiguous "
+        "to place",
     ]
 
 
@@ -156,7 +169,7 @@ def rounding(
         str, typer.Option("--euler", help="Camera orientation, thesis angles 'tx,ty,tz' (deg).")
     ] = "90,0,0",
     plane: PlaneOpt = "xz",
-    x_range: RangeX = "-1,1",
+    x_range: RangeX = None,
     y_range: RangeY = None,
     z_range: RangeZ = None,
     step: StepOpt = 0.1,
@@ -381,7 +394,7 @@ def coverage(
     camera: CameraOpt = None,
     map_path: MapOpt = None,
     plane: PlaneOpt = "xz",
-    x_range: RangeX = "-1,1",
+    x_range: RangeX = None,
     y_range: RangeY = None,
     z_range: RangeZ = None,
     step: StepOpt = 0.1,

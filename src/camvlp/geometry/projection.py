@@ -13,8 +13,9 @@ from __future__ import annotations
 import numpy as np
 
 from camvlp.model.camera import Camera, Pose, in_front
+from camvlp.model.readout import Readout
 
-__all__ = ["in_view", "project_batch", "project_moving"]
+__all__ = ["decodable_in_view", "in_view", "project_batch", "project_moving"]
 
 
 def _distort(x: np.ndarray, y: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -194,3 +195,31 @@ def in_view(camera: Camera, pose: Pose, centres, reach, margin_px: float = 0.0) 
         seen &= (p[:, k] - hi[k] * p[:, 2]) <= r * np.hypot(1.0, hi[k])
         seen &= (lo[k] * p[:, 2] - p[:, k]) <= r * np.hypot(1.0, lo[k])
     return seen
+
+
+def decodable_in_view(
+    camera: Camera, rot: np.ndarray, centres: np.ndarray, rims: np.ndarray, min_rows: float
+) -> np.ndarray:
+    """Which fixtures (G, N) have their whole rim in the image and span ``min_rows`` rows.
+
+    ``rot`` (3, 3) is the orientation shared by the camera centres (G, 3); ``rims``
+    (N, K, 3) are the fixtures' rim points, metres.  Rows are counted along the camera's
+    readout axis.
+    """
+    g, n = centres.shape[0], rims.shape[0]
+    read_axis = (camera.readout or Readout.ROWS).pixel_index
+    distort = camera.dist_or_none is not None
+    rr = np.broadcast_to(rot, (g, 3, 3))
+    uv = project_batch(camera, rr, centres, rims.reshape(-1, 3), distort=distort)
+    uv = uv.reshape(g, n, -1, 2)
+    w, h = camera.width, camera.height
+    with np.errstate(invalid="ignore"):
+        inside = np.all(
+            (uv[..., 0] >= -0.5)
+            & (uv[..., 0] <= w - 0.5)
+            & (uv[..., 1] >= -0.5)
+            & (uv[..., 1] <= h - 0.5),
+            axis=2,
+        )
+        span = np.ptp(uv[..., read_axis], axis=2)
+        return inside & (span >= min_rows)

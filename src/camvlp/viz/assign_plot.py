@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from camvlp.analysis.assign_ids import Assignment
-from camvlp.analysis.site_views import up_basis
+from camvlp.analysis.study.site_views import up_basis
 from camvlp.viz.figure import new_figure
 
 __all__ = ["plot_assignment"]

@@ -194,6 +194,8 @@ def draw_coverage(ax_fix, ax_error, study: CoverageStudy, ax_four=None) -> None:
     fractions = [study.fraction, study.fraction_four] if four else [study.fraction]
     vmax = max(float(f.max()) for f in fractions) if study.fix.any() else 1.0
     what = f"≥ {study.min_fixtures} fixtures in view and decodable"
+    if study.ambiguous is not None:
+        what = "fixtures in view that place it (IDs reused)"
     _draw_fix_fraction(ax_fix, study, study.fraction, what + (" + gravity" * study.gravity), vmax)
     if four:
         _draw_fix_fraction(ax_four, study, study.fraction_four, "≥ 4 fixtures, no gravity", vmax)
@@ -211,14 +213,38 @@ def draw_coverage(ax_fix, ax_error, study: CoverageStudy, ax_four=None) -> None:
     ax_error.set_title(f"Mean position error where a fix is possible\n{noise}, {study.solver}")
 
 
+def draw_fixtures_in_view(ax, study: CoverageStudy) -> None:
+    """A map of the fixtures in view and decodable, the mean over the orientations."""
+    draw_heat_map(
+        ax,
+        study.u_m,
+        study.v_m,
+        study.usable.mean(axis=-1),
+        "Fixtures in view and decodable (mean)",
+        study.plane,
+        cmap="viridis",
+        vmin=0.0,
+    )
+    t = np.ptp(study.euler_deg[:, 0]) / 2
+    ax.set_title(
+        f"Fixtures in view and decodable\ntilts up to ±{t:g}° about x and y, camera height "
+        f"{study.height_m:g} m\nat most {int(study.usable.max())}"
+    )
+
+
 def plot_coverage(study: CoverageStudy, path: str | Path) -> None:
     """Write :func:`draw_coverage` as a PNG, the maps side by side (with gravity: the
-    four-fixture map without gravity first, then the one with gravity, then the error)."""
-    if not study.gravity:
-        fig = new_figure(12.0, 5.0)
-        draw_coverage(*fig.subplots(1, 2), study)
-    else:
-        fig = new_figure(18.0, 5.0)
-        ax_four, ax_fix, ax_error = fig.subplots(1, 3)
+    four-fixture map without gravity first, then the one with gravity, then the error); for
+    a map whose IDs repeat, the fixtures in view first (:func:`draw_fixtures_in_view`)."""
+    site = study.ambiguous is not None
+    panels = 2 + int(study.gravity) + int(site)
+    axes = list(new_figure(6.0 * panels, 5.0).subplots(1, panels))
+    fig = axes[0].figure
+    if site:
+        draw_fixtures_in_view(axes.pop(0), study)
+    if study.gravity:
+        ax_four, ax_fix, ax_error = axes
         draw_coverage(ax_fix, ax_error, study, ax_four=ax_four)
+    else:
+        draw_coverage(*axes, study)
     fig.savefig(path)

@@ -13,7 +13,8 @@ centre is from the true one.
   point, many trials per pose (mean, median, 95th percentile).
 * :func:`coverage_study`: where on the floor a fix is possible (at least four fixtures
   wholly in the image and spanning enough rows to decode; two or three when the camera
-  knows gravity), over a range of tilts, and the expected error there.
+  knows gravity; in a site whose IDs repeat, fixtures that place the camera), over a range
+  of tilts, and the expected error there.
 
 Units: the study works in metres whatever the map's unit (converted with
 :attr:`FixtureMap.unit_m`); errors are in metres; image quantities in pixels.  The floor is
@@ -24,7 +25,9 @@ means ``y = -h``.
 The package, one module per study: :mod:`~camvlp.analysis.study.rounding`,
 :mod:`~camvlp.analysis.study.forced` (image and world error),
 :mod:`~camvlp.analysis.study.montecarlo`, :mod:`~camvlp.analysis.study.coverage` (with its
-sweep over poses, :mod:`~camvlp.analysis.study.coverage_sweep`), and
+sweep over poses, :mod:`~camvlp.analysis.study.coverage_sweep`), what a camera sees of a
+large site and which views its IDs leave ambiguous (:mod:`~camvlp.analysis.study.site_views`),
+and
 :mod:`~camvlp.analysis.study.common` (the solve and the error per pose they share).  Floor
 grids come from :mod:`camvlp.sim.grid`, statistics from :mod:`camvlp.analysis.stats`; the
 plots are in :mod:`camvlp.viz.study_plots` and the files in :mod:`camvlp.io.writers`.

@@ -16,13 +16,19 @@ from camvlp.analysis.study.common import (
     study_inputs,
 )
 from camvlp.analysis.study.coverage_sweep import KnownGravity, sweep_poses
+from camvlp.analysis.study.site_views import SiteGeometry, view_ambiguous
 from camvlp.geometry.disc import rim_points
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.identify.by_geometry import LIGHTS_NEEDED
 from camvlp.sim.grid import axis_values, floor_grid, plane_axes, up_sign
 
 __all__ = ["CoverageStudy", "coverage_study"]
+
+#: How closely another place of a site must repeat a view's IDs and arrangement to leave it
+#: ambiguous, metres (:func:`~camvlp.analysis.study.site_views.view_ambiguous`).
+_PLACE_TOL_M = 0.05
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,8 @@ class CoverageStudy:
     A fix needs at least four fixtures, not all on one line, each facing the camera, with
     its whole disc inside the image and spanning at least ``min_rows`` rows along the
     readout axis; with gravity, at least ``min_fixtures`` (2, 3 or 4), not all on one line
-    along gravity.
+    along gravity.  In a map whose IDs repeat, the fixtures in view must also say where the
+    camera is (:attr:`ambiguous`).
 
     Attributes
     ----------
@@ -69,6 +76,12 @@ class CoverageStudy:
         Fixtures a fix needs.
     fix_four : ndarray of bool, shape (NV, NU, O), or None
         Where four fixtures without gravity give a fix (None: the same as ``fix``).
+    ambiguous : ndarray of bool, shape (NV, NU, O), or None
+        In a map whose IDs repeat (``FixtureMap.reuse``): where the fixtures in view were
+        enough for a fix but do not say where the camera is (fewer than
+        :data:`~camvlp.pipeline.identify.by_geometry.LIGHTS_NEEDED`, or the same IDs in the
+        same arrangement elsewhere in the site, with any one of them missing too:
+        :func:`~camvlp.analysis.study.site_views.view_ambiguous`); None for other maps.
     """
 
     plane: str
@@ -90,6 +103,7 @@ class CoverageStudy:
     gravity_sigma_deg: float = float("nan")
     min_fixtures: int = 4
     fix_four: np.ndarray | None = None
+    ambiguous: np.ndarray | None = None
 
     @property
     def fraction(self) -> np.ndarray:
@@ -131,6 +145,13 @@ class CoverageStudy:
                 "gravity_sigma_deg": self.gravity_sigma_deg if self.gravity else None,
                 "min_fixtures": self.min_fixtures,
                 "mean_fix_fraction_four_no_gravity": float(self.fraction_four.mean()),
+                "poses_seeing_at_least": {
+                    str(k): float((self.usable >= k).mean()) for k in range(1, 7)
+                },
+                "reuse": self.ambiguous is not None,
+                "ambiguous_views": (
+                    int(self.ambiguous.sum()) if self.ambiguous is not None else None
+                ),
                 **{k: v for k, v in stats.items() if k not in ("poses", "failures")},
                 "solves": stats["poses"],
                 "failures": stats["failures"],
@@ -239,7 +260,12 @@ def coverage_study(
     gravity_sigma_deg : float
         The accelerometer's uncertainty, degrees.
     min_fixtures : int, optional
-        Fixtures a fix needs: 2, 3 or 4 with gravity (default 2), 4 without.
+        Fixtures a fix needs: 2, 3 or 4 with gravity (default 2), 4 without.  In a map
+        whose IDs repeat (``FixtureMap.reuse``) a fix needs, besides, fixtures in view that
+        place the camera as :func:`camvlp.locate` would (:attr:`CoverageStudy.ambiguous`).
+        The fixtures near each camera centre only are projected (blocks of
+        :data:`~camvlp.analysis.study.coverage_sweep.POINTS_AT_ONCE` points), so a site of
+        thousands of fixtures is swept as a room is.
 
     Returns
     -------
@@ -264,10 +290,10 @@ def coverage_study(
     frame_rows = fixture_map.frame.n_chips / (chip_rate_hz * rt)
     eul, rots = _orientations(base_euler_deg, tilt_max_deg, tilt_step_deg)
     grav = None
+    up = _floor_up(pts, plane) if fixture_map.up is None else fixture_map.up
     if gravity:
-        up = _floor_up(pts, plane) if fixture_map.up is None else fixture_map.up
         grav = KnownGravity(up, float(gravity_sigma_deg), least)
-    usable, fix, fix_four, errors = sweep_poses(
+    usable, fix, fix_four, errors, untold = sweep_poses(
         camera,
         inp,
         pos.reshape(-1, 3),
@@ -276,6 +302,7 @@ def coverage_study(
         min_frames * frame_rows,
         grav,
         progress,
+        _told_apart(fixture_map, pts, up) if fixture_map.reuse else None,
     )
     shape = (v.size, u.size, eul.shape[0])
     return CoverageStudy(
@@ -298,7 +325,21 @@ def coverage_study(
         float(gravity_sigma_deg) if gravity else float("nan"),
         least,
         fix_four.reshape(shape),
+        untold.reshape(shape) if fixture_map.reuse else None,
     )
+
+
+def _told_apart(fixture_map: FixtureMap, points_m: np.ndarray, up: np.ndarray):
+    """For a map whose IDs repeat: whether the fixtures a pose sees (indices) say where it
+    is, as :func:`camvlp.locate` would place it (:data:`LIGHTS_NEEDED` lights or more, no
+    other place with those IDs in that arrangement, with any one of them missing too)."""
+    ids = np.array([f.id for f in fixture_map.fixtures], dtype=np.int64)
+    site = SiteGeometry(points_m, np.asarray(up, dtype=float), ids, fixture_map.frame.n_ids)
+
+    def told_apart(members: np.ndarray) -> bool:
+        return not view_ambiguous(site, members, _PLACE_TOL_M, True, LIGHTS_NEEDED)
+
+    return told_apart
 
 
 def _min_fixtures(gravity: bool, sigma_deg: float, min_fixtures: int | None) -> int:

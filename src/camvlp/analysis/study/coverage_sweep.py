@@ -5,6 +5,8 @@ fixtures only, by PnP or, for a camera that knows gravity, by the gravity solver
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,11 +18,10 @@ from camvlp.analysis.study.common import (
     position_errors,
 )
 from camvlp.geometry.gravity import refine_gravity_batch
-from camvlp.geometry.projection import project_batch
-from camvlp.model.camera import Camera
-from camvlp.model.readout import Readout
+from camvlp.geometry.projection import decodable_in_view, in_view, project_batch
+from camvlp.model.camera import Camera, Pose
 
-__all__ = ["KnownGravity", "decodable_in_view", "sweep_poses"]
+__all__ = ["POINTS_AT_ONCE", "KnownGravity", "decodable_reach", "sweep_poses"]
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,12 @@ class KnownGravity:
     min_fixtures: int
 
 
+#: Projected rim points (camera centres x fixtures x rim points) a sweep works on at once:
+#: a larger study (a site's floor and fixtures) is swept a block of centres at a time, each
+#: against the fixtures that can be decodable from it (:func:`decodable_reach`).
+POINTS_AT_ONCE = 4_000_000
+
+
 def sweep_poses(
     camera: Camera,
     inputs: StudyInputs,
@@ -45,11 +52,15 @@ def sweep_poses(
     min_rows: float,
     gravity: KnownGravity | None,
     progress: Progress | None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    told_apart: Callable[[np.ndarray], bool] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Every camera centre (G, 3) at every orientation (O, 3, 3): what it sees, and its error.
 
     ``discs`` are the fixtures' normals (N, 3) and rim points (N, K, 3), metres; with
-    ``gravity`` the camera knows which way is down.
+    ``gravity`` the camera knows which way is down.  ``told_apart``, given the indices of
+    the fixtures a pose with a fix sees, says whether they tell where it is (a site whose
+    IDs repeat: :func:`~camvlp.analysis.study.site_views.ambiguous_views`); a pose they do not
+    has no fix.  Centres are swept in blocks of :data:`POINTS_AT_ONCE` projected points.
 
     Returns
     -------
@@ -57,63 +68,132 @@ def sweep_poses(
         Fixtures facing the camera, wholly in view and spanning ``min_rows`` rows.
     fix : ndarray of bool, shape (G, O)
         At least four usable fixtures, not all on a line (with gravity: at least
-        ``gravity.min_fixtures``, not all on a line along up).
+        ``gravity.min_fixtures``, not all on a line along up), told apart.
     fix_four : ndarray of bool, shape (G, O)
         At least four usable fixtures, not all on a line (a fix without gravity).
     errors : ndarray, shape (G, O, trials)
         Position error where there is a fix, metres; NaN elsewhere.
+    untold : ndarray of bool, shape (G, O)
+        Poses with fixtures enough for a fix that ``told_apart`` refused.
     """
-    pts = inputs.fixtures_m
-    normals, rims = discs
     g, o = centres.shape[0], rots.shape[0]
+    untold = np.zeros((g, o), dtype=bool)
     usable = np.zeros((g, o), dtype=np.int64)
     fix = np.zeros((g, o), dtype=bool)
     fix_four = np.zeros((g, o), dtype=bool)
     errors = np.full((g, o, inputs.trials), np.nan)
-    facing = np.einsum("ni,gni->gn", normals, centres[:, None, :] - pts[None, :, :]) > 0
-    if gravity is not None:  # lights on one line along up look like one point from above
-        flat = pts - np.outer(pts @ gravity.up, gravity.up)
+    cells = _cells(centres, discs[1])
     for j in range(o):
-        ok = facing & decodable_in_view(camera, rots[j], centres, rims, min_rows)
-        usable[:, j] = ok.sum(1)
-        fix_four[:, j] = (usable[:, j] >= 4) & _not_collinear(pts, ok)
-        if gravity is None:
-            fix[:, j] = fix_four[:, j]
-        else:
-            spread = _not_collinear(flat, ok, point=True)
-            fix[:, j] = (usable[:, j] >= gravity.min_fixtures) & spread
-        errors[:, j] = _fix_errors(camera, inputs, rots[j], centres, ok, fix[:, j], gravity)
+        for rows, cols in _blocks(camera, rots[j], centres, discs[1], min_rows, cells):
+            sub = dataclasses.replace(inputs, fixtures_m=inputs.fixtures_m[cols])
+            seen = (discs[0][cols], discs[1][cols])
+            got = _sweep_block(camera, sub, centres[rows], rots[j], seen, min_rows, gravity)
+            usable[rows, j], fix[rows, j], fix_four[rows, j], ok = got
+            if told_apart is not None:
+                for i in np.flatnonzero(fix[rows, j]):
+                    fix[rows[i], j] = told_apart(cols[ok[i]])
+                    untold[rows[i], j] = not fix[rows[i], j]
+            errors[rows, j] = _fix_errors(
+                camera, sub, rots[j], centres[rows], ok, fix[rows, j], gravity
+            )
         if progress is not None:
             progress(j + 1, o)
-    return usable, fix, fix_four, errors
+    return usable, fix, fix_four, errors, untold
 
 
-def decodable_in_view(
-    camera: Camera, rot: np.ndarray, centres: np.ndarray, rims: np.ndarray, min_rows: float
-) -> np.ndarray:
-    """Which fixtures (G, N) have their whole rim in the image and span ``min_rows`` rows.
+def _sweep_block(
+    camera: Camera,
+    inputs: StudyInputs,
+    centres: np.ndarray,
+    rot: np.ndarray,
+    discs: tuple[np.ndarray, np.ndarray],
+    min_rows: float,
+    gravity: KnownGravity | None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`sweep_poses` for centres (B, 3) at one orientation against the fixtures of
+    ``inputs`` (M of them): usable counts (B,), fix and fix without gravity (B,), and which
+    fixtures each centre can use (B, M)."""
+    pts = inputs.fixtures_m
+    normals, rims = discs
+    facing = np.einsum("ni,gni->gn", normals, centres[:, None, :] - pts[None, :, :]) > 0
+    ok = facing & decodable_in_view(camera, rot, centres, rims, min_rows)
+    usable = ok.sum(1)
+    four = (usable >= 4) & _not_collinear(pts, ok)
+    if gravity is None:
+        return usable, four, four, ok
+    # lights on one line along up look like one point from above
+    flat = pts - np.outer(pts @ gravity.up, gravity.up)
+    fix = (usable >= gravity.min_fixtures) & _not_collinear(flat, ok, point=True)
+    return usable, fix, four, ok
 
-    ``rot`` (3, 3) is the orientation shared by the camera centres (G, 3); ``rims``
-    (N, K, 3) are the fixtures' rim points, metres.  Rows are counted along the camera's
-    readout axis.
+
+def decodable_reach(camera: Camera, diameter_m: float, min_rows: float) -> float:
+    """The farthest a disc of ``diameter_m`` can be from the camera and still span
+    ``min_rows`` rows anywhere in its picture, metres (inf for ``min_rows`` 0).
+
+    A small disc ``d`` at a distance ``D`` spans at most ``f d (1 + r ** 2) / D`` pixels,
+    ``r`` the picture's largest normalised radius (its corners, undistorted): the
+    magnification grows off the axis as ``1 + tan ** 2`` of the angle.  A tenth more and a
+    diameter are added for discs that are not small.
     """
-    g, n = centres.shape[0], rims.shape[0]
-    read_axis = (camera.readout or Readout.ROWS).pixel_index
-    distort = camera.dist_or_none is not None
-    rr = np.broadcast_to(rot, (g, 3, 3))
-    uv = project_batch(camera, rr, centres, rims.reshape(-1, 3), distort=distort)
-    uv = uv.reshape(g, n, -1, 2)
-    w, h = camera.width, camera.height
-    with np.errstate(invalid="ignore"):
-        inside = np.all(
-            (uv[..., 0] >= -0.5)
-            & (uv[..., 0] <= w - 0.5)
-            & (uv[..., 1] >= -0.5)
-            & (uv[..., 1] <= h - 0.5),
-            axis=2,
-        )
-        span = np.ptp(uv[..., read_axis], axis=2)
-        return inside & (span >= min_rows)
+    if not min_rows > 0:
+        return float("inf")
+    w, h = camera.width - 1.0, camera.height - 1.0
+    corners = np.array([[0.0, 0.0], [w, 0.0], [0.0, h], [w, h], [w / 2, 0.0], [0.0, h / 2]])
+    r2 = float(np.max(np.sum(camera.undistort_pixels(corners) ** 2, axis=1)))
+    f = float(np.max(np.diag(camera.matrix)[:2]))
+    return 1.1 * f * diameter_m * (1.0 + r2) / min_rows + diameter_m
+
+
+def _cells(centres: np.ndarray, rims: np.ndarray) -> list[np.ndarray] | None:
+    """The camera centres (G, 3) in cubes of about 16 (a floor grid's 4 x 4), as index
+    arrays, for a sweep too large for :data:`POINTS_AT_ONCE` against the fixtures' rims
+    (N, K, 3); None when it is not."""
+    g, n, k = centres.shape[0], rims.shape[0], rims.shape[1]
+    if g * n * k <= POINTS_AT_ONCE:
+        return None
+    extent = np.sort(np.ptp(centres, axis=0))[::-1]
+    if extent[1] > 0:  # a floor: 16 grid cells of its area
+        side = 4.0 * float(np.sqrt(extent[0] * extent[1] / g))
+    else:  # a line, or one point
+        side = 16.0 * float(extent[0]) / g if extent[0] > 0 else 1.0
+    _, cell_of = np.unique(np.floor(centres / side), axis=0, return_inverse=True)
+    cell_of = cell_of.reshape(-1)
+    return [np.flatnonzero(cell_of == c) for c in range(int(cell_of.max()) + 1)]
+
+
+def _blocks(
+    camera: Camera,
+    rot: np.ndarray,
+    centres: np.ndarray,
+    rims: np.ndarray,
+    min_rows: float,
+    cells: list[np.ndarray] | None,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The sweep's blocks at one orientation ``rot`` (world from camera): (centres' indices,
+    fixtures' indices) pairs.  All against all when ``cells`` is None; else each cube of
+    centres against the fixtures it may see (within :func:`decodable_reach` and
+    :func:`~camvlp.geometry.projection.in_view` of the cube's middle, widened by its
+    half-diagonal), as many centres a block as :data:`POINTS_AT_ONCE` allows."""
+    n, k = rims.shape[0], rims.shape[1]
+    everything = np.arange(n)
+    if cells is None:
+        return [(np.arange(centres.shape[0]), everything)]
+    mid = rims.mean(axis=1)  # the discs' centres
+    radius = float(np.max(np.linalg.norm(rims - mid[:, None, :], axis=2)))
+    reach = decodable_reach(camera, 2.0 * radius, min_rows)
+    out = []
+    for members in cells:
+        lo, hi = centres[members].min(axis=0), centres[members].max(axis=0)
+        middle, half = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
+        near = np.linalg.norm(mid - middle, axis=1) <= reach + half
+        near &= in_view(camera, Pose(rot, middle), mid, np.full(n, radius + half), 1.0)
+        cols = everything[near]
+        if not cols.size:  # nothing in view from this cube: no fixture usable, no fix
+            continue
+        per = max(1, POINTS_AT_ONCE // (cols.size * k))
+        out += [(members[i : i + per], cols) for i in range(0, members.size, per)]
+    return out
 
 
 def _fix_errors(

@@ -8,7 +8,7 @@ heading) lie somewhere else in the site too; it is then refused, not guessed.
 
 :func:`sample_views` draws camera poses over a site (positions over its floor, heights above
 the floor, tilts up to a limit, any heading) and lists the fixtures each sees whole and
-large enough to decode (:func:`~camvlp.analysis.study.coverage_sweep.decodable_in_view`).
+large enough to decode (:func:`~camvlp.geometry.projection.decodable_in_view`).
 :func:`ambiguous_views` tells which views have another placement in the site (optionally
 also with any one of their lights missing: a light the decoder misses must not make a view
 ambiguous).  :mod:`camvlp.analysis.assign_ids` chooses IDs that leave few of them.
@@ -22,8 +22,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from camvlp.analysis.study.common import Progress
-from camvlp.analysis.study.coverage_sweep import decodable_in_view
 from camvlp.geometry.disc import rim_points
+from camvlp.geometry.projection import decodable_in_view
 from camvlp.model.camera import Camera
 
 __all__ = [
@@ -34,6 +34,7 @@ __all__ = [
     "sample_views",
     "seen_together",
     "up_basis",
+    "view_ambiguous",
 ]
 
 
@@ -260,14 +261,15 @@ def ambiguous_views(
     site = SiteGeometry(positions_m, up, ids, n_ids)
     out = np.zeros(len(views.seen), dtype=bool)
     for k, members in enumerate(views.seen):
-        out[k] = _view_ambiguous(site, members, tol_m, one_missing, least)
+        out[k] = view_ambiguous(site, members, tol_m, one_missing, least)
     return out
 
 
-def _view_ambiguous(
+def view_ambiguous(
     site: SiteGeometry, members: np.ndarray, tol_m: float, one_missing: bool, least: int
-):
-    """Whether one view (fixture indices) is ambiguous (see :func:`ambiguous_views`)."""
+) -> bool:
+    """Whether one view (the indices of the fixtures it sees, shape (K,)) is ambiguous in
+    ``site``: the arguments as :func:`ambiguous_views` takes them."""
     if members.size < max(least, 2):
         return True
     if _other_placement(site, members, tol_m):
