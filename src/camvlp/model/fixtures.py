@@ -172,6 +172,30 @@ class FixtureMap:
         return pos
 
     @cached_property
+    def id_array(self) -> np.ndarray:
+        """The fixtures' IDs, shape (N,), int64, in map order (read-only: built once)."""
+        out = np.array([f.id for f in self.fixtures], dtype=np.int64)
+        out.flags.writeable = False
+        return out
+
+    @cached_property
+    def diameters(self) -> np.ndarray:
+        """The fixtures' diameters, shape (N,), map units, NaN where not given (read-only)."""
+        out = np.array([f.diameter or np.nan for f in self.fixtures], dtype=float)
+        out.flags.writeable = False
+        return out
+
+    @cached_property
+    def normals(self) -> np.ndarray:
+        """The fixtures' unit normals, shape (N, 3), rows of NaN where not given
+        (read-only)."""
+        nan = (np.nan, np.nan, np.nan)
+        out = np.array([nan if f.normal is None else f.normal for f in self.fixtures], float)
+        out = out.reshape(-1, 3)
+        out.flags.writeable = False
+        return out
+
+    @cached_property
     def index(self) -> cKDTree:
         """A k-d tree over :attr:`positions` (map units), built when first asked for: the
         fixtures near a point or within a distance of each other, in logarithmic time."""

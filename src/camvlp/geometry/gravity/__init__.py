@@ -25,7 +25,7 @@ Bearings are undistorted normalised image coordinates ``(x, y, 1)`` (``Camera.un
 i.e. ``cv2.undistortPoints`` with the camera's matrix and distortion).
 
 The package: :mod:`~camvlp.geometry.gravity.tilt` (checking gravity, the map's up, the
-tilt), :mod:`~camvlp.geometry.gravity.two_fixtures` (the closed form),
+tilt), :mod:`~camvlp.geometry.gravity.two_fixtures` (the closed form, also for many pairs at once),
 :mod:`~camvlp.geometry.gravity.solve` (:func:`solve_pose_gravity` and its result) and
 :mod:`~camvlp.geometry.gravity.refine` (the vectorised refinement, also used by the
 coverage study).
@@ -47,7 +47,7 @@ from camvlp.geometry.gravity.tilt import (
     tilt_error_deg,
     tilt_rotation,
 )
-from camvlp.geometry.gravity.two_fixtures import solve_two_fixtures
+from camvlp.geometry.gravity.two_fixtures import pair_ray_lengths, solve_two_fixtures
 
 __all__ = [
     "MAX_TILT_SIGMAS",
@@ -56,6 +56,7 @@ __all__ = [
     "check_gravity",
     "check_gravity_view",
     "map_up",
+    "pair_ray_lengths",
     "refine_gravity_batch",
     "solve_pose_gravity",
     "solve_two_fixtures",

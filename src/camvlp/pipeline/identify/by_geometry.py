@@ -31,14 +31,17 @@ in that arrangement.  :func:`placed` finds them:
 The place found gives the fixtures in the photo's view, their IDs unique there
 (:attr:`Placement.local`): the identify and solve stages then run on that part of the map as
 on any map.
+
+A photo of two to four lights with an ID is placed with the direction of gravity, when it is
+given (:mod:`~camvlp.pipeline.identify.by_gravity`); without it, it is refused.  What both
+ways share (the lights, the prior, the local map) is
+:mod:`~camvlp.pipeline.identify.placement`'s.
 """
 
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from camvlp.geometry.hypotheses import (
@@ -49,11 +52,27 @@ from camvlp.geometry.hypotheses import (
 from camvlp.geometry.pnp import solve_pnp
 from camvlp.model.camera import Pose, project_points
 from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.identify.by_gravity import placed_with_gravity
 from camvlp.pipeline.identify.by_pose import TOLD_APART
+from camvlp.pipeline.identify.placement import (
+    DISTANCE_SLACK,
+    PLACES_LISTED,
+    RELATIVE_SLACK,
+    LightsWithIds,
+    Placement,
+    around,
+    inside,
+    lights_with_ids,
+    listed,
+    local_map,
+    prior_mask,
+    refused,
+)
 from camvlp.pipeline.solve import PoseProblem
 
 __all__ = [
     "DISTANCE_SLACK",
+    "GRAVITY_NEEDED",
     "HYPOTHESIS_SOLVER",
     "LIGHTS_NEEDED",
     "MAX_HYPOTHESES",
@@ -63,16 +82,6 @@ __all__ = [
     "Placement",
     "placed",
 ]
-
-#: A light's distance from its disc's size (the estimate) is the true one over a scale that
-#: lies between the first factor's inverse and the second: a glowing lamp's halo makes its
-#: disc look larger, so the fixture farther (lamps of the stress benchmark's looks: up to
-#: 2.2 times); a disc's major axis is hardly ever shorter than its diameter's image.
-DISTANCE_SLACK = (2.0, 3.0)
-
-#: The lights of one photo share that scale to within this factor (one look, one exposure):
-#: each light's estimate times the common scale is within its square root either way.
-RELATIVE_SLACK = 1.5
 
 #: Most sets of four seed lights tried (among the five lights with the fewest candidates).
 SEED_SETS = 3
@@ -87,8 +96,10 @@ MAX_HYPOTHESES = 20_000
 #: Lights with an ID a photo needs to be placed: four for a pose, one more to confirm it.
 LIGHTS_NEEDED = 5
 
-#: Most candidate places a refusal lists.
-PLACES_LISTED = 4
+#: Lights with an ID a photo needs to be placed with the direction of gravity
+#: (:mod:`~camvlp.pipeline.identify.by_gravity`, which places photos of fewer than
+#: :data:`LIGHTS_NEEDED`).
+GRAVITY_NEEDED = 2
 
 #: The PnP method each hypothesis is solved with: SQPnP, which finds the global minimum from
 #: four points in a fraction of the time of the iterative method's (the pose of the place
@@ -96,82 +107,9 @@ PLACES_LISTED = 4
 HYPOTHESIS_SOLVER = "sqpnp"
 
 
-@dataclass(frozen=True)
-class Placement:
-    """Where :func:`placed` puts a photo in a map whose IDs repeat.
-
-    Attributes
-    ----------
-    local : FixtureMap or None
-        The fixtures in the view of the place found, each ID once (a map without ``reuse``);
-        None when the photo is refused.
-    reason : str
-        Why the photo was refused ("" when placed).
-    places : ndarray, shape (m, 3)
-        Camera positions of the correspondences weighed, the one taken (or the best) first,
-        map units; (0, 3) when none fits.
-    explained : tuple of int
-        The numbers of lights those correspondences explain, in the same order.
-    """
-
-    local: FixtureMap | None
-    reason: str
-    places: np.ndarray
-    explained: tuple[int, ...]
-
-
-@dataclass(frozen=True)
-class _Lights:
-    """The lights with an ID: their indices among the photo's, IDs, pixels, rays (unit
-    vectors in the camera's frame), distances from their discs' sizes (map units; inf
-    unknown, without diameters) and the greatest distance each can be at."""
-
-    index: np.ndarray
-    ids: np.ndarray
-    pixels: np.ndarray
-    rays: np.ndarray
-    rho: np.ndarray
-    far: np.ndarray
-
-
-def _lights(problem: PoseProblem, decodes) -> _Lights:
-    """The photo's lights whose stripes gave an ID the map has (not cut by the border)."""
-    fmap, camera = problem.fixture_map, problem.camera
-    keep = [
-        k
-        for k, (b, d) in enumerate(zip(problem.blobs, decodes, strict=True))
-        if d.id is not None and not d.reason and not b.touches_border and fmap.with_id(d.id).size
-    ]
-    ids = np.array([decodes[k].id for k in keep], dtype=np.int64)
-    pixels = np.array([problem.blobs[k].pixel for k in keep], dtype=float).reshape(-1, 2)
-    if keep:
-        flat = cv2.undistortPoints(pixels[:, None, :], camera.matrix, camera.dist_or_none)
-        rays = np.column_stack([flat.reshape(-1, 2), np.ones(len(keep))])
-        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
-    else:
-        rays = np.zeros((0, 3))
-    focal = 0.5 * float(camera.matrix[0, 0] + camera.matrix[1, 1])
-    rho = np.full(len(keep), np.inf)
-    for j, k in enumerate(keep):
-        diameters = [fmap.fixtures[i].diameter for i in fmap.with_id(ids[j])]
-        major = float(np.max(problem.blobs[k].axes_px))
-        if all(diameters) and major > 0:
-            rho[j] = focal * float(np.median(diameters)) / major
-    far = rho * DISTANCE_SLACK[1] * np.sqrt(RELATIVE_SLACK)
-    return _Lights(np.array(keep, dtype=np.int64), ids, pixels, rays, rho, far)
-
-
-def _prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
-    """The fixtures within ``within + reach`` of the prior ``near`` (its x, y only when it
-    gives two numbers); every fixture without a prior."""
-    if near is None:
-        return np.ones(len(fmap.fixtures), dtype=bool)
-    c = np.asarray(near, dtype=float)
-    off = fmap.positions[:, : c.size] - c
-    return np.einsum("ij,ij->i", off, off) <= (within + reach) ** 2
-
-
-def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.ndarray | None:
+def _quads(
+    fmap: FixtureMap, lights: LightsWithIds, seeds, allowed: np.ndarray
+) -> np.ndarray | None:
     """Every four fixtures, one a seed light, whose IDs are the seeds' and whose distances
     fit what the photo sees (:func:`_extended`); shape (q, 4) of fixture indices, or None
     when more than :data:`MAX_HYPOTHESES`."""
@@ -187,7 +125,7 @@ def _quads(fmap: FixtureMap, lights: _Lights, seeds, allowed: np.ndarray) -> np.
     return rows
 
 
-def _extended(fmap: FixtureMap, lights: _Lights, seeds, rows, scale, ok):
+def _extended(fmap: FixtureMap, lights: LightsWithIds, seeds, rows, scale, ok):
     """``rows`` (shape (r, m), fixtures of the first m ``seeds``) each extended by every
     fixture ``ok`` allows for the last seed whose distance to each of the row's fixtures
     fits the rays' angle and the lights' distances (:func:`~camvlp.geometry.hypotheses.
@@ -224,7 +162,7 @@ def _extended(fmap: FixtureMap, lights: _Lights, seeds, rows, scale, ok):
     return rows, np.column_stack([lo[keep], hi[keep]])
 
 
-def _pose_of(problem: PoseProblem, lights: _Lights, seeds, quad: np.ndarray) -> Pose | None:
+def _pose_of(problem: PoseProblem, lights: LightsWithIds, seeds, quad: np.ndarray) -> Pose | None:
     """The pose of the seed lights taken as the fixtures ``quad``, or None when they do not
     reproject within the outlier distance, lie behind the camera or face away from it."""
     fmap, camera = problem.fixture_map, problem.camera
@@ -247,21 +185,12 @@ def _pose_of(problem: PoseProblem, lights: _Lights, seeds, quad: np.ndarray) -> 
     return pose
 
 
-def _around(fmap: FixtureMap, lights: _Lights, pose: Pose, factor: float) -> np.ndarray:
-    """Indices of the fixtures within ``factor`` times the farthest a light can be of the
-    camera (by the map's k-d tree); every fixture when a light's distance is not bounded."""
-    if not np.isfinite(lights.far).all():
-        return np.arange(len(fmap.fixtures))
-    reach = factor * float(lights.far.max())
-    return np.asarray(fmap.index.query_ball_point(pose.position, reach), dtype=np.int64)
-
-
-def _explained(problem: PoseProblem, lights: _Lights, pose: Pose) -> tuple[frozenset, float]:
+def _explained(problem: PoseProblem, lights: LightsWithIds, pose: Pose) -> tuple[frozenset, float]:
     """The lights ``pose`` explains: (light, fixture) pairs, each light's fixture the one of
     the map with its ID that projects within the outlier distance of it, every other with
     that ID :data:`TOLD_APART` times farther, no fixture twice; and their RMS distance (px)."""
     fmap, tol = problem.fixture_map, problem.outlier_px
-    idx = _around(fmap, lights, pose, 1.0)
+    idx = around(fmap, lights, pose, 1.0)
     if idx.size == 0:
         return frozenset(), np.inf
     where = project_points(problem.camera, pose, fmap.positions[idx])
@@ -280,7 +209,9 @@ def _explained(problem: PoseProblem, lights: _Lights, pose: Pose) -> tuple[froze
     return pairs, rms
 
 
-def _seed_sets(fmap: FixtureMap, lights: _Lights, allowed: np.ndarray) -> list[tuple[int, ...]]:
+def _seed_sets(
+    fmap: FixtureMap, lights: LightsWithIds, allowed: np.ndarray
+) -> list[tuple[int, ...]]:
     """Up to :data:`SEED_SETS` sets of four lights (indices into ``lights``), drawn from the
     five with the fewest candidate fixtures (ties: the lights farther apart in the photo
     first), the sets whose smallest triangle is the largest (:func:`least_triangle`)
@@ -294,7 +225,7 @@ def _seed_sets(fmap: FixtureMap, lights: _Lights, allowed: np.ndarray) -> list[t
     return [sets[k] for k in np.argsort(-flat, kind="stable")[:SEED_SETS]]
 
 
-def _correspondences(problem: PoseProblem, lights: _Lights, allowed, prior) -> dict | str:
+def _correspondences(problem: PoseProblem, lights: LightsWithIds, allowed, prior) -> dict | str:
     """Every correspondence the seed sets' hypotheses give: (light, fixture) pairs -> (the
     RMS distance, px, the pose); or why none could be weighed."""
     fmap = problem.fixture_map
@@ -308,7 +239,7 @@ def _correspondences(problem: PoseProblem, lights: _Lights, allowed, prior) -> d
             )
         for quad in quads[rigid_on_plane(fmap.positions[quads], lights.rays[list(seeds)])]:
             pose = _pose_of(problem, lights, seeds, quad)
-            if pose is None or (prior is not None and not _inside(pose.position, *prior)):
+            if pose is None or (prior is not None and not inside(pose.position, *prior)):
                 continue
             pairs, rms = _explained(problem, lights, pose)
             seeded = set(zip(lights.index[list(seeds)].tolist(), quad.tolist(), strict=True))
@@ -317,67 +248,10 @@ def _correspondences(problem: PoseProblem, lights: _Lights, allowed, prior) -> d
     return found
 
 
-def _inside(position: np.ndarray, near, within: float) -> bool:
-    """The camera's ``position`` lies within ``within`` of the prior ``near`` (over the
-    axes it gives)."""
-    c = np.asarray(near, dtype=float)
-    return float(np.linalg.norm(position[: c.size] - c)) <= within
-
-
 def _contradicts(a: frozenset, b: frozenset) -> bool:
     """Two correspondences give one light two fixtures, or one fixture two lights."""
     la, fa = dict(a), {f: k for k, f in a}
     return any(la.get(k, f) != f or fa.get(f, k) != k for k, f in b)
-
-
-def _places(ranked: list, units: str) -> str:
-    """The first :data:`PLACES_LISTED` camera positions of ``ranked`` ((pairs, (rms, pose)))."""
-    text = [
-        "(" + ", ".join(f"{v:.2f}" for v in pose.position) + ")"
-        for _, (_, pose) in ranked[:PLACES_LISTED]
-    ]
-    more = len(ranked) - PLACES_LISTED
-    return ", ".join(text) + (f" and {more} more" if more > 0 else "") + f" ({units})"
-
-
-def _local_map(problem: PoseProblem, lights: _Lights, pairs: frozenset, pose: Pose) -> FixtureMap:
-    """The fixtures ``pose`` puts in front of the camera and in the photo (or within a tenth
-    of its width of it) and those ``pairs`` gives the lights, each ID once: where two have
-    one ID, the one a light was found to be, else the one in the photo when the other lies
-    outside it; else neither."""
-    fmap, camera = problem.fixture_map, problem.camera
-    idx = _around(fmap, lights, pose, 2.0)
-    where = project_points(camera, pose, fmap.positions[idx]).reshape(-1, 2)
-    ahead = (fmap.positions[idx] - pose.position) @ pose.world_from_camera[:, 2] > 0
-    tier = np.full(len(idx), 3)  # 1: in the photo, 2: within the margin, 3: neither
-    for t, pad in ((2, 0.1 * camera.width), (1, 0.0)):
-        inside = ahead & np.all(np.isfinite(where), axis=1)
-        inside &= (where[:, 0] >= -pad) & (where[:, 0] <= camera.width - 1 + pad)
-        inside &= (where[:, 1] >= -pad) & (where[:, 1] <= camera.height - 1 + pad)
-        tier[inside] = t
-    rank = dict(zip(idx.tolist(), tier.tolist(), strict=True))
-    rank.update({f: 0 for _, f in pairs})  # 0: a light's
-    best: dict[int, tuple[int, list[int]]] = {}  # ID -> its best tier, the fixtures of it
-    for i, t in sorted(rank.items(), key=lambda it: it[1]):
-        fid = fmap.fixtures[i].id
-        if t < 3 and (fid not in best or best[fid][0] == t):
-            best.setdefault(fid, (t, []))[1].append(i)
-    keep = sorted(f[0] for t, f in best.values() if len(f) == 1 or t == 0)
-    return FixtureMap(
-        tuple(fmap.fixtures[i] for i in keep),
-        units=fmap.units,
-        mode=fmap.mode,
-        frame=fmap.frame,
-        source=fmap.source,
-        up=fmap.up,
-        chip_rate_hz=fmap.chip_rate_hz,
-    )
-
-
-def _refused(reason: str, ranked: list | None = None) -> Placement:
-    ranked = ranked or []
-    places = np.array([pose.position for _, (_, pose) in ranked]).reshape(-1, 3)
-    return Placement(None, reason, places, tuple(len(p) for p, _ in ranked))
 
 
 def placed(problem: PoseProblem, decodes, near=None, within: float | None = None) -> Placement:
@@ -399,33 +273,43 @@ def placed(problem: PoseProblem, decodes, near=None, within: float | None = None
     Placement
         The fixtures in view of the place found, or why the photo is refused: too few
         lights with an ID, no place that fits, or more than one place that fits about
-        equally (the reason lists them).
+        equally (the reason lists them).  With gravity (``problem.gravity``), a photo of
+        :data:`GRAVITY_NEEDED` to four lights with an ID is placed by
+        :func:`~camvlp.pipeline.identify.by_gravity.placed_with_gravity`.
     """
     fmap = problem.fixture_map
-    lights = _lights(problem, decodes)
+    lights = lights_with_ids(problem, decodes)
     n, confirm = len(lights.ids), LIGHTS_NEEDED
+    if n < confirm and problem.gravity is not None and n >= GRAVITY_NEEDED:
+        return placed_with_gravity(problem, lights, decodes, near, within)
     if n < confirm:
-        return _refused(
-            f"{n} light{'s' if n != 1 else ''} with an ID of the map; the map gives its IDs "
-            f"to many fixtures, and {confirm} are needed to tell which (four to place the "
-            "camera, one more to confirm the place)"
+        lit = f"{n} light{'s' if n != 1 else ''} with an ID of the map"
+        if problem.gravity is not None:
+            return refused(
+                f"{lit}; the map gives its IDs to many fixtures, and {GRAVITY_NEEDED} are "
+                "needed with gravity to tell which"
+            )
+        return refused(
+            f"{lit}; the map gives its IDs to many fixtures, and {confirm} are needed to tell "
+            "which (four to place the camera, one more to confirm the place), or "
+            f"{GRAVITY_NEEDED} with the direction of gravity (which fixes the camera's tilt)"
         )
     reach = float(lights.far.max()) if np.isfinite(lights.far).all() else np.inf
     prior = None if near is None else (near, float(within))
-    allowed = _prior_mask(fmap, near, within, reach)
+    allowed = prior_mask(fmap, near, within, reach)
     found = _correspondences(problem, lights, allowed, prior)
     if isinstance(found, str):
-        return _refused(found)
+        return refused(found)
     ranked = sorted(found.items(), key=lambda kv: (-len(kv[0]), kv[1][0]))
     scope = "" if prior is None else f" within {within:g} {fmap.units} of the prior"
     if not ranked or len(ranked[0][0]) < confirm:
         best = (
             f" (at best {len(ranked[0][0])} of them, the camera at "
-            f"{_places(ranked[:1], fmap.units)})"
+            f"{listed(ranked[:1], fmap.units)})"
             if ranked
             else ""
         )
-        return _refused(
+        return refused(
             f"no place of the map{scope} fits its {n} lights' IDs and geometry{best}",
             ranked[:1],
         )
@@ -433,12 +317,12 @@ def placed(problem: PoseProblem, decodes, near=None, within: float | None = None
     rivals = [r for r in ranked[1:] if len(r[0]) >= top - 1 and _contradicts(ranked[0][0], r[0])]
     if rivals:
         places = [ranked[0], *rivals]
-        return _refused(
+        return refused(
             f"ambiguous: {len(places)} places of the map{scope} fit its {n} lights' IDs and "
-            f"geometry about equally, the camera at {_places(places, fmap.units)}; a prior "
+            f"geometry about equally, the camera at {listed(places, fmap.units)}; a prior "
             "(near and within) tells them apart",
             places,
         )
     pairs, (_, pose) = ranked[0]
-    local = _local_map(problem, lights, pairs, pose)
+    local = local_map(problem, lights, pairs, pose)
     return Placement(local, "", pose.position[None, :].copy(), (top,))

@@ -83,8 +83,8 @@ def identify_and_solve(
 
     In a map whose IDs repeat, the photo is first placed by its lights' IDs and geometry
     (:func:`~camvlp.pipeline.identify.by_geometry.placed`, narrowed by ``settings.near`` and
-    ``settings.within``), and the stages run on the fixtures in view there; a photo that
-    cannot be placed is refused with the reason."""
+    ``settings.within``; from two lights with gravity), and the stages run on the fixtures
+    in view there; a photo that cannot be placed is refused with the reason."""
     problem = PoseProblem(
         prepared.camera,
         fixture_map,
@@ -100,6 +100,7 @@ def identify_and_solve(
             return _unplaced(problem, lights, decoded, place.reason)
         local = fixture_map = place.local
         problem = dataclasses.replace(problem, fixture_map=local)
+        decoded = _without(decoded, place.withheld)
     man, kept = decided(problem, decoded.manchester, list(decoded.decodes))
     if local is not None:
         kept = dataclasses.replace(kept, found=_outside_view(kept.found, whole))
@@ -128,6 +129,23 @@ def _placed(problem: PoseProblem, decoded: Decoded, settings: LocateSettings) ->
         other = placed(problem, man.other, settings.near, settings.within)
         place = other if other.local is not None else place
     return place
+
+
+def _without(decoded: Decoded, withheld) -> Decoded:
+    """``decoded`` with the lights of ``withheld`` ((light, ID) pairs: each a light the place
+    found gives a fixture whose ID another light's fixture has there) read as no ID."""
+    if not withheld:
+        return decoded
+    decodes = list(decoded.decodes)
+    for k, fid in withheld:
+        decodes[k] = dataclasses.replace(
+            decodes[k],
+            id=None,
+            reason=f"sends ID {fid}, which another light of the photo sends: the place found "
+            "gives it another fixture with that ID, which the pose of so few lights does "
+            "not tell apart (that light keeps the ID)",
+        )
+    return dataclasses.replace(decoded, decodes=tuple(decodes))
 
 
 def _outside_view(found: Identified, whole: FixtureMap) -> Identified:

@@ -1,0 +1,254 @@
+"""What placing a photo in a map whose IDs repeat needs, whichever way it is placed: the
+photo's lights with an ID and how far each can be (:func:`lights_with_ids`), a prior's
+candidates (:func:`prior_mask`, :func:`inside`), the place found as the fixtures in its view
+(:func:`local_map`) and the answer (:class:`Placement`, :func:`refused`, :func:`listed`).
+
+:mod:`~camvlp.pipeline.identify.by_geometry` places a photo of five lights or more by their
+arrangement, :mod:`~camvlp.pipeline.identify.by_gravity` one of two to four with the
+direction of gravity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from camvlp.model.camera import Pose, project_points
+from camvlp.model.fixtures import FixtureMap
+from camvlp.pipeline.solve import PoseProblem
+
+__all__ = [
+    "DISTANCE_SLACK",
+    "PLACES_LISTED",
+    "RELATIVE_SLACK",
+    "LightsWithIds",
+    "Placement",
+    "around",
+    "inside",
+    "lights_with_ids",
+    "listed",
+    "local_map",
+    "prior_mask",
+    "refused",
+]
+
+#: A light's distance from its disc's size (the estimate) is the true one over a scale that
+#: lies between the first factor's inverse and the second: a glowing lamp's halo makes its
+#: disc look larger, so the fixture farther (lamps of the stress benchmark's looks: up to
+#: 2.2 times); a disc's major axis is hardly ever shorter than its diameter's image.
+DISTANCE_SLACK = (2.0, 3.0)
+
+#: The lights of one photo share that scale to within this factor (one look, one exposure):
+#: each light's estimate times the common scale is within its square root either way.
+RELATIVE_SLACK = 1.5
+
+#: Most candidate places a refusal lists.
+PLACES_LISTED = 4
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where a photo is put in a map whose IDs repeat
+    (:func:`~camvlp.pipeline.identify.by_geometry.placed`).
+
+    Attributes
+    ----------
+    local : FixtureMap or None
+        The fixtures in the view of the place found, each ID once (a map without ``reuse``);
+        None when the photo is refused.
+    reason : str
+        Why the photo was refused ("" when placed).
+    places : ndarray, shape (m, 3)
+        Camera positions of the correspondences weighed, the one taken (or the best) first,
+        map units; (0, 3) when none fits.
+    explained : tuple of int
+        The numbers of lights those correspondences explain, in the same order.
+    withheld : tuple of (int, int)
+        Lights (their indices among the photo's) and the IDs they send, that the place found
+        gives a fixture ``local`` leaves out, another light's fixture having that ID: the
+        identify stage takes them as lights without an ID (a photo of few lights, whose pose
+        cannot tell two lights of one ID apart).
+    """
+
+    local: FixtureMap | None
+    reason: str
+    places: np.ndarray
+    explained: tuple[int, ...]
+    withheld: tuple[tuple[int, int], ...] = ()
+
+
+@dataclass(frozen=True)
+class LightsWithIds:
+    """The photo's lights with an ID of the map (:func:`lights_with_ids`).
+
+    Attributes
+    ----------
+    index : ndarray of int, shape (n,)
+        Their indices among the photo's lights.
+    ids : ndarray of int, shape (n,)
+        Their IDs.
+    pixels : ndarray, shape (n, 2)
+        Their centres, pixels.
+    rays : ndarray, shape (n, 3)
+        Their unit rays in the camera's frame (undistorted).
+    rho : ndarray, shape (n,)
+        Their distances from their discs' sizes, map units (inf: unknown, without diameters).
+    far : ndarray, shape (n,)
+        The greatest distance each can be at, map units.
+    """
+
+    index: np.ndarray
+    ids: np.ndarray
+    pixels: np.ndarray
+    rays: np.ndarray
+    rho: np.ndarray
+    far: np.ndarray
+
+
+def lights_with_ids(problem: PoseProblem, decodes) -> LightsWithIds:
+    """The photo's lights whose stripes gave an ID the map has (not cut by the border).
+
+    Parameters
+    ----------
+    problem : PoseProblem
+        The photo's camera and lights, and the map.
+    decodes : sequence, length n
+        Each light's decode (its ``id`` and ``reason``).
+
+    Returns
+    -------
+    LightsWithIds
+        Those lights, their rays and how far each is (:data:`DISTANCE_SLACK`,
+        :data:`RELATIVE_SLACK`).
+    """
+    fmap, camera = problem.fixture_map, problem.camera
+    keep = [
+        k
+        for k, (b, d) in enumerate(zip(problem.blobs, decodes, strict=True))
+        if d.id is not None and not d.reason and not b.touches_border and fmap.with_id(d.id).size
+    ]
+    ids = np.array([decodes[k].id for k in keep], dtype=np.int64)
+    pixels = np.array([problem.blobs[k].pixel for k in keep], dtype=float).reshape(-1, 2)
+    if keep:
+        flat = cv2.undistortPoints(pixels[:, None, :], camera.matrix, camera.dist_or_none)
+        rays = np.column_stack([flat.reshape(-1, 2), np.ones(len(keep))])
+        rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    else:
+        rays = np.zeros((0, 3))
+    focal = 0.5 * float(camera.matrix[0, 0] + camera.matrix[1, 1])
+    rho = np.full(len(keep), np.inf)
+    for j, k in enumerate(keep):
+        diameters = [fmap.fixtures[i].diameter for i in fmap.with_id(ids[j])]
+        major = float(np.max(problem.blobs[k].axes_px))
+        if all(diameters) and major > 0:
+            rho[j] = focal * float(np.median(diameters)) / major
+    far = rho * DISTANCE_SLACK[1] * np.sqrt(RELATIVE_SLACK)
+    return LightsWithIds(np.array(keep, dtype=np.int64), ids, pixels, rays, rho, far)
+
+
+def prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
+    """Which fixtures lie within ``within + reach`` of the prior ``near``.
+
+    Parameters
+    ----------
+    fmap : FixtureMap
+        The map.
+    near : sequence of float or None
+        The prior: ``(x, y)`` (the map's x and y compared) or ``(x, y, z)``, map units.
+    within, reach : float
+        The prior's radius and how far beyond it a fixture may be, map units.
+
+    Returns
+    -------
+    ndarray of bool, shape (N,)
+        True for those fixtures (looked up in the map's k-d tree); every fixture without a
+        prior or with an unbounded reach.
+    """
+    n = len(fmap.fixtures)
+    if near is None or not np.isfinite(reach):
+        return np.ones(n, dtype=bool)
+    c = np.asarray(near, dtype=float)
+    radius = within + reach
+    centre, ball = c, radius
+    if c.size == 2:  # a ball of the map's k-d tree around the cylinder's part over the map
+        z = fmap.positions[:, 2]
+        half = 0.5 * float(z.max() - z.min())
+        centre, ball = np.array([*c, 0.5 * float(z.max() + z.min())]), np.hypot(radius, half)
+    near_idx = np.asarray(fmap.index.query_ball_point(centre, ball), dtype=np.int64)
+    off = fmap.positions[near_idx, : c.size] - c
+    mask = np.zeros(n, dtype=bool)
+    mask[near_idx[np.einsum("ij,ij->i", off, off) <= radius**2]] = True
+    return mask
+
+
+def inside(position: np.ndarray, near, within: float) -> bool:
+    """The camera's ``position`` (shape (3,), map units) lies within ``within`` of the prior
+    ``near`` (over the axes it gives)."""
+    c = np.asarray(near, dtype=float)
+    return float(np.linalg.norm(position[: c.size] - c)) <= within
+
+
+def around(fmap: FixtureMap, lights: LightsWithIds, pose: Pose, factor: float) -> np.ndarray:
+    """Indices of the fixtures within ``factor`` times the farthest a light can be of the
+    camera (by the map's k-d tree); every fixture when a light's distance is not bounded."""
+    if not np.isfinite(lights.far).all():
+        return np.arange(len(fmap.fixtures))
+    reach = factor * float(lights.far.max())
+    return np.asarray(fmap.index.query_ball_point(pose.position, reach), dtype=np.int64)
+
+
+def listed(ranked: list, units: str) -> str:
+    """The first :data:`PLACES_LISTED` camera positions of ``ranked`` (a list of
+    ``(pairs, (rms, pose))``), as a refusal lists them."""
+    text = [
+        "(" + ", ".join(f"{v:.2f}" for v in pose.position) + ")"
+        for _, (_, pose) in ranked[:PLACES_LISTED]
+    ]
+    more = len(ranked) - PLACES_LISTED
+    return ", ".join(text) + (f" and {more} more" if more > 0 else "") + f" ({units})"
+
+
+def local_map(
+    problem: PoseProblem, lights: LightsWithIds, pairs: frozenset, pose: Pose
+) -> FixtureMap:
+    """The fixtures ``pose`` puts in front of the camera and in the photo (or within a tenth
+    of its width of it) and those ``pairs`` ((light, fixture) indices) gives the lights, each
+    ID once: where two have one ID, the one a light was found to be, else the one in the
+    photo when the other lies outside it; else neither."""
+    fmap, camera = problem.fixture_map, problem.camera
+    idx = around(fmap, lights, pose, 2.0)
+    where = project_points(camera, pose, fmap.positions[idx]).reshape(-1, 2)
+    ahead = (fmap.positions[idx] - pose.position) @ pose.world_from_camera[:, 2] > 0
+    tier = np.full(len(idx), 3)  # 1: in the photo, 2: within the margin, 3: neither
+    for t, pad in ((2, 0.1 * camera.width), (1, 0.0)):
+        within_photo = ahead & np.all(np.isfinite(where), axis=1)
+        within_photo &= (where[:, 0] >= -pad) & (where[:, 0] <= camera.width - 1 + pad)
+        within_photo &= (where[:, 1] >= -pad) & (where[:, 1] <= camera.height - 1 + pad)
+        tier[within_photo] = t
+    rank = dict(zip(idx.tolist(), tier.tolist(), strict=True))
+    rank.update({f: 0 for _, f in pairs})  # 0: a light's
+    best: dict[int, tuple[int, list[int]]] = {}  # ID -> its best tier, the fixtures of it
+    for i, t in sorted(rank.items(), key=lambda it: it[1]):
+        fid = fmap.fixtures[i].id
+        if t < 3 and (fid not in best or best[fid][0] == t):
+            best.setdefault(fid, (t, []))[1].append(i)
+    keep = sorted(f[0] for t, f in best.values() if len(f) == 1 or t == 0)
+    return FixtureMap(
+        tuple(fmap.fixtures[i] for i in keep),
+        units=fmap.units,
+        mode=fmap.mode,
+        frame=fmap.frame,
+        source=fmap.source,
+        up=fmap.up,
+        chip_rate_hz=fmap.chip_rate_hz,
+    )
+
+
+def refused(reason: str, ranked: list | None = None) -> Placement:
+    """A refusal: no place, ``reason``, and the places of ``ranked`` (a list of
+    ``(pairs, (rms, pose))``) weighed."""
+    ranked = ranked or []
+    places = np.array([pose.position for _, (_, pose) in ranked]).reshape(-1, 3)
+    return Placement(None, reason, places, tuple(len(p) for p, _ in ranked))
