@@ -195,7 +195,7 @@ def draw_coverage(ax_fix, ax_error, study: CoverageStudy, ax_four=None) -> None:
     vmax = max(float(f.max()) for f in fractions) if study.fix.any() else 1.0
     what = f"≥ {study.min_fixtures} fixtures in view and decodable"
     if study.ambiguous is not None:
-        what = "fixtures in view that place it (IDs reused)"
+        what = "the fixtures place it (IDs reused)"
     _draw_fix_fraction(ax_fix, study, study.fraction, what + (" + gravity" * study.gravity), vmax)
     if four:
         _draw_fix_fraction(ax_four, study, study.fraction_four, "≥ 4 fixtures, no gravity", vmax)

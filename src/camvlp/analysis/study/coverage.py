@@ -21,7 +21,7 @@ from camvlp.geometry.disc import rim_points
 from camvlp.io.writers import jsonable
 from camvlp.model.camera import DEFAULT_ROW_TIME_S, Camera
 from camvlp.model.fixtures import FixtureMap
-from camvlp.pipeline.identify.by_geometry import LIGHTS_NEEDED
+from camvlp.pipeline.identify.by_geometry import GRAVITY_NEEDED, LIGHTS_NEEDED
 from camvlp.sim.grid import axis_values, floor_grid, plane_axes, up_sign
 
 __all__ = ["CoverageStudy", "coverage_study"]
@@ -302,7 +302,7 @@ def coverage_study(
         min_frames * frame_rows,
         grav,
         progress,
-        _told_apart(fixture_map, pts, up) if fixture_map.reuse else None,
+        _told_apart(fixture_map, pts, up, gravity) if fixture_map.reuse else None,
     )
     shape = (v.size, u.size, eul.shape[0])
     return CoverageStudy(
@@ -329,15 +329,17 @@ def coverage_study(
     )
 
 
-def _told_apart(fixture_map: FixtureMap, points_m: np.ndarray, up: np.ndarray):
+def _told_apart(fixture_map: FixtureMap, points_m: np.ndarray, up: np.ndarray, gravity: bool):
     """For a map whose IDs repeat: whether the fixtures a pose sees (indices) say where it
-    is, as :func:`camvlp.locate` would place it (:data:`LIGHTS_NEEDED` lights or more, no
-    other place with those IDs in that arrangement, with any one of them missing too)."""
+    is, as :func:`camvlp.locate` would place it without a prior: :data:`LIGHTS_NEEDED`
+    lights or more (:data:`GRAVITY_NEEDED` with gravity), and no other place with those IDs
+    in that arrangement (with any one of four or more missing too)."""
     ids = np.array([f.id for f in fixture_map.fixtures], dtype=np.int64)
     site = SiteGeometry(points_m, np.asarray(up, dtype=float), ids, fixture_map.frame.n_ids)
+    least = GRAVITY_NEEDED if gravity else LIGHTS_NEEDED
 
     def told_apart(members: np.ndarray) -> bool:
-        return not view_ambiguous(site, members, _PLACE_TOL_M, True, LIGHTS_NEEDED)
+        return not view_ambiguous(site, members, _PLACE_TOL_M, True, least)
 
     return told_apart
 
