@@ -30,6 +30,6 @@ as_owner "$PG_BIN/pg_ctl" -D "$DIR/data" -l "$DIR/log" -w start -o \
 as_owner "$PG_BIN/createdb" -h 127.0.0.1 -p "$PORT" -U camvlp camvlp_test
 echo "$("$PG_BIN/postgres" --version) on 127.0.0.1:$PORT: the API suite"
 export CAMVLP_TEST_DB_URL="postgresql+psycopg://camvlp@127.0.0.1:$PORT/camvlp_test"
-.venv/bin/python -m pytest -q tests/service/test_api.py tests/service/test_frames_api.py \
+.venv/bin/python -m pytest -q -p no:cacheprovider tests/service/test_api.py tests/service/test_frames_api.py \
   tests/service/test_operations.py tests/service/test_migrations.py \
   tests/service/test_locate_gravity_api.py tests/hostile/test_service.py "$@"
