@@ -8,11 +8,14 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from tests.pipeline.test_partial import profile
 
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import Fixture, FixtureMap
 from camvlp.model.linecode import FrameFormat
+from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.partial import ChipEvidence
+from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.track.gather import LightTracks
 from camvlp.pipeline.track.tracker import Tracker, TrackSettings
 from camvlp.sim.render import RenderSettings
@@ -114,3 +117,33 @@ def test_a_light_is_followed_while_it_stays_and_starts_over_when_it_leaves():
     # read along the other axis: every light starts over
     f = lights.follow(at((320, 56)), 1.15, "columns")
     assert isinstance(f[0], ChipEvidence) and f[0] is not d[1]
+
+
+@pytest.mark.parametrize("bad", [-1, 2.5, True])
+def test_the_gathering_window_is_checked(bad):
+    with pytest.raises(ValueError, match="gather_frames"):
+        TrackSettings(gather_frames=bad)
+
+
+def test_two_lights_gathered_one_way_tell_the_readout_direction():
+    # the sensor reads the rows bottom up; read top down (a guess), each light's stripes
+    # show its code backwards: once two lights' pieces say their IDs read that way, and none
+    # the other, the direction is told
+    rng = np.random.default_rng(4)
+    lights = LightTracks(LONG, 12, gate=20.0, ambiguity=2.0)
+    blobs = at((100, 50), (300, 50))
+    told = []
+    for k in range(10):
+        profiles = [
+            profile(LONG.chips(fid), rng.uniform(0, 50), 30.0, rng)[::-1] for fid in (37, 901)
+        ]
+        got = lights.gather(
+            k, 0.1 * k, blobs, (0, 1), profiles, Readout.ROWS, [StripeDecode(None)] * 2
+        )
+        told.append((got.reversed, len(got.gathered)))
+        for j, d in enumerate(got.decodes):
+            assert d.id in (None, (37, 901)[j])
+            assert (d.id is not None) == (j in got.gathered) == (d.method == "gathered")
+    # told from the first frame both lights' IDs are read, not before
+    first = next(k for k, (_, n) in enumerate(told) if n == 2)
+    assert all(w is None for w, _ in told[:first]) and all(w is True for w, _ in told[first:])
