@@ -339,3 +339,38 @@ def test_decode_many_gives_the_distances_counted_chip_by_chip():
         ok = second > dist[best].min() and dist[best].min() <= _radius(coverage)
         assert res.id == (best if ok else None)
         assert FMT.decode(chips, known=known) == res
+
+
+def test_stretch_distances_are_counted_chip_by_chip():
+    # shorter and longer than a frame, with erasures: the distance from every rotation of
+    # every ID, each chip j met by chip (r + j) mod n of the frame
+    rng = np.random.default_rng(9)
+    stretches = []
+    for length in (5, 11, 18, 31):
+        chips = rng.integers(0, 2, length).astype(np.uint8)
+        stretches.append((chips, None if length == 11 else rng.random(length) > 0.2))
+    got = FMT.stretch_distances(stretches)
+    assert got.shape == (4, 16, N_CHIPS)
+    for (chips, known), d in zip(stretches, got, strict=True):
+        k = np.ones(chips.size, bool) if known is None else known
+        cols = np.arange(chips.size)
+        want = [
+            [int(np.sum(k & (FMT.chips(i)[(cols + r) % N_CHIPS] != chips))) for r in range(18)]
+            for i in range(16)
+        ]
+        np.testing.assert_array_equal(d, want)
+    assert FMT.stretch_distances([]).shape == (0, 16, N_CHIPS)
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [FrameFormat(), FrameFormat("111", 5, "00"), FrameFormat("1111", 4, "000", 3)],
+    ids=str,
+)
+def test_reversed_ids_are_the_frames_read_backwards(frame):
+    # each ID's frame read backwards decoded with no error allowed, one at a time
+    want = [
+        -1 if (d := frame.decode(frame.codebook[i][::-1], max_errors=0)).id is None else d.id
+        for i in range(frame.n_ids)
+    ]
+    assert frame.reversed_ids.tolist() == want

@@ -217,13 +217,31 @@ class FrameFormat:
     def reversed_ids(self) -> np.ndarray:
         """For each ID, the ID whose frame is its frame read backwards (-1 where none is),
         int64 array of shape (n_ids,): a photo whose readout direction is not known may read
-        one as the other."""
-        rev = np.full(self.n_ids, -1, dtype=np.int64)
-        for i in range(self.n_ids):
-            d = self.decode(self.codebook[i][::-1], max_errors=0)
-            if d.id is not None:
-                rev[i] = d.id
-        return rev
+        one as the other.
+
+        The frame read backwards is looked up, as one 64-bit word, among every rotation of
+        every ID (:attr:`_packed`, sorted): the ID it equals a rotation of (two IDs' rotations
+        never are equal, :attr:`min_distance` being 1 or more)."""
+        n = self.n_chips
+        packed = self._packed.reshape(-1)
+        order = np.argsort(packed, kind="stable")
+        words = packed[order]
+        backwards = (self.codebook[:, ::-1] * _weights(n)).sum(axis=1, dtype=np.uint64)
+        at = np.minimum(np.searchsorted(words, backwards), words.size - 1)
+        found = words[at] == backwards
+        return np.where(found, order[at] // n, -1).astype(np.int64)
+
+    @cached_property
+    def _packed(self) -> np.ndarray:
+        """Every rotation of every ID as one 64-bit word (chip ``j`` its bit ``j``), uint64
+        array of shape (n_ids, n_chips): ``[i, r]`` the rotation that starts at chip ``r``."""
+        n = self.n_chips
+        weights = _weights(n)
+        idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
+        return np.stack(
+            [(self.codebook[:, idx[r]] * weights).sum(axis=1, dtype=np.uint64) for r in range(n)],
+            axis=1,
+        )
 
     @cached_property
     def _rotations(self) -> np.ndarray:
@@ -241,12 +259,7 @@ class FrameFormat:
         seconds even for 12 ID bits (4096 IDs, 139,264 rotations).
         """
         n, n_ids = self.n_chips, self.n_ids
-        weights = np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
-        idx = (np.arange(n)[:, None] + np.arange(n)[None, :]) % n
-        packed = np.stack(
-            [(self.codebook[:, idx[r]] * weights).sum(axis=1, dtype=np.uint64) for r in range(n)],
-            axis=1,
-        )  # (n_ids, n): rotation r of each ID as a word
+        packed = self._packed  # (n_ids, n): rotation r of each ID as a word
         ref = packed[:, 0]  # rotation 0 of each ID is enough: distance is rotation-invariant
         owner = np.repeat(np.arange(n_ids), n)
         flat = packed.reshape(-1)
@@ -296,10 +309,9 @@ class FrameFormat:
     def decode_many(self, stretches, *, max_errors: int | None = None) -> list[ChipDecode]:
         """:meth:`decode` of several stretches at once.
 
-        Each chip position's mismatches with every rotation of every ID are counted in one
-        matrix product for all stretches: a stretch's known chips are summed per position
-        of the frame (a chip ``j`` meets chip ``j mod n`` of each rotation), so the cost
-        does not grow with the stretches' lengths.
+        The distances from every rotation of every ID are counted for all stretches in one
+        matrix product (:meth:`stretch_distances`), so the cost does not grow with the
+        stretches' lengths.
 
         Parameters
         ----------
@@ -314,39 +326,22 @@ class FrameFormat:
         list of ChipDecode
             One per stretch, as :meth:`decode` gives it.
         """
-        n, n_ids = self.n_chips, self.n_ids
-        m = len(stretches)
-        if m == 0:
+        n = self.n_chips
+        if len(stretches) == 0:
             return []
-        sizes = [c.size for c, _ in stretches]
-        width = -(-max(sizes) // n) * n if max(sizes) > 0 else n  # whole frames
-        k = np.zeros((m, width), bool)
-        on = np.zeros((m, width), bool)
-        for k_row, on_row, (ch, kn) in zip(k, on, stretches, strict=True):  # (a few stretches)
-            k_row[: ch.size] = True if kn is None else kn
-            on_row[: ch.size] = ch
-        on &= k
-        # per stretch and frame position: known chips, and known ones
-        seen = k.reshape(m, -1, n).sum(axis=1, dtype=np.intp)  # (m, n)
-        ones = on.reshape(m, -1, n).sum(axis=1, dtype=np.intp)
+        dist, seen = self._distances(stretches)
+        m = dist.shape[0]
         coverage = seen.min(axis=1)
         limit = (coverage * self.min_distance - 1) // 2
         if max_errors is not None:
             limit = np.minimum(limit, int(max_errors))
-        # distances (m, n_ids, n): what a rotation's chip 1 adds to the distance (one chip 0
-        # more that disagrees, one chip 1 fewer), on top of the known ones; exact, every sum
-        # a whole number below 2**24
-        weight = (seen - 2 * ones).astype(np.float32)
-        dist = (weight @ self._rotations_by_chip).astype(np.int64)
-        dist += ones.sum(axis=1)[:, None]
-        dist = dist.reshape(m, n_ids, n)
         per_id = dist.min(axis=2)
         best = per_id.argmin(axis=1)  # the first of the nearest, as a stable sort's
         rows = np.arange(m)
         offset = dist[rows, best].argmin(axis=1)
         n_seen = seen.sum(axis=1)
         d_best = per_id[rows, best]
-        if n_ids > 1:  # the next: an ID as near, or the nearest other
+        if self.n_ids > 1:  # the next: an ID as near, or the nearest other
             per_id[rows, best] = _INT64_MAX  # (the nearest left out)
             d_second = per_id.min(axis=1)
         else:
@@ -359,6 +354,55 @@ class FrameFormat:
             )
         ]
 
+    def stretch_distances(self, stretches) -> np.ndarray:
+        """Each stretch's distance from every rotation of every ID's frame.
+
+        Parameters
+        ----------
+        stretches : sequence of (chips, known)
+            As :meth:`decode_many` takes them; a stretch shorter than a frame is met by the
+            first chips of each rotation.
+
+        Returns
+        -------
+        ndarray of int64, shape (m, n_ids, n_chips)
+            ``[s, i, r]``: the known chips of stretch ``s`` that disagree with ID ``i``'s
+            stream started at chip ``r`` of its frame (its chip ``j`` met by frame chip
+            ``(r + j) mod n_chips``).
+        """
+        if len(stretches) == 0:
+            return np.zeros((0, self.n_ids, self.n_chips), np.int64)
+        return self._distances(stretches)[0]
+
+    def _distances(self, stretches) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`stretch_distances` (one or more stretches), and how many known chips each
+        stretch has at each position of the frame (m, n_chips).
+
+        Each chip position's mismatches with every rotation of every ID are counted in one
+        matrix product for all stretches: a stretch's known chips are summed per position
+        of the frame (a chip ``j`` meets chip ``j mod n`` of each rotation), so the cost
+        does not grow with the stretches' lengths."""
+        n, n_ids = self.n_chips, self.n_ids
+        m = len(stretches)
+        sizes = [c.size for c, _ in stretches]
+        width = -(-max(sizes) // n) * n if max(sizes) > 0 else n  # whole frames
+        k = np.zeros((m, width), bool)
+        on = np.zeros((m, width), bool)
+        for k_row, on_row, (ch, kn) in zip(k, on, stretches, strict=True):  # (a few stretches)
+            k_row[: ch.size] = True if kn is None else kn
+            on_row[: ch.size] = ch
+        on &= k
+        # per stretch and frame position: known chips, and known ones
+        seen = k.reshape(m, -1, n).sum(axis=1, dtype=np.intp)  # (m, n)
+        ones = on.reshape(m, -1, n).sum(axis=1, dtype=np.intp)
+        # distances (m, n_ids, n): what a rotation's chip 1 adds to the distance (one chip 0
+        # more that disagrees, one chip 1 fewer), on top of the known ones; exact, every sum
+        # a whole number below 2**24
+        weight = (seen - 2 * ones).astype(np.float32)
+        dist = (weight @ self._rotations_by_chip).astype(np.int64)
+        dist += ones.sum(axis=1)[:, None]
+        return dist.reshape(m, n_ids, n), seen
+
     @cached_property
     def _rotations_by_chip(self) -> np.ndarray:
         """:attr:`_rotations` as float32, one column per ID and rotation (n_chips,
@@ -366,6 +410,11 @@ class FrameFormat:
         r = np.ascontiguousarray(self._rotations.astype(np.float32).reshape(-1, self.n_chips).T)
         r.flags.writeable = False
         return r
+
+
+def _weights(n: int) -> np.ndarray:
+    """Each of ``n`` chips' bit in a 64-bit word, uint64 array of shape (n,)."""
+    return np.left_shift(np.uint64(1), np.arange(n, dtype=np.uint64))
 
 
 #: The largest int64 (``np.iinfo`` builds an object each time it is called).

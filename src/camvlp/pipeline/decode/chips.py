@@ -276,7 +276,10 @@ def bleeds(r: FlatRuns, t: np.ndarray, which: np.ndarray) -> np.ndarray:
 def read_chips(r: FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
     """The chips read from the runs of the profiles ``which`` (chip length ``t`` and
     bleeding ``b`` each, rows): per profile its chips (uint8), which of them are sure, the
-    chips as text (``?`` where unsure) and its run margin."""
+    chips as text (``?`` where unsure), its run margin (its worst interior run's), and each
+    chip's confidence, float (its run's margin: ``1 - 2 |x - round(x)|`` of its length ``x``
+    in chips, clipped to 0 to 1; 1 for the runs the disc's edge cuts, counted only for the
+    chips surely inside)."""
     n = r.n_edges.size
     if which.size < n:  # (the other profiles' runs read at t = 1, b = 0, then left out)
         tt, bb = np.ones(n), np.zeros(n)
@@ -304,8 +307,12 @@ def read_chips(r: FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
         kept[which] = True
         kept = kept[r.run_of]
         bright, counts, sure = bright[kept], counts[kept], sure[kept]
+    conf = np.clip(1.0 - 2.0 * dev, 0.0, 1.0)
+    if which.size < n:
+        conf = conf[kept]
     chip_vals = bright.astype(np.uint8).repeat(counts)
     known = sure.repeat(counts)
+    chip_conf = conf.repeat(counts)
     text = np.where(known, chip_vals + ord("0"), ord("?")).astype(np.uint8).tobytes().decode()
     return [
         (
@@ -313,6 +320,7 @@ def read_chips(r: FlatRuns, t: np.ndarray, b: np.ndarray, which: np.ndarray):
             known[c0:c1],
             text[c0:c1],
             min(max(1.0 - 2.0 * w, 0.0), 1.0),
+            chip_conf[c0:c1],
         )
         for c0, c1, w in zip(bounds[:-1], bounds[1:], worst.tolist(), strict=True)
     ]

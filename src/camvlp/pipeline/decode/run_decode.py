@@ -16,6 +16,8 @@ measured chip length and bleeding.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from camvlp.model.linecode import FrameFormat
@@ -23,7 +25,7 @@ from camvlp.pipeline.decode.chips import bleeds, chip_lengths, read_chips
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.runs import flat_runs, stripe_levels_many
 
-__all__ = ["decode_profile", "decode_profiles"]
+__all__ = ["ProfileChips", "decode_profile", "decode_profiles", "profile_chips"]
 
 
 def _refused(reason: str, **kw) -> StripeDecode:
@@ -41,7 +43,7 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
     is, each copy's known chips are a rotation of that ID's frame, so a copy reads as that ID
     (every chip known) or as none (one unknown, not a whole frame), never another."""
     n = frame.n_chips
-    whole = frame.decode_many([(chips, known) for chips, known, _, _ in read])
+    whole = frame.decode_many([(chips, known) for chips, known, *_ in read])
     checked = [k for k, res in enumerate(whole) if res and res.distance > 0]
     spans = [range(0, read[k][0].size - n + 1, n) for k in checked]
     copies = [
@@ -55,7 +57,7 @@ def _verdicts(read, t: np.ndarray, b: np.ndarray, frame: FrameFormat) -> list[St
         subs = [next(decoded) for _ in span]
         others[k] = next((s.id for s in subs if s.id is not None and s.id != whole[k].id), None)
     out = []
-    for k, ((chips, _, text, margin), rpc, bleed) in enumerate(
+    for k, ((chips, _, text, margin, _), rpc, bleed) in enumerate(
         zip(read, t.tolist(), b.tolist(), strict=True)
     ):
         res, other = whole[k], others[k]
@@ -120,6 +122,55 @@ def decode_profiles(
 ) -> list[StripeDecode]:
     """:func:`decode_profile` of several profiles (sequence of 1-D arrays), the same
     decodes, each step worked for all of them at once."""
+    got = profile_chips(
+        profiles,
+        rows_per_chip=rows_per_chip,
+        max_rows_per_chip=max_rows_per_chip,
+        threshold_level=threshold_level,
+    )
+    out = list(got.refused)
+    if got.which:
+        for k, d in zip(got.which, _verdicts(got.read, got.t, got.bleed, frame), strict=True):
+            out[k] = d
+    return out
+
+
+@dataclass(frozen=True)
+class ProfileChips:
+    """The chips of several profiles (:func:`profile_chips`).
+
+    Attributes
+    ----------
+    refused : list of StripeDecode or None
+        Per profile, why its chips were not read (None for those read).
+    which : list of int
+        The profiles read.
+    read : list of tuple
+        Per profile read, as :func:`~camvlp.pipeline.decode.chips.read_chips` gives it: its
+        chips (uint8), which are sure, the chips as text, its run margin, each chip's
+        confidence.
+    t, bleed : ndarray, shape (len(which),)
+        Per profile read, its chip length and its bleeding, rows.
+    """
+
+    refused: list[StripeDecode | None]
+    which: list[int]
+    read: list[tuple]
+    t: np.ndarray
+    bleed: np.ndarray
+
+
+def profile_chips(
+    profiles,
+    *,
+    rows_per_chip: float | None = None,
+    max_rows_per_chip: float = 64.0,
+    threshold_level: float = 0.6,
+) -> ProfileChips:
+    """The chips each profile's runs hold (steps 1 and 2 of the module's docstring): each
+    profile binarised at ``threshold_level`` of the way from its dark to its bright level,
+    its chip length (``rows_per_chip`` when given, else measured, at most
+    ``max_rows_per_chip``) and bleeding, and each run's chips; or why not."""
     ps = [np.asarray(p, dtype=float).reshape(-1) for p in profiles]
     out: list[StripeDecode | None] = [None] * len(ps)
     live = [k for k, p in enumerate(ps) if p.size >= 8]
@@ -136,7 +187,7 @@ def decode_profiles(
                 thresholds.append(lo + threshold_level * (hi - lo))
         live = [k for k in live if out[k] is None]
     if not live:
-        return out
+        return ProfileChips(out, [], [], np.zeros(0), np.zeros(0))
     r = flat_runs([ps[k] for k in live], np.array(thresholds))
     if rows_per_chip:
         t = np.full(len(live), float(rows_per_chip))
@@ -150,9 +201,8 @@ def decode_profiles(
         elif irregular[q]:
             out[k] = _refused("stripes too irregular to measure the chip length")
     which = (~few & ~irregular).nonzero()[0]
-    if which.size:
-        b = bleeds(r, t, which)
-        read = read_chips(r, t[which], b, which)
-        for q, d in zip(which.tolist(), _verdicts(read, t[which], b, frame), strict=True):
-            out[live[q]] = d
-    return out
+    if not which.size:
+        return ProfileChips(out, [], [], np.zeros(0), np.zeros(0))
+    b = bleeds(r, t, which)
+    read = read_chips(r, t[which], b, which)
+    return ProfileChips(out, [live[q] for q in which.tolist()], read, t[which], b)

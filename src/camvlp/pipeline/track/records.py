@@ -71,6 +71,12 @@ class TrackSettings:
         A blob that the track's pose identifies without doubt (the only prediction within the
         gate) is not decoded again while its fixture's stripes were decoded in the last
         ``verify_every`` frames (1: decode every blob in every frame).
+    gather_frames : int
+        Each light that shows less than a frame of its code gathers the pieces it shows from
+        frame to frame (:mod:`camvlp.pipeline.track.gather`), and those of its last
+        ``gather_frames`` frames give it an ID once they hold a whole frame that fits one ID
+        as surely as a whole frame would (:mod:`camvlp.pipeline.decode.partial`); 0 turns
+        the gathering off.
     """
 
     locate: LocateSettings = field(default_factory=LocateSettings)
@@ -90,6 +96,7 @@ class TrackSettings:
     carry_model: bool = True
     carry_glows: bool = True
     verify_every: int = 10
+    gather_frames: int = 12
 
     def __post_init__(self) -> None:
         for name in (
@@ -110,6 +117,10 @@ class TrackSettings:
             raise ValueError(f"ambiguity must be at least 1, got {self.ambiguity!r}")
         if self.min_tracked < 1:
             raise ValueError(f"min_tracked must be at least 1, got {self.min_tracked!r}")
+        if isinstance(self.gather_frames, bool) or not (
+            isinstance(self.gather_frames, int) and self.gather_frames >= 0
+        ):
+            raise ValueError(f"gather_frames must be 0 or more, got {self.gather_frames!r}")
 
 
 @dataclass(frozen=True)
@@ -123,8 +134,9 @@ class TrackedFixture:
     pixel : ndarray, shape (2,)
         Centre of its disc in the frame as given, pixels.
     source : str
-        Where its ID came from: ``"decoded"`` (its stripes), ``"carried"`` (the track), or
-        ``""`` (no ID).
+        Where its ID came from: ``"decoded"`` (its stripes), ``"gathered"`` (the pieces of
+        code its stripes showed over several frames), ``"carried"`` (the track), or ``""``
+        (no ID).
     used : bool
         Whether the frame's pose uses it.
     reason : str

@@ -62,6 +62,7 @@ from camvlp.pipeline.stages import (
     readout_direction,
 )
 from camvlp.pipeline.track.assoc import associate, known_blobs, predicted_near
+from camvlp.pipeline.track.gather import LightTracks
 from camvlp.pipeline.track.kalman import ConstantVelocityFilter
 from camvlp.pipeline.track.motion import Motion, MotionState
 from camvlp.pipeline.track.offsets import PerspectiveOffsets
@@ -98,6 +99,7 @@ class _Located:
     found: Identified
     predicted: dict[int, np.ndarray]
     from_pose: bool
+    gathered: frozenset[int] = frozenset()
 
 
 @dataclass(frozen=True)
@@ -161,6 +163,12 @@ class Tracker:
         self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
+        window = self.settings.gather_frames
+        gather = window > 0 and fixture_map.mode != "frequency"
+        amb = self.settings.ambiguity
+        self._lights = (
+            LightTracks(fixture_map.frame, window, 2 * self._gate, amb) if gather else None
+        )
 
     @property
     def filter(self) -> ConstantVelocityFilter | None:
@@ -230,7 +238,8 @@ class Tracker:
             self.readout is None and self.map.mode != "frequency"
         )
         blobs = list(lights.blobs)
-        skip = set(range(len(blobs))) if undecided else self._known(blobs, predicted, from_pose)
+        known_ids = set() if undecided else self._known(blobs, predicted, from_pose)
+        skip = set(range(len(blobs))) if undecided else known_ids
         known = dataclasses.replace(lights, readout=readout, direction_known=True)
         profiles = read_profiles(img, blobs, readout)
         clock.lap("profile")
@@ -243,11 +252,12 @@ class Tracker:
             rows_per_chip=self._rpc(),
             model=self._model,
         )
-        self._carry(decoded)
         blobs = list(decoded.blobs)
-        found = identify(blobs, list(decoded.decodes), self.map)
+        decodes, gathered = self._gather(index, t, lights, blobs, profiles, decoded, known_ids)
+        self._carry(decoded, decodes)
+        found = identify(blobs, decodes, self.map)
         clock.lap("decode")
-        return _Located(index, t, prepared, blobs, found, predicted, from_pose)
+        return _Located(index, t, prepared, blobs, found, predicted, from_pose, gathered)
 
     def _associate(self, frame: _Located) -> _Associated:
         """IDs per blob (see :mod:`camvlp.pipeline.track.assoc`); the decoded ones verified."""
@@ -264,6 +274,7 @@ class Tracker:
         for k, src in enumerate(sources):
             if src == "decoded":
                 self._verified[ids[k]] = frame.index
+                sources[k] = "gathered" if k in frame.gathered else src
         return _Associated(ids, sources, reasons)
 
     def _measurements(
@@ -400,10 +411,39 @@ class Tracker:
             return float(np.median(self._chip_rows[-50:]))
         return None
 
-    def _carry(self, decoded: Decoded) -> None:
-        """Remember the chip lengths of the IDs read (the last 50), and the photo-wide
-        parameters the decoder used, when it used any (:attr:`TrackSettings.carry_model`)."""
-        for d in decoded.decodes:
+    def _gather(self, index, t, lights, blobs, profiles, decoded: Decoded, known):
+        """The frame's decodes with the IDs its lights' gathered chips say (their profiles as
+        read, ``profiles``)
+        (:mod:`camvlp.pipeline.track.gather`), and the lights given one; the readout's
+        direction taken when the gathered chips say it."""
+        decodes = list(decoded.decodes)
+        if self._lights is None or lights.readout is None:
+            return decodes, frozenset()
+        rpc = self._rpc()
+        if rpc is None and self.camera.row_time_s and self.map.chip_rate_hz:
+            rpc = 1.0 / (self.camera.row_time_s * self.map.chip_rate_hz)
+        readout = self.readout or lights.readout
+        got = self._lights.gather(
+            index,
+            t,
+            blobs,
+            lights.readable,
+            profiles.profiles,
+            readout,
+            decodes,
+            known=known,
+            reversed_readout=None if self.readout is None else self.readout.reversed,
+            rows_per_chip=rpc,
+        )
+        if self.readout is None and got.reversed is not None:
+            self.readout = Readout.of(readout.axis, got.reversed)
+        return got.decodes, frozenset(got.gathered)
+
+    def _carry(self, decoded: Decoded, decodes) -> None:
+        """Remember the chip lengths of the IDs read (``decodes``, the last 50), and the
+        photo-wide parameters the decoder used, when it used any
+        (:attr:`TrackSettings.carry_model`)."""
+        for d in decodes:
             if d.id is not None and np.isfinite(d.rows_per_chip):
                 self._chip_rows.append(float(d.rows_per_chip))
         del self._chip_rows[:-50]
