@@ -290,3 +290,21 @@ def test_a_clipped_profile_whose_refined_fit_loses_is_refused_not_a_crash():
     res = decode_photo([profile], FRAME, ids, rows_per_chip=3.0036623250111454)
     (d,) = res.decodes
     assert d.id is None and "fit almost equally" in d.reason
+
+
+def test_a_frame_with_check_bits_is_read_only_whole():
+    """The check bits a disc does not show check nothing: a disc of 0.9 frames of a format
+    with a CRC is refused (a light sending data matched a long format's ID so), one of 1.2
+    frames read; without check bits (the thesis' frame) 0.9 frames are enough."""
+    checked = FrameFormat(preamble="111", id_bits=7, check_bits=8, postamble="00")
+    model = SensorModel(3.0, 0.5, 0.5)
+    for frame, ids in ((checked, [5, 17, 40, 77, 100]), (FRAME, [5, 9, 12])):
+        for fid in ids:
+            p = synth(frame.chips(fid), int(0.9 * frame.n_chips * 3.0), 3.0, 1.3, 0.5)
+            d = decode_profile_model(p, frame, ids, model)
+            if frame.check_bits:
+                assert d.id is None and "at least 1 needed" in d.reason
+                long = synth(frame.chips(fid), int(1.2 * frame.n_chips * 3.0), 3.0, 1.3, 0.5)
+                assert decode_profile_model(long, frame, ids, model).id == fid
+            else:
+                assert d.id == fid

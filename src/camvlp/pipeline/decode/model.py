@@ -164,9 +164,12 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
     frames = p.size / (n * model.rows_per_chip)
     if p.size < 8:
         return _fail_small(p, model, n, f"too small to decode ({p.size} rows)")
-    if frames < MIN_FRAMES:
+    # a frame with a check of its ID is read whole: the check bits a disc does not show
+    # check nothing, and a light sending data may match the part it shows
+    least = 1.0 if frame.check_bits else MIN_FRAMES
+    if frames < least:
         return _fail_small(
-            p, model, n, f"spans {frames:.2f} frames of the code, at least {MIN_FRAMES:g} needed"
+            p, model, n, f"spans {frames:.2f} frames of the code, at least {least:g} needed"
         )
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see decide_id)

@@ -29,7 +29,8 @@ __all__ = ["SAMPLES_PER_CHIP", "SensorModel", "model_profile"]
 SAMPLES_PER_CHIP = 32
 
 #: Smallest fraction of one frame a profile must span to be decoded (below one frame, IDs that
-#: differ only in the chips not seen fit equally, and the margin refuses them).
+#: differ only in the chips not seen fit equally, and the margin refuses them).  A frame with
+#: check bits (``FrameFormat.check_bits``) is read only whole (:mod:`~camvlp.pipeline.decode.model`).
 MIN_FRAMES = 0.8
 
 
