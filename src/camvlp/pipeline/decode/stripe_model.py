@@ -30,7 +30,8 @@ SAMPLES_PER_CHIP = 32
 
 #: Smallest fraction of one frame a profile must span to be decoded (below one frame, IDs that
 #: differ only in the chips not seen fit equally, and the margin refuses them).  A frame with
-#: check bits (``FrameFormat.check_bits``) is read only whole (:mod:`~camvlp.pipeline.decode.model`).
+#: check bits (``FrameFormat.check_bits``) is read only whole
+#: (:mod:`~camvlp.pipeline.decode.model`).
 MIN_FRAMES = 0.8
 
 
