@@ -98,7 +98,9 @@ def least_triangle(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return triangles(u, v).min(axis=1)
 
 
-def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
+def rigid_on_plane(
+    points: np.ndarray, rays: np.ndarray, max_error: float | None = None
+) -> np.ndarray:
     """Which sets of four fixtures a rotation and a translation can put where four rays see
     them, before any PnP.
 
@@ -115,6 +117,11 @@ def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
         Each hypothesis' four fixture positions, map units.
     rays : ndarray, shape (4, 3)
         The four lights' rays in the camera's frame (z forward; any length, z > 0).
+    max_error : float, optional
+        Also drop the sets that the rigid pose nearest their homography (its first two
+        columns made a rotation's, :func:`_rigid_errors`) leaves a ray farther than this from
+        its fixture's image, in normalised image units (pixels over the focal length), or
+        puts a fixture behind the camera.
 
     Returns
     -------
@@ -148,4 +155,31 @@ def rigid_on_plane(points: np.ndarray, rays: np.ndarray) -> np.ndarray:
     determined = planar & (flat.min(axis=1) > off)
     ok = ~determined | ((ratio <= RIGID_RATIO) & (cos <= RIGID_COS))
     mismatch = ((flat < line) & (seen > off)) | ((flat > off) & (seen < line))
-    return ok & ~(planar & mismatch.any(axis=1))
+    ok &= ~(planar & mismatch.any(axis=1))
+    if max_error is not None:
+        far = _rigid_errors(h, u, v, x, y) > max_error
+        ok &= ~(determined & far)
+    return ok
+
+
+def _rigid_errors(h, u, v, x, y) -> np.ndarray:
+    """The largest distance (normalised image units) between each of four rays ``x``, ``y``
+    (4,) and its point ``u``, ``v`` (q, 4) of a plane seen from the rigid pose nearest the
+    homography ``h`` (q, 8; its last entry 1) mapping the plane to the image, shape (q,); inf
+    where that pose puts a point behind the camera.  The pose: the homography scaled so its
+    first two columns have unit length on average, those made a rotation's (the nearest, by
+    SVD), its third column the translation, turned to put the points in front."""
+    m = np.concatenate([h, np.ones((h.shape[0], 1))], axis=1).reshape(-1, 3, 3)
+    c1, c2, c3 = m[:, :, 0], m[:, :, 1], m[:, :, 2]
+    scale = 2.0 / np.maximum(np.linalg.norm(c1, axis=1) + np.linalg.norm(c2, axis=1), 1e-300)
+    scale = np.where(scale * c3[:, 2] < 0, -scale, scale)[:, None]  # the plane in front
+    r = np.stack([scale * c1, scale * c2, np.cross(scale * c1, scale * c2)], axis=2)
+    left, _, right = np.linalg.svd(r)
+    fix = np.where(np.linalg.det(left @ right) < 0, -1.0, 1.0)
+    left[:, :, 2] *= fix[:, None]
+    rot = left @ right
+    cam = np.einsum("qij,qkj->qki", rot[:, :, :2], np.stack([u, v], axis=2)) + (scale * c3)[:, None]
+    z = cam[:, :, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        err = np.hypot(cam[:, :, 0] / z - x, cam[:, :, 1] / z - y).max(axis=1)
+    return np.where(np.all(z > 0, axis=1), err, np.inf)

@@ -78,6 +78,7 @@ __all__ = [
     "MAX_HYPOTHESES",
     "PLACES_LISTED",
     "RELATIVE_SLACK",
+    "RIGID_SLACK",
     "SEED_SETS",
     "Placement",
     "placed",
@@ -100,6 +101,12 @@ LIGHTS_NEEDED = 5
 #: (:mod:`~camvlp.pipeline.identify.by_gravity`, which places photos of fewer than
 #: :data:`LIGHTS_NEEDED`).
 GRAVITY_NEEDED = 2
+
+#: A hypothesis is solved by PnP only when the rigid pose nearest its homography (made a
+#: rotation's, :func:`~camvlp.geometry.hypotheses.rigid_on_plane`) puts its four fixtures
+#: within this many outlier distances of the seed lights: that pose is not the least-squares
+#: one, so more room than the outlier distance PnP's pose is held to.
+RIGID_SLACK = 3.0
 
 #: The PnP method each hypothesis is solved with: SQPnP, which finds the global minimum from
 #: four points in a fraction of the time of the iterative method's (the pose of the place
@@ -237,7 +244,9 @@ def _correspondences(problem: PoseProblem, lights: LightsWithIds, allowed, prior
                 f"its {len(lights.ids)} lights' IDs fit more than {MAX_HYPOTHESES:,} sets of "
                 "fixtures of the map: give a prior (near and within) to narrow the search"
             )
-        for quad in quads[rigid_on_plane(fmap.positions[quads], lights.rays[list(seeds)])]:
+        rays = lights.rays[list(seeds)]
+        reach = RIGID_SLACK * problem.outlier_px / problem.camera.focal_px
+        for quad in quads[rigid_on_plane(fmap.positions[quads], rays, reach)]:
             pose = _pose_of(problem, lights, seeds, quad)
             if pose is None or (prior is not None and not inside(pose.position, *prior)):
                 continue
