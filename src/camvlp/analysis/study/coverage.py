@@ -337,9 +337,13 @@ def _told_apart(fixture_map: FixtureMap, points_m: np.ndarray, up: np.ndarray, g
     ids = np.array([f.id for f in fixture_map.fixtures], dtype=np.int64)
     site = SiteGeometry(points_m, np.asarray(up, dtype=float), ids, fixture_map.frame.n_ids)
     least = GRAVITY_NEEDED if gravity else LIGHTS_NEEDED
+    answers: dict[bytes, bool] = {}  # neighbouring poses and tilts see the same fixtures
 
     def told_apart(members: np.ndarray) -> bool:
-        return not view_ambiguous(site, members, _PLACE_TOL_M, True, least)
+        key = np.sort(members).tobytes()
+        if key not in answers:
+            answers[key] = not view_ambiguous(site, members, _PLACE_TOL_M, True, least)
+        return answers[key]
 
     return told_apart
 
