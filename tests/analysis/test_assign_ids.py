@@ -96,3 +96,7 @@ def test_assigned_ids_tell_more_new_views_apart_than_random_ones():
     assigned_rev, random_rev = report.reversed_neighbours(frame.reversed_ids)
     assert assigned_rev < random_rev / 4, (assigned_rev, random_rev)
     assert identified_share(report.ambiguous, fresh, 3) == share
+    # lights seen together are given different IDs: a view of two of one ID reads it twice
+    # (146 of 492 new views did, when only ambiguous views and reversal partners counted)
+    twice = sum(1 for s in fresh.seen if s.size >= 2 and len(set(ids[s].tolist())) < s.size)
+    assert twice <= 0.01 * n, twice

@@ -34,6 +34,12 @@ __all__ = ["Assignment", "assign_ids", "assignment_report"]
 #: (the IDs used about equally often).
 _SAME, _REVERSED, _USED = 1.0, 4.0, 1e-3
 
+#: The search's cost, in views left ambiguous, of a light seen together with one of the same
+#: ID (a view of both reads that ID twice and keeps one of them; two lights of one ID tell no
+#: place with gravity) or of its readout-reversal partner (read the wrong way, each is the
+#: other): dearer than the views the search weighs, so it gives up few of them.
+_CLASH = 20.0
+
 
 def _greedy(neighbours: list[np.ndarray], reverse: np.ndarray, rng: np.random.Generator):
     """IDs (N,) in a random order, each the one least seen together with its neighbours
@@ -255,8 +261,8 @@ def assign_ids(
 
     A greedy colouring first (:func:`_greedy`); then, in up to ``sweeps`` sweeps over the
     lights of the views not yet told apart (:class:`_Search`), each light is given the ID
-    that tells the most views apart, readout-reversal partners seen together costing
-    :data:`_REVERSED` views each.
+    that tells the most views apart, readout-reversal partners and lights of one ID seen
+    together costing :data:`_CLASH` views each.
 
     Parameters
     ----------
@@ -292,11 +298,21 @@ def assign_ids(
     search = _Search(_Triangles(views, site, n, n_ids, tol_m), distinct, ids, one_missing, weights)
 
     def cost(f: int) -> float:
-        return search.untold() + _REVERSED * int(np.sum(reverse[ids[together[f]]] == ids[f]))
+        near = ids[together[f]]
+        clash = int(np.sum(near == ids[f])) + int(np.sum(reverse[near] == ids[f]))
+        return search.untold() + _CLASH * clash
 
     for sweep in range(int(sweeps)):
         untold = np.flatnonzero((search.weight > 0) & ~search.view_told)
-        todo = np.unique(np.concatenate([distinct.seen[v] for v in untold])) if untold.size else []
+        # the lights of the views not told apart, and those that clash with one seen with them
+        todo = [
+            f
+            for f in range(n)
+            if np.any(ids[together[f]] == ids[f]) or np.any(reverse[ids[together[f]]] == ids[f])
+        ]
+        todo = np.unique(
+            np.concatenate([np.asarray(todo, dtype=np.int64)] + [distinct.seen[v] for v in untold])
+        )
         changed = 0
         for f in rng.permutation(todo).tolist():
             old = int(ids[f])
