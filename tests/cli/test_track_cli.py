@@ -178,6 +178,7 @@ def test_a_start_after_the_last_frame_says_so(scene, tmp_path):
     ("args", "message"),
     [
         (["--fps", "0"], "--fps must be a positive number"),
+        (["--gather-frames", "-1"], "--gather-frames must be 0 or more"),
         ([], "no such video or folder"),
     ],
 )
@@ -341,3 +342,21 @@ def test_the_bar_counts_what_it_is_told(monkeypatch):
     with progress_bar(5, "quiet", show=False) as update:
         assert update is None  # the caller's choice: no bar, nothing to call
     assert terminal.getvalue() == ""
+
+
+def test_gather_frames_reach_the_tracker(scene, tmp_path, monkeypatch):
+    """--gather-frames N is the tracker's TrackSettings.gather_frames (0: no gathering)."""
+    from camvlp.pipeline.track import tracker as tracker_module
+
+    seen = []
+    original = tracker_module.Tracker.__init__
+
+    def spy(self, camera, fixture_map, settings=None):
+        seen.append(settings.gather_frames)
+        original(self, camera, fixture_map, settings)
+
+    monkeypatch.setattr(tracker_module.Tracker, "__init__", spy)
+    for n in ("0", "30"):
+        result = track(scene, scene / "frames", tmp_path / f"out{n}", "--gather-frames", n)
+        assert result.exit_code == 0, result.output
+    assert seen == [0, 30]

@@ -78,6 +78,16 @@ def track_command(
             help="Correct each fixture for the camera's motion while the rows are read.",
         ),
     ] = True,
+    gather_frames: Annotated[
+        int,
+        typer.Option(
+            "--gather-frames",
+            metavar="N",
+            help="A light whose disc shows less than a frame of its code gathers the pieces "
+            "it shows over its last N frames until they hold its ID (a long frame); 0 turns "
+            "it off.",
+        ),
+    ] = 12,
 ) -> None:
     """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
@@ -96,6 +106,8 @@ def track_command(
     check_solver(solver)
     check_positive(outlier_px, "--outlier-px")
     check_positive(fps, "--fps")
+    if gather_frames < 0:
+        fail(f"--gather-frames must be 0 or more, got {gather_frames}")
     given_readout = parse_readout(readout)
     check_output_dir(out, "--out")
     for name in TRACK_FILES if out.is_dir() else ():
@@ -109,6 +121,7 @@ def track_command(
     settings = TrackSettings(
         locate=LocateSettings(solver=solver, readout=given_readout, outlier_px=outlier_px),
         rolling_shutter=rolling_shutter,
+        gather_frames=gather_frames,
     )
     tracker = Tracker(camera, fixture_map, settings)
     total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
