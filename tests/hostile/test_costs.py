@@ -35,6 +35,11 @@ def test_a_decode_past_its_time_budget_is_abandoned(monkeypatch):
             decode_image(bomb, "bomb.jpg")
     finally:
         other.set()
+        # the abandoned decode runs on to its end: waited for here, or the tests after this
+        # one in the process would decode in a process of several threads (uncaptured)
+        for t in threading.enumerate():
+            if t.name == "camvlp-decode":
+                t.join(timeout=60)
 
 
 def _tracker() -> Tracker:
