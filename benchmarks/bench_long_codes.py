@@ -122,6 +122,16 @@ def spans(path: Path) -> np.ndarray:
         )
 
 
+def nearest_ids(truths, blobs) -> list[int | None]:
+    """Per blob, the ID of the true fixture whose centre is nearest its pixel (``truths``:
+    a frame's ``(id, u, v, inside)`` rows); None for every blob of a frame without truths."""
+    if not truths:
+        return [None] * len(blobs)
+    tid = [t[0] for t in truths]
+    tpx = np.nan_to_num(np.array([[t[1], t[2]] for t in truths]), nan=1e9)
+    return [tid[int(np.argmin(np.linalg.norm(tpx - b.pixel, axis=1)))] for b in blobs]
+
+
 def identified_after(run, fixtures_truth, data) -> tuple[list[int], list[int], list[int]]:
     """Per fixture (not a data light) wholly in the picture: frames from its first such frame
     to its first ID (any source), and to its first from its own chips; and the fixtures in
@@ -136,12 +146,8 @@ def identified_after(run, fixtures_truth, data) -> tuple[list[int], list[int], l
             if inside and fid not in data:
                 first_in.setdefault(fid, k)
                 frames_in[fid] = frames_in.get(fid, 0) + 1
-        tid = np.array([t[0] for t in truths])
-        tpx = np.nan_to_num(np.array([[t[1], t[2]] for t in truths]), nan=1e9)
-        for b in f.fixtures:
-            if b.id is None or not truths:
-                continue
-            if tid[int(np.argmin(np.linalg.norm(tpx - b.pixel, axis=1)))] != b.id:
+        for b, near in zip(f.fixtures, nearest_ids(truths, f.fixtures), strict=True):
+            if b.id is None or near != b.id:
                 continue  # (a wrong ID: counted apart)
             first_any.setdefault(b.id, k)
             if b.source in ("gathered", "decoded"):
@@ -161,15 +167,11 @@ def wrong_by_source(run, fixtures_truth) -> dict[str, int]:
     """Blobs given an ID whose nearest true fixture has another, by the ID's source."""
     out: dict[str, int] = {}
     for name, f in zip(run.names, run.frames, strict=True):
-        truths = fixtures_truth.get(name, [])
-        if not truths:
-            continue
-        tid = np.array([t[0] for t in truths])
-        tpx = np.nan_to_num(np.array([[t[1], t[2]] for t in truths]), nan=1e9)
-        for b in f.fixtures:
-            if b.id is not None:
-                wrong = tid[int(np.argmin(np.linalg.norm(tpx - b.pixel, axis=1)))] != b.id
-                out[b.source] = out.get(b.source, 0) + int(wrong)
+        for b, near in zip(
+            f.fixtures, nearest_ids(fixtures_truth.get(name, []), f.fixtures), strict=True
+        ):
+            if b.id is not None and near is not None:
+                out[b.source] = out.get(b.source, 0) + int(near != b.id)
     return out
 
 
@@ -177,13 +179,9 @@ def data_ids(run, fixtures_truth, data) -> tuple[int, int]:
     """Blobs of a data light given an ID by their chips, and the data lights' blobs."""
     n = seen = 0
     for name, f in zip(run.names, run.frames, strict=True):
-        truths = fixtures_truth.get(name, [])
-        if not truths:
-            continue
-        tid = np.array([t[0] for t in truths])
-        tpx = np.nan_to_num(np.array([[t[1], t[2]] for t in truths]), nan=1e9)
-        for b in f.fixtures:
-            near = tid[int(np.argmin(np.linalg.norm(tpx - b.pixel, axis=1)))]
+        for b, near in zip(
+            f.fixtures, nearest_ids(fixtures_truth.get(name, []), f.fixtures), strict=True
+        ):
             seen += near in data
             n += near in data and b.source in ("gathered", "decoded")
     return n, seen

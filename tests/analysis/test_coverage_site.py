@@ -43,8 +43,8 @@ def test_a_site_swept_in_blocks_gives_what_one_sweep_gives(monkeypatch):
     fixtures = site("varied")
     rims = rim_points(fixtures.positions, np.full(100, 0.3), np.tile([0, 0, -1.0], (100, 1)), 16)
     centres = whole.positions_m.reshape(-1, 3)
-    cells = coverage_sweep._cells(centres, rims)
-    blocks = coverage_sweep._blocks(CAMERA, np.eye(3), centres, rims, 10.8, cells)
+    cells = coverage_sweep._cells(CAMERA, centres, rims, 10.8)
+    blocks = coverage_sweep._blocks(CAMERA, np.eye(3), len(centres), 100, 16, cells)
     assert len(blocks) > 4 and max(cols.size for _, cols in blocks) < 100
     parts = coverage_study(CAMERA, site("varied"), **STUDY)
     np.testing.assert_array_equal(parts.usable, whole.usable)

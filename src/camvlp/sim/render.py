@@ -254,7 +254,7 @@ def _lights(camera: Camera, fixture_map: FixtureMap, pose: Pose, s: RenderSettin
     margin = blur_margin(s.blur_px)
     # the fixtures whose disc and glow may reach the picture (a far one across the camera's
     # plane would otherwise be searched for over the whole picture)
-    reach = 0.5 * np.array([f.diameter for f in fixture_map.fixtures], dtype=float)
+    reach = 0.5 * fixture_map.diameters
     seen = in_view(
         camera,
         pose,

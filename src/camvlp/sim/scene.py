@@ -264,11 +264,12 @@ def fixture_views(
     chosen = np.arange(len(fixture_map.fixtures)) if only is None else np.asarray(only, int)
     fixtures = [fixture_map.fixtures[j] for j in chosen]
     n = normals[chosen]
-    centres = np.array([f.position for f in fixtures], dtype=float).reshape(-1, 3)
+    centres, diameters = fixture_map.positions[chosen], fixture_map.diameters[chosen]
     centre_px = camera.project(pose, centres)
     ahead = in_front(pose.to_camera(centres))
-    rims = _rims_px(camera, pose, fixtures, n)
-    core_px = _core_pixels(camera, pose, fixtures, n, core_places(fixture_map, s)[chosen], s)
+    rims = _rims_px(camera, pose, centres, diameters, n)
+    cores = core_places(fixture_map, s)[chosen]
+    core_px = _core_pixels(camera, pose, centres, diameters, n, cores, s)
     truths = []
     for k, (j, f) in enumerate(zip(chosen, fixtures, strict=True)):
         rim_px, clamped = rims[k]
@@ -294,21 +295,20 @@ def fixture_views(
 
 
 def _rims_px(
-    camera: Camera, pose: Pose, fixtures: list[Fixture], normals: np.ndarray
+    camera: Camera, pose: Pose, centres: np.ndarray, diameters: np.ndarray, normals: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each fixture's rim (:func:`fixture_rim`) projected (:func:`project_within_field`),
-    all in one batch: per fixture, its pixels (shape (N_RIM, 2), or (1, 2), its centre, for
-    a fixture without a diameter) and which of them were pulled onto the lens' field."""
-    if not fixtures:
+    all in one batch, from the centres (K, 3), diameters (K,; NaN for none) and normals
+    (K, 3): per fixture, its pixels (shape (N_RIM, 2), or (1, 2), its centre, for a fixture
+    without a diameter) and which of them were pulled onto the lens' field."""
+    if not len(centres):
         return []
-    sized = np.array([f.diameter is not None for f in fixtures])
-    centres = np.array([f.position for f in fixtures], dtype=float)
-    diameters = np.array([f.diameter if f.diameter is not None else 0.0 for f in fixtures])
-    points = rim_points(centres, diameters, normals, N_RIM)  # (K, N_RIM, 3)
+    sized = np.isfinite(diameters)
+    points = rim_points(centres, np.where(sized, diameters, 0.0), normals, N_RIM)
     pixels, clamped = project_within_field(
         camera, pose, points.reshape(-1, 3), lens_field_radius(camera)
     )
-    pixels, clamped = pixels.reshape(len(fixtures), N_RIM, 2), clamped.reshape(-1, N_RIM)
+    pixels, clamped = pixels.reshape(len(centres), N_RIM, 2), clamped.reshape(-1, N_RIM)
     # a fixture without a diameter: its centre, which is the rim's every point
     return [
         (p, c) if ok else (p[:1], c[:1]) for p, c, ok in zip(pixels, clamped, sized, strict=True)
@@ -318,25 +318,24 @@ def _rims_px(
 def _core_pixels(
     camera: Camera,
     pose: Pose,
-    fixtures: list[Fixture],
+    centres: np.ndarray,
+    diameters: np.ndarray,
     normals: np.ndarray,
     cores: np.ndarray,
     s: RenderSettings,
 ) -> np.ndarray:
-    """Where each fixture's hot core projects, shape (K, 2), pixels: NaN without a core
-    (``s.core`` 0), without a diameter, or with its centre behind the camera."""
-    out = np.full((len(fixtures), 2), np.nan)
-    if s.core <= 0 or not fixtures:
+    """Where each fixture's hot core projects, shape (K, 2), pixels, from the fixtures'
+    centres, diameters (NaN for none), normals and core places (:func:`core_places`): NaN
+    without a core (``s.core`` 0), without a diameter, or with its centre behind the camera."""
+    out = np.full((len(centres), 2), np.nan)
+    if s.core <= 0 or not len(centres):
         return out
-    centres = np.array([f.position for f in fixtures], dtype=float)
-    sized = np.array([f.diameter is not None for f in fixtures])
-    drawn = sized & in_front(pose.to_camera(centres))
+    drawn = np.isfinite(diameters) & in_front(pose.to_camera(centres))
     if not drawn.any():
         return out
-    diameters = np.array([f.diameter for f, d in zip(fixtures, drawn, strict=True) if d])
     a, b = plane_basis(normals[drawn])
     c = cores[drawn]
-    hot = centres[drawn] + 0.5 * diameters[:, None] * (c[:, :1] * a + c[:, 1:] * b)
+    hot = centres[drawn] + 0.5 * diameters[drawn, None] * (c[:, :1] * a + c[:, 1:] * b)
     out[drawn] = camera.project(pose, hot)
     return out
 

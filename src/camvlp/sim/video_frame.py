@@ -186,7 +186,7 @@ def _moving_lights(
     ends = [trajectory.pose(t - half), mid, trajectory.pose(t + half)]
     # the fixtures whose disc and glow may reach the picture at the frame's start, middle
     # or end (as their boxes are swept over those poses)
-    reach = 0.5 * np.array([f.diameter for f in fixture_map.fixtures], dtype=float)
+    reach = 0.5 * fixture_map.diameters
     reach *= 1.0 + glow_reach(s.halo, s.brightness)
     margin = blur_margin(s.blur_px) + 2
     seen = np.any(

@@ -334,8 +334,9 @@ def _told_apart(fixture_map: FixtureMap, points_m: np.ndarray, up: np.ndarray, g
     is, as :func:`camvlp.locate` would place it without a prior: :data:`LIGHTS_NEEDED`
     lights or more (:data:`GRAVITY_NEEDED` with gravity), and no other place with those IDs
     in that arrangement (with any one of four or more missing too)."""
-    ids = np.array([f.id for f in fixture_map.fixtures], dtype=np.int64)
-    site = SiteGeometry(points_m, np.asarray(up, dtype=float), ids, fixture_map.frame.n_ids)
+    site = SiteGeometry(
+        points_m, np.asarray(up, dtype=float), fixture_map.id_array, fixture_map.frame.n_ids
+    )
     least = GRAVITY_NEEDED if gravity else LIGHTS_NEEDED
     answers: dict[bytes, bool] = {}  # neighbouring poses and tilts see the same fixtures
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -82,9 +83,10 @@ def sweep_poses(
     fix = np.zeros((g, o), dtype=bool)
     fix_four = np.zeros((g, o), dtype=bool)
     errors = np.full((g, o, inputs.trials), np.nan)
-    cells = _cells(centres, discs[1])
+    n, k = discs[1].shape[:2]
+    cells = _cells(camera, centres, discs[1], min_rows)
     for j in range(o):
-        for rows, cols in _blocks(camera, rots[j], centres, discs[1], min_rows, cells):
+        for rows, cols in _blocks(camera, rots[j], g, n, k, cells):
             sub = dataclasses.replace(inputs, fixtures_m=inputs.fixtures_m[cols])
             seen = (discs[0][cols], discs[1][cols])
             got = _sweep_block(camera, sub, centres[rows], rots[j], seen, min_rows, gravity)
@@ -145,10 +147,22 @@ def decodable_reach(camera: Camera, diameter_m: float, min_rows: float) -> float
     return 1.1 * f * diameter_m * (1.0 + r2) / min_rows + diameter_m
 
 
-def _cells(centres: np.ndarray, rims: np.ndarray) -> list[np.ndarray] | None:
-    """The camera centres (G, 3) in cubes of about 16 (a floor grid's 4 x 4), as index
-    arrays, for a sweep too large for :data:`POINTS_AT_ONCE` against the fixtures' rims
-    (N, K, 3); None when it is not."""
+class _Cells(NamedTuple):
+    """The camera centres of a large sweep in cubes (:func:`_cells`), and what in each does
+    not depend on the orientation."""
+
+    members: list[np.ndarray]  # per cube, its centres' indices
+    middle: np.ndarray  # (C, 3): each cube's middle, metres
+    half: np.ndarray  # (C,): its half-diagonal, metres
+    near: np.ndarray  # (C, N): the fixtures within decodable_reach of it
+    discs: np.ndarray  # (N, 3): the discs' centres
+    radius: float  # the largest disc's radius, metres
+
+
+def _cells(camera: Camera, centres: np.ndarray, rims: np.ndarray, min_rows: float) -> _Cells | None:
+    """The camera centres (G, 3) in cubes of about 16 (a floor grid's 4 x 4), each with the
+    fixtures (rims (N, K, 3)) within :func:`decodable_reach` of it, for a sweep too large for
+    :data:`POINTS_AT_ONCE`; None when it is not."""
     g, n, k = centres.shape[0], rims.shape[0], rims.shape[1]
     if g * n * k <= POINTS_AT_ONCE:
         return None
@@ -159,36 +173,34 @@ def _cells(centres: np.ndarray, rims: np.ndarray) -> list[np.ndarray] | None:
         side = 16.0 * float(extent[0]) / g if extent[0] > 0 else 1.0
     _, cell_of = np.unique(np.floor(centres / side), axis=0, return_inverse=True)
     cell_of = cell_of.reshape(-1)
-    return [np.flatnonzero(cell_of == c) for c in range(int(cell_of.max()) + 1)]
+    members = [np.flatnonzero(cell_of == c) for c in range(int(cell_of.max()) + 1)]
+    lo = np.array([centres[m].min(axis=0) for m in members])
+    hi = np.array([centres[m].max(axis=0) for m in members])
+    middle, half = 0.5 * (lo + hi), 0.5 * np.linalg.norm(hi - lo, axis=1)
+    discs = rims.mean(axis=1)
+    radius = float(np.max(np.linalg.norm(rims - discs[:, None, :], axis=2)))
+    reach = decodable_reach(camera, 2.0 * radius, min_rows)
+    gap = np.linalg.norm(discs[None, :, :] - middle[:, None, :], axis=2)
+    return _Cells(members, middle, half, gap <= reach + half[:, None], discs, radius)
 
 
 def _blocks(
-    camera: Camera,
-    rot: np.ndarray,
-    centres: np.ndarray,
-    rims: np.ndarray,
-    min_rows: float,
-    cells: list[np.ndarray] | None,
+    camera: Camera, rot: np.ndarray, g: int, n: int, k: int, cells: _Cells | None
 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The sweep's blocks at one orientation ``rot`` (world from camera): (centres' indices,
-    fixtures' indices) pairs.  All against all when ``cells`` is None; else each cube of
-    centres against the fixtures it may see (within :func:`decodable_reach` and
+    """The sweep's blocks at one orientation ``rot`` (world from camera) of ``g`` centres
+    against ``n`` fixtures of ``k`` rim points: (centres' indices, fixtures' indices)
+    pairs.  All against all when ``cells`` is None; else each cube of centres against the
+    fixtures it may see (within :func:`decodable_reach` and
     :func:`~camvlp.geometry.projection.in_view` of the cube's middle, widened by its
     half-diagonal), as many centres a block as :data:`POINTS_AT_ONCE` allows."""
-    n, k = rims.shape[0], rims.shape[1]
     everything = np.arange(n)
     if cells is None:
-        return [(np.arange(centres.shape[0]), everything)]
-    mid = rims.mean(axis=1)  # the discs' centres
-    radius = float(np.max(np.linalg.norm(rims - mid[:, None, :], axis=2)))
-    reach = decodable_reach(camera, 2.0 * radius, min_rows)
+        return [(np.arange(g), everything)]
     out = []
-    for members in cells:
-        lo, hi = centres[members].min(axis=0), centres[members].max(axis=0)
-        middle, half = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
-        near = np.linalg.norm(mid - middle, axis=1) <= reach + half
-        near &= in_view(camera, Pose(rot, middle), mid, np.full(n, radius + half), 1.0)
-        cols = everything[near]
+    for c, members in enumerate(cells.members):
+        pose = Pose(rot, cells.middle[c])
+        view = in_view(camera, pose, cells.discs, np.full(n, cells.radius + cells.half[c]), 1.0)
+        cols = everything[cells.near[c] & view]
         if not cols.size:  # nothing in view from this cube: no fixture usable, no fix
             continue
         per = max(1, POINTS_AT_ONCE // (cols.size * k))
