@@ -123,9 +123,8 @@ def _quads(
     first = fmap.with_id(lights.ids[seeds[0]])
     rows = first[allowed[first]][:, None]
     scale = np.tile([1 / DISTANCE_SLACK[0], DISTANCE_SLACK[1]], (len(rows), 1))
-    ids = np.array([f.id for f in fmap.fixtures])
     for m in range(1, len(seeds)):
-        ok = allowed & (ids == lights.ids[seeds[m]])
+        ok = allowed & (fmap.id_array == lights.ids[seeds[m]])
         rows, scale = _extended(fmap, lights, seeds[: m + 1], rows, scale, ok)
         if len(rows) > MAX_HYPOTHESES:
             return None
@@ -202,7 +201,7 @@ def _explained(problem: PoseProblem, lights: LightsWithIds, pose: Pose) -> tuple
         return frozenset(), np.inf
     where = project_points(problem.camera, pose, fmap.positions[idx])
     dist = np.hypot(*(where[None, :, :] - lights.pixels[:, None, :]).transpose(2, 0, 1))
-    same = np.array([f.id for f in (fmap.fixtures[i] for i in idx.tolist())])
+    same = fmap.id_array[idx]
     dist = np.where((same[None, :] == lights.ids[:, None]) & np.isfinite(dist), dist, np.inf)
     order = np.argsort(dist, axis=1)[:, :2]
     best = np.take_along_axis(dist, order, axis=1)
