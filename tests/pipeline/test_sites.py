@@ -4,6 +4,7 @@ prior that narrows the search."""
 
 from __future__ import annotations
 
+import csv
 import json
 import re
 
@@ -174,9 +175,84 @@ def test_the_prior_needs_both_parts():
     assert LocateSettings(near=[1, 2, 3], within=2).near == (1.0, 2.0, 3.0)
 
 
-def test_a_video_is_not_tracked_in_a_map_whose_ids_repeat(varied):
-    from camvlp.errors import InputError
+@pytest.fixture(scope="module")
+def periodic_video(periodic):
+    """14 frames (10 per s) of a camera 2.65 to 2.7 m under the periodic site's ceiling,
+    moving 0.6 m and turning 6.5 degrees: each alone fits several places of the site."""
+    from camvlp.sim.trajectory import Trajectory
+    from camvlp.sim.video import iter_frames
+
+    traj = Trajectory(
+        np.array([0.0, 1.3]),
+        np.array([[8.3, 3.2, 1.3], [8.9, 3.45, 1.33]]),
+        np.array([[1.0, -2.0, 35.0], [-0.3, 0.6, 41.5]]),
+    )
+    render_settings = RenderSettings(chip_rate_hz=CHIP_RATE_HZ, row_time_s=ROW_TIME_S, seed=4)
+    return list(iter_frames(site_camera(), periodic, traj, 10.0, render_settings))
+
+
+def test_a_video_is_tracked_in_a_map_whose_ids_repeat(periodic, periodic_video):
+    """Frames 4 to 9 dark (0.6 s, longer than the track outlives without a measurement):
+    the first frame is placed by the prior given, the next ones by the track's pose, and
+    those after the dark ones near the track's last place."""
+    from camvlp.pipeline.track.tracker import Tracker, TrackSettings
+
+    frames = periodic_video
+    prior = LocateSettings(near=(8.0, 3.5), within=1.0)
+    tracker = Tracker(site_camera(), periodic, TrackSettings(locate=prior))
+    results = []
+    for k, f in enumerate(frames):
+        r = tracker.update(np.zeros_like(f.image) if 4 <= k < 10 else f.image, f.t)
+        for b in r.fixtures:  # each ID given is that of the fixture there
+            if b.id is not None:
+                d = [np.hypot(*(np.nan_to_num(t.pixel, nan=1e9) - b.pixel)) for t in f.fixtures]
+                assert b.id == f.fixtures[int(np.argmin(d))].id, (k, b)
+        if r.status in ("fix", "tracked"):
+            assert np.linalg.norm(r.position - f.pose.position) < 0.02, (k, r.position)
+        results.append(r)
+    statuses = [r.status for r in results]
+    assert statuses[:4] == ["fix"] * 4, statuses
+    assert statuses[9] == "lost", statuses
+    assert statuses[10:] == ["fix"] * 4, statuses
+    # the frame placed again fits several places of the site alone
+    alone = locate(frames[10].image, site_camera(), periodic)
+    assert not alone and alone.reason.startswith("ambiguous"), alone.reason
+
+
+def test_camvlp_track_takes_a_prior_in_a_map_whose_ids_repeat(periodic, periodic_video, tmp_path):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for k, f in enumerate(periodic_video[:3]):
+        cv2.imwrite(str(folder / f"{k:03d}.png"), f.image)
+    save_map(periodic, tmp_path / "site.yaml")
+    save_camera(site_camera(), tmp_path / "camera.yaml")
+    files = ["--camera", str(tmp_path / "camera.yaml"), "--map", str(tmp_path / "site.yaml")]
+    args = ["track", str(folder), *files, "--fps", "10", "--json"]
+    assert main([*args, "--out", str(tmp_path / "alone")]) == 1  # ambiguous: not located
+    code = main([*args, "--out", str(tmp_path / "out"), "--near", "8,3.5", "--within", "1"])
+    assert code == 0
+    with (tmp_path / "out" / "trajectory.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["status"] for r in rows] == ["fix"] * 3, rows
+
+
+def test_a_site_frame_that_fits_no_place_is_not_located(periodic, periodic_photo):
     from camvlp.pipeline.track.tracker import Tracker
 
-    with pytest.raises(InputError, match=r"one ID to many fixtures \(reuse: true\)"):
-        Tracker(site_camera(), varied)
+    r = Tracker(site_camera(), periodic).update(periodic_photo[0], 0.0)
+    assert r.status == "lost" and r.position is None
+    # the frame says why, as locate says it of the photo
+    assert r.reason == locate(periodic_photo[0], site_camera(), periodic).reason
+    assert r.reason.startswith("ambiguous: 5 places of the map fit"), r.reason
+    assert not any(b.used for b in r.fixtures)
+    assert all(b.id is None or b.reason for b in r.fixtures)
+
+
+def test_a_site_track_starts_near_the_prior_given(periodic, periodic_photo):
+    from camvlp.pipeline.track.tracker import Tracker, TrackSettings
+
+    image, pose = periodic_photo
+    near = LocateSettings(near=tuple(pose.position[:2] + 0.3), within=1.0)
+    r = Tracker(site_camera(), periodic, TrackSettings(locate=near)).update(image, 0.0)
+    assert r.status == "fix", r.reason
+    assert np.linalg.norm(r.position - pose.position) < 0.05

@@ -244,6 +244,22 @@ GravitySigmaOption = Annotated[
     ),
 ]
 
+#: ``--near X,Y[,Z]`` and ``--within R``: a prior on the camera's place (checked by
+#: :func:`parse_prior`).
+NearOption = Annotated[
+    str | None,
+    typer.Option(
+        "--near",
+        metavar="X,Y[,Z]",
+        help="A prior on where the camera is, map units (with --within): in a map whose IDs "
+        "repeat (reuse: true), only the places within R of it are searched (X,Y compares "
+        "the map's x and y only).",
+    ),
+]
+WithinOption = Annotated[
+    float | None, typer.Option("--within", metavar="R", help="The prior's radius, map units.")
+]
+
 
 def parse_gravity(text: str | None) -> list[float] | None:
     """``--gravity GX,GY,GZ``: three finite numbers, not all zero (None passes)."""

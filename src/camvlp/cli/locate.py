@@ -15,8 +15,10 @@ from ._app import (
     EXIT_NOT_LOCATED,
     GravitySigmaOption,
     MaxSigmaOption,
+    NearOption,
     OutlierOption,
     SolverOption,
+    WithinOption,
     app,
     check_positive,
     check_solver,
@@ -87,20 +89,8 @@ def locate_command(
         ),
     ] = None,
     gravity_sigma_deg: GravitySigmaOption = None,
-    near: Annotated[
-        str | None,
-        typer.Option(
-            "--near",
-            metavar="X,Y[,Z]",
-            help="A prior on where the photo was taken, map units (with --within): in a map "
-            "whose IDs repeat (reuse: true), only the places within R of it are searched "
-            "(X,Y compares the map's x and y only).",
-        ),
-    ] = None,
-    within: Annotated[
-        float | None,
-        typer.Option("--within", metavar="R", help="The prior's radius, map units."),
-    ] = None,
+    near: NearOption = None,
+    within: WithinOption = None,
 ) -> None:
     """Locate the camera that took PHOTO: position, orientation, fixtures seen.
 

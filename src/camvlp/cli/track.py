@@ -15,13 +15,16 @@ import typer
 
 from ._app import (
     EXIT_NOT_LOCATED,
+    NearOption,
     OutlierOption,
     SolverOption,
+    WithinOption,
     app,
     check_positive,
     check_solver,
     fail,
     handle_errors,
+    parse_prior,
     parse_readout,
 )
 from .progress import progress_bar
@@ -88,6 +91,8 @@ def track_command(
             "it off.",
         ),
     ] = 12,
+    near: NearOption = None,
+    within: WithinOption = None,
 ) -> None:
     """Track the camera along a video: its trajectory, fixtures and a plot, written to DIR.
 
@@ -100,15 +105,10 @@ def track_command(
     from camvlp.io import load_camera, load_map
     from camvlp.io.atomic import StagedOutputs, check_output_dir, check_output_file, strict_json
     from camvlp.io.video import open_frames
-    from camvlp.pipeline.locate import LocateSettings
-    from camvlp.pipeline.track.tracker import Tracker, TrackSettings
+    from camvlp.pipeline.track.tracker import Tracker
 
-    check_solver(solver)
-    check_positive(outlier_px, "--outlier-px")
     check_positive(fps, "--fps")
-    if gather_frames < 0:
-        fail(f"--gather-frames must be 0 or more, got {gather_frames}")
-    given_readout = parse_readout(readout)
+    settings = _settings(solver, readout, outlier_px, near, within, rolling_shutter, gather_frames)
     check_output_dir(out, "--out")
     for name in TRACK_FILES if out.is_dir() else ():
         check_output_file(out / name, "--out")
@@ -118,11 +118,6 @@ def track_command(
         source, fps=fps, start_s=start, max_frames=frames, threads=0, gray=True
     )
     truths = read_truths(frames_src)  # before any frame: a bad truth file stops nothing midway
-    settings = TrackSettings(
-        locate=LocateSettings(solver=solver, readout=given_readout, outlier_px=outlier_px),
-        rolling_shutter=rolling_shutter,
-        gather_frames=gather_frames,
-    )
     tracker = Tracker(camera, fixture_map, settings)
     total = frames_src.total if frames is None else min(frames, frames_src.total or frames)
     with StagedOutputs() as outputs:  # the four files: all or none
@@ -177,6 +172,28 @@ def _print_reasons(reasons: list[dict], frames: int, out: Path) -> None:
             f"(the column reason of {out / 'trajectory.csv'})"
         )
     print("\n".join(lines), file=sys.stderr)
+
+
+def _settings(solver, readout, outlier_px, near, within, rolling_shutter, gather_frames):
+    """The tracker's settings from ``camvlp track``'s options (a usage error for a bad one)."""
+    from camvlp.pipeline.locate import LocateSettings
+    from camvlp.pipeline.track.tracker import TrackSettings
+
+    check_solver(solver)
+    check_positive(outlier_px, "--outlier-px")
+    if gather_frames < 0:
+        fail(f"--gather-frames must be 0 or more, got {gather_frames}")
+    prior_near, prior_within = parse_prior(near, within)
+    locate = LocateSettings(
+        solver=solver,
+        readout=parse_readout(readout),
+        outlier_px=outlier_px,
+        near=prior_near,
+        within=prior_within,
+    )
+    return TrackSettings(
+        locate=locate, rolling_shutter=rolling_shutter, gather_frames=gather_frames
+    )
 
 
 def _plot(path: Path, fixture_map: FixtureMap, run: TrackRun, truths: Truths) -> None:

@@ -1,7 +1,8 @@
 """What placing a photo in a map whose IDs repeat needs, whichever way it is placed: the
 photo's lights with an ID and how far each can be (:func:`lights_with_ids`), a prior's
 candidates (:func:`prior_mask`, :func:`inside`), the place found as the fixtures in its view
-(:func:`local_map`) and the answer (:class:`Placement`, :func:`refused`, :func:`listed`).
+(:func:`local_map`, :func:`view_map`) and the answer (:class:`Placement`, :func:`refused`,
+:func:`listed`).
 
 :mod:`~camvlp.pipeline.identify.by_geometry` places a photo of five lights or more by their
 arrangement, :mod:`~camvlp.pipeline.identify.by_gravity` one of two to four with the
@@ -15,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from camvlp.model.camera import Pose, project_points
+from camvlp.model.camera import Camera, Pose, project_points
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.solve import PoseProblem
 
@@ -32,6 +33,7 @@ __all__ = [
     "local_map",
     "prior_mask",
     "refused",
+    "view_map",
 ]
 
 #: A light's distance from its disc's size (the estimate) is the true one over a scale that
@@ -215,10 +217,36 @@ def local_map(
 ) -> FixtureMap:
     """The fixtures ``pose`` puts in front of the camera and in the photo (or within a tenth
     of its width of it) and those ``pairs`` ((light, fixture) indices) gives the lights, each
-    ID once: where two have one ID, the one a light was found to be, else the one in the
-    photo when the other lies outside it; else neither."""
-    fmap, camera = problem.fixture_map, problem.camera
-    idx = around(fmap, lights, pose, 2.0)
+    ID once (:func:`view_map`), among those near the camera (:func:`around`)."""
+    idx = around(problem.fixture_map, lights, pose, 2.0)
+    return view_map(problem.fixture_map, problem.camera, pose, idx, [f for _, f in pairs])
+
+
+def view_map(fmap: FixtureMap, camera: Camera, pose: Pose, idx: np.ndarray, taken=()) -> FixtureMap:
+    """The fixtures of ``idx`` that ``pose`` puts in front of the camera and in the photo (or
+    within a tenth of its width of it), and those of ``taken``, each ID once: where two have
+    one ID, the one of ``taken``, else the one in the photo when the other lies outside it;
+    else neither.
+
+    Parameters
+    ----------
+    fmap : FixtureMap
+        The whole map (its IDs may repeat).
+    camera : Camera
+    pose : Pose
+        The camera's pose, map frame and units.
+    idx : ndarray of int, shape (m,)
+        Indices into ``fmap.fixtures`` of the fixtures to weigh.
+    taken : iterable of int
+        Indices of fixtures a light was found to be (kept before any other of their ID).
+
+    Returns
+    -------
+    FixtureMap
+        Those fixtures, a map without ``reuse`` (its IDs unique), of ``fmap``'s frame and
+        units.
+    """
+    idx = np.asarray(idx, dtype=np.int64).reshape(-1)
     where = project_points(camera, pose, fmap.positions[idx]).reshape(-1, 2)
     ahead = (fmap.positions[idx] - pose.position) @ pose.world_from_camera[:, 2] > 0
     tier = np.full(len(idx), 3)  # 1: in the photo, 2: within the margin, 3: neither
@@ -228,7 +256,7 @@ def local_map(
         within_photo &= (where[:, 1] >= -pad) & (where[:, 1] <= camera.height - 1 + pad)
         tier[within_photo] = t
     rank = dict(zip(idx.tolist(), tier.tolist(), strict=True))
-    rank.update({f: 0 for _, f in pairs})  # 0: a light's
+    rank.update({int(f): 0 for f in taken})  # 0: a light's
     best: dict[int, tuple[int, list[int]]] = {}  # ID -> its best tier, the fixtures of it
     for i, t in sorted(rank.items(), key=lambda it: it[1]):
         fid = fmap.fixtures[i].id

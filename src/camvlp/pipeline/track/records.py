@@ -8,10 +8,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from camvlp.errors import InputError
+from camvlp.io.files import MAX_MAGNITUDE
 from camvlp.pipeline.locate import LocateSettings
 from camvlp.pipeline.paths import PathTime
 
-__all__ = ["STATUSES", "TrackFrame", "TrackSettings", "TrackedFixture"]
+__all__ = [
+    "STATUSES",
+    "TrackFrame",
+    "TrackSettings",
+    "TrackedFixture",
+    "checked_time",
+    "reported_fixtures",
+]
 
 #: Per-frame statuses, best first.
 STATUSES = ("fix", "tracked", "predicted", "lost")
@@ -77,6 +86,11 @@ class TrackSettings:
         ``gather_frames`` frames give it an ID once they hold a whole frame that fits one ID
         as surely as a whole frame would (:mod:`camvlp.pipeline.decode.partial`); 0 turns
         the gathering off.
+    relocate_speed_m_s : float
+        In a map whose IDs repeat (``reuse``), a frame placed anew (the track lost) is looked
+        for near the last place the track knew first, as far as the camera can have gone
+        since at this speed (metres per second; a person walks at 1.5), then over the whole
+        map (:mod:`camvlp.pipeline.track.site`).
     """
 
     locate: LocateSettings = field(default_factory=LocateSettings)
@@ -97,6 +111,7 @@ class TrackSettings:
     carry_glows: bool = True
     verify_every: int = 10
     gather_frames: int = 12
+    relocate_speed_m_s: float = 2.0
 
     def __post_init__(self) -> None:
         for name in (
@@ -107,6 +122,7 @@ class TrackSettings:
             "fix_sigma",
             "fix_sigma_deg",
             "pixel_sigma",
+            "relocate_speed_m_s",
         ):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -202,3 +218,40 @@ class TrackFrame:
     def lost(cls, index: int, t: float, reason: str) -> TrackFrame:
         """A frame with nothing known (unreadable, or before the first fix)."""
         return cls(index, t, "lost", None, None, None, None, (), math.nan, (), reason, {})
+
+
+def reported_fixtures(
+    blobs, ids, sources, reasons, usable, used, mirror_width: int | None, no_pose: str
+) -> tuple[TrackedFixture, ...]:
+    """A frame's blobs as reported, one :class:`TrackedFixture` each.
+
+    ``ids``, ``sources`` and ``reasons`` are per blob (its ID or None, where the ID came
+    from, why it is unusable); ``usable`` the indices of the usable blobs and ``used``
+    indices into ``usable`` of those the pose uses; pixels are given in the photo as given
+    (flipped back when ``mirror_width``, the mirrored image's width in pixels, is given);
+    ``no_pose`` says why identified fixtures are unused when there is no pose ("" when
+    there is one)."""
+    used_set = {usable[j] for j in used}
+    out = []
+    for k, b in enumerate(blobs):
+        why = reasons[k]
+        if k in usable and k not in used_set:
+            why = no_pose or "not used by the pose"
+        p = b.pixel
+        if mirror_width is not None:
+            p = np.array([mirror_width - 1 - p[0], p[1]])
+        out.append(TrackedFixture(ids[k], p, sources[k], k in used_set, why))
+    return tuple(out)
+
+
+def checked_time(t: object, previous: float | None) -> float:
+    """A frame's time ``t`` as a float when it is a finite time within +-1e9 s and later than
+    the ``previous`` frame's (s; None for the first frame); InputError otherwise."""
+    if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)):
+        raise InputError(f"t must be a number of seconds, got {type(t).__name__}")
+    value = float(t)
+    if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
+        raise InputError(f"t must be a finite time within +-{MAX_MAGNITUDE:g} s, got {t!r}")
+    if previous is not None and not value > previous:
+        raise InputError(f"t must increase from frame to frame: {value!r} s after {previous!r} s")
+    return value

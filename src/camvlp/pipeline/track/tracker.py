@@ -25,6 +25,9 @@ previous frames established and uses it in the next one:
 * **a filter**: a constant-velocity Kalman filter on the camera centre and the thesis'
   angles smooths the track and predicts through gaps (``predicted``); after ``max_gap_s``
   without a measurement the track is ``lost`` until the next fix.
+* **a site whose IDs repeat** (``reuse``): the IDs name the fixtures around the camera, each
+  ID once: those in view of the track's pose, else of the place the frame's lights give
+  (:mod:`camvlp.pipeline.track.site`);
 * **the rolling shutter**: a fixture imaged on sensor row ``k`` was seen
   ``(k - (N - 1) / 2) * row_time`` after the frame's middle row; with the track's velocity its
   pixel is moved to where it would have been at the frame's time before solving.
@@ -42,13 +45,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camvlp.errors import InputError
-from camvlp.io.files import MAX_MAGNITUDE
-from camvlp.model.camera import Camera
+from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.model import SensorModel
-from camvlp.pipeline.identified import Identified, identify
+from camvlp.pipeline.identified import Identified, identified_as, identify
 from camvlp.pipeline.lamp.glow import glowing
 from camvlp.pipeline.locate import StageClock
 from camvlp.pipeline.paths import recording
@@ -74,7 +75,15 @@ from camvlp.pipeline.track.predict import (
     rs_shift,
     sighted_pixels,
 )
-from camvlp.pipeline.track.records import STATUSES, TrackedFixture, TrackFrame, TrackSettings
+from camvlp.pipeline.track.records import (
+    STATUSES,
+    TrackedFixture,
+    TrackFrame,
+    TrackSettings,
+    checked_time,
+    reported_fixtures,
+)
+from camvlp.pipeline.track.site import SiteView, changed_ids
 from camvlp.pipeline.track.solve import FrameSolve, FrameSolver, Measurements
 
 __all__ = [
@@ -100,6 +109,7 @@ class _Located:
     predicted: dict[int, np.ndarray]
     from_pose: bool
     gathered: frozenset[int] = frozenset()
+    unplaced: str = ""  # a site's frame its lights do not place: why
 
 
 @dataclass(frozen=True)
@@ -121,46 +131,32 @@ class Tracker:
     camera : Camera
         The video's camera (its ``row_time_s`` enables the rolling-shutter correction).
     fixture_map : FixtureMap
-        The room.
+        The room, or a site whose IDs repeat (``reuse``: see
+        :mod:`camvlp.pipeline.track.site`).
     settings : TrackSettings, optional
         How to track (defaults when None).
-
-    Raises
-    ------
-    InputError
-        A map whose IDs repeat (``reuse``): a video is not yet placed by its lights'
-        geometry (a photo is: :func:`~camvlp.pipeline.locate.locate`).
     """
 
     def __init__(
         self, camera: Camera, fixture_map: FixtureMap, settings: TrackSettings | None = None
     ) -> None:
-        if fixture_map.reuse:
-            raise InputError(
-                "the map gives one ID to many fixtures (reuse: true): tracking a video needs "
-                "a map whose IDs are unique (locate places single photos in such a map)"
-            )
         self.camera = camera
-        self.map = fixture_map
         self.settings = settings or TrackSettings()
         st = self.settings.locate
-        outlier_px = (
+        self._outlier_px = (
             st.outlier_px if st.outlier_px is not None else max(4.0, 0.01 * camera.focal_px)
         )
         self._gate = self.settings.gate_px or 0.03 * camera.focal_px
         self.readout: Readout | None = st.readout or camera.readout
         self._motion = Motion(camera, self.settings)
-        self._offsets = PerspectiveOffsets(camera, fixture_map, enabled=st.correct_perspective)
-        self._solver = FrameSolver(
-            camera, fixture_map, self.settings, self._motion, self._offsets, outlier_px
-        )
+        self._site = SiteView(camera, fixture_map, self.settings) if fixture_map.reuse else None
+        self._bind(fixture_map)
         self._t_given: float | None = None  # time of the last frame given to update
         self._seen: dict[int, Sighting] = {}
         self._chip_rows: list[float] = []
         self._model: SensorModel | None = None  # the photo-wide parameters last used
         self._glows: dict[int, bool] = {}  # whether each fixture glows, told when seen whole
         self._told = np.zeros(2, dtype=np.int64)  # lights told surely: plain, glowing
-        self._fixtures = (np.array([f.id for f in fixture_map.fixtures]), fixture_map.positions)
         self._index = 0
         self._verified: dict[int, int] = {}  # frame of each fixture's last decode
         window = self.settings.gather_frames
@@ -195,7 +191,7 @@ class Tracker:
             ``t`` is not such a time, or the frame is not an image of the camera's size; the
             tracker is left as it was, ready for the next frame.
         """
-        t = self._checked_time(t)
+        t = checked_time(t, self._t_given)
         clock = StageClock()
         with recording() as paths:  # the special paths that run, and their time
             frame = self._locate(image, t, clock)
@@ -205,6 +201,7 @@ class Tracker:
             m = self._measurements(frame, assoc, state, fresh)
             outcome = self._solver.solve(frame.blobs, assoc.ids, m, state, fresh)
             status, reason = self._follow(outcome, t, m)
+            reason = frame.unplaced if frame.unplaced and outcome.solved is None else reason
             remember(self._seen, frame.blobs, assoc.ids, t, self.settings.max_gap_s)
             clock.lap("track")
         return self._report(frame, assoc, m, outcome, status, reason, clock, paths)
@@ -224,19 +221,21 @@ class Tracker:
         self._index += 1
         self._t_given = t
         clock.lap("prepare")
+        self._site_around_track(t)
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
+        # a site's frame that the track does not place is read in the whole site's IDs
+        by_track = self._site is None or from_pose
+        fmap = self.map if by_track else self._site.site
         glows = functools.partial(self._glowing, img, predicted, from_pose)
         glows = glows if self.settings.carry_glows else None
-        lights = find_lights(prepared, self.map, st, readout=self.readout, glows=glows)
+        lights = find_lights(prepared, fmap, st, readout=self.readout, glows=glows)
         if self.readout is None and lights.readout is not None:
             # the first frame that decides the direction, from now on
-            self.readout = readout_direction(prepared, lights, self.map, st)
+            self.readout = readout_direction(prepared, lights, fmap, st)
         readout = self.readout or lights.readout or Readout.ROWS
         clock.lap("detect")
         # no ID read reversed, nor along an axis the stripes do not show
-        undecided = lights.readout is None or (
-            self.readout is None and self.map.mode != "frequency"
-        )
+        undecided = lights.readout is None or (self.readout is None and fmap.mode != "frequency")
         blobs = list(lights.blobs)
         known_ids = set() if undecided else self._known(blobs, predicted, from_pose)
         skip = set(range(len(blobs))) if undecided else known_ids
@@ -247,7 +246,7 @@ class Tracker:
             prepared,
             known,
             profiles,
-            self.map,
+            fmap,
             skip=skip,
             rows_per_chip=self._rpc(),
             model=self._model,
@@ -255,9 +254,21 @@ class Tracker:
         blobs = list(decoded.blobs)
         decodes, gathered = self._gather(index, t, lights, blobs, profiles, decoded, known_ids)
         self._carry(decoded, decodes)
-        found = identify(blobs, decodes, self.map)
+        found = identify(blobs, decodes, self.map) if by_track else None
+        unplaced = ""
+        if found is None:  # a site's frame: placed by its lights first
+            place = self._site.placed(prepared, blobs, decodes, t)
+            unplaced = place.reason
+            if place.local is None:  # no ID names a fixture: none carried either
+                predicted = {}
+                why = [unplaced if d.id is not None else d.reason for d in decodes]
+                found = identified_as([d.id for d in decodes], why)
+            else:
+                self._rebind(place.local)
+                predicted, _ = self._predict_pixels(t, img.shape[:2])
+                found = identify(blobs, decodes, self.map)
         clock.lap("decode")
-        return _Located(index, t, prepared, blobs, found, predicted, from_pose, gathered)
+        return _Located(index, t, prepared, blobs, found, predicted, from_pose, gathered, unplaced)
 
     def _associate(self, frame: _Located) -> _Associated:
         """IDs per blob (see :mod:`camvlp.pipeline.track.assoc`); the decoded ones verified."""
@@ -302,6 +313,8 @@ class Tracker:
         """The track after the frame: its solve fused into the filter, else the filter
         coasting on (or lost); the frame's status and reason."""
         if outcome.solved is not None:
+            if self._site is not None:
+                self._site.last, self._site.last_t = outcome.solved.pose.position, t
             used = outcome.used_mask
             obj, pixels, dts = m.obj[used], m.measured[used], m.dts[used]
             fix = outcome.status == "fix"
@@ -329,7 +342,9 @@ class Tracker:
         no_pose = "" if raw_pose is not None else (reason or "no pose")
         img = frame.prepared.image
         mirror_w = img.shape[1] if frame.prepared.mirrored else None
-        fixtures = _reported(frame.blobs, assoc, m.usable, used, mirror_w, no_pose)
+        fixtures = reported_fixtures(
+            frame.blobs, assoc.ids, assoc.sources, assoc.reasons, m.usable, used, mirror_w, no_pose
+        )
         pos, euler = self._motion.current(status)
         return TrackFrame(
             index=frame.index,
@@ -349,6 +364,34 @@ class Tracker:
 
     # ---------------------------------------------------------------------------------------
     # Helpers of the steps
+
+    def _bind(self, fixture_map: FixtureMap) -> None:
+        """Work on ``fixture_map`` (the room, or a site's fixtures around the camera)."""
+        self.map = fixture_map
+        self._fixtures = (fixture_map.id_array, fixture_map.positions)
+        st = self.settings.locate
+        self._offsets = PerspectiveOffsets(self.camera, fixture_map, enabled=st.correct_perspective)
+        self._solver = FrameSolver(
+            self.camera, fixture_map, self.settings, self._motion, self._offsets, self._outlier_px
+        )
+
+    def _rebind(self, local: FixtureMap) -> None:
+        """Work on a site's fixtures ``local`` from now on; what was remembered of an ID
+        that names another fixture there (or none) is forgotten."""
+        gone = changed_ids(self.map, local)
+        if not gone and len(local.fixtures) == len(self.map.fixtures):
+            return  # the same fixtures
+        for memo in (self._seen, self._glows, self._verified):
+            for fid in gone & memo.keys():
+                del memo[fid]
+        self._bind(local)
+
+    def _site_around_track(self, t: float) -> None:
+        """In a site, the fixtures in view of the track's pose at ``t``, while it is fresh."""
+        if self._site is None or not self._motion.fresh(t):
+            return
+        values = self._motion.state_at(t)[0]
+        self._rebind(self._site.around_pose(Pose.from_euler(values[:3], values[3:])))
 
     def _predict_pixels(
         self, t: float, shape: tuple[int, int]
@@ -450,35 +493,3 @@ class Tracker:
         man = decoded.manchester
         if self.settings.carry_model and man is not None and man.model is not None:
             self._model = man.model
-
-    def _checked_time(self, t: object) -> float:
-        """``t`` as a float when it is a finite time within +-1e9 s and later than the last
-        frame's; InputError otherwise (before anything of the tracker changes)."""
-        if isinstance(t, bool) or not isinstance(t, (int, float, np.integer, np.floating)):
-            raise InputError(f"t must be a number of seconds, got {type(t).__name__}")
-        value = float(t)
-        if not (math.isfinite(value) and abs(value) <= MAX_MAGNITUDE):
-            raise InputError(f"t must be a finite time within +-{MAX_MAGNITUDE:g} s, got {t!r}")
-        if self._t_given is not None and not value > self._t_given:
-            raise InputError(
-                f"t must increase from frame to frame: {value!r} s after {self._t_given!r} s"
-            )
-        return value
-
-
-def _reported(blobs, assoc: _Associated, usable, used, mirror_width, no_pose: str):
-    """The frame's fixtures as reported (pixels of the photo as given: flipped back when
-    ``mirror_width`` is the mirrored image's width); ``used``: indices into ``usable`` of the
-    fixtures the pose uses; ``no_pose``: why identified fixtures are unused when there is no
-    pose ("" when there is one)."""
-    used_set = {usable[j] for j in used}
-    out = []
-    for k, b in enumerate(blobs):
-        why = assoc.reasons[k]
-        if k in usable and k not in used_set:
-            why = no_pose or "not used by the pose"
-        p = b.pixel
-        if mirror_width is not None:
-            p = np.array([mirror_width - 1 - p[0], p[1]])
-        out.append(TrackedFixture(assoc.ids[k], p, assoc.sources[k], k in used_set, why))
-    return tuple(out)
