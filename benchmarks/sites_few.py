@@ -1,23 +1,29 @@
-"""Photos of two or three lights in a site whose IDs repeat, located with gravity: with a
-prior and without (``docs/sites.md``, "Two or three lights: gravity and a prior").
+"""Photos of a few lights in a site whose IDs repeat, located with gravity: with a prior and
+without (``docs/sites.md``, "Two or three lights: gravity and a prior"); and, with
+``--lights 4,99``, photos of four lights or more, also without gravity and in a room (the
+figures of "Photos of four lights or more").
 
 The supermarket of ``examples/make_supermarket.py`` (``examples/supermarket.yaml``: 600
 downlights of 20 cm, 1.5 m x 2.67 m apart under a 3.5 m ceiling, the thesis' 4-bit frame at
 10 kHz, IDs from ``camvlp assign-ids``), photographed by the thesis' phone camera scaled to
 a quarter (1296 x 970, f = 978 px) whose rows take 40 us (2.5 rows a chip), held 1.0 to 1.6 m
 above the floor, any heading, tilted up to 20 degrees about its x and y axes, at random
-places (seeded).  Only the poses that put two or three fixtures whole in the photo are
-rendered (``camvlp.sim.render``, the fixtures within 12 m of the camera: the others are out
-of view).  Each photo is located with the direction of gravity turned by a random angle
+places (seeded).  Only the poses that put two or three fixtures (``--lights``) whole in the
+photo are rendered (``camvlp.sim.render``, the fixtures within 12 m of the camera: the others
+are out of view).  Each photo is located with the direction of gravity turned by a random angle
 (two perpendicular components of 1 / sqrt(2) degrees each: 1 degree RMS), once with a prior
 (``near`` a point drawn uniformly within ``--offset`` m of the camera's x and y, ``within``
-``--within`` m) and once without.
+``--within`` m) and once without; with ``--lights`` from 4, once more without gravity, and
+once against a room of the fixtures in the photo and near it alone, each ID once
+(``view_map`` at the true pose: an ordinary map, its IDs unique), whose median error is the
+one the site's is compared with.
 
 A located position more than 10 cm from the truth counts as a wrong place: "wrong
 fixtures" when the fixtures it used are not those the camera saw (a wrong correspondence),
 "off" when they are (the gravity's error, through two or three fixtures).
 
-Run: ``python benchmarks/sites_few.py [--photos 200] [--seed 11] [--within 5] [--offset 3]``.
+Run: ``python benchmarks/sites_few.py [--photos 200] [--seed 11] [--within 5] [--offset 3]
+[--lights 2,3]``.
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ from scipy.spatial.transform import Rotation
 from camvlp import locate
 from camvlp.io import load_map
 from camvlp.model.camera import Camera, Pose
+from camvlp.pipeline.identify.placement import view_map
 from camvlp.pipeline.settings import LocateSettings
 from camvlp.sim.render import RenderSettings, render
 
@@ -117,7 +124,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--seed", type=int, default=11, help="seed of the poses and noise (11)")
     ap.add_argument("--within", type=float, default=5.0, help="the prior's radius, m (5)")
     ap.add_argument("--offset", type=float, default=3.0, help="prior's centre off, m (3)")
+    ap.add_argument("--lights", default="2,3", help="fixtures whole in the photo, MIN,MAX (2,3)")
     a = ap.parse_args(argv)
+    least, most = (int(v) for v in a.lights.split(","))
     fmap = load_map(MAP)
     rng = np.random.default_rng(a.seed)
     rows: dict[tuple[str, int], list] = {}
@@ -126,7 +135,7 @@ def main(argv: list[str] | None = None) -> None:
     while k < a.photos:
         pose = _pose(rng)
         whole = _whole(fmap, pose)
-        if not 2 <= whole <= 3:
+        if not least <= whole <= most:
             continue
         close = np.linalg.norm(fmap.positions[:, :2] - pose.position[:2], axis=1) < 12.0
         sub = dataclasses.replace(fmap, fixtures=tuple(np.array(fmap.fixtures)[close]))
@@ -134,12 +143,16 @@ def main(argv: list[str] | None = None) -> None:
         gravity = _noisy(pose.world_from_camera.T @ -UP, rng)
         r, t = a.offset * np.sqrt(rng.uniform()), rng.uniform(0, 2 * np.pi)
         near = tuple(pose.position[:2] + r * np.array([np.cos(t), np.sin(t)]))
-        for name, st in (
-            ("prior", LocateSettings(near=near, within=a.within)),
-            ("none", None),
-        ):
+        variants = [
+            ("prior", fmap, LocateSettings(near=near, within=a.within), gravity),
+            ("none", fmap, None, gravity),
+        ]
+        if least >= 4:
+            room = view_map(fmap, CAMERA, pose, np.flatnonzero(close))
+            variants += [("no gravity", fmap, None, None), ("room", room, None, None)]
+        for name, where, st, g in variants:
             t0 = time.perf_counter()
-            result = locate(image, CAMERA, fmap, st, gravity=gravity)
+            result = locate(image, CAMERA, where, st, gravity=g)
             spent[name] += time.perf_counter() - t0
             stage_ms.setdefault(name, []).append(result.timing_ms["pose"])
             if result:
@@ -150,11 +163,15 @@ def main(argv: list[str] | None = None) -> None:
             rows.setdefault((name, whole), []).append(row)
         k += 1
     print(
-        f"{MAP.name}: {len(fmap.fixtures)} fixtures, {a.photos} photos of 2 or 3 fixtures whole, "
-        f"seed {a.seed}, gravity 1 degree RMS off; {time.perf_counter() - start:.0f} s "
-        f"(locate: {spent['prior']:.0f} s with the prior, {spent['none']:.0f} s without)"
+        f"{MAP.name}: {len(fmap.fixtures)} fixtures, {a.photos} photos of {least} to {most} "
+        f"fixtures whole, seed {a.seed}, gravity 1 degree RMS off; "
+        f"{time.perf_counter() - start:.0f} s (locate: {spent['prior']:.0f} s with the prior, "
+        f"{spent['none']:.0f} s without)"
     )
-    for name, words in (("prior", f"prior within {a.within:g} m"), ("none", "no prior")):
+    names = [("prior", f"prior within {a.within:g} m"), ("none", "no prior")]
+    if least >= 4:
+        names += [("no gravity", "no prior, no gravity"), ("room", "the room in view alone")]
+    for name, words in names:
         ms = np.percentile(stage_ms[name], [50, 95, 100])
         print(
             f"{words}: identify and solve {ms[0]:.0f} ms (median), {ms[1]:.0f} (95 %), "

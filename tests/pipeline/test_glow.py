@@ -366,3 +366,24 @@ def test_a_shape_that_falls_nowhere_has_no_rim():
     # knots' smoothing (a pixel and a half) of it
     rim = rim_extents(np.clip(15.0 - knots, 0.0, 1.0), counts, 0.0)
     assert rim[0] == rim[1] and abs(rim[0] - 15.0) <= 1.5
+
+
+def test_discs_the_border_cuts_are_plain_when_the_photos_other_discs_are():
+    # a site's plain discs, four of them cut by the border: a cut disc's rim lifts the ring
+    # about its round outline as a glow would, but the photo's lamps are alike
+    from camvlp.pipeline.lamp.glow import glowing
+    from camvlp.sim.site import site_map
+
+    site = site_map(20, 10, pattern="varied", seed=0, spacing=1.0, height=4.0, diameter=0.5)
+    cam = Camera.from_focal(640, 480, 400.0, row_time_s=25e-6, readout="rows")
+    pose = Pose.from_euler([8.3, 3.2, 1.3], [1.0, -2.0, 35.0])
+    settings = RenderSettings(chip_rate_hz=16_000.0, row_time_s=25e-6, seed=4)
+    image = render(cam, site, pose, settings).image
+    blobs = detect_fixtures(image, readout="rows").blobs
+    glows, told = glowing(image, blobs)
+    cut = [b.touches_border for b in blobs]
+    assert told.sum() >= 8 and sum(cut) >= 3
+    assert not glows.any()
+    res = locate(image, cam, site)
+    assert res, res.reason
+    assert "radial fit" not in res.paths and "rim from chords" not in res.paths, res.paths

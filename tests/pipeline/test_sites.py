@@ -256,3 +256,28 @@ def test_a_site_track_starts_near_the_prior_given(periodic, periodic_photo):
     r = Tracker(site_camera(), periodic, TrackSettings(locate=near)).update(image, 0.0)
     assert r.status == "fix", r.reason
     assert np.linalg.norm(r.position - pose.position) < 0.05
+
+
+def test_the_view_map_keeps_each_id_once_the_one_in_the_picture():
+    from camvlp.model.fixtures import Fixture, FixtureMap
+    from camvlp.pipeline.identify.placement import view_map
+
+    cam, pose = site_camera(), pose_at(0.0, 0.0, 1.5, 0.0)  # 2.5 m under the ceiling
+    # f = 400 px: 1 m is 160 px. Within 2 m of the centre a fixture is in the 640-px
+    # picture, 2.2 m is in the margin (a tenth of the width) only, 3 m beyond both.
+    spots = {0: [0.0, 1.0], 1: [0.0, 3.0], 2: [-1.0, 2.2], 3: [1.0, -1.0]}
+    fixtures = tuple(
+        Fixture(fid, np.array([x, -0.9 + 0.6 * fid, 4.0]), 0.3, np.array([0.0, 0.0, -1.0]))
+        for fid, xs in spots.items()
+        for x in xs
+    )
+    site = FixtureMap(fixtures, reuse=True)
+    out = view_map(site, cam, pose, np.arange(len(fixtures)))
+    assert not out.reuse
+    kept = {f.id: float(f.position[0]) for f in out.fixtures}
+    # ID 0 in the picture twice: neither; ID 1 once in it; ID 2 in it, its twin only in the
+    # margin; ID 3 twice in it: neither
+    assert kept == {1: 0.0, 2: -1.0}
+    # a fixture a light was found to be comes first (the second of ID 0)
+    taken = view_map(site, cam, pose, np.arange(len(fixtures)), taken=[1])
+    assert {f.id: float(f.position[0]) for f in taken.fixtures}[0] == 1.0

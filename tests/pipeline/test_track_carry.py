@@ -95,15 +95,15 @@ def test_parameters_that_do_not_explain_a_frame_are_fitted_anew(video):
 
 def test_a_disc_the_border_cuts_is_told_by_its_fixture_seen_whole():
     # plain discs of 100 px leaving the picture: once less than half of one is in it, its
-    # round outline is smaller than the disc and its ring reads as a glow, and locate
-    # centres it on a glow it has not (a radial fit); the track knows its fixture does not
-    # glow (told in the frames before).  (In the next frame, a sliver's outline centre is
-    # too far from its fixture's prediction to be tied to it: its ring tells, as in locate)
+    # round outline is smaller than the disc and its ring reads as a glow; the track knows
+    # its fixture does not glow (told in the frames before), and locate that the photo's
+    # whole discs do not.  (In the next frame, a sliver's outline centre is too far from
+    # its fixture's prediction to be tied to it: the photo's lights tell, as in locate)
     cam, room, traj = small_scene()
     frames = list(iter_frames(cam, room, traj, 15.0, RenderSettings(seed=2), max_frames=13))
     tracker = Tracker(cam, room)
     results = [tracker.update(f.image, f.t) for f in frames]
-    assert "radial fit" in locate(frames[11].image, cam, room).paths
+    assert "radial fit" not in locate(frames[11].image, cam, room).paths
     cut = cut_decoded = 0
     for r, f in zip(results, frames, strict=True):
         assert "radial fit" not in r.paths, (f.t, r.paths)
@@ -123,6 +123,17 @@ def test_a_disc_the_border_cuts_is_told_by_its_fixture_seen_whole():
     # ones are (a room's lamps are alike)
     first = Tracker(cam, room).update(frames[11].image, frames[11].t)
     assert "radial fit" not in first.paths
-    # told by their own rings, as before the track carried the glows
-    tracker = Tracker(cam, room, TrackSettings(carry_glows=False))
-    assert any("radial fit" in tracker.update(f.image, f.t).paths for f in frames)
+    # a frame that shows one disc whole (another one darkened): the photo alone cannot tell
+    # the cut discs' look, the track can
+    last = frames[11]
+    whole = [t.pixel for t in last.fixtures if t.fully_inside]
+    assert len(whole) == 2
+    one = last.image.copy()
+    x, y = np.rint(whole[0]).astype(int)
+    one[max(y - 70, 0) : y + 70, max(x - 70, 0) : x + 70] = 0
+    assert "radial fit" in locate(one, cam, room).paths
+    for carry in (True, False):
+        tracker = Tracker(cam, room, TrackSettings(carry_glows=carry))
+        for f in frames[:11]:
+            tracker.update(f.image, f.t)
+        assert ("radial fit" in tracker.update(one, last.t).paths) is not carry

@@ -141,7 +141,8 @@ def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
     glows : ndarray of bool, shape (len(blobs),)
         The lights that glow, as :func:`centred_on_glow` tells them by itself: a light
         touching the photo's border measured on a round outline (see :func:`_round`); never
-        one whose ring or background the photo lacks.
+        one whose ring or background the photo lacks.  A photo's lamps are alike: where two
+        or more lights were told surely and none of them glows, none does.
     told : ndarray of bool, shape (len(blobs),)
         The lights told surely: enough of their ring and background in the photo, and not
         touching its border (the round outline of a disc the border cuts may be smaller than
@@ -149,7 +150,10 @@ def glowing(img: np.ndarray, blobs) -> tuple[np.ndarray, np.ndarray]:
     """
     levels = glow_levels(img, [_round(b) for b in blobs])
     border = np.array([b.touches_border for b in blobs], dtype=bool)
-    return levels >= GLOW_LEVEL, np.isfinite(levels) & ~border  # (NaN: not glowing)
+    glows, told = levels >= GLOW_LEVEL, np.isfinite(levels) & ~border  # (NaN: not glowing)
+    if told.sum() >= 2 and not glows[told].any():  # plain discs: a cut one's rim is no glow
+        glows[:] = False
+    return glows, told
 
 
 def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]:
