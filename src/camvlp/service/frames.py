@@ -322,7 +322,8 @@ def _from_track(frame: TrackFrame, track: DeviceTrack) -> dict[str, Any]:
     sigma = pos = euler = None
     if frame.status == "fix" and frame.raw_position is not None:
         pos, euler = frame.position, frame.euler_deg
-        points = np.array([track.fixture_map.get(i).position for i in frame.fixtures_used])
+        fixtures = track.tracker.map  # (in a site, the fixtures the frame's IDs name)
+        points = np.array([fixtures.get(i).position for i in frame.fixtures_used])
         rms = np.full(len(points), frame.reprojection_rms_px)  # the sigma needs r @ r alone
         raw = Pose.from_euler(frame.raw_position, frame.raw_euler_deg)
         sigma = position_sigma(track.camera, raw, points, rms)

@@ -135,6 +135,11 @@ class Tracker:
         :mod:`camvlp.pipeline.track.site`).
     settings : TrackSettings, optional
         How to track (defaults when None).
+
+    Attributes
+    ----------
+    map : FixtureMap
+        The fixtures its IDs name: the room, or a site's around the camera, each ID once.
     """
 
     def __init__(
