@@ -447,3 +447,24 @@ def test_a_light_of_wide_bands_is_one_light(diameter_px, seed):
     (light,) = locate(photo.image, cam, room).fixtures
     assert light.id == 1, light.reason
     assert light.frequency_hz == pytest.approx(1000.0, rel=0.01)
+
+
+def test_a_disc_the_border_cuts_under_a_dark_stripe_touches_it():
+    # plain discs of 77 px under a site's ceiling: at the top, one cut by the border whose
+    # top rows are a dark stripe (its bright part starts 4 rows down), and one whole whose
+    # cap is in a dark stripe 5 rows from the border
+    from camvlp.model.camera import Pose
+    from camvlp.sim.render import RenderSettings, render
+    from camvlp.sim.site import site_map
+
+    site = site_map(20, 10, pattern="varied", seed=0, spacing=1.0, height=4.0, diameter=0.5)
+    cam = Camera.from_focal(640, 480, 400.0, row_time_s=25e-6, readout="rows")
+    pose = Pose.from_euler([4.525, 3.3, 1.3125], [0.5, -1.0, 37.5])
+    settings = RenderSettings(chip_rate_hz=16_000.0, row_time_s=25e-6, seed=4)
+    photo = render(cam, site, pose, settings)
+    blobs = detect_fixtures(photo.image, readout="rows").blobs
+    truths = [t for t in photo.fixtures if np.all(np.isfinite(t.pixel))]
+    for b in blobs:
+        t = min(truths, key=lambda t: np.hypot(*(t.pixel - b.pixel)))
+        assert b.touches_border == (not t.fully_inside), (b.pixel, b.box, t.pixel)
+    assert sum(b.touches_border for b in blobs) >= 4

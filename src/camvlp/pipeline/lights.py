@@ -12,7 +12,7 @@ from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.candidates import Detection, detect_fixtures
-from camvlp.pipeline.lamp.glow import centred_on_glow
+from camvlp.pipeline.lamp.glow import centred_on_glow, glowing
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.settings import LocateSettings
 
@@ -48,6 +48,10 @@ class Lights:
         The lights that show stripes to read (:func:`striped`).
     notes : tuple of str
         What the user should know (an EXIF hint overruled or needed).
+    glowing : tuple of bool
+        Per light, whether it was centred as a glowing one
+        (:func:`~camvlp.pipeline.lamp.glow.glowing`, or as ``glows`` told); empty when no
+        light was told (a frequency map, or no readout).
     """
 
     detection: Detection
@@ -56,6 +60,7 @@ class Lights:
     direction_known: bool
     readable: tuple[int, ...]
     notes: tuple[str, ...] = ()
+    glowing: tuple[bool, ...] = ()
 
 
 def find_lights(
@@ -80,12 +85,15 @@ def find_lights(
     detection, found, known, note = detected_with_readout(prepared.image, given, settings)
     blobs = list(detection.blobs)
     readable = [k for k, b in enumerate(blobs) if striped(b)]
+    told: tuple[bool, ...] = ()
     if fixture_map.mode != "frequency" and found is not None:
         sub = [blobs[k] for k in readable]
-        which = None if glows is None else glows(sub)
+        which = glowing(prepared.image, sub)[0] if glows is None else glows(sub)
         centred = centred_on_glow(prepared.image, sub, found.axis, which)
         blobs = spread_out(centred, readable, blobs)
-    return Lights(detection, tuple(blobs), found, known, tuple(readable), (note,) if note else ())
+        told = tuple(spread_out([bool(w) for w in which], readable, [False] * len(blobs)))
+    notes = (note,) if note else ()
+    return Lights(detection, tuple(blobs), found, known, tuple(readable), notes, told)
 
 
 def spread_out(values, keep: list[int], default: list) -> list:

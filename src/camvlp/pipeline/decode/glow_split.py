@@ -33,7 +33,7 @@ from camvlp.imaging.gray import luma
 from camvlp.model.fixtures import FixtureMap
 from camvlp.model.readout import Readout
 from camvlp.pipeline.decode.manchester import Manchester
-from camvlp.pipeline.decode.model import decode_profile_model
+from camvlp.pipeline.decode.model import decode_profile_model, least_frames
 from camvlp.pipeline.paths import path
 
 __all__ = ["SeparatedWave", "decode_from_glows", "separated_waveforms"]
@@ -251,14 +251,16 @@ def _wave(level: np.ndarray, normal: np.ndarray, k: int) -> SeparatedWave | None
 
 
 def decode_from_glows(
-    img: np.ndarray, blobs, man: Manchester, fixture_map: FixtureMap
+    img: np.ndarray, blobs, man: Manchester, fixture_map: FixtureMap, glows: bool = True
 ) -> tuple[Manchester, dict[int, SeparatedWave]]:
     """The photo's decodes with each light whose stripes gave no ID read again from its
     waveform taken apart from its neighbours' glows (:func:`separated_waveforms`).
 
-    A light is read again only when its own profile gave no ID (even one too short for a
-    frame: its glow spans more lines than its disc), not when the border cuts its disc (it
-    is not used), and in a photo of at most :data:`MAX_LIGHTS` lights; under each readout
+    A light is read again only when its own profile gave no ID (in a photo whose lamps glow,
+    even one too short for a frame: its glow spans more lines than its disc; where none
+    glows, one that spans a frame and was not read as an ID the map lacks), not when the
+    border cuts its disc (it is not used), and in a photo of at most :data:`MAX_LIGHTS`
+    lights; under each readout
     direction the decode keeps (``man.readout``, and the other one when the pose is to
     decide), with that direction's photo-wide parameters
     (:class:`~camvlp.pipeline.decode.stripe_model.SensorModel`; the knee at 1: the clipped pixels
@@ -275,6 +277,9 @@ def decode_from_glows(
         The photo's decode (:func:`~camvlp.pipeline.decode.manchester.decode_manchester`).
     fixture_map : FixtureMap
         The map (its frame format and IDs).
+    glows : bool
+        Whether some light of the photo glows (:attr:`~camvlp.pipeline.lights.Lights.glowing`;
+        a light's own glow test may miss a glow its neighbours' cover).
 
     Returns
     -------
@@ -287,12 +292,15 @@ def decode_from_glows(
     if man.other is not None:
         flipped = Readout.of(man.readout.axis, not man.readout.reversed)
         sets.append((man.other, flipped, man.other_model))
+    least = least_frames(fixture_map.frame)
     todo = {
         k
         for decodes, _, model in sets
         if model is not None
         for k, d in enumerate(decodes)
-        if d.id is None and not blobs[k].touches_border
+        if d.id is None
+        and not blobs[k].touches_border
+        and (glows or (not d.frames < least and d.outside_id is None))
     }
     if not todo or len(blobs) > MAX_LIGHTS:
         return man, {}

@@ -175,9 +175,13 @@ def _read(photo: PhotoDecode) -> int:
 def _explains(photo: PhotoDecode) -> bool:
     """Whether parameters carried from elsewhere (a video's earlier frames) explain a photo's
     profiles, decoded with them in ``photo``: every profile that spans a frame of the code
-    (:data:`~camvlp.pipeline.decode.stripe_model.MIN_FRAMES`) got an ID.  Otherwise (fewer
-    IDs than the profiles promise) the photo's own parameters are fitted."""
-    return all(d.id is not None or not d.frames >= MIN_FRAMES for d in photo.decodes)
+    (:data:`~camvlp.pipeline.decode.stripe_model.MIN_FRAMES`) got an ID, of the map or one it
+    lacks (``outside_id``: a light of a site's fixtures elsewhere, or one of another map).
+    Otherwise (fewer IDs than the profiles promise) the photo's own parameters are fitted."""
+    return all(
+        d.id is not None or d.outside_id is not None or not d.frames >= MIN_FRAMES
+        for d in photo.decodes
+    )
 
 
 def _one_way(

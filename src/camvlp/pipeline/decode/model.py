@@ -49,6 +49,7 @@ __all__ = [
     "decode_photo",
     "decode_profile_model",
     "estimate_photo_model",
+    "least_frames",
     "model_profile",
 ]
 
@@ -159,14 +160,19 @@ def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) ->
     )
 
 
+def least_frames(frame: FrameFormat) -> float:
+    """The fewest frames of ``frame``'s code a light's profile must span to be read: a whole
+    one when the frame checks its ID (the check bits a disc does not show check nothing, and
+    a light sending data may match the part it shows), else :data:`MIN_FRAMES`."""
+    return 1.0 if frame.check_bits else MIN_FRAMES
+
+
 def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples, cache=None):
     n = frame.n_chips
     frames = p.size / (n * model.rows_per_chip)
     if p.size < 8:
         return _fail_small(p, model, n, f"too small to decode ({p.size} rows)")
-    # a frame with a check of its ID is read whole: the check bits a disc does not show
-    # check nothing, and a light sending data may match the part it shows
-    least = 1.0 if frame.check_bits else MIN_FRAMES
+    least = least_frames(frame)
     if frames < least:
         return _fail_small(
             p, model, n, f"spans {frames:.2f} frames of the code, at least {least:g} needed"

@@ -216,7 +216,10 @@ def _manchester(
         rows_per_chip,
         model,
     )
-    man, waves = decode_from_glows(prepared.image, [blobs[k] for k in keep], man, fixture_map)
+    glows = any(lights.glowing) or not lights.glowing  # (not told: as if some did)
+    man, waves = decode_from_glows(
+        prepared.image, [blobs[k] for k in keep], man, fixture_map, glows
+    )
     step = -1 if lights.readout.reversed else 1  # (in the order of the others)
     all_p, all_w = list(profiles.profiles), list(profiles.weights)
     for j, wave in waves.items():

@@ -241,6 +241,12 @@ def _readout(
     return axis, contrast
 
 
+#: A disc's bright part whose line nearest the photo's edge (a dark stripe's width from it)
+#: is this share of its widest line's width or more is cut there: a disc's cap, a dark
+#: stripe's width (a few lines) in, is a fraction of its diameter.
+CUT_CHORD = 0.7
+
+
 def _touches_border(
     box: tuple[int, int, int, int],
     shape: tuple[int, int],
@@ -250,20 +256,36 @@ def _touches_border(
 ) -> bool:
     """Whether a region's disc ``mask`` reaches an edge of the region ``box``
     ``(x0, y0, x1, y1)`` that is the photo's (of ``shape`` (H, W)) with its bright part (its
-    gray levels ``gray8`` above ``bright``): a glow beyond the disc may reach the border where
-    the disc does not (the rows the border cuts give no edge points, the rest are whole)."""
+    gray levels ``gray8`` above ``bright``; a glow beyond the disc may reach the border where
+    the disc does not), or may reach it under a dark stripe (:func:`_under_a_stripe`)."""
     x0, y0, x1, y1 = box
     height, width = shape
-
-    def lit_at(edge: tuple) -> bool:  # the disc's bright part on one edge of the region
-        return bool((mask[edge] & (gray8[edge] > bright)).any())
-
+    lit = mask & (gray8 > bright)
+    if not lit.any():
+        return False
+    across, along = lit.sum(axis=1), lit.sum(axis=0)  # lit pixels per row, per column
     return bool(
-        (x0 == 0 and lit_at((slice(None), 0)))
-        or (y0 == 0 and lit_at((0,)))
-        or (x1 == width and lit_at((slice(None), -1)))
-        or (y1 == height and lit_at((-1,)))
+        (x0 == 0 and _under_a_stripe(along))
+        or (y0 == 0 and _under_a_stripe(across))
+        or (x1 == width and _under_a_stripe(along[::-1]))
+        or (y1 == height and _under_a_stripe(across[::-1]))
     )
+
+
+def _under_a_stripe(widths: np.ndarray) -> bool:
+    """Whether a disc whose bright part has ``widths`` (lit pixels per line, from the
+    photo's edge inward) may reach that edge: it is lit on the edge's line, or its nearest
+    lit line is a chord as wide as most of its lines (it does not close as a disc's cap does)
+    within the dark run a stripe can leave (twice its longest lit run, or its widest gap:
+    the border may cut the disc in a dark stripe)."""
+    lines = np.flatnonzero(widths)
+    first = int(lines[0])
+    if first == 0:
+        return True
+    runs = np.split(lines, np.flatnonzero(np.diff(lines) > 1) + 1)
+    gap = int(np.diff(lines).max()) - 1 if lines.size > 1 else 0
+    reach = max(gap, 2 * max(len(r) for r in runs))
+    return first <= reach and widths[first] >= CUT_CHORD * widths.max()
 
 
 def _edge_rows(
