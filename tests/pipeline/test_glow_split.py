@@ -99,7 +99,9 @@ def test_lamps_whose_discs_clip_in_their_dark_chips_are_read_from_their_glows(
 
     got = read(locate(image, cam, room))
     assert got == {i: i for i, *_ in _SEVEN}, got
-    monkeypatch.setattr(decode_stage, "decode_from_glows", lambda img, b, man, fm, glows=None: (man, {}))
+    monkeypatch.setattr(
+        decode_stage, "decode_from_glows", lambda img, b, man, fm, glows=True: (man, {})
+    )
     before = read(locate(image, cam, room))
     if alone is not None:
         assert (before.get(9) is not None) == alone, before  # the disc alone does not tell it
