@@ -260,6 +260,8 @@ def _touches_border(
     the disc does not), or may reach it under a dark stripe (:func:`_under_a_stripe`)."""
     x0, y0, x1, y1 = box
     height, width = shape
+    if not (x0 == 0 or y0 == 0 or x1 == width or y1 == height):
+        return False  # (the region lies within the photo)
     lit = mask & (gray8 > bright)
     if not lit.any():
         return False
