@@ -34,6 +34,7 @@ if TYPE_CHECKING:
     from camvlp.analysis.track import TrackRun, Truths
     from camvlp.model.camera import Camera
     from camvlp.model.fixtures import FixtureMap
+    from camvlp.pipeline.track.records import TrackSettings
     from camvlp.sim.render import RenderSettings
     from camvlp.sim.trajectory import Trajectory
 
@@ -174,7 +175,15 @@ def _print_reasons(reasons: list[dict], frames: int, out: Path) -> None:
     print("\n".join(lines), file=sys.stderr)
 
 
-def _settings(solver, readout, outlier_px, near, within, rolling_shutter, gather_frames):
+def _settings(
+    solver: str,
+    readout: str | None,
+    outlier_px: float | None,
+    near: str | None,
+    within: float | None,
+    rolling_shutter: bool,
+    gather_frames: int,
+) -> TrackSettings:
     """The tracker's settings from ``camvlp track``'s options (a usage error for a bad one)."""
     from camvlp.pipeline.locate import LocateSettings
     from camvlp.pipeline.track.tracker import TrackSettings

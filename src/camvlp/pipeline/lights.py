@@ -85,15 +85,15 @@ def find_lights(
     detection, found, known, note = detected_with_readout(prepared.image, given, settings)
     blobs = list(detection.blobs)
     readable = [k for k, b in enumerate(blobs) if striped(b)]
-    told: tuple[bool, ...] = ()
+    glow_flags: tuple[bool, ...] = ()
     if fixture_map.mode != "frequency" and found is not None:
         sub = [blobs[k] for k in readable]
         which = glowing(prepared.image, sub)[0] if glows is None else glows(sub)
         centred = centred_on_glow(prepared.image, sub, found.axis, which)
         blobs = spread_out(centred, readable, blobs)
-        told = tuple(spread_out([bool(w) for w in which], readable, [False] * len(blobs)))
+        glow_flags = tuple(spread_out([bool(w) for w in which], readable, [False] * len(blobs)))
     notes = (note,) if note else ()
-    return Lights(detection, tuple(blobs), found, known, tuple(readable), notes, told)
+    return Lights(detection, tuple(blobs), found, known, tuple(readable), notes, glow_flags)
 
 
 def spread_out(values, keep: list[int], default: list) -> list:

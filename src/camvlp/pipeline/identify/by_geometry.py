@@ -65,8 +65,8 @@ from camvlp.pipeline.identify.placement import (
     lights_with_ids,
     listed,
     local_map,
-    prior_mask,
     refused,
+    search_scope,
 )
 from camvlp.pipeline.solve import PoseProblem
 
@@ -302,14 +302,11 @@ def placed(problem: PoseProblem, decodes, near=None, within: float | None = None
             "which (four to place the camera, one more to confirm the place), or "
             f"{GRAVITY_NEEDED} with the direction of gravity (which fixes the camera's tilt)"
         )
-    reach = float(lights.far.max()) if np.isfinite(lights.far).all() else np.inf
-    prior = None if near is None else (near, float(within))
-    allowed = prior_mask(fmap, near, within, reach)
+    prior, allowed, scope = search_scope(fmap, lights, near, within)
     found = _correspondences(problem, lights, allowed, prior)
     if isinstance(found, str):
         return refused(found)
     ranked = sorted(found.items(), key=lambda kv: (-len(kv[0]), kv[1][0]))
-    scope = "" if prior is None else f" within {within:g} {fmap.units} of the prior"
     if not ranked or len(ranked[0][0]) < confirm:
         best = (
             f" (at best {len(ranked[0][0])} of them, the camera at "

@@ -48,8 +48,8 @@ from camvlp.pipeline.identify.placement import (
     inside,
     listed,
     local_map,
-    prior_mask,
     refused,
+    search_scope,
 )
 from camvlp.pipeline.solve import PoseProblem, centre_sigmas
 
@@ -342,9 +342,7 @@ def placed_with_gravity(
             f"its {n} lights with an ID all send ID {lights.ids[0]}: with gravity, two lights "
             "of different IDs are needed (the fixtures in view of a place keep each ID once)"
         )
-    reach = float(lights.far.max()) if np.isfinite(lights.far).all() else np.inf
-    prior = None if near is None else (near, float(within))
-    allowed = prior_mask(fmap, near, within, reach)
+    prior, allowed, scope = search_scope(fmap, lights, near, within)
     seeds = _seed_pair(lights)
     pairs = _pairs(problem, lights, seeds, allowed)
     if pairs is None:
@@ -359,7 +357,6 @@ def placed_with_gravity(
             if value[0] < found.get(key, (np.inf,))[0]:
                 found[key] = value
     ranked = sorted(found.items(), key=lambda kv: kv[1][0])
-    scope = "" if prior is None else f" within {within:g} {fmap.units} of the prior"
     if not ranked:
         return refused(f"no place of the map{scope} fits its {n} lights' IDs and gravity")
     places = np.array([pose.position for _, (_, pose) in ranked])

@@ -1,8 +1,8 @@
 """What placing a photo in a map whose IDs repeat needs, whichever way it is placed: the
 photo's lights with an ID and how far each can be (:func:`lights_with_ids`), a prior's
-candidates (:func:`prior_mask`, :func:`inside`), the place found as the fixtures in its view
-(:func:`local_map`, :func:`view_map`) and the answer (:class:`Placement`, :func:`refused`,
-:func:`listed`).
+candidates (:func:`search_scope`, :func:`prior_mask`, :func:`inside`), the place found as
+the fixtures in its view (:func:`local_map`, :func:`view_map`) and the answer
+(:class:`Placement`, :func:`refused`, :func:`listed`).
 
 :mod:`~camvlp.pipeline.identify.by_geometry` places a photo of five lights or more by their
 arrangement, :mod:`~camvlp.pipeline.identify.by_gravity` one of two to four with the
@@ -12,6 +12,7 @@ direction of gravity.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -33,6 +34,7 @@ __all__ = [
     "local_map",
     "prior_mask",
     "refused",
+    "search_scope",
     "view_map",
 ]
 
@@ -183,6 +185,24 @@ def prior_mask(fmap: FixtureMap, near, within, reach: float) -> np.ndarray:
     mask = np.zeros(n, dtype=bool)
     mask[near_idx[np.einsum("ij,ij->i", off, off) <= radius**2]] = True
     return mask
+
+
+class Scope(NamedTuple):
+    """Where a photo is looked for in the map (:func:`search_scope`)."""
+
+    prior: tuple | None  # (near, within), or None without a prior
+    allowed: np.ndarray  # bool, shape (N,): the fixtures a light may be
+    words: str  # how a refusal names the scope ("" without a prior)
+
+
+def search_scope(fmap: FixtureMap, lights: LightsWithIds, near, within) -> Scope:
+    """The prior (``near`` and ``within``, map units; None for neither), the fixtures a light
+    may be with it (:func:`prior_mask`, reaching as far as the farthest light can be), and
+    the words a refusal names it by (" within R m of the prior")."""
+    reach = float(lights.far.max()) if np.isfinite(lights.far).all() else np.inf
+    prior = None if near is None else (near, float(within))
+    words = "" if prior is None else f" within {within:g} {fmap.units} of the prior"
+    return Scope(prior, prior_mask(fmap, near, within, reach), words)
 
 
 def inside(position: np.ndarray, near, within: float) -> bool:

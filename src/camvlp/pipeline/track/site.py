@@ -28,6 +28,7 @@ from camvlp.geometry.projection import in_view
 from camvlp.model.camera import Camera, Pose
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.identify.by_geometry import Placement, placed
+from camvlp.pipeline.identify.placement import view_map
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.solve import PoseProblem
 from camvlp.pipeline.track.records import TrackSettings
@@ -71,8 +72,6 @@ class SiteView:
     def around_pose(self, pose: Pose) -> FixtureMap:
         """The fixtures ``pose`` (map frame and units) puts in the picture or within a tenth
         of its width of it, each ID once (:func:`~camvlp.pipeline.identify.placement.view_map`)."""
-        from camvlp.pipeline.identify.placement import view_map
-
         margin = 0.1 * self.camera.width
         seen = in_view(self.camera, pose, self.site.positions, self._reach, margin_px=margin)
         return view_map(self.site, self.camera, pose, np.flatnonzero(seen))

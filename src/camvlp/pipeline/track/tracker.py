@@ -226,7 +226,6 @@ class Tracker:
         self._index += 1
         self._t_given = t
         clock.lap("prepare")
-        self._site_around_track(t)
         predicted, from_pose = self._predict_pixels(t, img.shape[:2])
         # a site's frame that the track does not place is read in the whole site's IDs
         by_track = self._site is None or from_pose
@@ -391,20 +390,17 @@ class Tracker:
                 del memo[fid]
         self._bind(local)
 
-    def _site_around_track(self, t: float) -> None:
-        """In a site, the fixtures in view of the track's pose at ``t``, while it is fresh."""
-        if self._site is None or not self._motion.fresh(t):
-            return
-        values = self._motion.state_at(t)[0]
-        self._rebind(self._site.around_pose(Pose.from_euler(values[:3], values[3:])))
-
     def _predict_pixels(
         self, t: float, shape: tuple[int, int]
     ) -> tuple[dict[int, np.ndarray], bool]:
         """Each fixture's predicted pixel (processing image): from the pose when there is a
-        fresh track, else from where it was last seen; and whether the pose was used."""
+        fresh track (in a site, of the fixtures in view of that pose, now the track's map),
+        else from where it was last seen; and whether the pose was used."""
         state = self._motion.state_at(t)
         if state is not None and self._motion.fresh(t):
+            if self._site is not None:
+                values = state[0]
+                self._rebind(self._site.around_pose(Pose.from_euler(values[:3], values[3:])))
             rolling = self.settings.rolling_shutter
             out = predicted_pixels(
                 self.camera, self.readout, state, self._fixtures, shape, rolling_shutter=rolling
