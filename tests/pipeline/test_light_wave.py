@@ -53,6 +53,34 @@ def _square(lines, period, phase, window, n=4000):
     return (np.mod(t, period) < 0.5 * period).mean(axis=1)
 
 
+def test_a_grid_costs_what_its_waves_cost_kept_or_shared_between_models():
+    # a grid is costed once per profile and its waves shared with the flat model's profile
+    # (the stripes' period search tries the same grids with both): every cost must be what
+    # the waves cost computed afresh, grids of other windows or periods kept apart
+    rng = np.random.default_rng(11)
+    lines = np.arange(60.0)
+    level = 0.5 + 0.4 * square_wave(lines, 14.0, 3.0, 2.0) + 0.02 * rng.standard_normal(60)
+    full = BeaconProfile(lines, level, np.ones(60), [60.0, 61.0], [0.95, 0.97], [1.0, 1.0])
+    flat = full.with_degrees(0, 0)
+    periods = np.exp(np.linspace(np.log(12.0), np.log(16.0), 7))
+    waves: dict = {}
+    for windows in ((0.2, 0.6), (0.1, 0.4, 1.0)):
+        for profile in (full, flat, full):  # the flat one on the full one's waves, then kept
+            got = profile.grid(periods, 8, windows, waves=waves)
+            p = periods[:, None, None, None, None]
+            ph = (np.arange(8) / 8)[None, :, None, None, None] * p
+            win = np.maximum(np.asarray(windows)[None, None, :, None, None] * 0.5 * p, 1.0)
+            fresh = BeaconProfile(lines, level, np.ones(60), [60.0, 61.0], [0.95, 0.97], [1.0, 1.0])
+            fresh = fresh.with_degrees(*profile.degrees)
+            assert np.array_equal(got, fresh.costs(*fresh.wave(p, ph, win, 0.5)))
+            assert got.shape == (7, 8, len(windows), 1)
+    assert len(waves) == 2
+    assert not np.array_equal(full.grid(periods, 8, (0.2, 0.6)), flat.grid(periods, 8, (0.2, 0.6)))
+    assert full.best(periods[:3], 8, (0.2, 0.6))[0] >= full.best(periods, 8, (0.2, 0.6))[0]
+    with pytest.raises(ValueError):  # what a search keeps is not changed by its callers
+        full.grid(periods, 8, (0.2, 0.6))[0] = 0.0
+
+
 def test_the_integrated_wave_is_the_brute_force_average():
     # the closed form (a trapezoid around each edge) against the wave averaged by brute force,
     # over periods, phases and windows up to half a period, the grids' shapes included

@@ -167,6 +167,7 @@ class BeaconProfile:
     ) -> None:
         self._data = (lines, level, weight, bound_lines, bounds, bound_weight)
         self.degrees = (degree, floor_degree)
+        self._grids: dict[tuple, np.ndarray] = {}  # grid() by its parameters
         y, s, w = _kept(lines, level, weight)
         yb, sb, wb = _kept(bound_lines, bounds, bound_weight)
         every = np.concatenate([y, yb])
@@ -288,21 +289,40 @@ class BeaconProfile:
         short = np.maximum(self.bounds - fit, 0.0)
         return cost + (short * short) @ self.bound_weight
 
-    def grid(self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES) -> np.ndarray:
+    def grid(
+        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES, waves=None
+    ) -> np.ndarray:
         """:meth:`costs` over ``periods`` (lines) x ``phases`` phases x ``windows`` (fractions
-        of the period) x ``duties``: shape (len(periods), phases, len(windows), len(duties))."""
-        p = np.asarray(periods, dtype=float)[:, None, None, None, None]
-        ph = (np.arange(phases) / phases)[None, :, None, None, None] * p
-        d = np.asarray(duties, dtype=float)[None, None, None, :, None]
-        frac = np.asarray(windows, dtype=float)[None, None, :, None, None]
-        win = np.maximum(frac * np.minimum(d, 1 - d) * p, MIN_WINDOW)
-        return self.costs(*self.wave(p, ph, win, d))
+        of the period) x ``duties``: shape (len(periods), phases, len(windows), len(duties)).
+
+        Each grid is costed once per profile (kept by its parameters: a light's search and
+        its map frequencies' fits try the same grids).  ``waves``, a dict, keeps the grids'
+        waves by their parameters for other profiles of the same lines
+        (:meth:`with_degrees`), which try the same grids with other envelopes."""
+        p = np.asarray(periods, dtype=float)
+        key = (p.tobytes(), phases, tuple(windows), tuple(duties))
+        if key in self._grids:
+            return self._grids[key]
+        t = None if waves is None else waves.get(key)
+        if t is None:
+            p = p[:, None, None, None, None]
+            ph = (np.arange(phases) / phases)[None, :, None, None, None] * p
+            d = np.asarray(duties, dtype=float)[None, None, None, :, None]
+            frac = np.asarray(windows, dtype=float)[None, None, :, None, None]
+            win = np.maximum(frac * np.minimum(d, 1 - d) * p, MIN_WINDOW)
+            t = self.wave(p, ph, win, d)
+            if waves is not None:
+                waves[key] = t
+        self._grids[key] = cost = self.costs(*t)
+        cost.flags.writeable = False  # (kept: read only)
+        return cost
 
     def best(
-        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES
+        self, periods, phases: int = PHASES, windows=WINDOWS, duties=DUTIES, waves=None
     ) -> tuple[float, np.ndarray]:
-        """The least cost over :meth:`grid`, and its wave ``[period, phase, window, duty]``."""
-        cost = self.grid(periods, phases, windows, duties)
+        """The least cost over :meth:`grid` (``waves`` as there), and its wave ``[period,
+        phase, window, duty]``."""
+        cost = self.grid(periods, phases, windows, duties, waves)
         k = np.unravel_index(int(np.argmin(cost)), cost.shape)
         p = float(np.asarray(periods, dtype=float)[k[0]])
         d = float(np.asarray(duties)[k[3]])

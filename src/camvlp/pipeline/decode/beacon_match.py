@@ -122,20 +122,22 @@ def _window(periods: np.ndarray, k: int, tolerance: float) -> tuple[float, float
     return p * (1 - tolerance), p * (1 + tolerance)
 
 
-def _search(profile: BeaconProfile, periods) -> tuple[float, np.ndarray]:
+def _search(profile: BeaconProfile, periods, waves: dict) -> tuple[float, np.ndarray]:
     """:func:`stripes_period`'s search with one model: every period the profile spans 0.75
     of or more (4 % apart, 12 phases, 3 windows); the best, and each of ``periods`` (lines),
-    searched finer and refined (:meth:`BeaconProfile.refine`); the best of those."""
+    searched finer and refined (:meth:`BeaconProfile.refine`); the best of those.  ``waves``
+    keeps the grids' waves for the search with the other model (:meth:`BeaconProfile.grid`)."""
     longest = profile.span / MIN_PERIODS_SEEN
     coarse = np.exp(np.arange(np.log(MIN_PERIOD), np.log(longest), 0.04))
-    grid = profile.grid(coarse, 12, (0.2, 0.6, 1.0)).reshape(coarse.size, -1).min(1)
-    seeds = [float(coarse[int(np.argmin(grid))])]
+    grid = profile.grid(coarse, 12, (0.2, 0.6, 1.0), waves=waves).reshape(coarse.size, -1)
+    seeds = [float(coarse[int(np.argmin(grid.min(1)))])]
     seeds += [float(p) for p in np.asarray(periods, dtype=float) if MIN_PERIOD <= p <= longest]
     best = (np.inf, np.full(4, np.nan))
     for p in seeds:  # each refined: a grid's best phase may lie in another period's valley
-        got = profile.refine(
-            profile.best(_search_periods(p, p * 0.97, p * 1.03))[1], MIN_PERIOD, longest
-        )
+        # (its grid over the window a map frequency's fit searches, :func:`_window`: costed
+        # once for both)
+        start = profile.best(_search_periods(p, *_window([p], 0, TOLERANCE)), waves=waves)
+        got = profile.refine(start[1], MIN_PERIOD, longest)
         if got[0] < best[0]:
             best = got
     return best
@@ -154,10 +156,11 @@ def stripes_period(profile: BeaconProfile, periods=()) -> tuple[float, np.ndarra
     """
     if not profile.usable:
         return np.inf, np.full(4, np.nan)
-    cost, wave = _search(profile, periods)
+    waves: dict = {}  # the grids' waves, tried by both models
+    cost, wave = _search(profile, periods, waves)
     flat = profile.with_degrees(0, 0)
     if flat.usable and np.isfinite(cost):
-        flat_cost, flat_wave = _search(flat, [*np.atleast_1d(periods), wave[0]])
+        flat_cost, flat_wave = _search(flat, [*np.atleast_1d(periods), wave[0]], waves)
         extra = sum(profile.degrees)  # the envelopes' terms beyond the flat ones
         dof = max(profile.lines.size - 6 - extra, 1)
         if (flat_cost - cost) * dof <= FLAT_F * extra * max(cost, 1e-12):
