@@ -308,3 +308,15 @@ def test_a_frame_with_check_bits_is_read_only_whole():
                 assert decode_profile_model(long, frame, ids, model).id == fid
             else:
                 assert d.id == fid
+
+
+def test_a_light_of_no_lines_is_refused_without_a_warning():
+    # a profile of no lines (with weights: a site's photo gave one) scaled its weights by
+    # the mean of none: NumPy's "Mean of empty slice" on the user's terminal
+    import warnings
+
+    model = SensorModel(4.0, 0.6, 0.3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = decode_profile_model(np.zeros(0), FRAME, PAIRS_MAP, model, weights=np.zeros(0))
+    assert not got and got.reason

@@ -336,6 +336,16 @@ def model_spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=Non
 
 
 def prepared_profile(profile, weights) -> tuple[np.ndarray, np.ndarray]:
+    """A light's profile (levels per line, shape (n,)) and its weights per line (shape (n,),
+    or None for equal ones) ready for the model's fits: the weights that are not finite
+    or not positive set to 0, the others scaled to a mean of 1, and a line whose level is
+    not finite given level 0 and weight 0.  An empty profile gives two empty arrays.
+
+    Raises
+    ------
+    ValueError
+        Weights of another shape than the profile's.
+    """
     p = np.asarray(profile, dtype=np.float64).reshape(-1)
     if weights is None:
         w = np.ones(p.size)
@@ -344,7 +354,8 @@ def prepared_profile(profile, weights) -> tuple[np.ndarray, np.ndarray]:
         if w.shape != p.shape:
             raise ValueError("weights must have the profile's shape")
         w = np.where(np.isfinite(w) & (w > 0), w, 0.0)
-        w = w / max(w.mean(), 1e-300)
+        if w.size:  # (the mean of no lines is not a number)
+            w = w / max(w.mean(), 1e-300)
     good = np.isfinite(p)
     return np.where(good, p, 0.0), np.where(good, w, 0.0)
 
