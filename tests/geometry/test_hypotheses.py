@@ -41,3 +41,22 @@ def test_the_true_fixtures_pass_and_sets_no_rigid_motion_explains_are_dropped():
     assert tight_kept[1] == 200  # and so does one a rigid motion explains
     assert loose_kept[2:].min() >= 100  # the ratio and the angle let most through...
     assert tight_kept[2:].max() <= 10  # ...the rigid pose few
+
+
+def test_sets_whose_equations_are_singular_fall_back_to_least_squares(monkeypatch):
+    # each set's homography solves eight equations in eight unknowns; where LAPACK finds
+    # them singular the pseudo-inverse's least squares answers instead of an error, and
+    # the sets are judged as with the solve
+    rng = np.random.default_rng(5)
+    ceiling = np.array([[0, 0, 3.0], [1.5, 0, 3.0], [0, 1.5, 3.0], [1.5, 1.5, 3.0]])
+    sets = np.stack([ceiling, ceiling * [1.2, 1.0, 1.0], ceiling[[1, 0, 2, 3]]])
+    pose = Pose.from_euler([0.7, 0.4, 1.0], [8.0, -5.0, 0.0])
+    rays = _seen(ceiling, pose, rng, 0.5 / 800)
+    solved = rigid_on_plane(sets, rays, max_error=3 * 8.0 / 800)
+
+    def singular(*args, **kwargs):
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(np.linalg, "solve", singular)
+    assert np.array_equal(rigid_on_plane(sets, rays, max_error=3 * 8.0 / 800), solved)
+    assert solved[0] and not solved[1:].any()

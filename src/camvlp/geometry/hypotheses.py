@@ -130,7 +130,6 @@ def rigid_on_plane(
         are not on a plane, or whose homography three points on a line leave undetermined
         (rays near a line).
     """
-    q = points.shape[0]
     rel = points - points[:, :1, :]
     # the plane's axes from all four points (three on a line leave no normal of their own)
     _, sv, axes = np.linalg.svd(rel - rel.mean(axis=1, keepdims=True))
@@ -140,26 +139,39 @@ def rigid_on_plane(
     x, y = rays[:, 0] / rays[:, 2], rays[:, 1] / rays[:, 2]
     flat = triangles(u, v)
     seen = triangles(x[None], y[None])[0]
+    line, off = ON_A_LINE
+    mismatch = ((flat < line) & (seen > off)) | ((flat > off) & (seen < line))
+    ok = ~(planar & mismatch.any(axis=1))
+    # (three on a line leave the homography undetermined: those sets are kept for PnP)
+    determined = np.flatnonzero(planar & (flat.min(axis=1) > off))
+    if determined.size:
+        h = _homographies(u[determined], v[determined], x, y)
+        c1, c2 = h[:, [0, 3, 6]], h[:, [1, 4, 7]]
+        l1, l2 = np.linalg.norm(c1, axis=1), np.linalg.norm(c2, axis=1)
+        cos = np.abs(np.einsum("qj,qj->q", c1, c2)) / np.maximum(l1 * l2, 1e-300)
+        ratio = np.maximum(l1, l2) / np.maximum(np.minimum(l1, l2), 1e-300)
+        rigid = (ratio <= RIGID_RATIO) & (cos <= RIGID_COS)
+        if max_error is not None:
+            rigid &= ~(_rigid_errors(h, u[determined], v[determined], x, y) > max_error)
+        ok[determined] &= rigid
+    return ok
+
+
+def _homographies(u: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The homography taking each set's four plane points ``u``, ``v`` (shape (q, 4)) to the
+    four rays ``x``, ``y`` (shape (4,), normalised image units), its last entry 1: shape
+    (q, 8), the rows of the 3 x 3 matrix.  Eight equations in eight unknowns, solved (a set
+    whose rays or points leave them singular: least squares, the pseudo-inverse's)."""
+    q = u.shape[0]
     a = np.zeros((q, 8, 8))
     one, zero = np.ones((q, 4)), np.zeros((q, 4))
     a[:, 0::2] = np.stack([u, v, one, zero, zero, zero, -u * x, -v * x], axis=2)
     a[:, 1::2] = np.stack([zero, zero, zero, u, v, one, -u * y, -v * y], axis=2)
     b = np.stack([x * one, y * one], axis=2).reshape(q, 8)
-    h = np.einsum("qij,qj->qi", np.linalg.pinv(a), b)
-    c1, c2 = h[:, [0, 3, 6]], h[:, [1, 4, 7]]
-    l1, l2 = np.linalg.norm(c1, axis=1), np.linalg.norm(c2, axis=1)
-    cos = np.abs(np.einsum("qj,qj->q", c1, c2)) / np.maximum(l1 * l2, 1e-300)
-    ratio = np.maximum(l1, l2) / np.maximum(np.minimum(l1, l2), 1e-300)
-    line, off = ON_A_LINE
-    # (three on a line leave the homography undetermined: those sets are kept for PnP)
-    determined = planar & (flat.min(axis=1) > off)
-    ok = ~determined | ((ratio <= RIGID_RATIO) & (cos <= RIGID_COS))
-    mismatch = ((flat < line) & (seen > off)) | ((flat > off) & (seen < line))
-    ok &= ~(planar & mismatch.any(axis=1))
-    if max_error is not None:
-        far = _rigid_errors(h, u, v, x, y) > max_error
-        ok &= ~(determined & far)
-    return ok
+    try:
+        return np.linalg.solve(a, b[:, :, None])[:, :, 0]
+    except np.linalg.LinAlgError:
+        return np.einsum("qij,qj->qi", np.linalg.pinv(a), b)
 
 
 def _rigid_errors(h, u, v, x, y) -> np.ndarray:
