@@ -286,3 +286,93 @@ def test_the_view_map_keeps_each_id_once_the_one_in_the_picture():
     # a fixture a light was found to be comes first (the second of ID 0)
     taken = view_map(site, cam, pose, np.arange(len(fixtures)), taken=[1])
     assert {f.id: float(f.position[0]) for f in taken.fixtures}[0] == 1.0
+
+
+def _disc_outline(camera: Camera, pose: Pose, centre, normal, diameter: float):
+    """A disc's image: its centre pixel, its outline's full axes (major first, by
+    cv2.fitEllipse of 360 projected rim points) and its filled outline as a mask."""
+    from types import SimpleNamespace
+
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    a = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    a /= np.linalg.norm(a)
+    b = np.cross(n, a)
+    t = np.linspace(0.0, 2 * np.pi, 360, endpoint=False)
+    rim = centre + 0.5 * diameter * (np.cos(t)[:, None] * a + np.sin(t)[:, None] * b)
+    from camvlp.model.camera import project_points
+
+    px = project_points(camera, pose, rim)
+    (cx, cy), axes, _ = cv2.fitEllipse(px.astype(np.float32))
+    x0, y0 = np.floor(px.min(axis=0)).astype(int) - 2
+    mask = np.zeros((int(px[:, 1].max()) - y0 + 3, int(px[:, 0].max()) - x0 + 3), np.uint8)
+    cv2.fillPoly(mask, [np.round(px - [x0, y0]).astype(np.int32)], 1)
+    return SimpleNamespace(
+        pixel=np.array([cx, cy]), axes_px=np.sort(axes)[::-1], mask=mask.astype(bool)
+    )
+
+
+def test_a_disc_s_distance_is_read_from_its_size_whichever_way_it_faces():
+    # a ceiling's disc seen off the optical axis is stretched along the radial direction
+    # (up to 1.8 times in a wide view): focal times diameter over the major axis took it for
+    # one nearer; the disc model reads the distance whichever way the disc faces
+    from camvlp.pipeline.identify.placement import disc_distances
+
+    cam = Camera.from_focal(1920, 1440, 800.0)
+    rng = np.random.default_rng(4)
+    seen = 0
+    for tilt in (0.0, 15.0):
+        pose = Pose.from_euler([0.0, 0.0, 0.0], [tilt, -tilt / 2, 0.0])
+        for _ in range(12):
+            centre = np.array([*rng.uniform(-3.0, 3.0, 2), rng.uniform(3.0, 6.0)])
+            ray = pose.to_camera(centre[None])[0]
+            if abs(ray[0] / ray[2]) > 1.1 or abs(ray[1] / ray[2]) > 0.8:
+                continue  # (out of the picture)
+            for normal in ([0.0, 0.0, 1.0], pose.world_from_camera @ -ray, [0.3, -0.2, 1.0]):
+                blob = _disc_outline(cam, pose, centre, normal, 0.4)
+                unit = ray / np.linalg.norm(ray)
+                got = disc_distances(cam, [blob], unit[None], [0.4])[0]
+                true = np.linalg.norm(centre - pose.position)
+                assert got == pytest.approx(true, rel=0.02), (centre, normal, got, true)
+                seen += 1
+    assert seen >= 30
+    blob = _disc_outline(
+        cam, Pose.from_euler([0, 0, 0], [0, 0, 0]), [2.5, 1.5, 3.0], [0, 0, 1], 0.4
+    )
+    assert np.isinf(disc_distances(cam, [blob], np.array([[0.0, 0.0, 1.0]]), [0.0])[0])
+
+
+def test_a_photo_of_lights_all_told_plain_holds_their_sizes_to_the_plain_slack():
+    # a plain disc's outline is its rim, so its size gives the distance (the disc model)
+    # and the scale between the two is held near 1; a glowing lamp's halo widens its
+    # outline (the rough estimate, the wide slack), and lights not told either way are
+    # taken as such too
+    from types import SimpleNamespace
+
+    from camvlp.pipeline.identify.placement import (
+        DISTANCE_SLACK,
+        PLAIN_SLACK,
+        RELATIVE_SLACK,
+        lights_with_ids,
+    )
+    from camvlp.pipeline.solve import PoseProblem
+
+    fmap = site_map(6, 6, spacing=1.0, height=3.0, seed=2)
+    cam = Camera.from_focal(1920, 1440, 800.0)
+    pose = Pose.from_euler([2.5, 2.5, 1.0], [0.0, 0.0, 0.0])
+    blobs, decodes = [], []
+    for f in fmap.fixtures[:5]:
+        b = _disc_outline(cam, pose, f.position, [0.0, 0.0, 1.0], f.diameter)
+        blobs.append(SimpleNamespace(**vars(b), touches_border=False))
+        decodes.append(SimpleNamespace(id=f.id, reason=""))
+    for glowing, slack in (((False,) * 5, PLAIN_SLACK), ((False,) * 4 + (True,), DISTANCE_SLACK),
+                           ((), DISTANCE_SLACK)):  # fmt: skip
+        problem = PoseProblem(cam, fmap, tuple(blobs), LocateSettings(), 4.0, None, glowing)
+        lights = lights_with_ids(problem, decodes)
+        assert lights.slack == slack
+        if slack == PLAIN_SLACK:  # the disc model: the distance along the ray
+            true = np.linalg.norm(fmap.positions[:5] - pose.position, axis=1)
+            assert np.allclose(lights.rho, true, rtol=0.02)
+        else:  # a halo's outline: the focal length times the diameter over its major axis
+            major = np.array([b.axes_px[0] for b in blobs])
+            assert np.allclose(lights.rho, 800.0 * fmap.fixtures[0].diameter / major)
+        assert np.allclose(lights.far, lights.rho * slack[1] * np.sqrt(RELATIVE_SLACK))

@@ -49,6 +49,11 @@ class PoseProblem:
     gravity : tuple of ndarray, shape (3,) each, or None
         The gravity direction in the camera's frame and the map's up: two fixtures are then
         enough (:mod:`camvlp.geometry.gravity`).
+    glowing : tuple of bool
+        Per light, whether it glows (:attr:`~camvlp.pipeline.lights.Lights.glowing`); empty
+        when not told.  A photo whose lights are all told plain is placed in a map whose IDs
+        repeat with their discs' sizes held to :data:`~camvlp.pipeline.identify.placement.
+        PLAIN_SLACK`.
     """
 
     camera: Camera
@@ -57,6 +62,7 @@ class PoseProblem:
     settings: LocateSettings
     outlier_px: float
     gravity: tuple[np.ndarray, np.ndarray] | None = None
+    glowing: tuple[bool, ...] = ()
 
     @property
     def needed(self) -> int:

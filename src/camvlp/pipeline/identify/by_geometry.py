@@ -7,9 +7,11 @@ in that arrangement.  :func:`placed` finds them:
 
 1. *Candidates*: each light whose stripes gave an ID may be any fixture of the map with it
    (within the prior's radius of its centre, when a prior ``near``/``within`` is given).
-2. *Distances*: a disc's size in the photo says how far its fixture is (the focal length
-   times its diameter over its major axis, within the factors of :data:`DISTANCE_SLACK`), and
-   the angle between two lights' rays then bounds the distance between their fixtures.
+2. *Distances*: a disc's size in the photo says how far its fixture is
+   (:func:`~camvlp.pipeline.identify.placement.disc_distances`, within the factors of
+   :data:`DISTANCE_SLACK`, or of :data:`~camvlp.pipeline.identify.placement.PLAIN_SLACK`
+   where every light of the photo was told plain), and the angle between two lights' rays
+   then bounds the distance between their fixtures.
    Four seed lights' candidates are combined only where every pair's distance lies within
    those bounds at one scale common to the photo's lights (:data:`RELATIVE_SLACK`), each
    next one looked up in a k-d tree of the fixtures with its ID, within the greatest
@@ -122,7 +124,7 @@ def _quads(
     when more than :data:`MAX_HYPOTHESES`."""
     first = fmap.with_id(lights.ids[seeds[0]])
     rows = first[allowed[first]][:, None]
-    scale = np.tile([1 / DISTANCE_SLACK[0], DISTANCE_SLACK[1]], (len(rows), 1))
+    scale = np.tile([1 / lights.slack[0], lights.slack[1]], (len(rows), 1))
     for m in range(1, len(seeds)):
         ok = allowed & (fmap.id_array == lights.ids[seeds[m]])
         rows, scale = _extended(fmap, lights, seeds[: m + 1], rows, scale, ok)

@@ -40,7 +40,6 @@ from camvlp.geometry.gravity import (
 from camvlp.geometry.hypotheses import distance_bounds
 from camvlp.model.camera import Pose, project_points
 from camvlp.pipeline.identify.placement import (
-    DISTANCE_SLACK,
     RELATIVE_SLACK,
     LightsWithIds,
     Placement,
@@ -87,14 +86,15 @@ def tolerance_px(problem: PoseProblem) -> float:
 def _scale_fits(lights: LightsWithIds, which, lengths: np.ndarray) -> np.ndarray:
     """Which rows of ``lengths`` (shape (q, k): the distances of lights ``which``' fixtures
     from the camera) are in front of it and fit the discs' sizes at one scale common to the
-    lights (:data:`DISTANCE_SLACK`, :data:`RELATIVE_SLACK`); shape (q,)."""
+    lights (their ``slack``, :data:`RELATIVE_SLACK`); shape (q,)."""
     ok = np.all(lengths > 0, axis=1)
     rho = lights.rho[list(which)]
     if not np.isfinite(rho).all():
         return ok
     s = lengths / rho  # each light's scale: within sqrt(RELATIVE_SLACK) of the common one
     k = np.sqrt(RELATIVE_SLACK)
-    ok &= np.all((s >= 1 / (DISTANCE_SLACK[0] * k)) & (s <= DISTANCE_SLACK[1] * k), axis=1)
+    lo, hi = lights.slack
+    ok &= np.all((s >= 1 / (lo * k)) & (s <= hi * k), axis=1)
     return ok & (s.max(axis=1) <= RELATIVE_SLACK * s.min(axis=1))
 
 
@@ -114,7 +114,7 @@ def _pairs(problem: PoseProblem, lights: LightsWithIds, seeds, allowed) -> np.nd
     first, second = (fmap.with_id(lights.ids[s]) for s in seeds)
     first, second = first[allowed[first]], second[allowed[second]]
     k = np.sqrt(RELATIVE_SLACK)
-    lo = lights.rho / (DISTANCE_SLACK[0] * k)
+    lo = lights.rho / (lights.slack[0] * k)
     hi = distance_bounds(
         (lo[i], lights.far[i]), (lo[j], lights.far[j]), float(lights.rays[i] @ lights.rays[j])
     )[1]

@@ -92,6 +92,7 @@ def identify_and_solve(
         settings,
         prepared.outlier_px,
         prepared.gravity,
+        lights.glowing,
     )
     local, whole = None, fixture_map
     if fixture_map.reuse:
