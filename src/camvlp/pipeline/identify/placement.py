@@ -161,8 +161,8 @@ def lights_with_ids(problem: PoseProblem, decodes) -> LightsWithIds:
         rays = np.zeros((0, 3))
     diameters = np.zeros(len(keep))
     for j in range(len(keep)):
-        each = [fmap.fixtures[i].diameter for i in fmap.with_id(ids[j])]
-        diameters[j] = float(np.median(each)) if all(each) else 0.0
+        each = fmap.diameters[fmap.with_id(ids[j])]  # (NaN where not given)
+        diameters[j] = float(np.median(each)) if np.all(each > 0) else 0.0
     blobs = [problem.blobs[k] for k in keep]
     flags = problem.glowing
     if len(flags) == len(problem.blobs) and not any(flags):
