@@ -311,13 +311,15 @@ def _disc_outline(camera: Camera, pose: Pose, centre, normal, diameter: float):
     )
 
 
-def test_a_disc_s_distance_is_read_from_its_size_whichever_way_it_faces():
+@pytest.mark.parametrize("k1", [0.0, -0.15])
+def test_a_disc_s_distance_is_read_from_its_size_whichever_way_it_faces(k1):
     # a ceiling's disc seen off the optical axis is stretched along the radial direction
     # (up to 1.8 times in a wide view): focal times diameter over the major axis took it for
-    # one nearer; the disc model reads the distance whichever way the disc faces
+    # one nearer; the disc model reads the distance whichever way the disc faces, through a
+    # lens's distortion too (its local map at the disc)
     from camvlp.pipeline.identify.placement import disc_distances
 
-    cam = Camera.from_focal(1920, 1440, 800.0)
+    cam = Camera.from_focal(1920, 1440, 800.0, distortion=np.array([k1, 0.0, 0.0, 0.0, 0.0]))
     rng = np.random.default_rng(4)
     seen = 0
     for tilt in (0.0, 15.0):
@@ -329,7 +331,11 @@ def test_a_disc_s_distance_is_read_from_its_size_whichever_way_it_faces():
                 continue  # (out of the picture)
             for normal in ([0.0, 0.0, 1.0], pose.world_from_camera @ -ray, [0.3, -0.2, 1.0]):
                 blob = _disc_outline(cam, pose, centre, normal, 0.4)
-                unit = ray / np.linalg.norm(ray)
+                flat = cv2.undistortPoints(
+                    blob.pixel.reshape(1, 1, 2), cam.matrix, cam.dist_or_none
+                )
+                unit = np.array([*flat.reshape(2), 1.0])
+                unit /= np.linalg.norm(unit)
                 got = disc_distances(cam, [blob], unit[None], [0.4])[0]
                 true = np.linalg.norm(centre - pose.position)
                 assert got == pytest.approx(true, rel=0.02), (centre, normal, got, true)
