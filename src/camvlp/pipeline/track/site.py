@@ -76,15 +76,24 @@ class SiteView:
         seen = in_view(self.camera, pose, self.site.positions, self._reach, margin_px=margin)
         return view_map(self.site, self.camera, pose, np.flatnonzero(seen))
 
-    def placed(self, prepared: Prepared, blobs, decodes, t: float) -> Placement:
-        """Where the frame's lights (``blobs`` and their ``decodes``) place the camera in the
-        site at time ``t`` (s): near the last place the track knew first (within
+    def placed(
+        self, prepared: Prepared, blobs, decodes, t: float, glowing: tuple[bool, ...] = ()
+    ) -> Placement:
+        """Where the frame's lights (``blobs`` and their ``decodes``; ``glowing``, one flag
+        each when told: see :class:`~camvlp.pipeline.solve.PoseProblem`) place the camera in
+        the site at time ``t`` (s): near the last place the track knew first (within
         :data:`RELOCATE_MARGIN_M` and ``relocate_speed_m_s`` times the time since), then
         anywhere; before the track knew any, near the prior given only (the locate
         settings' ``near`` and ``within``), else anywhere."""
         st = self.settings.locate
         problem = PoseProblem(
-            prepared.camera, self.site, tuple(blobs), st, prepared.outlier_px, prepared.gravity
+            prepared.camera,
+            self.site,
+            tuple(blobs),
+            st,
+            prepared.outlier_px,
+            prepared.gravity,
+            tuple(glowing),
         )
         if self.last is not None:
             gone = RELOCATE_MARGIN_M + self.settings.relocate_speed_m_s * (t - self.last_t)

@@ -261,7 +261,7 @@ class Tracker:
         found = identify(blobs, decodes, self.map) if by_track else None
         unplaced = ""
         if found is None:  # a site's frame: placed by its lights first
-            place = self._site.placed(prepared, blobs, decodes, t)
+            place = self._site.placed(prepared, blobs, decodes, t, lights.glowing)
             unplaced = place.reason
             if place.local is None:  # no ID names a fixture: none carried either
                 predicted = {}
