@@ -69,6 +69,7 @@ from camvlp.pipeline.identify.placement import (
     local_map,
     refused,
     search_scope,
+    within_reach,
 )
 from camvlp.pipeline.solve import PoseProblem
 
@@ -150,7 +151,7 @@ def _extended(fmap: FixtureMap, lights: LightsWithIds, seeds, rows, scale, ok):
     ]
     pool = np.flatnonzero(ok)
     if np.isfinite(bounds[0][1]) and pool.size:
-        which, cand = _within_reach(pos, pool, rows[:, 0], scale[:, 1] * bounds[0][1])
+        which, cand = within_reach(pos, pool, rows[:, 0], scale[:, 1] * bounds[0][1])
     else:
         which, cand = np.repeat(np.arange(len(rows)), pool.size), np.tile(pool, len(rows))
     keep = np.ones(len(cand), dtype=bool)
@@ -163,29 +164,6 @@ def _extended(fmap: FixtureMap, lights: LightsWithIds, seeds, rows, scale, ok):
     keep &= lo <= hi
     rows = np.column_stack([rows[which[keep]], cand[keep]])
     return rows, np.column_stack([lo[keep], hi[keep]])
-
-
-def _within_reach(pos: np.ndarray, pool: np.ndarray, first: np.ndarray, reach: np.ndarray):
-    """The fixtures of ``pool`` (indices into ``pos``, shape (F, 3)) within ``reach`` (map
-    units, shape (r,)) of each row's first fixture ``first`` (shape (r,)): ``(which, cand)``,
-    each candidate's row and fixture, a row's candidates in the order of ``pool``.  The
-    k-d tree of ``pool`` is asked once per first fixture (rows share them: hundreds of
-    fixtures start thousands of rows), as far as the farthest of its rows' reaches."""
-    from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
-
-    starts, at = np.unique(first, return_inverse=True)
-    farthest = np.zeros(starts.size)
-    np.maximum.at(farthest, at, reach)
-    near = cKDTree(pos[pool]).query_ball_point(pos[starts], farthest)  # (sorted lists)
-    count = np.fromiter(map(len, near), np.int64, len(near))
-    found = np.fromiter(itertools.chain.from_iterable(near), np.int64, count.sum())
-    offset = np.cumsum(count) - count  # where each first fixture's candidates begin
-    which = np.repeat(np.arange(first.size), count[at])
-    begin = np.cumsum(count[at]) - count[at]  # each row's first candidate, in `which`
-    cand = pool[found[offset[at[which]] + np.arange(which.size) - begin[which]]]
-    gap = pos[cand] - pos[first[which]]
-    inside = np.einsum("ij,ij->i", gap, gap) <= reach[which] ** 2  # (the row's own reach)
-    return which[inside], cand[inside]
 
 
 def _pose_of(problem: PoseProblem, lights: LightsWithIds, seeds, quad: np.ndarray) -> Pose | None:

@@ -49,6 +49,7 @@ from camvlp.pipeline.identify.placement import (
     local_map,
     refused,
     search_scope,
+    within_reach,
 )
 from camvlp.pipeline.solve import PoseProblem, centre_sigmas
 
@@ -119,12 +120,8 @@ def _pairs(problem: PoseProblem, lights: LightsWithIds, seeds, allowed) -> np.nd
         (lo[i], lights.far[i]), (lo[j], lights.far[j]), float(lights.rays[i] @ lights.rays[j])
     )[1]
     if np.isfinite(hi) and first.size and second.size:
-        from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
-
-        near = cKDTree(fmap.positions[second]).query_ball_point(fmap.positions[first], hi)
-        counts = np.fromiter(map(len, near), np.int64, len(near))
-        b = second[np.fromiter(itertools.chain.from_iterable(near), np.int64, counts.sum())]
-        a = np.repeat(first, counts)
+        which, b = within_reach(fmap.positions, second, first, np.full(first.size, hi))
+        a = first[which]
     else:
         a, b = np.repeat(first, second.size), np.tile(second, first.size)
     a, b = a[a != b], b[a != b]

@@ -11,6 +11,7 @@ direction of gravity.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -38,6 +39,7 @@ __all__ = [
     "refused",
     "search_scope",
     "view_map",
+    "within_reach",
 ]
 
 #: A light's distance from its disc's size (the estimate: the focal length times the
@@ -222,12 +224,10 @@ def disc_distances(camera: Camera, blobs, rays: np.ndarray, diameters) -> np.nda
     for j, b in enumerate(blobs):  # the major axis' direction, from the pixels' moments
         m = cv2.moments(np.asarray(b.mask, dtype=np.uint8), binaryImage=True)
         angle[j] = 0.5 * np.arctan2(2.0 * m["mu11"], m["mu20"] - m["mu02"])
-    axes = np.array([np.sort(np.asarray(b.axes_px, dtype=float))[::-1] for b in blobs])
-    major = np.stack([np.cos(angle), np.sin(angle)], axis=1)
-    minor = np.stack([-major[:, 1], major[:, 0]], axis=1)
-    spread = (0.5 * axes[:, :1, None]) ** 2 * np.einsum("ni,nj->nij", major, major) + (
-        0.5 * axes[:, 1:, None]
-    ) ** 2 * np.einsum("ni,nj->nij", minor, minor)  # (n, 2, 2): the outline, pixels^2
+    half = 0.5 * np.array([np.sort(np.asarray(b.axes_px, dtype=float))[::-1] for b in blobs])
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.stack([np.stack([c, -s], axis=1), np.stack([s, c], axis=1)], axis=1)  # (n, 2, 2)
+    spread = rot @ (half[:, :, None] ** 2 * np.swapaxes(rot, 1, 2))  # the outline, pixels^2
     cos = rays[:, 2]
     across = np.linalg.norm(rays[:, :2], axis=1)
     radial = np.where(
@@ -392,3 +392,29 @@ def refused(reason: str, ranked: list | None = None) -> Placement:
     ranked = ranked or []
     places = np.array([pose.position for _, (_, pose) in ranked]).reshape(-1, 3)
     return Placement(None, reason, places, tuple(len(p) for p, _ in ranked))
+
+
+def within_reach(
+    pos: np.ndarray, pool: np.ndarray, first: np.ndarray, reach: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The fixtures of ``pool`` (indices into ``pos``, shape (F, 3) map units) within
+    ``reach`` (map units, shape (r,)) of each row's fixture ``first`` (shape (r,)):
+    ``(which, cand)``, each candidate's row and fixture, a row's candidates in the order of
+    ``pool``.  The k-d tree of ``pool`` is asked once per distinct fixture of ``first``
+    (rows share them: hundreds of fixtures start thousands of rows), as far as the farthest
+    of its rows' reaches."""
+    from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
+
+    starts, at = np.unique(first, return_inverse=True)
+    farthest = np.zeros(starts.size)
+    np.maximum.at(farthest, at, reach)
+    near = cKDTree(pos[pool]).query_ball_point(pos[starts], farthest)  # (sorted lists)
+    count = np.fromiter(map(len, near), np.int64, len(near))
+    found = np.fromiter(itertools.chain.from_iterable(near), np.int64, count.sum())
+    offset = np.cumsum(count) - count  # where each first fixture's candidates begin
+    which = np.repeat(np.arange(first.size), count[at])
+    begin = np.cumsum(count[at]) - count[at]  # each row's first candidate, in `which`
+    cand = pool[found[offset[at[which]] + np.arange(which.size) - begin[which]]]
+    gap = pos[cand] - pos[first[which]]
+    inside = np.einsum("ij,ij->i", gap, gap) <= reach[which] ** 2  # (the row's own reach)
+    return which[inside], cand[inside]
