@@ -20,6 +20,15 @@ def pytest_configure(config: pytest.Config) -> None:
         cv2.setNumThreads(1)
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The tests marked ``long`` (seconds each) run first, in their order, then the rest.
+
+    pytest-xdist hands each worker the next tests as it finishes others: with the long
+    tests last, one worker could still be running them when the other had nothing left.
+    """
+    items.sort(key=lambda item: item.get_closest_marker("long") is None)
+
+
 @pytest.fixture(scope="session")
 def examples_dir() -> Path:
     """The repository's ``examples/`` directory."""

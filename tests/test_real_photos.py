@@ -31,6 +31,7 @@ EXAMPLES = REPO / "examples" / "real"
 
 pytestmark = [
     pytest.mark.real,
+    pytest.mark.long,  # seconds a test: run first (tests/conftest.py)
     pytest.mark.skipif(not SHARED.is_dir(), reason=f"real photographs not found at {SHARED}"),
 ]
 

@@ -21,6 +21,8 @@ from camvlp.pipeline.lamp.radial import radial_fit, radial_model
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 
+pytestmark = pytest.mark.long  # seconds a test: run first (tests/conftest.py)
+
 W, H, F = 960, 540, 700.0
 CAM = Camera(
     W, H, np.array([[F, 0, (W - 1) / 2], [0, F, (H - 1) / 2], [0, 0, 1.0]]), np.zeros(0), 15e-6

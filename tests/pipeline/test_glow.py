@@ -17,6 +17,8 @@ from camvlp.pipeline.lamp.glow import GLOW_LEVEL, centred_on_glow, glow_level, g
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene
 
+pytestmark = pytest.mark.long  # seconds a test: run first (tests/conftest.py)
+
 CAM = Camera.from_focal(640, 480, 480.0, row_time_s=40e-6)
 ROOM = FixtureMap(
     tuple(

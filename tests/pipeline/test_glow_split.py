@@ -10,6 +10,8 @@ from camvlp import locate
 from camvlp.pipeline.decode.glow_split import separated_waveforms
 from conftest import stress_scene, stress_settings
 
+pytestmark = pytest.mark.long  # seconds a test: run first (tests/conftest.py)
+
 
 def _drawn(rng: np.random.Generator, clip: float):
     """Three lamps' glows drawn as the module's model has them, 400 lines x 600 px: each a

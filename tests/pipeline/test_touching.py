@@ -21,6 +21,8 @@ from camvlp.pipeline.lamp.glow import centred_on_glow
 from camvlp.sim.render import RenderSettings, render
 from conftest import stress_scene, stress_settings
 
+pytestmark = pytest.mark.long  # seconds a test: run first (tests/conftest.py)
+
 
 def _circles(*circles, shape=(120, 200)) -> np.ndarray:
     img = np.zeros(shape, np.uint8)

@@ -31,7 +31,7 @@ from service_helpers import (
     stop_server,
 )
 
-pytestmark = needs_chromium
+pytestmark = [needs_chromium, pytest.mark.long]  # a browser: run first (tests/conftest.py)
 
 #: Frames the page must answer before the test looks, then photos (takePhoto) after them.
 FRAMES, PHOTOS = 45, 5

@@ -26,7 +26,7 @@ from service_helpers import (
     stop_server,
 )
 
-pytestmark = needs_chromium
+pytestmark = [needs_chromium, pytest.mark.long]  # a browser: run first (tests/conftest.py)
 
 
 def test_the_page_draws_an_uploaded_fix(tmp_path: Path, photo_png):

@@ -24,6 +24,8 @@ from service_helpers import (
 from camvlp.cli import main
 from conftest import one_error_line
 
+pytestmark = pytest.mark.long  # seconds a test: run first (tests/conftest.py)
+
 
 def test_a_fix_survives_a_restart(tmp_path: Path, photo_png):
     db = tmp_path / "camvlp.db"
