@@ -59,6 +59,16 @@ DISC = 1.15
 #: Where a line's chord of a light's disc ends: this share of the line's peak (or the
 #: clipping level, where the line clips), on the disc's blurred edge, above its glow.
 RIM_SHARE = 0.85
+#: A chord's end moves out to a steeper fall beyond it where the level falls there by this
+#: share of itself or more within :data:`RIM_DROP_PX` pixels: a disc's edge to a dark
+#: ceiling (a hot core's flanks and a glow fall by a few percent a pixel).
+RIM_DROP = 0.5
+RIM_DROP_PX = 3
+#: ...from a level of at least this share of the line's peak: a disc beside a hot core up to
+#: twice as bright in its line (its moved ends: 0.33 and up at the 5th percentile on the
+#: sites benchmark's dim lamps), not a glow's outer edge that a phone's black point cuts
+#: (0.11 to 0.31 of the peak, on a stress photo whose glows fill the lamps' outlines).
+RIM_FLOOR = 0.33
 #: Fewest lines whose chords make a rim.
 RIM_LINES = 6
 #: A chord's end further than this (px) from the rim's ellipse is off it: the ellipse is
@@ -211,15 +221,19 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     Every line along the readout is exposed at the same instants, so along one line the
     light is its radial shape times one level: in each line its stripes leave bright, the
     pixels at :data:`RIM_SHARE` of the line's own peak or more are one chord of its disc
-    (or of its hot core, concentric), whatever the stripes, since the glow stays under
-    the disc's level; where the disc clips, the chord is its clipped part, or more where
-    the glow clips too, still concentric.  The chords' ends, two per line, lie on an
-    ellipse about the light's centre: they fix it along the readout by how their lengths
-    change from line to line, and across it by their middles.  Ends that a neighbour's glow
-    (in lines where the light itself is dark) or a cell's edge put off the ellipse are left
-    out of its fit: it is the ellipse most ends lie on (:func:`_trimmed_ellipse`); when
-    more than a third of the ends, or half of one side's, are off it, or those on it lie
-    further from it than :data:`RIM_RMS_PX` (root-mean-square), the rim says nothing.
+    (or of its hot core), whatever the stripes, since the glow stays under the disc's
+    level; where the disc clips, the chord is its clipped part, or more where the glow
+    clips too, still concentric.  A hot core off the centre would give chords of the core
+    (their ellipse 11 to 21 px off on the sites benchmark's dim lamps): where the level
+    falls by half or more (:data:`RIM_DROP`) beyond a chord's end, the disc's edge to a
+    dark ceiling, the end is that fall's (:func:`_edges_beyond`).  The chords' ends, two
+    per line, lie on an ellipse about the light's centre: they fix it along the readout by
+    how their lengths change from line to line, and across it by their middles.  Ends that
+    a neighbour's glow (in lines where the light itself is dark) or a cell's edge put off
+    the ellipse are left out of its fit: it is the ellipse most ends lie on
+    (:func:`_trimmed_ellipse`); when more than a third of the ends, or half of one side's,
+    are off it, or those on it lie further from it than :data:`RIM_RMS_PX`
+    (root-mean-square), the rim says nothing.
     Only the chord through the light's centre counts in each line, and an end that is an
     edge of the light's own pixels (its region's, its cell's, a neighbour's mask) is a cut,
     not the rim, and is left out.
@@ -260,14 +274,16 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     shown = np.flatnonzero(bright & chord[:, c])  # the lines whose chord holds the centre
     if shown.size < RIM_LINES:
         return None
-    # each line's chord through the centre: its ends where the level first falls below
-    # the line's share, on each side; an end that is the region's edge, a neighbour's or a
-    # cell's, is a cut, not the rim
+    # each line's chord through the centre: its ends where the level first falls below the
+    # line's share, on each side, or further out where it then falls by half or more (a
+    # disc's edge beyond its hot core's flank); an end that is the region's edge, a
+    # neighbour's or a cell's, is a cut, not the rim
     n = lines.shape[1]
     left = c - np.argmin(chord[shown, c::-1], axis=1)  # first below, leftwards
     right = c + np.argmin(chord[shown, c:], axis=1)
     left = np.where(left == c, -1, left)  # (chord[:, c] holds: no fall, it runs off the edge)
     right = np.where(right == c, n, right)
+    left, right = _edges_beyond(lines[shown], own[shown], left, right)
     ok_l = (left >= 0) & own[shown, np.clip(left, 0, n - 1)]
     ok_r = (right < n) & own[shown, np.clip(right, 0, n - 1)]
     ends = np.concatenate(
@@ -287,6 +303,39 @@ def rim_from_chords(img: np.ndarray, blobs: list[Blob], k: int, axis: str):
     cu, cv, a, b_ = fit[:4]
     centre = np.array([cu, cv] if axis == "rows" else [cv, cu]) + np.array([x0, y0], float)
     return centre, 0.5 * (a + b_)
+
+
+def _edges_beyond(lines: np.ndarray, own: np.ndarray, left: np.ndarray, right: np.ndarray):
+    """Each line's chord ends moved out to the steepest fall beyond them, within the line's
+    own pixels, where the level falls there by :data:`RIM_DROP` or more over
+    :data:`RIM_DROP_PX` pixels from :data:`RIM_FLOOR` of the line's peak or more; else as
+    they were.
+
+    ``lines`` (m, n) are the lines' levels, ``own`` (m, n) their light's own pixels, and
+    ``left``, ``right`` (m,) the pixel beyond each chord's end (-1 or ``n``: none); returns
+    the new ``left`` and ``right``."""
+    n = lines.shape[1]
+    x = np.arange(n - 1)
+    rise = np.diff(lines, axis=1)  # (level[x + 1] - level[x]: a fall between them)
+    # (the pairs of pixels beyond each end up to the first pixel that is not the line's own)
+    idx = np.arange(n)[None, :]
+    cut_l = np.max(np.where(~own & (idx < left[:, None]), idx, -1), axis=1)
+    cut_r = np.min(np.where(~own & (idx > right[:, None]), idx, n), axis=1)
+    stop_l = (x[None, :] > cut_l[:, None]) & (x[None, :] < left[:, None])
+    stop_r = (x[None, :] >= right[:, None]) & (x[None, :] < cut_r[:, None] - 1)
+    at = np.arange(lines.shape[0])
+    new_l = np.argmax(np.where(stop_l, rise, -np.inf), axis=1)  # (x: beyond it, leftwards)
+    new_r = 1 + np.argmin(np.where(stop_r, rise, np.inf), axis=1)
+    out_l = np.clip(new_l - RIM_DROP_PX + 1, 0, n - 1)  # (the level RIM_DROP_PX out)
+    out_r = np.clip(new_r + RIM_DROP_PX - 1, 0, n - 1)
+    inner_l = lines[at, np.clip(new_l + 1, 0, n - 1)]
+    inner_r = lines[at, np.clip(new_r - 1, 0, n - 1)]
+    floor = RIM_FLOOR * lines.max(axis=1)
+    drop_l = (lines[at, out_l] <= (1 - RIM_DROP) * inner_l) & (inner_l >= floor)
+    drop_r = (lines[at, out_r] <= (1 - RIM_DROP) * inner_r) & (inner_r >= floor)
+    take_l = stop_l.any(axis=1) & (left >= 0) & drop_l & (out_l > cut_l)
+    take_r = stop_r.any(axis=1) & (right < n) & drop_r & (out_r < cut_r)
+    return np.where(take_l, new_l, left), np.where(take_r, new_r, right)
 
 
 def _trimmed_ellipse(ends: np.ndarray, n_left: int) -> tuple[np.ndarray, np.ndarray] | None:
