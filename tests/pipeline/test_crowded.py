@@ -37,16 +37,22 @@ def _crowded(seed: int, spots=SPOTS):
     detection's threshold, read along rows at 6 rows per chip with an exposure of 0.1 chip:
     the look of the stress benchmark's photos whose lamps were centred 8 to 19 px off along
     the readout; the photo."""
-    rng = np.random.default_rng(seed)
-    fixtures = []
-    for i, (u, v) in enumerate(spots):
-        u, v, r = u + rng.uniform(-25, 25), v + rng.uniform(-25, 25), rng.uniform(70, 85)
-        ray = np.array([(u - (W - 1) / 2) / F, (v - (H - 1) / 2) / F, 1.0])
-        fixtures.append(Fixture(i, 3.0 * ray, 2 * r * 3.0 / F, np.array([0, 0, -1.0])))
     chip = 1.0 / (6.0 * CAM.row_time_s)
     look = dict(brightness=2.2, off_level=0.015, blur_px=1.4, core=1.05, halo=0.28)
     settings = RenderSettings(chip_rate_hz=chip, exposure_s=0.1 / chip, seed=seed, **look)
-    return render(CAM, FixtureMap(tuple(fixtures)), Pose(np.eye(3), np.zeros(3)), settings)
+    return render(CAM, _lamps(seed, spots, (70, 85)), Pose(np.eye(3), np.zeros(3)), settings)
+
+
+def _lamps(seed: int, spots, radii) -> FixtureMap:
+    """Lamps on a ceiling 3 m up, about ``spots`` (up to 25 px off each way), each of a
+    radius (px) drawn from ``radii``."""
+    rng = np.random.default_rng(seed)
+    fixtures = []
+    for i, (u, v) in enumerate(spots):
+        u, v, r = u + rng.uniform(-25, 25), v + rng.uniform(-25, 25), rng.uniform(*radii)
+        ray = np.array([(u - (W - 1) / 2) / F, (v - (H - 1) / 2) / F, 1.0])
+        fixtures.append(Fixture(i, 3.0 * ray, 2 * r * 3.0 / F, np.array([0, 0, -1.0])))
+    return FixtureMap(tuple(fixtures))
 
 
 def _nearest(res, truth):
@@ -379,16 +385,11 @@ def test_a_rim_is_the_disc_s_not_its_hot_core_s_off_its_centre(seed):
     # and their ends traced the core's ellipse, 11 to 21 px off the disc's centre (the
     # sites benchmark's lamps, refused as fitting no place; here 17 to 26 px); beyond the
     # core's flank, each line's level falls by half at the disc's edge (here within 1.4 px)
-    rng = np.random.default_rng(seed)
-    fixtures = []
-    for i, (u, v) in enumerate(((240, 150), (720, 150), (240, 400), (720, 400))):
-        u, v, r = u + rng.uniform(-25, 25), v + rng.uniform(-25, 25), rng.uniform(40, 60)
-        ray = np.array([(u - (W - 1) / 2) / F, (v - (H - 1) / 2) / F, 1.0])
-        fixtures.append(Fixture(i, 3.0 * ray, 2 * r * 3.0 / F, np.array([0, 0, -1.0])))
+    room = _lamps(seed, ((240, 150), (720, 150), (240, 400), (720, 400)), (40, 60))
     chip = 1.0 / (4.0 * CAM.row_time_s)
     look = dict(brightness=0.7, blur_px=1.4, core=1.0, core_offset=0.45, halo=0.0)
     settings = RenderSettings(chip_rate_hz=chip, exposure_s=0.2 / chip, seed=seed, **look)
-    photo = render(CAM, FixtureMap(tuple(fixtures)), Pose(np.eye(3), np.zeros(3)), settings)
+    photo = render(CAM, room, Pose(np.eye(3), np.zeros(3)), settings)
     blobs = detect_fixtures(photo.image, readout="rows").blobs
     assert len(blobs) == 4
     truth = np.array([t.pixel for t in photo.fixtures])
