@@ -25,7 +25,7 @@ with nothing switched off, measured the same way in the same process.  The paths
     crowded       lights whose glows joined not fitted jointly (``lamp.crowded.centred_jointly``
                   as ``lamp.glow`` calls it)
     rim           no light moved to or held at its disc's clean rim
-                  (``lamp.crowded.rim_from_chords``, in ``lamp.glow`` and ``lamp.crowded``)
+                  (``lamp.rim.rim_from_chords``, in ``lamp.glow`` and ``lamp.crowded``)
     radial        no radial fit (``lamp.radial.radial_fit`` fails, in ``lamp.glow`` and
                   ``lamp.crowded``: glowing lights stay as detected, and no joint fit), the
                   rims kept
@@ -248,7 +248,7 @@ PATHS: dict[str, Path_] = {
         "no light centred on its glow in Manchester maps: blobs as detected (centred_on_glow)",
         ((lights, "centred_on_glow", _plain(_as_detected)),),
         ((glow, "glow_levels"),),
-        ("lamp.glow", "lamp.crowded", "lamp.radial"),
+        ("lamp.glow", "lamp.crowded", "lamp.rim", "lamp.radial"),
     ),
     "crowded": Path_(
         "lights whose glows joined not fitted jointly (centred_jointly)",
@@ -260,7 +260,7 @@ PATHS: dict[str, Path_] = {
             "lamp.crowded:_grown",
             "lamp.crowded:_held_by_clipped",
             "lamp.crowded:_refitted",
-            "lamp.crowded:_paste",
+            "lamp.rim:paste_mask",
             "lamp.radial:radial_model",
         ),
     ),
@@ -272,11 +272,12 @@ PATHS: dict[str, Path_] = {
         ),
         ((glow, "rim_from_chords"), (crowded, "rim_from_chords")),
         (
-            "lamp.crowded:rim_from_chords",
-            "lamp.crowded:on_rim",
-            "lamp.crowded:_trimmed_ellipse",
-            "lamp.crowded:_consensus",
-            "lamp.crowded:_ellipse",
+            "lamp.rim:rim_from_chords",
+            "lamp.rim:on_rim",
+            "lamp.rim:_edges_beyond",
+            "lamp.rim:_trimmed_ellipse",
+            "lamp.rim:_consensus",
+            "lamp.rim:_ellipse",
             "lamp.glow:_to_clean_rim",
             "lamp.glow:_on_rim",
         ),

@@ -10,6 +10,7 @@ import pytest
 
 import camvlp.pipeline.lamp.crowded as crowded
 import camvlp.pipeline.lamp.glow as glow
+import camvlp.pipeline.lamp.rim as rims
 from camvlp import locate
 from camvlp.imaging.gray import to_gray
 from camvlp.model.camera import Camera, Pose
@@ -166,12 +167,12 @@ def test_a_rim_is_not_taken_from_a_mask_that_cuts_the_disc():
     truth = np.array([t.pixel for t in photo.fixtures])
     for k, b in enumerate(blobs):
         centre = truth[np.argmin(np.linalg.norm(truth - b.pixel, axis=1))]
-        rim = crowded.rim_from_chords(photo.image, blobs, k, "rows")
+        rim = rims.rim_from_chords(photo.image, blobs, k, "rows")
         assert rim is not None and np.hypot(*(rim[0] - centre)) < 0.3
         ys, xs = np.mgrid[: b.mask.shape[0], : b.mask.shape[1]]
         hole = np.hypot(xs - (centre[0] - b.box[0] + 12), ys - (centre[1] - b.box[1])) < 30
         cut = [*blobs[:k], dataclasses.replace(b, mask=hole & b.mask), *blobs[k + 1 :]]
-        rim = crowded.rim_from_chords(photo.image, cut, k, "rows")
+        rim = rims.rim_from_chords(photo.image, cut, k, "rows")
         assert rim is not None and np.hypot(*(rim[0] - centre)) < 0.3
 
 
@@ -277,7 +278,7 @@ def test_a_rim_whose_ends_a_neighbours_glow_carries_off_is_still_found(seed, off
     # within 1 px)
     rng = np.random.default_rng(seed)
     ends, n_left = _rim_ends(rng, 40, off)
-    fit, d = crowded._trimmed_ellipse(ends, n_left)
+    fit, d = rims._trimmed_ellipse(ends, n_left)
     assert np.hypot(fit[0] - 100.3, fit[1] - 80.7) < 0.3 and abs(fit[2] - 40) < 0.5
     assert (1 - off - 0.05) * ends.shape[0] < d.size <= (1 - off) * ends.shape[0]
     assert np.sqrt(np.mean(d * d)) < 0.5
@@ -290,8 +291,8 @@ def test_a_rim_most_of_whose_chords_are_carried_off_says_nothing(seed):
     # about, or from the few a fit may leave (fewer than five fit no ellipse)
     rng = np.random.default_rng(seed)
     for off in (0.3, 0.35, 0.45):
-        assert crowded._trimmed_ellipse(*_rim_ends(rng, 40, off)) is None
-    assert crowded._trimmed_ellipse(rng.uniform(0, 200, (30, 2)), 15) is None
+        assert rims._trimmed_ellipse(*_rim_ends(rng, 40, off)) is None
+    assert rims._trimmed_ellipse(rng.uniform(0, 200, (30, 2)), 15) is None
 
 
 #: Chord ends of two lamps of a crowded phone photo mapped back to light through its tone
@@ -319,7 +320,7 @@ def test_no_rim_from_chords_of_a_pixel(chords):
     # moved the lamps there (the code before said nothing: more than one end in ten off)
     lines, left, right = (np.asarray(v, dtype=float) for v in chords)
     ends = np.concatenate([np.stack([left, lines], 1), np.stack([right, lines], 1)])
-    assert crowded._trimmed_ellipse(ends, lines.size) is None
+    assert rims._trimmed_ellipse(ends, lines.size) is None
 
 
 #: Five lamps of a landscape 1080p phone photo of ``benchmarks/stress_decode.py --phone``
@@ -395,5 +396,5 @@ def test_a_rim_is_the_disc_s_not_its_hot_core_s_off_its_centre(seed):
     truth = np.array([t.pixel for t in photo.fixtures])
     for k, b in enumerate(blobs):
         centre = truth[np.argmin(np.linalg.norm(truth - b.pixel, axis=1))]
-        rim = crowded.rim_from_chords(photo.image, blobs, k, "rows")
+        rim = rims.rim_from_chords(photo.image, blobs, k, "rows")
         assert rim is not None and np.hypot(*(rim[0] - centre)) < 2.0, (rim, centre)

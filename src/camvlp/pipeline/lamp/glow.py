@@ -29,8 +29,9 @@ from camvlp.imaging.gray import to_gray
 from camvlp.pipeline.detect.blob import Blob
 from camvlp.pipeline.detect.disc import light_support
 from camvlp.pipeline.detect.peaks import power_cell
-from camvlp.pipeline.lamp.crowded import boxes_overlap, centred_jointly, on_rim, rim_from_chords
+from camvlp.pipeline.lamp.crowded import centred_jointly
 from camvlp.pipeline.lamp.radial import radial_fit
+from camvlp.pipeline.lamp.rim import boxes_overlap, on_rim, rim_from_chords
 
 __all__ = ["centred_on_glow", "glow_level", "glow_levels", "glowing"]
 
@@ -181,7 +182,7 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 
     Each glowing light is centred alone within its own cell first (its radial shape), or on
     its disc's rim where that shows clean and the shape's centre lies off it
-    (:func:`~camvlp.pipeline.lamp.crowded.rim_from_chords`); those whose glows joined
+    (:func:`~camvlp.pipeline.lamp.rim.rim_from_chords`); those whose glows joined
     (and, where some light glows, any light whose region joined others': its outline, its
     cell's, may hide its glow from :func:`glow_levels`) are then fitted together
     (:func:`~camvlp.pipeline.lamp.crowded.centred_jointly`).  Where some light glows, each
@@ -220,8 +221,8 @@ def centred_on_glow(img: np.ndarray, blobs, axis: str, which=None) -> list[Blob]
 
 def _to_clean_rim(b: Blob, rim, shape: tuple[int, ...]) -> Blob:
     """Light ``b`` (not centred on its glow, not touching the border), moved to its disc's
-    ``rim`` (:func:`~camvlp.pipeline.lamp.crowded.rim_from_chords`, in a photo of ``shape``) when
-    that shows clean and its centre is off it (:func:`~camvlp.pipeline.lamp.crowded.on_rim`); as
+    ``rim`` (:func:`~camvlp.pipeline.lamp.rim.rim_from_chords`, in a photo of ``shape``) when
+    that shows clean and its centre is off it (:func:`~camvlp.pipeline.lamp.rim.on_rim`); as
     it was when its region reaches the photo's border and the rim does not lie
     :data:`RIM_MARGIN_PX` within the photo.
 
