@@ -55,7 +55,7 @@ DUTIES = (0.5,)
 #: Rounds of :meth:`BeaconProfile.refine`: its steps shrink to 0.4 ** 4 (2.6 %) of the first,
 #: the periods of its last grid 0.013 % apart, within the precision a light's stripes allow
 #: (``benchmarks/bench_frequency.py --quick``: the bound's median sigma 0.008 %, the errors'
-#: median 0.05 %; two more rounds changed neither and cost 13 % of the period search).
+#: median 0.05 %; two more rounds changed neither and cost 11 % of the period search).
 REFINE_ROUNDS = 5
 #: Shortest window, lines: a line samples the wave once, an edge sharper than a line lies
 #: anywhere between two lines.

@@ -217,8 +217,7 @@ def disc_distances(camera: Camera, blobs, rays: np.ndarray, diameters) -> np.nda
         return out
     centres = np.array([b.pixel for b in blobs], dtype=np.float64).reshape(n, 1, 2)
     steps = centres + np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])  # (n, 3, 2)
-    flat = cv2.undistortPoints(steps.reshape(-1, 1, 2), camera.matrix, camera.dist_or_none)
-    flat = flat.reshape(n, 3, 2)
+    flat = camera.undistort_pixels(steps.reshape(-1, 2)).reshape(n, 3, 2)
     local = np.stack([flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]], axis=2)  # (n, 2, 2)
     angle = np.empty(n)
     for j, b in enumerate(blobs):  # the major axis' direction, from the pixels' moments
