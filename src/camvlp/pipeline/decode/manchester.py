@@ -17,6 +17,7 @@ decide, to the pose), as without the fast path.
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -114,12 +115,12 @@ def _agreeing(decodes: list[list[StripeDecode | None]], seed: float | None):
     """The photo's chip length from the run-length decodes, and the decodes that agree with
     it (the others set to None).  With no seed, two fixtures must agree."""
     t = [d.rows_per_chip for ds in decodes for d in ds if d is not None]
-    ref = seed if seed else (float(np.median(t)) if t else math.nan)
+    ref = seed if seed else (statistics.median(t) if t else math.nan)
     ok = [x for x in t if abs(x / ref - 1) <= CHIP_AGREEMENT]
     if not seed and len(ok) < 2:
         ref = math.nan
     if math.isfinite(ref) and ok and not seed:
-        ref = float(np.median(ok))
+        ref = statistics.median(ok)
 
     def agrees(d: StripeDecode | None) -> bool:
         return d is not None and abs(d.rows_per_chip / ref - 1) <= CHIP_AGREEMENT
