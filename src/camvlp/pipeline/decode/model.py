@@ -167,7 +167,7 @@ def least_frames(frame: FrameFormat) -> float:
     return 1.0 if frame.check_bits else MIN_FRAMES
 
 
-def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples, cache=None):
+def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples):
     n = frame.n_chips
     frames = p.size / (n * model.rows_per_chip)
     if p.size < 8:
@@ -183,14 +183,14 @@ def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samp
     fit = Fit(*fit_folded(fo, *spec), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
         return _fail_small(p, model, n, "no stripes (a steady light)")
-    fit, knees = _own_knee(fit, fo, chips, in_map, model, samples, cache)
+    fit, knees = _own_knee(fit, fo, chips, in_map, model, samples)
     fit = replace(fit, x=2 * fit.x)
     return decide_id(
         fit, chips, cand, in_map, p, w, model, n, samples, min_margin, frame.codebook, knees
     )
 
 
-def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples, cache):
+def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples):
     """Each candidate's fits at its own best saturation knee (internal).
 
     ``fit`` is at the photo's knee (``fo``: the profile folded for it); the
@@ -207,14 +207,8 @@ def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples, 
         map_rows, others = np.flatnonzero(in_map), np.flatnonzero(~in_map)
         top = map_rows[np.argsort(best[map_rows], kind="stable")][: KNEE_LEADERS - 4]
         lead = np.concatenate([top, others[np.argsort(best[others], kind="stable")][:4]])
-    key = tuple(lead.tolist())
-    if cache is not None and key in cache:
-        spec_k = cache[key]
-    else:
-        kn = np.asarray(FIXTURE_KNEES, dtype=np.float64)
-        spec_k = model_spectra(chips[lead], model, samples, kn)
-        if cache is not None:
-            cache[key] = spec_k
+    # (kept: the fixtures with the same leaders, and the other readout direction, share them)
+    spec_k = model_spectra(chips[lead], model, samples, np.asarray(FIXTURE_KNEES, dtype=np.float64))
     rss, gain, offset = fit_folded(fo, *spec_k)  # each (K, L, P)
     kb = rss.min(axis=2).argmin(axis=0)  # (L,)
     li = np.arange(lead.size)
@@ -290,14 +284,11 @@ def decode_photo(
     cand, in_map = candidate_ids(frame, ids)
     chips = frame.codebook[cand]
     spec = model_spectra(chips, model, samples)
-    cache: dict = {}  # the knees' templates, shared by the fixtures with the same leaders
     decodes = []
     for p, w in zip(ps, ws, strict=True):
         pp, wp = prepared_profile(p, w)
         decodes.append(
-            _decode_with(
-                pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples, cache
-            )
+            _decode_with(pp, wp, frame, cand, in_map, chips, spec, model, min_margin, samples)
         )
     if not math.isfinite(cost):
         un = np.array([d.unexplained for d in decodes if np.isfinite(d.unexplained)])

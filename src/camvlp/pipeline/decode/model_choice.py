@@ -21,7 +21,7 @@ from camvlp.pipeline.decode.stripe_model import (
     Fit,
     SensorModel,
     direct_fit,
-    templates_batch,
+    knee_templates,
 )
 
 __all__ = [
@@ -97,18 +97,9 @@ def _refine_leaders(fit: Fit, chips, knees, model: SensorModel, in_map, p, w, sa
         # the knee too: at the coarse phase its choice is as much luck as the phase's
         near = int(np.argmin(np.abs(np.log(grid / knees[k]))))
         kn = np.unique(np.append(grid[max(near - 2, 0) : near + 3], knees[k]))
-        one = np.ones(kn.size)
-        tfs = templates_batch(
-            chips[k : k + 1],
-            model.rows_per_chip,
-            one * model.exposure_chips,
-            kn,
-            one * model.gamma,
-            one * model.blur_rows,
-            samples * f,
-        )[:, 0]
+        tfs = knee_templates(chips[k : k + 1], model, kn, samples * f)[:, 0]
         ph = phase[k] * f + steps
-        rss_v = np.stack([direct_fit(p, w, tf, xf, ph)[0] for tf in tfs])
+        rss_v = direct_fit(p, w, tfs, xf, ph)[0]  # (knees, phases)
         v, i = np.unravel_index(int(np.argmin(rss_v)), rss_v.shape)
         rss_k, tf = rss_v[v], tfs[v]
         best, at = float(rss_k[i]), float(ph[i])

@@ -19,6 +19,9 @@ the least-squares gain and offset and the residual follow in closed form
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -149,6 +152,77 @@ def templates(chips: np.ndarray, model: SensorModel, samples: int) -> np.ndarray
     )[0]
 
 
+class KeptArrays:
+    """Templates and spectra kept by everything they are made of, read-only, the least
+    recently used dropped beyond ``budget`` bytes: a photo's fixtures, both its readout
+    directions and a video's frames read with carried parameters fit the same ones.  Safe
+    to share between threads (the service's)."""
+
+    def __init__(self, budget: int) -> None:
+        self._items: OrderedDict[tuple, tuple[np.ndarray, ...]] = OrderedDict()
+        self._bytes, self._budget = 0, budget
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple, make: Callable[[], tuple[np.ndarray, ...]]):
+        """The arrays kept under ``key``, else ``make()``'s (then kept)."""
+        with self._lock:
+            if key in self._items:
+                self._items.move_to_end(key)
+                return self._items[key]
+        value = make()
+        for a in value:
+            a.flags.writeable = False
+        size = sum(a.nbytes for a in value)
+        with self._lock:
+            if size <= self._budget and key not in self._items:
+                self._items[key] = value
+                self._bytes += size
+                while self._bytes > self._budget:
+                    _, dropped = self._items.popitem(last=False)
+                    self._bytes -= sum(a.nbytes for a in dropped)
+        return value
+
+
+#: Bytes of templates and spectra kept (:class:`KeptArrays`): a parameter set's take some
+#: 2.2 MB with the thesis' 4-bit frame (most of it the spectra at every knee), 9 MB with a
+#: 7-bit frame with 8 check bits (40 chips, 128 IDs).
+_KEPT = KeptArrays(64 * 2**20)
+
+
+def _key(chips: np.ndarray, model: SensorModel, samples: int, knees: np.ndarray | None):
+    c = np.ascontiguousarray(chips)
+    return (
+        c.shape,
+        c.dtype.str,
+        c.tobytes(),
+        model,
+        samples,
+        None if knees is None else knees.tobytes(),
+    )
+
+
+def knee_templates(chips: np.ndarray, model: SensorModel, knees, samples: int) -> np.ndarray:
+    """:func:`templates_batch` of ``model``'s parameters at each saturation knee of ``knees``
+    (K,) instead of its own: shape (K, I, N * samples), read-only (kept for the next call
+    with the same arguments)."""
+    kn = np.asarray(knees, dtype=np.float64).reshape(-1)
+    v = np.ones(kn.size)
+
+    def make() -> tuple[np.ndarray]:
+        t = templates_batch(
+            chips,
+            model.rows_per_chip,
+            v * model.exposure_chips,
+            kn,
+            v * model.gamma,
+            v * model.blur_rows,
+            samples,
+        )
+        return (t,)
+
+    return _KEPT.get(("knees", *_key(chips, model, samples, kn)), make)[0]
+
+
 def model_profile(
     chips, model: SensorModel, n_rows: int, phase_chips: float = 0.0, *, samples: int = 64
 ) -> np.ndarray:
@@ -274,25 +348,27 @@ def template_spectra(t: np.ndarray):
 def direct_fit(
     p: np.ndarray, w: np.ndarray, template: np.ndarray, x: np.ndarray, phases: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Weighted least-squares fits of one template at given (fractional) phases.
+    """Weighted least-squares fits of templates at given (fractional) phases.
 
-    ``template`` (P,) is sampled at ``(x + phase) mod P`` with linear interpolation (``x``
-    (n,) the rows' grid positions); returns ``rss, gain, offset``, each of shape (K,) for
+    ``template`` (..., P) is sampled at ``(x + phase) mod P`` with linear interpolation (``x``
+    (n,) the rows' grid positions); returns ``rss, gain, offset``, each of shape (..., K) for
     ``phases`` (K,); a fit with a gain that is not positive gets the residual of a constant.
     """
-    period = template.size
+    period = template.shape[-1]
     xs = (x[None, :] + np.asarray(phases, dtype=np.float64)[:, None]) % period
     i0 = np.floor(xs).astype(np.int64)
     f = xs - i0
     i0 %= period
-    m = template[i0] * (1 - f) + template[(i0 + 1) % period] * f  # (K, n)
+    # (..., K, n), laid out in that order: each fit's sums over its rows then come out the
+    # same whichever templates are fitted with it
+    m = np.ascontiguousarray(template[..., i0] * (1 - f) + template[..., (i0 + 1) % period] * f)
     s0 = w.sum()
-    mw = (m * w).sum(axis=1) / s0
+    mw = (m * w).sum(axis=-1) / s0
     pw = (p * w).sum() / s0
-    mc = m - mw[:, None]
+    mc = m - mw[..., None]
     pc = p - pw
-    smm = (w * mc * mc).sum(axis=1)
-    spm = (w * mc * pc).sum(axis=1)
+    smm = (w * mc * mc).sum(axis=-1)
+    spm = (w * mc * pc).sum(axis=-1)
     spp = (w * pc * pc).sum()
     gain = np.where(smm > 0, spm / np.where(smm > 0, smm, 1.0), 0.0)
     rss = np.where(gain > 0, spp - gain * spm, spp)
@@ -313,26 +389,22 @@ class Fit:
 
 def model_spectra(chips: np.ndarray, model: SensorModel, samples: int, knees=None):
     """Spectra (see :func:`template_spectra`) of the templates on the search grid: every
-    other point of the ``samples``-per-chip grid.
+    other point of the ``samples``-per-chip grid; read-only (kept for the next call with the
+    same arguments).
 
     With ``knees`` (K,), those of the templates at each of these saturation knees instead of
     the model's: shapes (K, I, F) instead of (I, F).
     """
-    if knees is None:
-        t = templates(chips, model, samples)
-    else:
-        kn = np.asarray(knees, dtype=np.float64).reshape(-1)
-        v = np.ones(kn.size)
-        t = templates_batch(
-            chips,
-            model.rows_per_chip,
-            v * model.exposure_chips,
-            kn,
-            v * model.gamma,
-            v * model.blur_rows,
-            samples,
-        )
-    return template_spectra(t[..., ::2])
+    kn = None if knees is None else np.asarray(knees, dtype=np.float64).reshape(-1)
+
+    def make():
+        if kn is None:
+            t = templates(chips, model, samples)
+        else:
+            t = knee_templates(chips, model, kn, samples)
+        return template_spectra(t[..., ::2])
+
+    return _KEPT.get(("spectra", *_key(chips, model, samples, kn)), make)
 
 
 def prepared_profile(profile, weights) -> tuple[np.ndarray, np.ndarray]:
