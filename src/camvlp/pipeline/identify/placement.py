@@ -156,8 +156,7 @@ def lights_with_ids(problem: PoseProblem, decodes) -> LightsWithIds:
     ids = np.array([decodes[k].id for k in keep], dtype=np.int64)
     pixels = np.array([problem.blobs[k].pixel for k in keep], dtype=float).reshape(-1, 2)
     if keep:
-        flat = cv2.undistortPoints(pixels[:, None, :], camera.matrix, camera.dist_or_none)
-        rays = np.column_stack([flat.reshape(-1, 2), np.ones(len(keep))])
+        rays = np.column_stack([camera.undistort_pixels(pixels), np.ones(len(keep))])
         rays /= np.linalg.norm(rays, axis=1, keepdims=True)
     else:
         rays = np.zeros((0, 3))
