@@ -202,7 +202,9 @@ def _edges_beyond(lines: np.ndarray, own: np.ndarray, left: np.ndarray, right: n
     stop_l = (x[None, :] > cut_l[:, None]) & (x[None, :] < left[:, None])
     stop_r = (x[None, :] >= right[:, None]) & (x[None, :] < cut_r[:, None] - 1)
     at = np.arange(lines.shape[0])
-    new_l = np.argmax(np.where(stop_l, rise, -np.inf), axis=1)  # (x: beyond it, leftwards)
+    # the steepest fall each way, the nearest to the chord of equally steep ones (the levels
+    # are whole gray levels: ties are common, and either side's choice moves the centre)
+    new_l = (n - 2) - np.argmax(np.where(stop_l, rise, -np.inf)[:, ::-1], axis=1)  # (leftwards)
     new_r = 1 + np.argmin(np.where(stop_r, rise, np.inf), axis=1)
     out_l = np.clip(new_l - RIM_DROP_PX + 1, 0, n - 1)  # (the level RIM_DROP_PX out)
     out_r = np.clip(new_r + RIM_DROP_PX - 1, 0, n - 1)
