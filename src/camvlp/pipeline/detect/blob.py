@@ -33,8 +33,9 @@ class Blob:
     angle_deg : float
         Orientation of the fitted ellipse as :func:`cv2.fitEllipse` gives it, degrees: of the
         first axis it returns, which may be the minor one (``axes_px`` is sorted).  The
-        consumers of the pair (the glow check, the row profiles' rings, the radial fit's
-        starts) were measured with it as it is.
+        consumers of the pair (the row profiles' rings, the radial fit's starts) were
+        measured with it as it is; the glow check draws its rings on the outline as it is
+        (:attr:`major_angle`).
     touches_border : bool
         The disc is cut by the image border (its centre would be biased).
     axis : str
@@ -66,6 +67,8 @@ class Blob:
         1 for a striped light (its lines alternate bright and dark across their whole length;
         0.6 to 0.98 on the real photos' lights and the renders), low for text or a steady
         light.
+    major_angle_deg : float, optional
+        Orientation of the fitted ellipse's major axis, degrees (:attr:`major_angle`).
     """
 
     pixel: np.ndarray
@@ -83,6 +86,14 @@ class Blob:
     stripe_share: float = field(default=float("nan"), compare=False)
     edge_fit: EllipseFit | None = field(default=None, repr=False, compare=False)
     centre_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
+    major_angle_deg: float | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def major_angle(self) -> float:
+        """Orientation of the fitted ellipse's major axis (the first of :attr:`axes_px`),
+        degrees from the image's x axis towards its y axis: :attr:`major_angle_deg`, else
+        :attr:`angle_deg`."""
+        return self.angle_deg if self.major_angle_deg is None else self.major_angle_deg
 
     @property
     def centre_cov_px2(self) -> np.ndarray:

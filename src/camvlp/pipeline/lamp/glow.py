@@ -79,7 +79,7 @@ def glow_levels(img: np.ndarray, blobs) -> np.ndarray:
     h, w = img.shape[:2]
     centre = np.array([b.pixel for b in blobs], dtype=np.float64)  # (n, 2)
     semi = 0.5 * np.maximum(np.array([b.axes_px for b in blobs], dtype=np.float64), 1.0)
-    t = np.deg2rad(np.array([float(b.angle_deg) for b in blobs]))
+    t = np.deg2rad(np.array([float(b.major_angle) for b in blobs]))
     ct, st = np.cos(t), np.sin(t)
     # x and y as one array (n, 2, radii, angles): the centre plus each radius times
     # (a cos t cos - b sin t sin, a sin t cos + b cos t sin)
@@ -293,7 +293,9 @@ def _round(b: Blob) -> Blob:
     along them without end)."""
     if not b.touches_border:
         return b
-    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
+    return dataclasses.replace(
+        b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0, major_angle_deg=0.0
+    )
 
 
 #: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
