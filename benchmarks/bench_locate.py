@@ -15,7 +15,9 @@ Run: ``python benchmarks/bench_locate.py [--runs 15] [--hard-runs 3] [--against 
 main branch): both run in worker processes, one ``imdecode`` and ``locate`` at a time in
 turn, on the same JPEGs, so that a machine whose speed drifts (a shared one) slows both
 alike; each code's medians and ratios are printed (of wall time, and of CPU time, which a
-busy machine's other processes do not add to), and each one's peak memory.
+busy machine's other processes do not add to), and each one's peak memory.  The slow cells
+are taken in turn too (``--hard-runs`` each), each photo with its camera and map written to
+files both codes read.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ import numpy as np
 
 import camvlp
 from camvlp import locate
+from camvlp.io import save_camera, save_map
 from camvlp.model.camera import Camera
 from camvlp.sim.render import RenderSettings, render
 
@@ -87,18 +90,17 @@ import json, sys, time, cv2, numpy as np, camvlp
 from camvlp import locate
 cv2.setNumThreads(1)
 _x = np.ones(20_000_000, np.uint8); del _x  # glibc's heap as after the 20 MP photo's decode
-fmap = camvlp.load_map(sys.argv[1])
-cams = {"20MP": camvlp.load_camera(sys.argv[2]),
-        "1080p": camvlp.Camera.from_focal(*json.loads(sys.argv[3])[:3],
-                                          row_time_s=json.loads(sys.argv[3])[3])}
+cams, maps = {}, {}
 print(camvlp.__file__, flush=True)
 for line in sys.stdin:
-    name, jpeg, truth = json.loads(line)
+    name, jpeg, truth, cam_file, map_file = json.loads(line)
+    cam = cams.setdefault(cam_file, camvlp.load_camera(cam_file))
+    fmap = maps.setdefault(map_file, camvlp.load_map(map_file))
     data = np.fromfile(jpeg, np.uint8)
     c, t = time.process_time(), time.perf_counter()
     img = cv2.imdecode(data, cv2.IMREAD_COLOR)
     c1, t1 = time.process_time(), time.perf_counter()
-    res = locate(img, cams[name], fmap)
+    res = locate(img, cam, fmap)
     c2, t2 = time.process_time(), time.perf_counter()
     err = 1e3 * float(np.linalg.norm(res.position - truth)) if res else float("nan")
     cpu = [1e3 * (c1 - c), 1e3 * (c2 - c1)]
@@ -106,19 +108,13 @@ for line in sys.stdin:
 """
 
 
-def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: int) -> None:
-    """This code and the one at ``against`` in turn on each photo; their medians and ratios."""
+def _compare(photos: list[tuple], against: Path) -> None:
+    """This code and the one at ``against`` in turn on each photo ``(name, JPEG, true
+    position, camera file, map file, runs)``; their medians and ratios."""
     codes = {"this": None, "against": against}
     workers = {
         k: subprocess.Popen(
-            [
-                sys.executable,
-                "-c",
-                _WORKER,
-                str(ROOT / "examples/thesis_room.yaml"),
-                str(ROOT / "examples/thesis_camera.yaml"),
-                json.dumps(HD),
-            ],
+            [sys.executable, "-c", _WORKER],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -128,11 +124,12 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
     }
     for k, w in workers.items():
         print(f"{k}: {w.stdout.readline().strip()}")
-    for name, jpeg, truth in photos:
+    for name, jpeg, truth, cam_file, map_file, runs in photos:
         rows: dict[str, list] = {k: [] for k in workers}
+        line = json.dumps([name, str(jpeg), truth.tolist(), str(cam_file), str(map_file)])
         for i in range(runs + 2):  # the first two of each warm up
             for k in list(workers)[:: 1 if i % 2 else -1]:
-                workers[k].stdin.write(json.dumps([name, str(jpeg), truth.tolist()]) + "\n")
+                workers[k].stdin.write(line + "\n")
                 workers[k].stdin.flush()
                 rows[k].append(json.loads(workers[k].stdout.readline()))
         print(f"{name}, {runs} runs each, in turn (stages: {' / '.join(STAGES)}):")
@@ -160,6 +157,28 @@ def _compare(photos: list[tuple[str, Path, np.ndarray]], against: Path, runs: in
         w.wait()
     for k, src in codes.items():
         print(f"peak memory, {k}: {_peak_child(photos[0][1], src)['peak_mb']:.0f} MB")
+
+
+def _compared(photos, fmap, runs: int, hard_runs: int, tmp: Path) -> list[tuple]:
+    """The photos ``--against`` times in turn, as :func:`_compare` takes them: the two
+    photos (``runs`` each), then the slow cells (``hard_runs`` each; none for 0), each
+    rendered into ``tmp`` with its camera and map files."""
+    room = tmp / "room.yaml"
+    save_map(fmap, room)
+    out = []
+    for n, cam, pose, seed in photos:
+        cam_file = tmp / f"{n}.camera.yaml"
+        save_camera(cam, cam_file)
+        jpeg = _jpeg(n, cam, fmap, pose, RenderSettings(seed=seed), tmp)
+        out.append((n, jpeg, pose.position, cam_file, room, runs))
+    hard = _hard_photos(fmap) if hard_runs > 0 else []
+    for k, (n, cam, hard_map, pose, settings, quality) in enumerate(hard):
+        cam_file, map_file = tmp / f"hard{k}.camera.yaml", tmp / f"hard{k}.map.yaml"
+        save_camera(cam, cam_file)
+        save_map(hard_map, map_file)
+        jpeg = _jpeg(f"hard{k}", cam, hard_map, pose, settings, tmp, quality)
+        out.append((n, jpeg, pose.position, cam_file, map_file, hard_runs))
+    return out
 
 
 #: The stages timed (``LocateResult.timing_ms``); a code without one shows nan there.
@@ -285,11 +304,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         if args.against is not None:
-            jpegs = [
-                (n, _jpeg(n, cam, fmap, pose, RenderSettings(seed=seed), tmp), pose.position)
-                for n, cam, pose, seed in photos
-            ]
-            _compare(jpegs, args.against, args.runs)
+            _compare(_compared(photos, fmap, args.runs, args.hard_runs, tmp), args.against)
             return 0
         for n, cam, pose, seed in photos:
             _bench(n, cam, fmap, pose, RenderSettings(seed=seed), args.runs, tmp)
