@@ -34,7 +34,7 @@ class Blob:
         Orientation of the fitted ellipse as :func:`cv2.fitEllipse` gives it, degrees: of the
         first axis it returns, which may be the minor one (``axes_px`` is sorted).  The
         consumers of the pair (the row profiles' rings, the radial fit's starts) were
-        measured with it as it is; the glow check draws its rings on the outline as it is
+        measured with it as it is; the glow check takes the major axis's own angle
         (:attr:`major_angle`).
     touches_border : bool
         The disc is cut by the image border (its centre would be biased).
