@@ -208,7 +208,7 @@ def _own_knee(fit: Fit, fo: Folded, chips, in_map, model: SensorModel, samples):
         top = map_rows[np.argsort(best[map_rows], kind="stable")][: KNEE_LEADERS - 4]
         lead = np.concatenate([top, others[np.argsort(best[others], kind="stable")][:4]])
     # (kept: the fixtures with the same leaders, and the other readout direction, share them)
-    spec_k = model_spectra(chips[lead], model, samples, np.asarray(FIXTURE_KNEES, dtype=np.float64))
+    spec_k = model_spectra(chips[lead], model, samples, FIXTURE_KNEES)
     rss, gain, offset = fit_folded(fo, *spec_k)  # each (K, L, P)
     kb = rss.min(axis=2).argmin(axis=0)  # (L,)
     li = np.arange(lead.size)

@@ -67,8 +67,6 @@ class Blob:
         1 for a striped light (its lines alternate bright and dark across their whole length;
         0.6 to 0.98 on the real photos' lights and the renders), low for text or a steady
         light.
-    major_angle_deg : float, optional
-        Orientation of the fitted ellipse's major axis, degrees (:attr:`major_angle`).
     """
 
     pixel: np.ndarray
@@ -86,14 +84,16 @@ class Blob:
     stripe_share: float = field(default=float("nan"), compare=False)
     edge_fit: EllipseFit | None = field(default=None, repr=False, compare=False)
     centre_cov: np.ndarray | None = field(default=None, repr=False, compare=False)
-    major_angle_deg: float | None = field(default=None, repr=False, compare=False)
 
     @property
     def major_angle(self) -> float:
         """Orientation of the fitted ellipse's major axis (the first of :attr:`axes_px`),
-        degrees from the image's x axis towards its y axis: :attr:`major_angle_deg`, else
-        :attr:`angle_deg`."""
-        return self.angle_deg if self.major_angle_deg is None else self.major_angle_deg
+        degrees from the image's x axis towards its y axis: :attr:`angle_deg`, a quarter turn
+        more where the fit's first axis (:attr:`edge_fit`) is its shorter one."""
+        fit = self.edge_fit
+        # (a round outline put in its place, equal axes, has no major axis to turn to)
+        turned = fit is not None and fit.axes[0] < fit.axes[1] and self.axes_px[0] > self.axes_px[1]
+        return (self.angle_deg + 90.0) % 180.0 if turned else self.angle_deg
 
     @property
     def centre_cov_px2(self) -> np.ndarray:

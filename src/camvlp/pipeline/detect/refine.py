@@ -416,8 +416,6 @@ def _fitted(r: _Region, points: np.ndarray) -> tuple[dict, tuple | None]:
         mask=r.mask,
         axes_px=np.array(sorted((float(a), float(b)), reverse=True)),
         angle_deg=float(angle),
-        # (cv2.fitEllipse's angle is that of the first axis it returns)
-        major_angle_deg=float(angle if a >= b else (angle + 90.0) % 180.0),
         touches_border=r.touches,
         axis=r.axis,
         stripe_contrast=float(r.contrast),

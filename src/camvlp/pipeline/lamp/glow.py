@@ -293,9 +293,7 @@ def _round(b: Blob) -> Blob:
     along them without end)."""
     if not b.touches_border:
         return b
-    return dataclasses.replace(
-        b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0, major_angle_deg=0.0
-    )
+    return dataclasses.replace(b, axes_px=np.full(2, float(np.min(b.axes_px))), angle_deg=0.0)
 
 
 #: Slack of :func:`_within_outline`, pixels: an outline fitted to a blurred edge, and a rim
