@@ -55,6 +55,28 @@ def test_only_the_refused_fixture_goes_to_the_model():
     assert man.decodes[2].id in (None, 5)  # never another ID
 
 
+def test_a_fixture_too_short_to_read_costs_no_model_fit(monkeypatch):
+    import camvlp.pipeline.decode.manchester as manchester
+
+    fits = []
+    fit = manchester.estimate_photo_model
+    monkeypatch.setattr(
+        manchester, "estimate_photo_model", lambda *a, **k: fits.append(1) or fit(*a, **k)
+    )
+    rng = np.random.default_rng(2)
+    ids = [1, 3, 5, 6, 9]
+    ps = profiles(ids, rng)
+    ps[2] = ps[2][: int(0.7 * FRAME.n_chips * RPC)]  # under the 0.8 frame any decode needs
+    man = decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))
+    assert not fits and man.model is None
+    assert man.decodes[2].id is None and man.decodes[2].reason.startswith("spans 0.7")
+    assert [man.decodes[k].id for k in (0, 1, 3, 4)] == [1, 3, 6, 9]
+    # 0.85 frame: long enough to try, the fit runs
+    ps[2] = profiles([5], np.random.default_rng(9))[0][: int(0.85 * FRAME.n_chips * RPC)]
+    decode_manchester(ps, Readout.ROWS, True, CAMERA, fmap(ids))
+    assert fits
+
+
 def test_direction_from_the_fast_path_when_fixtures_say_it():
     rng = np.random.default_rng(3)
     ids = [1, 3, 5, 2, 6]

@@ -31,8 +31,10 @@ from camvlp.pipeline.decode.model import (
     SensorModel,
     decode_photo,
     estimate_photo_model,
+    too_short,
 )
 from camvlp.pipeline.decode.model_choice import MIN_MARGIN
+from camvlp.pipeline.decode.photo_model import SEEDED_CHIP_SPAN
 from camvlp.pipeline.decode.result import StripeDecode
 from camvlp.pipeline.decode.run_decode import decode_profiles
 from camvlp.pipeline.decode.stripe_model import MIN_FRAMES
@@ -152,6 +154,17 @@ def _with_model(
     if carried is not None:
         kept = decode_photo(sub, frame, ids, weights=sub_w, model=carried)
         photo = kept if _explains(kept) else None
+    reach = t * (1 - SEEDED_CHIP_SPAN) if t else None  # (the shortest chip the fit may end at)
+    if reach and all(too_short(p, frame, reach) is not None for p in sub) and photo is None:
+        # none is long enough to be read at any chip length the fit can reach from ``t``:
+        # no parameters are fitted (the carried ones' reads kept), each refused as too short
+        if kept is not None and _read(kept) > 0:
+            photo = kept
+        else:
+            out = list(fast)
+            for k, p in zip(refused, sub, strict=True):
+                out[k] = too_short(p, frame, t)
+            return out, None
     if photo is None:
         try:  # the photo-wide parameters from every fixture, seeded by the chip length
             model, _ = estimate_photo_model(

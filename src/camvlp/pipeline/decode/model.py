@@ -51,6 +51,7 @@ __all__ = [
     "estimate_photo_model",
     "least_frames",
     "model_profile",
+    "too_short",
 ]
 
 
@@ -147,15 +148,15 @@ def decode_profile_model(
     )
 
 
-def _fail_small(p: np.ndarray, model: SensorModel, n_chips: int, reason: str) -> StripeDecode:
-    frames = p.size / (n_chips * model.rows_per_chip)
+def _fail_small(p: np.ndarray, rows_per_chip: float, n_chips: int, reason: str) -> StripeDecode:
+    frames = p.size / (n_chips * rows_per_chip)
     return StripeDecode(
         None,
         reason,
         method="model",
         margin=0.0,
         unexplained=1.0,
-        rows_per_chip=model.rows_per_chip,
+        rows_per_chip=rows_per_chip,
         frames=frames,
     )
 
@@ -167,22 +168,35 @@ def least_frames(frame: FrameFormat) -> float:
     return 1.0 if frame.check_bits else MIN_FRAMES
 
 
-def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples):
-    n = frame.n_chips
-    frames = p.size / (n * model.rows_per_chip)
-    if p.size < 8:
-        return _fail_small(p, model, n, f"too small to decode ({p.size} rows)")
-    least = least_frames(frame)
+def too_short(profile: np.ndarray, frame: FrameFormat, rows_per_chip: float) -> StripeDecode | None:
+    """The refusal of a profile (shape (n,)) too short to be read at ``rows_per_chip`` (under
+    8 rows, or spanning fewer frames of ``frame``'s code than :func:`least_frames`), or None
+    when it is long enough to try."""
+    profile, n = np.asarray(profile), frame.n_chips
+    if profile.size < 8:
+        return _fail_small(profile, rows_per_chip, n, f"too small to decode ({profile.size} rows)")
+    frames, least = profile.size / (n * rows_per_chip), least_frames(frame)
     if frames < least:
         return _fail_small(
-            p, model, n, f"spans {frames:.2f} frames of the code, at least {least:g} needed"
+            profile,
+            rows_per_chip,
+            n,
+            f"spans {frames:.2f} frames of the code, at least {least:g} needed",
         )
+    return None
+
+
+def _decode_with(p, w, frame, cand, in_map, chips, spec, model, min_margin, samples):
+    n = frame.n_chips
+    short = too_short(p, frame, model.rows_per_chip)
+    if short is not None:
+        return short
     # every phase on a grid of half the templates' resolution, by FFT; the leaders are then
     # refined on the full one (see decide_id)
     fo = fold_profile(p, w, model.rows_per_chip, samples // 2, n)
     fit = Fit(*fit_folded(fo, *spec), fo.spp, p.size, fo.x)
     if fit.tss <= 0:
-        return _fail_small(p, model, n, "no stripes (a steady light)")
+        return _fail_small(p, model.rows_per_chip, n, "no stripes (a steady light)")
     fit, knees = _own_knee(fit, fo, chips, in_map, model, samples)
     fit = replace(fit, x=2 * fit.x)
     return decide_id(
@@ -278,7 +292,8 @@ def decode_photo(
             t = float(rows_per_chip) if rows_per_chip else float("nan")
             fallback = SensorModel(t if math.isfinite(t) else 1.0)
             decodes = tuple(
-                _fail_small(p, fallback, frame.n_chips, f"no sensor model: {exc}") for p in ps
+                _fail_small(p, fallback.rows_per_chip, frame.n_chips, f"no sensor model: {exc}")
+                for p in ps
             )
             return PhotoDecode(fallback, decodes, float("inf"))
     cand, in_map = candidate_ids(frame, ids)

@@ -30,7 +30,11 @@ from camvlp.pipeline.decode.stripe_model import (
 )
 from camvlp.pipeline.paths import path
 
-__all__ = ["estimate_photo_model"]
+__all__ = ["SEEDED_CHIP_SPAN", "estimate_photo_model"]
+
+#: How far (a fraction) the fitted chip length may end from a seed given to
+#: :func:`estimate_photo_model`: its last step searches that span around the seed.
+SEEDED_CHIP_SPAN = 0.01
 
 
 _EXPOSURES = (0.08, 0.15, 0.25, 0.35, 0.5, 0.65, 0.8, 0.9, 1.0, 1.15, 1.35, 1.6)
@@ -232,7 +236,7 @@ def estimate_photo_model(
     _, model = min(results, key=lambda r: r[0])
     # 4. on the full grid: the chip length, then the exposure, knee and blur between their
     #    grid points
-    span = 0.01 if rows_per_chip is not None else 0.006
+    span = SEEDED_CHIP_SPAN if rows_per_chip is not None else 0.006
     return _polished(own_fitter(samples, model, 1), model, t0 * (1 + np.linspace(-span, span, 5)))
 
 
