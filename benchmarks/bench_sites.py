@@ -7,14 +7,15 @@ Writes the map with :func:`camvlp.sim.site.site_map` (100 x 100 fixtures 2.5 m a
 k-d tree's build (:attr:`camvlp.model.fixtures.FixtureMap.index`) and a query of every
 fixture within 10 m of a point.
 
-Then ``--photos`` (3) renders of the warehouse at 1920 x 1440 (f = 800 px, 25 us rows,
+Then ``--photos`` (12) renders of the warehouse at 1920 x 1440 (f = 800 px, 25 us rows,
 16 kHz chips) from random places 1.0 to 1.6 m above the floor, looking up (any heading,
 tilts up to 10 degrees), each where the fixtures in view send different IDs, are located
 against the whole warehouse and against a map of those fixtures alone (their IDs unique, an
 ordinary map), ``--runs`` times each: the median times, the identify and solve stages'
-share, and the position errors.
+share, and the position errors; then the ratio of the two times and the time the whole map
+adds to identify and solve, p50, p95 and max over the photos.
 
-Run: ``python benchmarks/bench_sites.py [--runs 5] [--columns 100 --rows 100] [--photos 3]``.
+Run: ``python benchmarks/bench_sites.py [--runs 5] [--columns 100 --rows 100] [--photos 12]``.
 """
 
 from __future__ import annotations
@@ -65,11 +66,12 @@ def _in_view(fmap: FixtureMap, pose: Pose) -> tuple[FixtureMap, FixtureMap] | No
 
 
 def bench_locate(fmap: FixtureMap, photos: int, runs: int) -> None:
-    """Locate ``photos`` renders against the whole map and the fixtures in view alone."""
+    """Locate ``photos`` renders against the whole map and the fixtures in view alone; print
+    each photo's times and the ratios' p50, p95 and max."""
     rng = np.random.default_rng(7)
     lo, hi = fmap.positions[:, :2].min(axis=0) + 5.0, fmap.positions[:, :2].max(axis=0) - 5.0
-    done = 0
-    while done < photos:
+    ratios, added = [], []
+    while len(ratios) < photos:
         xy = rng.uniform(lo, hi)
         angles = [rng.uniform(0, 360), *rng.uniform(-10, 10, 2)]
         r = Rotation.from_euler("zxy", angles, degrees=True).as_matrix()
@@ -77,22 +79,30 @@ def bench_locate(fmap: FixtureMap, photos: int, runs: int) -> None:
         maps = _in_view(fmap, pose)
         if maps is None:
             continue
-        settings = RenderSettings(chip_rate_hz=16_000.0, row_time_s=25e-6, seed=done)
+        settings = RenderSettings(chip_rate_hz=16_000.0, row_time_s=25e-6, seed=len(ratios))
         image = render(CAMERA, maps[0], pose, settings).image
-        line = []
+        line, totals, stages = [], [], []
         for name, m in (("warehouse", fmap), (f"{len(maps[1].fixtures)} in view", maps[1])):
             results = [locate(image, CAMERA, m) for _ in range(runs)]
-            total = statistics.median(x.timing_ms["total"] for x in results)
-            stage = statistics.median(x.timing_ms["pose"] for x in results)
+            totals.append(statistics.median(x.timing_ms["total"] for x in results))
+            stages.append(statistics.median(x.timing_ms["pose"] for x in results))
             res = results[0]
             err = np.linalg.norm(res.position - pose.position) if res else float("nan")
             line.append(
-                f"{name}: {total:.0f} ms (identify and solve {stage:.0f}), error {1e3 * err:.1f} mm"
+                f"{name}: {totals[-1]:.0f} ms (identify and solve {stages[-1]:.0f}), "
+                f"error {1e3 * err:.1f} mm"
                 if res
                 else f"{name}: not located ({res.reason})"
             )
-        print(f"photo {done}: " + "; ".join(line))
-        done += 1
+        print(f"photo {len(ratios)}: " + "; ".join(line))
+        ratios.append(totals[0] / totals[1])
+        added.append(stages[0] - stages[1])
+    for name, values, unit in (
+        ("warehouse over in view alone", ratios, "x"),
+        ("identify and solve added", added, " ms"),
+    ):
+        p50, p95 = np.percentile(values, [50, 95])
+        print(f"{name}: p50 {p50:.2f}{unit}, p95 {p95:.2f}{unit}, max {max(values):.2f}{unit}")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -101,7 +111,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--runs", type=int, default=5, help="times each step is timed (5)")
     ap.add_argument("--columns", type=int, default=100, help="fixtures along x (100)")
     ap.add_argument("--rows", type=int, default=100, help="fixtures along y (100)")
-    ap.add_argument("--photos", type=int, default=3, help="warehouse photos located (3)")
+    ap.add_argument("--photos", type=int, default=12, help="warehouse photos located (12)")
     a = ap.parse_args(argv)
     fmap = site_map(a.columns, a.rows, spacing=2.5, height=6.0, seed=1)
     n = len(fmap.fixtures)

@@ -5,6 +5,7 @@ prior that narrows the search."""
 from __future__ import annotations
 
 import csv
+import itertools
 import json
 import re
 
@@ -19,6 +20,8 @@ from camvlp.cli import main
 from camvlp.geometry.hypotheses import distance_bounds
 from camvlp.io import save_camera, save_map
 from camvlp.model.camera import Camera, Pose
+from camvlp.pipeline.identify import by_geometry
+from camvlp.pipeline.identify.placement import PLAIN_SLACK, LightsWithIds
 from camvlp.pipeline.settings import LocateSettings
 from camvlp.sim.render import RenderSettings, render
 from camvlp.sim.site import site_map
@@ -161,6 +164,61 @@ def test_the_distance_bounds_hold_the_true_distance():
         lo, hi = distance_bounds((r1, r1), (r2, r2), cos)  # exact distances: the bounds meet
         assert lo == pytest.approx(true) and hi == pytest.approx(true)
     assert distance_bounds((1.0, np.inf), (1.0, 2.0), 0.5) == (0.0, np.inf)
+
+
+def test_distance_bounds_of_arrays_are_those_of_each_pair():
+    rng = np.random.default_rng(5)
+    r1, r2 = rng.uniform(0.5, 10.0, (2, 6, 1)), rng.uniform(0.5, 10.0, (2, 1, 7))
+    cos = rng.uniform(-1.0, 1.0, (6, 7))
+    r2[1, 0, 3] = np.inf  # (a greatest distance unknown: that pair's bounds are (0, inf))
+    lo, hi = distance_bounds((r1[0], r1[0] + r1[1]), (r2[0], r2[0] + r2[1]), cos)
+    for i, j in itertools.product(range(6), range(7)):
+        a, b = (r1[0, i, 0], r1[0, i, 0] + r1[1, i, 0]), (r2[0, 0, j], r2[0, 0, j] + r2[1, 0, j])
+        assert (lo[i, j], hi[i, j]) == distance_bounds(a, b, float(cos[i, j]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_hypotheses_are_every_four_fixtures_the_distances_allow(varied, seed):
+    """``_quads`` (searched in the order it picks) against every four fixtures of the seeds'
+    IDs checked pair by pair: the same sets, in any order the seeds are given."""
+    rng = np.random.default_rng(seed)
+    pose = pose_at(*rng.uniform([4, 3, 1.0], [16, 7, 1.6]), rng.uniform(0, 360))
+    pos = varied.positions
+    near = np.flatnonzero(np.hypot(*(pos[:, :2] - pose.position[:2]).T) < 2.5)
+    seen = rng.choice(near, 6, replace=False)
+    cam = (pos[seen] - pose.position) @ pose.world_from_camera  # (the camera's frame)
+    dist = np.linalg.norm(cam, axis=1)
+    rho = dist * rng.uniform(0.9, 1.1, len(cam))  # (the discs' sizes say roughly)
+    lights = LightsWithIds(
+        np.arange(6),
+        varied.id_array[seen],
+        np.zeros((6, 2)),
+        cam / dist[:, None],
+        rho,
+        3 * rho,
+        PLAIN_SLACK,
+    )
+    bounds = by_geometry._pair_bounds(lights)
+    allowed = np.ones(len(varied.fixtures), dtype=bool)
+    seeds = (0, 2, 3, 5)
+    want = []
+    ids = lights.ids
+    for quad in itertools.product(*(np.flatnonzero(varied.id_array == ids[s]) for s in seeds)):
+        if len(set(quad)) < 4:
+            continue
+        lo, hi = 1 / PLAIN_SLACK[0], PLAIN_SLACK[1]
+        for (a, fa), (b, fb) in itertools.combinations(zip(seeds, quad, strict=True), 2):
+            d = np.linalg.norm(pos[fa] - pos[fb])
+            lo = max(lo, d / bounds[1][a, b])
+            hi = min(hi, d / bounds[0][a, b] if bounds[0][a, b] > 0 else np.inf)
+        if lo <= hi:
+            want.append(quad)
+    assert tuple(seen[list(seeds)]) in want  # (the true fixtures among them)
+    for order in itertools.permutations(range(4)):
+        got = by_geometry._quads(varied, lights, [seeds[o] for o in order], allowed, bounds)
+        back = got[:, np.argsort(order)]
+        assert sorted(map(tuple, back.tolist())) == sorted(want)
+        assert np.array_equal(got, got[np.lexsort(got.T[::-1])])  # (rows in lexical order)
 
 
 def test_the_prior_needs_both_parts():

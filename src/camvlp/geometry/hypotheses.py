@@ -28,35 +28,42 @@ __all__ = [
 ON_A_LINE = (0.002, 0.05)
 
 
-def distance_bounds(
-    a: tuple[float, float], b: tuple[float, float], cos: float
-) -> tuple[float, float]:
+def distance_bounds(a, b, cos):
     """The least and greatest distance between two points seen at an angle ``arccos(cos)``
     apart from the camera, their distances from it within ``a`` and ``b``.
 
     Parameters
     ----------
-    a, b : tuple of float
-        Each point's least and greatest distance from the camera, map units.
-    cos : float
+    a, b : pair of float or of ndarray
+        Each point's least and greatest distance from the camera, map units; arrays (any
+        shapes that broadcast with ``cos``) give the bounds of many pairs at once.
+    cos : float or ndarray
         The cosine of the angle between the two rays.
 
     Returns
     -------
-    tuple of float
-        The least and greatest distance between the points, map units; ``(0, inf)`` when a
-        greatest distance is not finite.
+    tuple of float or of ndarray
+        The least and greatest distance between the points, map units (of the shape the
+        inputs broadcast to; floats for floats); ``(0, inf)`` where a greatest distance is
+        not finite.
     """
 
     def d(r1, r2):
         return np.sqrt(np.maximum(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
 
-    if not (np.isfinite(a[1]) and np.isfinite(b[1])):
-        return 0.0, np.inf
-    # convex in each distance: the greatest at a corner, the least on an edge
-    corners = [d(r1, r2) for r1 in a for r2 in b]
-    edges = [d(r1, np.clip(r1 * cos, *b)) for r1 in a] + [d(np.clip(r2 * cos, *a), r2) for r2 in b]
-    return float(min(edges)), float(max(corners))
+    a_lo, a_hi = (np.asarray(r, dtype=float) for r in a)
+    b_lo, b_hi = (np.asarray(r, dtype=float) for r in b)
+    with np.errstate(invalid="ignore", over="ignore"):  # (infinite ends: replaced below)
+        # convex in each distance: the greatest at a corner, the least on an edge
+        corners = [d(r1, r2) for r1 in (a_lo, a_hi) for r2 in (b_lo, b_hi)]
+        edges = [d(r1, np.clip(r1 * cos, b_lo, b_hi)) for r1 in (a_lo, a_hi)]
+        edges += [d(np.clip(r2 * cos, a_lo, a_hi), r2) for r2 in (b_lo, b_hi)]
+    finite = np.isfinite(a_hi) & np.isfinite(b_hi)
+    least = np.where(finite, np.minimum.reduce(edges), 0.0)
+    greatest = np.where(finite, np.maximum.reduce(corners), np.inf)
+    if least.ndim == 0:
+        return float(least), float(greatest)
+    return least, greatest
 
 
 #: :func:`rigid_on_plane`'s tolerance: the columns of a plane's homography that a camera's

@@ -13,9 +13,10 @@ in that arrangement.  :func:`placed` finds them:
    where every light of the photo was told plain), and the angle between two lights' rays
    then bounds the distance between their fixtures.
    Four seed lights' candidates are combined only where every pair's distance lies within
-   those bounds at one scale common to the photo's lights (:data:`RELATIVE_SLACK`), each
-   next one looked up in a k-d tree of the fixtures with its ID, within the greatest
-   distance of the first.
+   those bounds at one scale common to the photo's lights (:data:`RELATIVE_SLACK`): the
+   search starts from the light whose candidates make the fewest such pairs and adds the
+   others nearest it first (:func:`_search_order`), each next one's fixtures paired with
+   the first's by k-d trees within their greatest distance.
 3. *Verification*: each combination is a hypothesis.  Those a rigid motion cannot explain
    (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`: four fixtures on a plane and their
    rays are related by a homography whose first two columns are a rotation's) are dropped
@@ -117,46 +118,69 @@ RIGID_SLACK = 3.0
 HYPOTHESIS_SOLVER = "sqpnp"
 
 
+def _pair_bounds(lights: LightsWithIds) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest distance between the fixtures of every two lights, their
+    distances within :data:`RELATIVE_SLACK` of ``rho`` at one common scale
+    (:func:`~camvlp.geometry.hypotheses.distance_bounds`), map units over that scale: each
+    shape (n, n), symmetric."""
+    k, rho = np.sqrt(RELATIVE_SLACK), lights.rho
+    cos = np.einsum("ik,jk->ij", lights.rays, lights.rays)
+    near, far = (rho[:, None] / k, rho[:, None] * k), (rho[None, :] / k, rho[None, :] * k)
+    return distance_bounds(near, far, cos)
+
+
+def _search_order(counts: np.ndarray, reach: np.ndarray) -> list[int]:
+    """The order four seed lights are searched in (positions among them), the one that makes
+    the fewest rows on the way (every order gives the same hypotheses).  Two lights pair
+    about ``counts[i] * counts[j] * reach[i, j] ** 2`` fixtures (their candidates, shape
+    (4,), and how far apart their fixtures may be, shape (4, 4): the area that holds a
+    partner): first the light with the fewest such pairs, then the others by the pairs they
+    make with it (the search extends around the first light's fixture)."""
+    pairs = counts[:, None] * counts[None, :] * np.where(np.isfinite(reach), reach, 1e100) ** 2
+    np.fill_diagonal(pairs, 0.0)
+    first = int(np.argmin(pairs.sum(axis=1)))
+    rest = sorted(set(range(len(counts))) - {first}, key=lambda j: (pairs[first, j], j))
+    return [first, *rest]
+
+
 def _quads(
-    fmap: FixtureMap, lights: LightsWithIds, seeds, allowed: np.ndarray
+    fmap: FixtureMap, lights: LightsWithIds, seeds, allowed: np.ndarray, bounds
 ) -> np.ndarray | None:
     """Every four fixtures, one a seed light, whose IDs are the seeds' and whose distances
-    fit what the photo sees (:func:`_extended`); shape (q, 4) of fixture indices, or None
-    when more than :data:`MAX_HYPOTHESES`."""
-    first = fmap.with_id(lights.ids[seeds[0]])
-    rows = first[allowed[first]][:, None]
+    fit what the photo sees (:func:`_extended`, ``bounds`` as :func:`_pair_bounds` gives
+    them); shape (q, 4) of fixture indices, its columns the seeds', its rows in lexical
+    order; or None when a step of the search makes more than :data:`MAX_HYPOTHESES`."""
+    ok = [allowed & (fmap.id_array == lights.ids[s]) for s in seeds]
+    counts = np.array([np.count_nonzero(o) for o in ok])
+    order = _search_order(counts, bounds[1][np.ix_(seeds, seeds)])
+    rows = np.flatnonzero(ok[order[0]])[:, None]
     scale = np.tile([1 / lights.slack[0], lights.slack[1]], (len(rows), 1))
     for m in range(1, len(seeds)):
-        ok = allowed & (fmap.id_array == lights.ids[seeds[m]])
-        rows, scale = _extended(fmap, lights, seeds[: m + 1], rows, scale, ok)
+        path = [seeds[o] for o in order[: m + 1]]
+        rows, scale = _extended(fmap, path, rows, scale, ok[order[m]], bounds)
         if len(rows) > MAX_HYPOTHESES:
             return None
-    return rows
+    rows = rows[:, np.argsort(order)]  # (back in the seeds' order)
+    return rows[np.lexsort(rows.T[::-1])]
 
 
-def _extended(fmap: FixtureMap, lights: LightsWithIds, seeds, rows, scale, ok):
+def _extended(fmap: FixtureMap, seeds, rows, scale, ok, bounds):
     """``rows`` (shape (r, m), fixtures of the first m ``seeds``) each extended by every
     fixture ``ok`` allows for the last seed whose distance to each of the row's fixtures
-    fits the rays' angle and the lights' distances (:func:`~camvlp.geometry.hypotheses.
-    distance_bounds`) at one scale common to the row (``scale``, shape (r, 2): the least and
-    greatest, narrowed as fixtures are added).  Returns the new rows and their scales."""
-    pos, s, k = fmap.positions, seeds[-1], np.sqrt(RELATIVE_SLACK)
-    bounds = [
-        distance_bounds(
-            (lights.rho[j] / k, lights.rho[j] * k),
-            (lights.rho[s] / k, lights.rho[s] * k),
-            float(lights.rays[j] @ lights.rays[s]),
-        )
-        for j in seeds[:-1]
-    ]
+    fits the rays' angle and the lights' distances (``bounds``, :func:`_pair_bounds`) at one
+    scale common to the row (``scale``, shape (r, 2): the least and greatest, narrowed as
+    fixtures are added).  Returns the new rows and their scales."""
+    pos, s = fmap.positions, seeds[-1]
     pool = np.flatnonzero(ok)
-    if np.isfinite(bounds[0][1]) and pool.size:
-        which, cand = within_reach(pos, pool, rows[:, 0], scale[:, 1] * bounds[0][1])
+    if np.isfinite(bounds[1][seeds[0], s]) and pool.size:
+        reach = scale[:, 1] * bounds[1][seeds[0], s]
+        which, cand = within_reach(pos, pool, rows[:, 0], reach)
     else:
         which, cand = np.repeat(np.arange(len(rows)), pool.size), np.tile(pool, len(rows))
     keep = np.ones(len(cand), dtype=bool)
     lo, hi = scale[which, 0].copy(), scale[which, 1].copy()
-    for j, (d_lo, d_hi) in enumerate(bounds):
+    for j, seed in enumerate(seeds[:-1]):
+        d_lo, d_hi = bounds[0][seed, s], bounds[1][seed, s]
         dist = np.linalg.norm(pos[cand] - pos[rows[which, j]], axis=1)
         keep &= cand != rows[which, j]
         lo = np.maximum(lo, dist / d_hi)  # (a distance d at scale s: d_lo <= d / s <= d_hi)
@@ -234,8 +258,9 @@ def _correspondences(problem: PoseProblem, lights: LightsWithIds, allowed, prior
     RMS distance, px, the pose); or why none could be weighed."""
     fmap = problem.fixture_map
     found: dict[frozenset, tuple[float, Pose]] = {}
+    bounds = _pair_bounds(lights)
     for seeds in _seed_sets(fmap, lights, allowed):
-        quads = _quads(fmap, lights, seeds, allowed)
+        quads = _quads(fmap, lights, seeds, allowed, bounds)
         if quads is None:
             return (
                 f"its {len(lights.ids)} lights' IDs fit more than {MAX_HYPOTHESES:,} sets of "

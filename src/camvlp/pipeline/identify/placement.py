@@ -11,7 +11,6 @@ direction of gravity.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -398,21 +397,23 @@ def within_reach(
     """The fixtures of ``pool`` (indices into ``pos``, shape (F, 3) map units) within
     ``reach`` (map units, shape (r,)) of each row's fixture ``first`` (shape (r,)):
     ``(which, cand)``, each candidate's row and fixture, a row's candidates in the order of
-    ``pool``.  The k-d tree of ``pool`` is asked once per distinct fixture of ``first``
-    (rows share them: hundreds of fixtures start thousands of rows), as far as the farthest
-    of its rows' reaches."""
+    ``pool``.  The distinct fixtures of ``first`` (rows share them: hundreds of fixtures
+    start thousands of rows) and ``pool`` are paired by two k-d trees in one call, as far as
+    the farthest reach; each row then keeps those within its own."""
     from scipy.spatial import cKDTree  # here: SciPy's import costs half a second
 
+    if first.size == 0 or pool.size == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=pool.dtype)
     starts, at = np.unique(first, return_inverse=True)
-    farthest = np.zeros(starts.size)
-    np.maximum.at(farthest, at, reach)
-    near = cKDTree(pos[pool]).query_ball_point(pos[starts], farthest)  # (sorted lists)
-    count = np.fromiter(map(len, near), np.int64, len(near))
-    found = np.fromiter(itertools.chain.from_iterable(near), np.int64, count.sum())
-    offset = np.cumsum(count) - count  # where each first fixture's candidates begin
+    near = cKDTree(pos[starts]).sparse_distance_matrix(
+        cKDTree(pos[pool]), float(reach.max()), output_type="ndarray"
+    )
+    near = near[np.lexsort((near["j"], near["i"]))]  # by start, then in the order of pool
+    count = np.bincount(near["i"], minlength=starts.size)
+    offset = np.cumsum(count) - count  # where each start's candidates begin
     which = np.repeat(np.arange(first.size), count[at])
     begin = np.cumsum(count[at]) - count[at]  # each row's first candidate, in `which`
-    cand = pool[found[offset[at[which]] + np.arange(which.size) - begin[which]]]
+    cand = pool[near["j"][offset[at[which]] + np.arange(which.size) - begin[which]]]
     gap = pos[cand] - pos[first[which]]
     inside = np.einsum("ij,ij->i", gap, gap) <= reach[which] ** 2  # (the row's own reach)
     return which[inside], cand[inside]
