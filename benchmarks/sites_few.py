@@ -101,18 +101,22 @@ def _why(reason: str) -> str:
 
 def _summary(name: str, rows: list) -> None:
     """Print one line for a set of photos and its refusals by reason."""
-    errors = np.array([e for e, _, _ in rows if e is not None])
-    right = [ok for e, ok, _ in rows if e is not None]
+    errors = np.array([e for e, _, _, _ in rows if e is not None])
+    right = [ok for e, ok, _, _ in rows if e is not None]
+    z = np.array([z for e, _, _, z in rows if e is not None and z is not None])
     located = int(np.sum(errors <= 0.1))
     wrong_fixtures = sum(1 for e, ok in zip(errors, right, strict=True) if not ok)
     off = sum(1 for e, ok in zip(errors, right, strict=True) if ok and e > 0.1)
-    refused = Counter(why for e, _, why in rows if e is None)
+    refused = Counter(why for e, _, why, _ in rows if e is None)
     median = f"{1e3 * np.median(errors):.1f} mm" if errors.size else "-"
     print(
         f"  {name}: {len(rows)} photos, located {located} ({100 * located / max(len(rows), 1):.0f} "
         f"%), wrong place {wrong_fixtures + off} ({wrong_fixtures} wrong fixtures, {off} off "
         f"> 10 cm), refused {sum(refused.values())}; median error {median}"
     )
+    if z.size:
+        within = ", ".join(f"{100 * np.mean(z <= k):.0f} % within {k}" for k in (1, 2, 3))
+        print(f"      errors over their sigmas (the largest of x, y, z): {within}")
     for why, n in refused.most_common():
         print(f"      refused {n}: {why}")
 
@@ -157,9 +161,15 @@ def main(argv: list[str] | None = None) -> None:
             stage_ms.setdefault(name, []).append(result.timing_ms["pose"])
             if result:
                 e = float(np.linalg.norm(result.position - pose.position))
-                row = (e, _fixtures_right(fmap, pose, result), "")
+                sigma = result.position_sigma
+                z = (
+                    None
+                    if sigma is None
+                    else float(np.max(np.abs(result.position - pose.position) / sigma))
+                )
+                row = (e, _fixtures_right(fmap, pose, result), "", z)
             else:
-                row = (None, True, _why(result.reason))
+                row = (None, True, _why(result.reason), None)
             rows.setdefault((name, whole), []).append(row)
         k += 1
     print(

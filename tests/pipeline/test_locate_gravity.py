@@ -7,6 +7,7 @@ three fixtures in view; the Python call, the command line, a photo's sidecar and
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -67,8 +68,11 @@ def test_locate_with_gravity(two_and_three, small_camera, k: int) -> None:
     assert res.gravity_residual_deg < 0.05
     d = res.to_dict()
     assert d["solver"] == f"gravity-{k}" and d["fixtures_used"] == k
-    # (a pose solved with gravity weighs it: the pixels' fit alone does not say how sure)
-    assert res.position_sigma is None and d["position_sigma"] is None
+    # how sure: from two fixtures the tilt is the gravity's (1 degree sigma): some cm at
+    # their distance; a third holds it too, and its centres are sharp (renders)
+    sigma = res.position_sigma
+    assert np.all((sigma > 0) & (sigma < 0.2)) and (sigma.max() > 0.01) == (k == 2)
+    np.testing.assert_allclose(d["position_sigma"], sigma, atol=1e-6)  # (rounded in the dict)
     # a gravity 1 degree off moves two fixtures' answer by about their distance times it
     off = locate(
         image, small_camera, room, gravity=turned(true_gravity(pose), 1.0, np.random.default_rng(k))
@@ -94,15 +98,18 @@ def test_four_fixtures_with_gravity_report_the_tilt(small_camera, small_room, sm
     assert "tilt_disagreement_deg" in res.to_dict()
     plain = locate(small_render.image, small_camera, small_room)
     assert plain.solver == "pnp" and np.isnan(plain.tilt_disagreement_deg)
-    # the position's sigma is not worked out with gravity: a limit on it does not apply
-    limited = locate(
-        small_render.image,
-        small_camera,
-        small_room,
-        LocateSettings(gravity_sigma_deg=2.0, max_position_sigma=1e-12),
-        gravity=turned(true_gravity(pose), 3.0, np.random.default_rng(1)),
+    # a limit on the position's sigma holds for a pose solved with gravity too
+    gravity = turned(true_gravity(pose), 3.0, np.random.default_rng(1))
+    settings = LocateSettings(gravity_sigma_deg=2.0)
+    loose = locate(small_render.image, small_camera, small_room, settings, gravity=gravity)
+    assert loose and loose.solver == "pnp+gravity" and np.all(np.isfinite(loose.position_sigma))
+    limit = 0.5 * float(loose.position_sigma.max())
+    tight = dataclasses.replace(settings, max_position_sigma=limit)
+    limited = locate(small_render.image, small_camera, small_room, tight, gravity=gravity)
+    assert not limited and limited.position is None
+    assert (
+        "the position is too unsure" in limited.reason and f"limit of {limit:g}" in limited.reason
     )
-    np.testing.assert_array_equal(limited.position, res.position)
 
 
 def test_mirrored_photo_with_gravity(two_and_three, small_camera) -> None:

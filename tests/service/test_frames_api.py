@@ -118,6 +118,7 @@ def test_a_frame_the_track_cannot_place_is_located_with_gravity(client, frames):
     assert a["status"] == "gravity" and a["located"], a
     assert sorted(a["fixtures_used"]) == [5, 12]
     assert np.linalg.norm(np.array(a["position"]) - out.pose.position) < 0.02
+    assert 0 < max(a["position_sigma"]) < 0.2  # (two fixtures: the gravity's 1 degree, in cm)
     stored = client.get(f"/api/v1/sites/{site_id}/fixes/{a['fix_id']}", headers=headers).json()
     assert stored["status"] == "gravity" and stored["located"]
     assert stored["result"]["fixtures_used"] == a["fixtures_used"]

@@ -240,7 +240,8 @@ GravitySigmaOption = Annotated[
     float | None,
     typer.Option(
         "--gravity-sigma-deg",
-        help="Uncertainty of the gravity direction, degrees (default: the sidecar's, else 1).",
+        help="Uncertainty of the gravity direction about each axis across it, degrees "
+        "(default: the sidecar's, else 1).",
     ),
 ]
 

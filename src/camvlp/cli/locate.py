@@ -203,7 +203,8 @@ def _print_human(result: LocateResult, units: str, photo: Path) -> None:
         sigma = result.position_sigma
         if sigma is not None:  # (how far the fixtures' fit and layout let it be off)
             spread = ", ".join(format_number(v, ".2g") for v in sigma)  # (sub-mm ones too)
-            print(f"uncertainty   ({spread}) {units}, 1 sigma from the fixtures' fit")
+            source = "fit" if result.solver == "pnp" else "fit and the gravity's sigma"
+            print(f"uncertainty   ({spread}) {units}, 1 sigma from the fixtures' {source}")
         print(f"orientation   theta = ({angles}) deg")
         print(f"reprojection  {result.reprojection_rms_px:.3f} px RMS")
         if result.solver != "pnp":

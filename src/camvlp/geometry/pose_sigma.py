@@ -10,7 +10,13 @@ import numpy as np
 from camvlp.geometry.disc import CENTRE_SIGMA_FLOOR_PX
 from camvlp.model.camera import Camera, Pose, in_front, project_camera_points, project_points
 
-__all__ = ["JACOBIAN_STEP", "pose_covariance", "pose_jacobian", "position_sigma"]
+__all__ = [
+    "JACOBIAN_STEP",
+    "gravity_position_sigma",
+    "pose_covariance",
+    "pose_jacobian",
+    "position_sigma",
+]
 
 #: Steps of the numerical Jacobian of a projection: radians, and map units per unit of the
 #: camera's distance to the points.
@@ -100,4 +106,62 @@ def position_sigma(
     """
     r = np.asarray(residuals_px, dtype=float)
     cov = _covariance(camera, pose, points, float(r @ r), CENTRE_SIGMA_FLOOR_PX**2)
+    return np.sqrt(np.maximum(np.diag(cov)[3:], 0.0))
+
+
+def gravity_position_sigma(
+    camera: Camera,
+    pose: Pose,
+    points: np.ndarray,
+    pixel_sigma_px,
+    gravity,
+    sigma_deg: float,
+    residuals_px=None,
+    gravity_residual_deg: float = 0.0,
+) -> np.ndarray:
+    """How sure a pose solved with gravity is (:func:`~camvlp.geometry.gravity.
+    solve_pose_gravity`): the standard deviation of the camera centre along the map's x, y
+    and z, map units, shape (3,).
+
+    The covariance of the solver's own least squares: the fixtures' projections weighed by
+    their centres' sigmas (:func:`pose_jacobian`), and the gravity's direction by
+    ``sigma_deg``, which holds the camera's tilt (two of its three turns: the heading is the
+    fixtures' alone).  From two fixtures the six unknowns are exactly determined, and their
+    spread is what the centres' and the gravity's sigmas make of it; with more, scaled up by
+    the fit's reduced chi-square when it is over 1 (the fixtures miss by more than their
+    sigmas say).
+
+    Parameters
+    ----------
+    camera, pose
+        The camera and the solved pose.
+    points : ndarray, shape (m, 3)
+        The map positions of the fixtures the pose uses (m >= 2).
+    pixel_sigma_px : float or ndarray, shape (m,)
+        Their centres' sigmas, pixels (each at least
+        :data:`~camvlp.geometry.disc.CENTRE_SIGMA_FLOOR_PX`).
+    gravity : array_like, shape (3,)
+        The measured gravity in the camera's frame, any length.
+    sigma_deg : float
+        The gravity's direction's sigma, degrees.
+    residuals_px : ndarray, shape (m,), optional
+        The fixtures' reprojection errors with the pose, pixels (for the chi-square).
+    gravity_residual_deg : float
+        The angle between the pose's down and the gravity, degrees (for the chi-square).
+    """
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    m = points.shape[0]
+    sigma_px = np.maximum(np.broadcast_to(pixel_sigma_px, (m,)), CENTRE_SIGMA_FLOOR_PX)
+    jac = (pose_jacobian(camera, pose, points) / sigma_px[:, None, None]).reshape(-1, 6)
+    # a turn e of the camera about its axes moves the down it sees, d, by d x e
+    d = np.asarray(gravity, dtype=float) / np.linalg.norm(gravity)
+    turn = np.zeros((3, 6))
+    turn[:, :3] = np.array([[0, -d[2], d[1]], [d[2], 0, -d[0]], [-d[1], d[0], 0]])
+    turn /= np.radians(sigma_deg)
+    scale, dof = 1.0, 2 * m + 2 - 6
+    if residuals_px is not None and dof > 0:
+        r = np.asarray(residuals_px, dtype=float) / sigma_px
+        chi2 = float(r @ r) + (gravity_residual_deg / sigma_deg) ** 2
+        scale = max(chi2 / dof, 1.0)
+    cov = scale * np.linalg.pinv(jac.T @ jac + turn.T @ turn)
     return np.sqrt(np.maximum(np.diag(cov)[3:], 0.0))

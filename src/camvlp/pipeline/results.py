@@ -169,10 +169,11 @@ class LocateResult:
     position_sigma : ndarray, shape (3,), or None
         How sure the position is: its standard deviation along the map's x, y and z, map
         units, from the fixtures' reprojection errors and what their layout makes of a pixel
-        (:func:`camvlp.geometry.pose_sigma.position_sigma`), for the pose located;
-        worked out when first read (``sigma_of``, a function of no arguments that gives it).
-        None when not located, when the pose was solved with gravity, or when it is not
-        finite.
+        (:func:`camvlp.geometry.pose_sigma.position_sigma`); for a pose solved with gravity,
+        from the centres' and the gravity's sigmas
+        (:func:`camvlp.geometry.pose_sigma.gravity_position_sigma`).  Worked out when first
+        read (``sigma_of``, a function of no arguments that gives it).  None when not
+        located, or when it is not finite.
     """
 
     position: np.ndarray | None

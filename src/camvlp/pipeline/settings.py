@@ -53,8 +53,10 @@ class LocateSettings:
         Keep the intermediate results (:class:`LocateStages`) in the result's ``stages``, for
         debug pictures.
     gravity_sigma_deg : float
-        Uncertainty of a gravity direction given to :func:`locate`, degrees: weighs the
-        gravity residual against the reprojection residuals.
+        Uncertainty of a gravity direction given to :func:`locate`, degrees, about each of
+        the two axes across it (a direction off by 1 degree RMS in a random way is 0.71
+        about each): weighs the gravity residual against the reprojection residuals, and
+        goes into the position's sigma.
     centre_sigma_px : float or None
         With gravity: the uncertainty of a detected disc centre, pixels, which weighs the
         reprojection residuals against the gravity residual.  None (the default): each

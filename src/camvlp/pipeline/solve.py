@@ -8,6 +8,8 @@ solves it for each set of IDs it weighs (:mod:`camvlp.pipeline.identify.decide`)
 from __future__ import annotations
 
 import dataclasses
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +17,7 @@ import numpy as np
 from camvlp.geometry.disc import disc_normals, perspective_offsets
 from camvlp.geometry.gravity import GravityPose, solve_pose_gravity
 from camvlp.geometry.pose import PoseEstimate, estimate_pose
-from camvlp.geometry.pose_sigma import position_sigma
+from camvlp.geometry.pose_sigma import gravity_position_sigma, position_sigma
 from camvlp.model.camera import Camera
 from camvlp.model.fixtures import FixtureMap
 from camvlp.pipeline.detect.blob import Blob
@@ -26,7 +28,7 @@ __all__ = [
     "UNKNOWN_CENTRE_SIGMA_PX",
     "PoseProblem",
     "finite_sigma",
-    "sigma_inputs",
+    "sigma_of",
     "solve_pose",
     "sure_enough",
 ]
@@ -143,20 +145,39 @@ def solve_pose(
     return est, "" if est else est.reason
 
 
-def sigma_inputs(camera, fixture_map, est, found: Identified, down):
-    """What ``LocateResult.position_sigma`` needs (the camera, the pose, the used fixtures'
-    map positions and reprojection errors, and how far an alternative pose that fits about
-    as well lies along each axis: zeros when none does), or None: not located, or solved
-    with gravity (its covariance weighs the gravity too)."""
+def sigma_of(problem: PoseProblem, est, found: Identified) -> Callable[[], np.ndarray] | None:
+    """How sure the position of the pose ``est`` is: a function of no arguments that gives
+    its standard deviation along the map's x, y and z (map units, shape (3,)), or None when
+    not located.  A pose solved from the pixels alone: from its fixtures' reprojection errors
+    (:func:`~camvlp.geometry.pose_sigma.position_sigma`), at least as large along each axis
+    as how far an alternative pose that fits about as well lies; one solved with gravity:
+    from the centres' and the gravity's sigmas the solver weighed them by
+    (:func:`~camvlp.geometry.pose_sigma.gravity_position_sigma`)."""
     pose = est.pose if est is not None else None
-    if pose is None or down is not None or isinstance(est, GravityPose):
+    if pose is None:
         return None
     used = [k for j, k in enumerate(found.usable) if est.used[j]]
+    fixture_map = problem.fixture_map
     points = np.array([fixture_map.get(found.ids[k]).position for k in used]).reshape(-1, 3)
+    residuals = np.asarray(est.residuals_px, dtype=float)[est.used]
+    if isinstance(est, GravityPose):
+        st = problem.settings
+        pixel = centre_sigmas(problem.blobs, found.usable, st)[est.used]
+        return functools.partial(
+            gravity_position_sigma,
+            problem.camera,
+            pose,
+            points,
+            pixel,
+            problem.gravity[0],
+            st.gravity_sigma_deg,
+            residuals,
+            est.gravity_residual_deg,
+        )
     close = np.zeros(3)
     if est.close and est.alternative is not None:
         close = np.abs(est.alternative.position - pose.position)
-    return camera, pose, points, np.asarray(est.residuals_px, dtype=float)[est.used], close
+    return functools.partial(_position_sigma, problem.camera, pose, points, residuals, close)
 
 
 def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
@@ -165,29 +186,29 @@ def _position_sigma(camera, pose, points, residuals_px, close) -> np.ndarray:
     return np.maximum(position_sigma(camera, pose, points, residuals_px), close)
 
 
-def finite_sigma(*inputs) -> np.ndarray | None:
-    """:func:`_position_sigma`, or None when it is not finite."""
-    sigma = _position_sigma(*inputs)
-    return sigma if np.isfinite(sigma).all() else None
+def finite_sigma(sigma: Callable[[], np.ndarray]) -> np.ndarray | None:
+    """What ``sigma`` (as :func:`sigma_of` gives it) gives, or None when it is not finite."""
+    value = sigma()
+    return value if np.isfinite(value).all() else None
 
 
 def sure_enough(
-    est: PoseEstimate, sigma_inputs, limit: float
-) -> tuple[PoseEstimate, str, np.ndarray | None]:
-    """The pose, or no pose and why when its position's standard deviation
-    (:func:`~camvlp.geometry.pose_sigma.position_sigma`, map units) exceeds ``limit`` along an
-    axis or is not finite; and that standard deviation, shape (3,), when the pose is kept."""
-    sigma = _position_sigma(*sigma_inputs)
-    finite = np.isfinite(sigma)
-    axis = int(np.argmax(np.where(finite, sigma, np.inf)))
-    if finite.all() and sigma[axis] <= limit:
-        return est, "", sigma
-    told = f"is {sigma[axis]:.3g} (map units), over" if finite[axis] else "is not finite, for"
+    est: PoseEstimate | GravityPose, sigma: Callable[[], np.ndarray], limit: float
+) -> tuple[PoseEstimate | GravityPose, str, np.ndarray | None]:
+    """The pose, or no pose and why when its position's standard deviation (``sigma``, as
+    :func:`sigma_of` gives it; map units) exceeds ``limit`` along an axis or is not finite;
+    and that standard deviation, shape (3,), when the pose is kept."""
+    value = sigma()
+    finite = np.isfinite(value)
+    axis = int(np.argmax(np.where(finite, value, np.inf)))
+    if finite.all() and value[axis] <= limit:
+        return est, "", value
+    told = f"is {value[axis]:.3g} (map units), over" if finite[axis] else "is not finite, for"
     why = (
         f"the position is too unsure: its standard deviation along {'xyz'[axis]} {told} "
         f"the limit of {limit:g}"
     )
-    refused = dataclasses.replace(
-        est, pose=None, alternative=None, alternative_rms_px=float("nan"), reason=why
-    )
-    return refused, why, None
+    cleared = {"pose": None, "alternative": None, "reason": why}
+    if not isinstance(est, GravityPose):
+        cleared["alternative_rms_px"] = float("nan")
+    return dataclasses.replace(est, **cleared), why, None

@@ -24,7 +24,7 @@ from camvlp.pipeline.identify.decide import decided
 from camvlp.pipeline.lights import UNCLEAR_AXIS, Lights, striped
 from camvlp.pipeline.prepare import Prepared
 from camvlp.pipeline.settings import LocateSettings
-from camvlp.pipeline.solve import PoseProblem, finite_sigma, sigma_inputs, sure_enough
+from camvlp.pipeline.solve import PoseProblem, finite_sigma, sigma_of, sure_enough
 
 __all__ = ["Solved", "identify_and_solve", "readout_direction"]
 
@@ -109,13 +109,13 @@ def identify_and_solve(
     if lights.readout is None:
         reason = UNCLEAR_AXIS
     readout = man.readout if man is not None else (lights.readout or Readout.ROWS)
-    inputs = sigma_inputs(prepared.camera, fixture_map, est, kept.found, prepared.gravity)
-    sigma_of = None if inputs is None else functools.partial(finite_sigma, *inputs)
-    if inputs is not None and settings.max_position_sigma is not None:  # now, against the limit
-        est, reason, sigma = sure_enough(est, inputs, settings.max_position_sigma)
-        sigma_of = functools.partial(_given, sigma)
+    sigma = sigma_of(problem, est, kept.found)
+    position_sigma = None if sigma is None else functools.partial(finite_sigma, sigma)
+    if sigma is not None and settings.max_position_sigma is not None:  # now, against the limit
+        est, reason, value = sure_enough(est, sigma, settings.max_position_sigma)
+        position_sigma = functools.partial(_given, value)
     return Solved(
-        tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, sigma_of, local
+        tuple(kept.decodes), kept.found, est, reason, kept.told, readout, man, position_sigma, local
     )
 
 
