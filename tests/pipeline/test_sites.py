@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import itertools
 import json
+import math
 import re
 
 import cv2
@@ -166,15 +167,41 @@ def test_the_distance_bounds_hold_the_true_distance():
     assert distance_bounds((1.0, np.inf), (1.0, 2.0), 0.5) == (0.0, np.inf)
 
 
+def _bounds_of_one_pair(a, b, cos):
+    """The least and greatest distance of two points at distances within ``a`` and ``b``
+    seen ``arccos(cos)`` apart, pair by pair in plain Python: the least over a fine grid of
+    both distances (an upper bound of it, close), the greatest at a corner."""
+
+    def d(r1, r2):
+        return math.sqrt(max(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
+
+    if not (math.isfinite(a[1]) and math.isfinite(b[1])):
+        return 0.0, math.inf
+    grid = [
+        (a[0] + (a[1] - a[0]) * i / 200, b[0] + (b[1] - b[0]) * j / 200)
+        for i in range(201)
+        for j in range(201)
+    ]
+    return min(d(r1, r2) for r1, r2 in grid), max(d(r1, r2) for r1 in a for r2 in b)
+
+
 def test_distance_bounds_of_arrays_are_those_of_each_pair():
     rng = np.random.default_rng(5)
     r1, r2 = rng.uniform(0.5, 10.0, (2, 6, 1)), rng.uniform(0.5, 10.0, (2, 1, 7))
     cos = rng.uniform(-1.0, 1.0, (6, 7))
     r2[1, 0, 3] = np.inf  # (a greatest distance unknown: that pair's bounds are (0, inf))
     lo, hi = distance_bounds((r1[0], r1[0] + r1[1]), (r2[0], r2[0] + r2[1]), cos)
+    assert lo.shape == hi.shape == (6, 7)
     for i, j in itertools.product(range(6), range(7)):
         a, b = (r1[0, i, 0], r1[0, i, 0] + r1[1, i, 0]), (r2[0, 0, j], r2[0, 0, j] + r2[1, 0, j])
-        assert (lo[i, j], hi[i, j]) == distance_bounds(a, b, float(cos[i, j]))
+        want = _bounds_of_one_pair(a, b, float(cos[i, j]))
+        assert distance_bounds(a, b, float(cos[i, j])) == (lo[i, j], hi[i, j])
+        assert hi[i, j] == pytest.approx(want[1]) or hi[i, j] == want[1] == np.inf
+        assert lo[i, j] <= want[0] + 1e-12 and lo[i, j] >= want[0] - 0.05 * (a[1] + b[1])
+    lo, hi = distance_bounds((1.0, np.array([1.5, 2.5])), (1.0, 2.0), 0.5)  # (ends of 2 shapes)
+    assert lo.shape == (2,) and hi[1] == pytest.approx(
+        _bounds_of_one_pair((1, 2.5), (1, 2), 0.5)[1]
+    )
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

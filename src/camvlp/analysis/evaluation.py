@@ -48,7 +48,7 @@ class PhotoResult:
         Photos with a sidecar ``PHOTO.json`` giving gravity are located with it.
     position_sigma : ndarray, shape (3,), or None
         How sure the position is (``LocateResult.position_sigma``): its standard deviation
-        along x, y and z, map units; None when not located or solved with gravity.
+        along x, y and z, map units; None when not located.
     """
 
     photo: str

@@ -229,8 +229,7 @@ MaxSigmaOption = Annotated[
         "--max-sigma",
         metavar="S",
         help="Do not report a position whose standard deviation along an axis exceeds S (map "
-        "units): the photo is then not located, and the reason gives it. Not applied with "
-        "gravity. Default: no limit.",
+        "units): the photo is then not located, and the reason gives it. Default: no limit.",
     ),
 ]
 

@@ -47,12 +47,12 @@ def distance_bounds(a, b, cos):
         inputs broadcast to; floats for floats); ``(0, inf)`` where a greatest distance is
         not finite.
     """
+    ends = (np.asarray(v, dtype=float) for v in (*a, *b, cos))
+    a_lo, a_hi, b_lo, b_hi, cos = np.broadcast_arrays(*ends)
 
     def d(r1, r2):
         return np.sqrt(np.maximum(r1 * r1 + r2 * r2 - 2 * r1 * r2 * cos, 0.0))
 
-    a_lo, a_hi = (np.asarray(r, dtype=float) for r in a)
-    b_lo, b_hi = (np.asarray(r, dtype=float) for r in b)
     with np.errstate(invalid="ignore", over="ignore"):  # (infinite ends: replaced below)
         # convex in each distance: the greatest at a corner, the least on an edge
         corners = [d(r1, r2) for r1 in (a_lo, a_hi) for r2 in (b_lo, b_hi)]

@@ -66,8 +66,8 @@ class LocateSettings:
         The most a located position's standard deviation may be along any of the map's axes,
         map units (:attr:`LocateResult.position_sigma`); a photo whose position is less sure
         (its fixtures on a narrow band of the photo, a centre or a map position off) is not
-        located, its reason giving the sigma.  None (the default): no limit.  Not applied to
-        a pose solved with gravity (whose sigma is not worked out).
+        located, its reason giving the sigma.  None (the default): no limit.  A pose solved
+        with gravity is held to it too (its sigma weighs the gravity's).
     near : tuple of float or None
         A prior on where the photo was taken, for a map whose IDs repeat
         (:attr:`FixtureMap.reuse`): the camera's ``(x, y)`` or ``(x, y, z)``, map units (with

@@ -384,7 +384,7 @@ def _with_gravity(
         "status": "gravity",
         "located": True,
         "position": _round(res.position),
-        "position_sigma": _round(res.position_sigma),
+        "position_sigma": _round(res.position_sigma, 7),
         "rotation": _round(res.rotation, 8),
         "euler_deg": _round(res.euler_deg, 4),
         "raw_position": _round(res.position),

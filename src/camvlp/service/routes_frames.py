@@ -101,12 +101,12 @@ async def post_frame(
     track's prior), ``gravity`` (located alone with ``gravity``), ``predicted`` or ``lost``
     (not located: ``error`` says why).  ``position`` is the track's filtered position (map
     units), ``raw_position`` the frame's own solve, ``position_sigma`` a standard deviation
-    per axis (a fix's: its own solve's, as ``locate`` gives it; a tracked pose's: the
-    filter's); ``plan`` has them on the plan seen from above.  Each device has one frame located
-    at a time and at most one waiting: a newer frame takes the waiting one's place, and that
-    one is answered 409 (``frame dropped``), as is a frame whose ``t`` is not after the last
-    one's.  413, 415, 400, 422 as for photos; 503 when the process has too many photos and
-    frames in hand.
+    per axis (a fix's or a ``gravity`` frame's: its own solve's, as ``locate`` gives it; a
+    tracked pose's: the filter's); ``plan`` has them on the plan seen from above.  Each device
+    has one frame located at a time and at most one waiting: a newer frame takes the waiting
+    one's place, and that one is answered 409 (``frame dropped``), as is a frame whose ``t``
+    is not after the last one's.  413, 415, 400, 422 as for photos; 503 when the process has
+    too many photos and frames in hand.
     """
     request.state.device = device
     kind = _kind(request)

@@ -63,7 +63,9 @@ class Manchester:
         The photo's chip length, rows (the model's when it was fitted, else the run-length
         decoder's median).
     model : SensorModel or None
-        The fitted photo-wide parameters (None when no fixture needed the model).
+        The fitted photo-wide parameters (None when no fixture needed the model: the
+        run-length decoder read them all, or those it left are too short to read at any
+        chip length the fit could reach).
     other : tuple or None
         The decodes under the other direction, when the stripes fit both about equally (the
         pose decides).
@@ -345,7 +347,8 @@ def decode_manchester(
     -------
     Manchester
         The decodes, the readout they were read with, the photo-wide parameters (``model``
-        when it explained the photo; None when the run-length decoder read every profile).
+        when it explained the photo; None when the run-length decoder read every profile, or
+        every one it left is too short to read).
     """
     seed = rows_per_chip
     if seed is None and camera.row_time_s and fixture_map.chip_rate_hz:

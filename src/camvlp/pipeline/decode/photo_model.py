@@ -176,7 +176,8 @@ def estimate_photo_model(
     weights : sequence of array_like, optional
         Row weights per profile.
     rows_per_chip : float, optional
-        The chip length when known (row time and chip rate): refined within 2 %; searched
+        The chip length when known (row time and chip rate): refined within
+        :data:`SEEDED_CHIP_SPAN` of it (the result never ends farther); searched
         over ``rows_per_chip_range`` otherwise.
     gamma : float or None
         The sensor's gamma when known (1 for linear raw data); None fits it.
