@@ -18,7 +18,7 @@ from camvlp.geometry.gravity import (
     tilt_error_deg,
     tilt_rotation,
 )
-from camvlp.geometry.pose_sigma import gravity_position_sigma
+from camvlp.geometry.pose_sigma import gravity_position_sigma, position_sigma
 from camvlp.model.camera import Camera, Pose, project_points
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -356,3 +356,13 @@ def test_the_position_sigma_of_a_gravity_pose_is_its_spread_under_noise(n):
     sigma = gravity_position_sigma(camera, pose, points, 0.5, down, 1.0)
     np.testing.assert_allclose(spread, sigma, rtol=0.12)
     np.testing.assert_allclose(np.median(own, axis=0), spread, rtol=0.2)
+
+
+def test_the_sigma_of_a_pose_with_a_fixture_behind_it_is_not_finite_not_an_error():
+    camera = Camera.from_focal(1296, 970, 978.0)
+    pose = Pose(np.eye(3), np.zeros(3))  # looking along +z
+    points = np.array([[0.2, 0.1, 2.0], [-0.3, 0.2, 2.5], [0.1, -0.2, -1.0]])  # one behind
+    sigma = gravity_position_sigma(camera, pose, points, 0.5, [0.0, 1.0, 0.0], 1.0)
+    assert sigma.shape == (3,) and np.all(np.isnan(sigma))
+    sigma = position_sigma(camera, pose, points, np.zeros(3))
+    assert sigma.shape == (3,) and np.all(np.isnan(sigma))

@@ -79,7 +79,15 @@ def _covariance(
     ``floor_px2`` the least variance per coordinate (pixels squared)."""
     jac = pose_jacobian(camera, pose, points).reshape(-1, 6)
     s2 = max(squares_px2 / max(jac.shape[0] - 6, 1), floor_px2)
-    return s2 * np.linalg.pinv(jac.T @ jac)
+    return s2 * _inverse(jac.T @ jac)
+
+
+def _inverse(info: np.ndarray) -> np.ndarray:
+    """The pseudo-inverse of an information matrix (6, 6); NaN where it is not finite (a
+    fixture behind the camera has no projection), which SVD does not take."""
+    if not np.all(np.isfinite(info)):
+        return np.full(info.shape, np.nan)
+    return np.linalg.pinv(info)
 
 
 def position_sigma(
@@ -163,5 +171,5 @@ def gravity_position_sigma(
         r = np.asarray(residuals_px, dtype=float) / sigma_px
         chi2 = float(r @ r) + (gravity_residual_deg / sigma_deg) ** 2
         scale = max(chi2 / dof, 1.0)
-    cov = scale * np.linalg.pinv(jac.T @ jac + turn.T @ turn)
+    cov = scale * _inverse(jac.T @ jac + turn.T @ turn)
     return np.sqrt(np.maximum(np.diag(cov)[3:], 0.0))
