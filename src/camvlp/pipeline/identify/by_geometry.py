@@ -94,10 +94,10 @@ SEED_SETS = 3
 #: Most hypotheses (four fixtures) a seed set may give, and most rows any step of their
 #: search may make (in the order :func:`_search_order` picks, which makes the fewest):
 #: beyond, the photo is refused (its lights fit too many places to try; a prior narrows
-#: them).  Those a rigid motion cannot
-#: explain are dropped together (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`), and
-#: each one left costs a PnP solve (about a tenth of a millisecond); renders of the
-#: warehouse of ``examples/make_warehouse.py`` give a few hundred.
+#: them).  Those a rigid motion cannot explain are dropped together
+#: (:func:`~camvlp.geometry.hypotheses.rigid_on_plane`), and each one left costs a PnP solve
+#: (about a tenth of a millisecond); renders of the warehouse of
+#: ``examples/make_warehouse.py`` give a few hundred.
 MAX_HYPOTHESES = 20_000
 
 #: Lights with an ID a photo needs to be placed: four for a pose, one more to confirm it.
