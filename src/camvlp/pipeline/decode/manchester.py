@@ -157,7 +157,7 @@ def _with_model(
         kept = decode_photo(sub, frame, ids, weights=sub_w, model=carried)
         photo = kept if _explains(kept) else None
     reach = t * (1 - SEEDED_CHIP_SPAN) if t else None  # (the shortest chip the fit may end at)
-    if reach and all(too_short(p, frame, reach) is not None for p in sub) and photo is None:
+    if photo is None and reach and all(too_short(p, frame, reach) is not None for p in sub):
         # none is long enough to be read at any chip length the fit can reach from ``t``:
         # no parameters are fitted (the carried ones' reads kept), each refused as too short
         if kept is not None and _read(kept) > 0:
